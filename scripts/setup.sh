@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Idempotent set-up on a fresh Debian/Ubuntu machine: system packages, a Python venv with the
+# project's requirements, then CMake configure + build. Sourced by run.sh and test.sh.
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+cd "$ROOT"
+
+say() { printf '\033[1m[setup]\033[0m %s\n' "$*"; }
+
+# --- system packages (Debian names) ---
+APT_PACKAGES=(build-essential cmake ninja-build libeigen3-dev libsundials-dev libgtest-dev valgrind)
+missing=()
+for p in "${APT_PACKAGES[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+if [ ${#missing[@]} -gt 0 ]; then
+  say "installing system packages: ${missing[*]}"
+  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+# --- Python venv ---
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  say "creating .venv"
+  if ! "$PY" -m venv .venv 2>/dev/null; then
+    SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get install -y -qq python3-venv >/dev/null
+    rm -rf .venv; "$PY" -m venv .venv
+  fi
+fi
+if ! cmp -s requirements.txt .venv/.requirements.installed; then
+  say "installing Python requirements"
+  .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+  .venv/bin/python -m pip install -q -r requirements.txt
+  cp requirements.txt .venv/.requirements.installed
+fi
+export PATH="$ROOT/.venv/bin:$PATH"
+
+# --- build ---
+BUILD_TYPE=${BUILD_TYPE:-Release}
+if [ ! -f build/CMakeCache.txt ]; then
+  say "configuring (CMake, $BUILD_TYPE)"
+  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DPython3_EXECUTABLE="$ROOT/.venv/bin/python" >/dev/null
+fi
+say "building"
+cmake --build build --parallel "$(nproc)"
