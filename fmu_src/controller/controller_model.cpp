@@ -1,0 +1,169 @@
+#include "controller_model.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "magnet_flux.hpp"
+
+namespace ipmsm {
+
+using fmi::Causality;
+using fmi::Variability;
+using V = fmi::Variable<ControllerModel>;
+using M = ControllerModel;
+
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kSqrt3 = 1.7320508075688772;
+// Magnet temperatures outside this range are not an NdFeB magnet in a working motor, K.
+constexpr double kMagnetTempMin = 173.15, kMagnetTempMax = 573.15;
+}  // namespace
+
+const std::vector<V>& ControllerModel::variables() {
+    static const std::vector<V> table = {
+        // inputs
+        {"T_ref", &M::T_ref, Causality::input, Variability::continuous, "N.m", "", "Torque command (either sign)"},
+        {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm", "Mechanical rotor speed (either sign)"},
+        {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "", "Measured DC-link voltage", 0.0, kInf, true},
+        {"i_d", &M::i_d, Causality::input, Variability::continuous, "A", "", "Measured d-axis current (peak, amplitude-invariant)"},
+        {"i_q", &M::i_q, Causality::input, Variability::continuous, "A", "", "Measured q-axis current (peak, amplitude-invariant)"},
+        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC", "Magnet temperature (estimate)", kMagnetTempMin, kMagnetTempMax},
+        // outputs
+        {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "", "d-axis current command"},
+        {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "", "q-axis current command"},
+        {"u_d_ref", &M::u_d_ref, Causality::output, Variability::discrete, "V", "", "d-axis voltage command, within the inverter's linear range; to be applied over the next step"},
+        {"u_q_ref", &M::u_q_ref, Causality::output, Variability::discrete, "V", "", "q-axis voltage command, within the inverter's linear range; to be applied over the next step"},
+        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "", "Torque actually commanded: T_ref clamped to what the limits allow now"},
+        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "", "Largest torque magnitude reachable now, with the sign of T_ref"},
+        {"T_est", &M::T_est, Causality::output, Variability::discrete, "N.m", "", "Torque estimated from the measured currents and the flux map"},
+        {"region", &M::region, Causality::output, Variability::discrete, "", "", "0 zero torque, 1 MTPA, 2 voltage limit (Case ii), 3 current and voltage limit, 4 MTPV"},
+        {"iterations", &M::iterations, Causality::output, Variability::discrete, "", "", "Inductance-recursion (recursion 1) or Newton (recursion 2) iterations used this step"},
+        {"voltage_saturated", &M::voltage_saturated, Causality::output, Variability::discrete, "", "", "The current regulator's voltage was limited to the inverter's linear range this step"},
+        {"table_bytes", &M::table_bytes, Causality::output, Variability::discrete, "", "", "Memory of the 2-D tables (methods 2, 3), bytes; 0 for Ferrari"},
+        // parameters
+        {"method", &M::method, Causality::parameter, Variability::fixed, "", "", "1 Ferrari (online), 2 2-D table over torque x speed, 3 2-D table over torque x V_max/omega", 1, 3},
+        {"recursion", &M::recursion, Causality::parameter, Variability::fixed, "", "", "0 nominal inductances, 1 apparent-inductance recursion (the paper), 2 optimal on the flux map", 0, 2},
+        {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "", "Path of a flux-map CSV; empty: the default map in resources/"},
+        {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)", 1, 100},
+        {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "", "Stator resistance", 0.0, kInf},
+        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "", "Peak current limit", 0.0, kInf, true},
+        {"k_u", &M::k_u, Causality::parameter, Variability::fixed, "1", "", "Voltage utilisation of the current commands: V_max = k_u u_dc / sqrt(3)", 0.0, 1.0, true},
+        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature at which the flux map holds", kMagnetTempMin, kMagnetTempMax},
+        {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "", "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
+        {"lut_u_dc", &M::lut_u_dc, Causality::parameter, Variability::fixed, "V", "", "DC voltage the 2-D tables are built for (methods 2, 3)", 0.0, kInf, true},
+        {"lut_T_magnet", &M::lut_T_magnet, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature the 2-D tables are built for (methods 2, 3)", kMagnetTempMin, kMagnetTempMax},
+        {"lut_n_torque", &M::lut_n_torque, Causality::parameter, Variability::fixed, "", "", "2-D table grid points along torque", 3, 1001},
+        {"lut_n_speed", &M::lut_n_speed, Causality::parameter, Variability::fixed, "", "", "2-D table grid points along speed (method 2) or V_max/omega (method 3)", 3, 1001},
+        {"w_m_max", &M::w_m_max, Causality::parameter, Variability::fixed, "rad/s", "rpm", "Top of the 2-D tables' speed axis", 0.0, kInf, true},
+        {"current_bandwidth", &M::current_bandwidth, Causality::parameter, Variability::fixed, "rad/s", "", "Closed-loop bandwidth of the current regulator", 0.0, kInf, true},
+    };
+    return table;
+}
+
+ControllerModel::ControllerModel(const fmi::Context& context) : context_(context) {}
+
+void ControllerModel::exit_initialization() {
+    // Everything into locals first: a throw leaves the model as it was.
+    const std::string path = flux_map.empty() ? context_.resource_dir + "/" + default_flux_map : flux_map;
+    if (flux_map.empty() && context_.resource_dir.empty())
+        throw fmi::Error("flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
+                         "set flux_map to a flux-map CSV");
+    auto map = std::make_shared<const FluxMap>(read_flux_map(path));  // FluxMapError: says file and line
+
+    const FluxMapTable& t = map->table();
+    const double p_meta = t.metadata_number("pole_pairs", pole_pairs);
+    if (p_meta != pole_pairs && context_.log_warning) {
+        std::ostringstream os;
+        os << "flux map " << path << " says pole_pairs: " << p_meta << ", but the parameter pole_pairs is "
+           << pole_pairs << "; using the parameter";
+        context_.log_warning(os.str());
+    }
+    SaturatedOptimalCurrent solver(map, pole_pairs);
+    std::shared_ptr<const TorqueTable> table;
+    if (method == 2 || method == 3) {
+        TableSpec spec;
+        spec.axis = method == 2 ? TableAxis::speed : TableAxis::flux;
+        spec.n_torque = lut_n_torque;
+        spec.n_second = lut_n_speed;
+        spec.u_dc = lut_u_dc;
+        spec.k_u = k_u;
+        spec.I_max = I_max;
+        spec.R_s = R_s;
+        spec.psi_d_shift = magnet_flux_shift(*map, k_psi_T, lut_T_magnet, T_magnet_ref);
+        spec.w_m_max = w_m_max;
+        table = std::make_shared<const TorqueTable>(solver, spec);
+    }
+    map_ = std::move(map);
+    table_ = std::move(table);
+    solver_ = std::move(solver);
+    regulator_ = CurrentRegulator(current_bandwidth, R_s);
+    table_bytes = table_ ? static_cast<int>(table_->bytes()) : 0;
+    if (context_.log_info) {
+        std::ostringstream os;
+        os << "flux map " << path << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
+           << map_->psi_m() << " Wb; method " << method << ", recursion " << recursion;
+        if (table_) os << ", 2-D table " << lut_n_torque << " x " << lut_n_speed << " (" << table_bytes << " bytes)";
+        context_.log_info(os.str());
+    }
+}
+
+void ControllerModel::do_step(double /*t*/, double h) {
+    const double omega = pole_pairs * w_m;
+    const double V_max = k_u * u_dc / kSqrt3;
+    const double shift = magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref);
+    const MagnetFlux flux(*map_, shift);
+
+    // Work on copies of the state; commit only when everything succeeded.
+    SaturatedOptimalCurrent solver = *solver_;
+    CurrentRegulator regulator = regulator_;
+    CurrentCommand cmd;
+    if (method == 1) {
+        cmd = solver.solve(T_ref, {omega, V_max, I_max}, R_s, shift, static_cast<Recursion>(recursion));
+    } else {
+        cmd = table_->lookup(T_ref, w_m, V_max);
+    }
+    const double sign = T_ref < 0 ? -1.0 : 1.0;
+    const VoltageCommand u = regulator.step(cmd.i_d, cmd.i_q, i_d, i_q, omega, u_dc, h, flux);
+    const double T_estimated = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
+    if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q) &&
+          std::isfinite(T_estimated)))
+        throw fmi::Error("the controller produced a non-finite value (inputs out of the flux map's sensible range?)");
+
+    if (!cmd.feasible && !warned_unreachable_ && context_.log_warning) {
+        std::ostringstream os;
+        os << "no current within I_max = " << I_max << " A keeps the voltage within V_max = " << V_max
+           << " V at w_m = " << w_m << " rad/s: above the maximum speed; commanding i_d = " << cmd.i_d << " A";
+        context_.log_warning(os.str());
+    }
+    warned_unreachable_ = !cmd.feasible;
+    *solver_ = solver;
+    regulator_ = regulator;
+    i_d_ref = cmd.i_d;
+    i_q_ref = cmd.i_q;
+    u_d_ref = u.u_d;
+    u_q_ref = u.u_q;
+    voltage_saturated = u.limited;
+    T_max = sign * cmd.torque_max;
+    T_cmd = sign * std::min(std::abs(T_ref), cmd.torque_max);
+    T_est = T_estimated;
+    region = static_cast<int>(cmd.region);
+    iterations = cmd.iterations;
+}
+
+void ControllerModel::save_state(fmi::StateWriter& w) const {
+    const SolverMemory& m = solver_ ? solver_->memory : SolverMemory{};
+    w.put(m);
+    w.put(regulator_.state);
+    w.put(warned_unreachable_);
+}
+
+void ControllerModel::load_state(fmi::StateReader& r) {
+    const auto m = r.get<SolverMemory>();
+    const auto s = r.get<RegulatorState>();
+    const auto warned = r.get<bool>();
+    if (solver_) solver_->memory = m;
+    regulator_.state = s;
+    warned_unreachable_ = warned;
+}
+
+}  // namespace ipmsm

@@ -1,0 +1,78 @@
+// IpmsmController: torque command -> current-minimising current commands -> voltage commands.
+// The model of the IpmsmController FMU; free of FMI types (the glue in ../fmi maps it).
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "current_regulator.hpp"
+#include "model.hpp"
+#include "saturated_optimal_current.hpp"
+#include "torque_table.hpp"
+#include "variable.hpp"
+
+namespace ipmsm {
+
+class ControllerModel {
+public:
+    static constexpr const char* model_identifier = "IpmsmController";
+    static constexpr const char* guid = "{8d3c5f0e-2b7a-4c61-9e44-1f5a7b2c9d01}";
+    static constexpr const char* description =
+        "IPMSM torque controller: current-minimising d/q current commands by Ferrari's method "
+        "(MTPA, voltage ellipse with R_s, MTPV, torque clamping) with inductance recursion on a "
+        "flux map, or the 2-D lookup-table baseline; and a PI current regulator.";
+    static constexpr double default_step_size = 1e-4;
+    static constexpr double default_stop_time = 0.1;
+    static const std::vector<fmi::Variable<ControllerModel>>& variables();
+
+    explicit ControllerModel(const fmi::Context& context);
+    void exit_initialization();
+    void do_step(double t, double h);
+    void save_state(fmi::StateWriter& w) const;
+    void load_state(fmi::StateReader& r);
+
+    // --- inputs
+    double T_ref = 0.0;         // N.m
+    double w_m = 0.0;           // rad/s
+    double u_dc = 355.0;        // V
+    double i_d = 0.0, i_q = 0.0;  // A, measured
+    double T_magnet = 293.15;   // K
+    // --- outputs
+    double i_d_ref = 0.0, i_q_ref = 0.0;  // A
+    double u_d_ref = 0.0, u_q_ref = 0.0;  // V
+    double T_cmd = 0.0, T_max = 0.0, T_est = 0.0;  // N.m
+    int region = 0;
+    int iterations = 0;
+    bool voltage_saturated = false;
+    int table_bytes = 0;
+    // --- parameters (defaults: the default motor, plant/resources/ev_ipmsm_default.csv)
+    int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
+    int recursion = 2;  // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
+    std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
+    int pole_pairs = 4;
+    double R_s = 0.012;         // Ohm
+    double I_max = 500.0;       // A
+    double k_u = 0.95;
+    double T_magnet_ref = 293.15;  // K
+    double k_psi_T = -0.0012;   // 1/K
+    double lut_u_dc = 355.0;    // V
+    double lut_T_magnet = 293.15;  // K
+    int lut_n_torque = 41;
+    int lut_n_speed = 41;
+    double w_m_max = 1256.6370614359173;  // rad/s (12 000 r/min): top of the tables' speed axis
+    double current_bandwidth = 3141.5926535897932;  // rad/s (500 Hz)
+
+    static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
+
+private:
+    fmi::Context context_;
+    std::shared_ptr<const FluxMap> map_;
+    std::shared_ptr<const TorqueTable> table_;
+    std::optional<SaturatedOptimalCurrent> solver_;  // its warm-start memory is state
+    CurrentRegulator regulator_{0.0, 0.0};
+    bool warned_unreachable_ = false;
+};
+
+}  // namespace ipmsm

@@ -1,0 +1,41 @@
+// Newton's method on the flux map for the exact current-minimising conditions of a saturated
+// machine. Each operating condition is two equations in (i_d, i_q), built from three scalar
+// fields with gradients and Hessians: reduced torque T' = psi_d i_q - psi_q i_d, squared
+// voltage g = v_d^2 + v_q^2 and squared current c = i_d^2 + i_q^2.
+//   MTPA for T*:            T' = T*,   grad c x grad T' = 0 (Lagrange: the circle touches the torque curve)
+//   voltage limit for T*:   T' = T*,   g = V^2
+//   MTPA at the current limit: c = I^2, grad c x grad T' = 0
+//   MTPV:                   g = V^2,   grad g x grad T' = 0
+//   current & voltage limit: c = I^2,   g = V^2
+#pragma once
+
+#include "magnet_flux.hpp"
+
+namespace ipmsm::map_newton {
+
+enum class System { mtpa, voltage_limit, mtpa_at_current, mtpv, current_voltage };
+
+struct Problem {
+    System system;
+    double omega;   // electrical speed, rad/s
+    double R_s;     // Ohm
+    double T_red;   // torque target T / (1.5 p), for mtpa and voltage_limit
+    double V_max;   // V
+    double I_max;   // A
+};
+
+struct Result {
+    double i_d, i_q;
+    int iterations;
+    bool converged;
+};
+
+// From the seed (i_d, i_q), at most max_iterations steps; converged when a step is below
+// tolerance_A. Steps are limited to max_step_A to keep Newton on the seed's branch.
+Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double i_q,
+             int max_iterations = 12, double tolerance_A = 1e-6, double max_step_A = 50.0);
+
+// Squared steady-state voltage at a current.
+double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);
+
+}  // namespace ipmsm::map_newton

@@ -1,0 +1,61 @@
+// Current-minimising commands on a saturated machine, given by its flux map.
+//   recursion 0: Ferrari with the nominal (unsaturated, small-signal) inductances at i = 0.
+//   recursion 1: the paper's recursion: apparent inductances L_d = (psi_d(i) - psi_d(0, i_q)) / i_d,
+//                L_q = psi_q(i) / i_q and psi_m = psi_d(0, i_q) at the last solution, Ferrari
+//                again, until the command moves by less than 0.05 A. Meets the torque exactly,
+//                but its MTPA ignores dL/di and so uses more current than needed.
+//   recursion 2: the true optimum on the map: Newton on the exact optimality conditions
+//                (map_newton.hpp), seeded by one Ferrari solve with apparent inductances.
+// The solver remembers its last solutions as warm starts (a drive's commands move little
+// between 100-us samples); the memory is part of the FMU state.
+#pragma once
+
+#include <memory>
+
+#include "flux_map.hpp"
+#include "linear_optimal_current.hpp"
+#include "machine.hpp"
+#include "magnet_flux.hpp"
+
+namespace ipmsm {
+
+enum class Recursion : int { nominal = 0, apparent = 1, optimal = 2 };
+
+struct SolverMemory {
+    double op_i_d = 0, op_i_q = 0;        // last command
+    double limit_i_d = 0, limit_i_q = 0;  // last T_max point
+    bool has_limit = false;
+};
+
+class SaturatedOptimalCurrent {
+public:
+    SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs);
+
+    // psi_d_shift: magnet-temperature shift of psi_d (magnet_flux_shift()).
+    CurrentCommand solve(double T_ref, const OperatingLimits& lim, double R_s, double psi_d_shift,
+                         Recursion mode);
+
+    // The linear model a recursion step would use at (i_d, i_q).
+    LinearMachine apparent_machine(const MagnetFlux& flux, double i_d, double i_q, double R_s) const;
+    LinearMachine nominal_machine(double R_s, double psi_d_shift) const;
+
+    const FluxMap& map() const { return *map_; }
+    int pole_pairs() const { return pole_pairs_; }
+    SolverMemory memory;
+
+    // Convergence threshold of the paper's recursion (seed: 0.05 A).
+    static constexpr double recursion_tolerance_A = 0.05;
+    static constexpr int recursion_max_iterations = 30;
+
+private:
+    CurrentCommand solve_recursive(double T_ref, const OperatingLimits& lim, double R_s,
+                                   const MagnetFlux& flux);
+    CurrentCommand solve_optimal(double T_ref, const OperatingLimits& lim, double R_s,
+                                 const MagnetFlux& flux);
+
+    std::shared_ptr<const FluxMap> map_;
+    int pole_pairs_;
+    double nominal_L_d_, nominal_L_q_;  // incremental inductances at i = 0
+};
+
+}  // namespace ipmsm

@@ -1,0 +1,1 @@
+"""ipmsm-fmu scenarios: co-simulation of the IpmsmController and IpmsmPlant FMUs with fmpy."""

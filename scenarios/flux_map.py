@@ -1,0 +1,97 @@
+"""Flux maps in the contract's CSV format (../shared/spec/INTERFACE.md), read and interpolated
+with scipy: an implementation independent of the FMUs' C++ one, used by the scenarios and as
+the reference in the tests."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import RectBivariateSpline
+
+
+@dataclass
+class FluxMap:
+    """psi_d(i_d, i_q), psi_q(i_d, i_q) on a rectangular grid (A, Wb, peak values)."""
+
+    i_d: np.ndarray  # ascending axis, A
+    i_q: np.ndarray  # ascending axis, A
+    psi_d: np.ndarray  # shape (len(i_d), len(i_q)), Wb
+    psi_q: np.ndarray
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        # Interpolating (s=0) bicubic splines.
+        self._sd = RectBivariateSpline(self.i_d, self.i_q, self.psi_d, kx=3, ky=3, s=0)
+        self._sq = RectBivariateSpline(self.i_d, self.i_q, self.psi_q, kx=3, ky=3, s=0)
+
+    @property
+    def psi_m(self) -> float:
+        """PM flux linkage psi_d(0, 0), Wb."""
+        return float(self._sd.ev(0.0, 0.0))
+
+    def flux(self, i_d, i_q, psi_d_shift: float = 0.0):
+        """(psi_d, psi_q) at currents (arrays broadcast); psi_d_shift models magnet temperature."""
+        i_d, i_q = np.broadcast_arrays(np.asarray(i_d, float), np.asarray(i_q, float))
+        return self._sd.ev(i_d, i_q) + psi_d_shift, self._sq.ev(i_d, i_q)
+
+    def number(self, key: str, default: float | None = None) -> float:
+        if key in self.metadata:
+            return float(self.metadata[key])
+        if default is None:
+            raise KeyError(f"flux map has no metadata '{key}'")
+        return default
+
+
+def read_flux_map(path: str | Path) -> FluxMap:
+    """Read the contract's CSV: '#' lines (with '# key: value' metadata), header i_d,i_q,psi_d,psi_q."""
+    path = Path(path)
+    metadata = {}
+    rows = []
+    header_seen = False
+    for line in path.read_text().splitlines():
+        s = line.strip()
+        if not s:
+            continue
+        if s.startswith("#"):
+            key, sep, value = s[1:].partition(":")
+            if sep and key.strip() and " " not in key.strip():
+                metadata[key.strip()] = value.strip()
+            continue
+        if not header_seen:
+            if [c.strip() for c in s.split(",")] != ["i_d", "i_q", "psi_d", "psi_q"]:
+                raise ValueError(f"{path}: expected header i_d,i_q,psi_d,psi_q, got {s!r}")
+            header_seen = True
+            continue
+        rows.append([float(x) for x in s.split(",")])
+    data = np.array(rows)
+    i_d = np.unique(data[:, 0])
+    i_q = np.unique(data[:, 1])
+    if len(i_d) * len(i_q) != len(data):
+        raise ValueError(f"{path}: not a full rectangular grid")
+    psi_d = np.full((len(i_d), len(i_q)), np.nan)
+    psi_q = np.full_like(psi_d, np.nan)
+    j = np.searchsorted(i_d, data[:, 0])
+    k = np.searchsorted(i_q, data[:, 1])
+    psi_d[j, k] = data[:, 2]
+    psi_q[j, k] = data[:, 3]
+    if np.isnan(psi_d).any():
+        raise ValueError(f"{path}: duplicate or missing grid points")
+    return FluxMap(i_d, i_q, psi_d, psi_q, metadata)
+
+
+def write_flux_map(path: str | Path, fmap: FluxMap, comment: str = "") -> None:
+    """Write a map in the contract's CSV format."""
+    lines = [f"# {c}" for c in comment.splitlines()] + [f"# {k}: {v}" for k, v in fmap.metadata.items()]
+    lines.append("i_d,i_q,psi_d,psi_q")
+    for a, x in enumerate(fmap.i_d):
+        for b, y in enumerate(fmap.i_q):
+            lines.append(f"{x:.12g},{y:.12g},{fmap.psi_d[a, b]:.15g},{fmap.psi_q[a, b]:.15g}")
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def linear_flux_map(L_d: float, L_q: float, psi_m: float, i_range: float, n: int = 21, **metadata) -> FluxMap:
+    """The map of a constant-inductance machine psi_d = L_d i_d + psi_m, psi_q = L_q i_q."""
+    ax = np.linspace(-i_range, i_range, n)
+    I_d, I_q = np.meshgrid(ax, ax, indexing="ij")
+    return FluxMap(ax, ax.copy(), L_d * I_d + psi_m, L_q * I_q, dict(metadata))

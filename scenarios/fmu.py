@@ -1,0 +1,67 @@
+"""A thin, fast wrapper around fmpy's FMU2Slave: set and get variables by name, step."""
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+
+class Fmu:
+    """One instance of a co-simulation FMU. Parameters go in at construction; then
+    step(t, h) with inputs set by name. Use as a context manager (frees the instance)."""
+
+    def __init__(self, path: str | Path, instance_name: str | None = None, logging: bool = False, **parameters):
+        self.path = Path(path)
+        self.md = read_model_description(str(self.path))
+        self._dir = extract(str(self.path))
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self._dir,
+                             modelIdentifier=self.md.coSimulation.modelIdentifier,
+                             instanceName=instance_name or self.md.modelName)
+        self.fmu.instantiate(loggingOn=logging)
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        self.set(**parameters)
+        self.fmu.exitInitializationMode()
+
+    def vr(self, name: str) -> int:
+        return self.vars[name].valueReference
+
+    def set(self, **values) -> None:
+        for name, value in values.items():
+            v = self.vars[name]
+            if v.type == "Real":
+                self.fmu.setReal([v.valueReference], [float(value)])
+            elif v.type == "Integer":
+                self.fmu.setInteger([v.valueReference], [int(value)])
+            elif v.type == "Boolean":
+                self.fmu.setBoolean([v.valueReference], [bool(value)])
+            else:
+                self.fmu.setString([v.valueReference], [str(value)])
+
+    def get(self, *names):
+        out = []
+        for name in names:
+            v = self.vars[name]
+            getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,
+                      "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[v.type]
+            out.append(getter([v.valueReference])[0])
+        return out[0] if len(out) == 1 else out
+
+    def step(self, t: float, h: float) -> None:
+        self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+
+    def close(self) -> None:
+        try:
+            self.fmu.terminate()
+        finally:
+            self.fmu.freeInstance()
+            shutil.rmtree(self._dir, ignore_errors=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,91 @@
+"""Independent reference for the optimal current commands: dense sampling of the feasible set,
+then scipy's SLSQP from the best samples. Shares nothing with the C++ solver but the equations
+(MATH.md conventions) and the flux-map data (interpolated here by scipy's own splines)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from scenarios.flux_map import FluxMap
+
+
+@dataclass
+class Drive:
+    fmap: FluxMap
+    pole_pairs: int
+    R_s: float  # Ohm
+    I_max: float  # A
+    V_max: float  # V
+    omega: float  # electrical rad/s
+    psi_d_shift: float = 0.0  # magnet temperature
+
+    def torque(self, i_d, i_q):
+        psi_d, psi_q = self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        return 1.5 * self.pole_pairs * (psi_d * i_q - psi_q * i_d)
+
+    def voltage(self, i_d, i_q):
+        psi_d, psi_q = self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        return np.hypot(self.R_s * i_d - self.omega * psi_q, self.R_s * i_q + self.omega * psi_d)
+
+
+def _disk(I_max, n_r=90, n_phi=720):
+    r = I_max * np.sqrt(np.linspace(0, 1, n_r))[:, None]
+    phi = np.linspace(-np.pi, np.pi, n_phi, endpoint=False)[None, :]
+    return (r * np.cos(phi)).ravel(), (r * np.sin(phi)).ravel()
+
+
+def _constraints(d: Drive, extra=()):
+    I, V = d.I_max, d.V_max
+    cons = [
+        {"type": "ineq", "fun": lambda x: 1.0 - x[0] ** 2 - x[1] ** 2},
+        {"type": "ineq", "fun": lambda x: 1.0 - (d.voltage(x[0] * I, x[1] * I) / V) ** 2},
+    ]
+    return cons + list(extra)
+
+
+def _feasible(d: Drive, i_d, i_q, rel=1e-7):
+    return np.hypot(i_d, i_q) <= d.I_max * (1 + rel) and d.voltage(i_d, i_q) <= d.V_max * (1 + rel)
+
+
+def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
+    """Largest sign*T within both limits, and the currents giving it."""
+    i_d, i_q = _disk(d.I_max)
+    ok = (d.voltage(i_d, i_q) <= d.V_max)
+    if not ok.any():
+        return 0.0, np.array([np.nan, np.nan])
+    T = np.where(ok, sign * d.torque(i_d, i_q), -np.inf)
+    T_scale = max(np.max(T), 1e-9)
+    best_T, best_x = -np.inf, None
+    for k in np.argsort(T)[-4:]:
+        x0 = np.array([i_d[k], i_q[k]]) / d.I_max
+        r = minimize(lambda x: -sign * d.torque(x[0] * d.I_max, x[1] * d.I_max) / T_scale, x0,
+                     method="SLSQP", constraints=_constraints(d), options={"ftol": 1e-15, "maxiter": 300})
+        for x in (r.x, x0):
+            if _feasible(d, *(x * d.I_max)):
+                Tx = float(sign * d.torque(*(x * d.I_max)))
+                if Tx > best_T:
+                    best_T, best_x = Tx, x * d.I_max
+    return max(best_T, 0.0), best_x
+
+
+def min_current(d: Drive, T_target: float, T_scale: float) -> tuple[float, np.ndarray]:
+    """Least current magnitude giving T_target within both limits, and the currents."""
+    i_d, i_q = _disk(d.I_max)
+    T = d.torque(i_d, i_q)
+    ok = (d.voltage(i_d, i_q) <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
+    I = np.where(ok, np.hypot(i_d, i_q), np.inf)
+    starts = [np.array([i_d[k], i_q[k]]) for k in np.argsort(I)[:4] if np.isfinite(I[k])]
+    if not starts:
+        starts = [np.array([0.0, 0.0])]
+    eq = {"type": "eq", "fun": lambda x: (d.torque(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale}
+    best_I, best_x = np.inf, None
+    for s in starts:
+        r = minimize(lambda x: x[0] ** 2 + x[1] ** 2, s / d.I_max, method="SLSQP",
+                     constraints=_constraints(d, [eq]), options={"ftol": 1e-15, "maxiter": 300})
+        x = r.x * d.I_max
+        if _feasible(d, *x) and abs(d.torque(*x) - T_target) <= 1e-7 * T_scale:
+            if np.hypot(*x) < best_I:
+                best_I, best_x = float(np.hypot(*x)), x
+    return best_I, best_x

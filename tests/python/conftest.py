@@ -1,0 +1,42 @@
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+SHARED = ROOT.parent / "shared"
+BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", ROOT / "build" / "fmu"))
+
+
+def fmu_path(name: str) -> Path:
+    p = BUILD_FMU / f"{name}.fmu"
+    if not p.exists():
+        pytest.fail(f"{p} is missing: build first (./test.sh builds it)")
+    return p
+
+
+@pytest.fixture(scope="session")
+def controller_fmu() -> Path:
+    return fmu_path("IpmsmController")
+
+
+@pytest.fixture(scope="session")
+def plant_fmu() -> Path:
+    return fmu_path("IpmsmPlant")
+
+
+@pytest.fixture(scope="session")
+def default_map_path() -> Path:
+    return ROOT / "plant" / "resources" / "ev_ipmsm_default.csv"
+
+
+@pytest.fixture(scope="session")
+def measured_map_path() -> Path:
+    return SHARED / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: long runs (full drive cycles, big sweeps); run with -m slow")
