@@ -1,0 +1,1 @@
+"""Python side of the IpmsmPlant: the default motor (see plant/motor/)."""
