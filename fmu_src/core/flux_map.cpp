@@ -1,0 +1,299 @@
+// Flux maps: the contract's CSV reader, the linear machine's map, and the spline interpolant.
+#include "flux_map.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <istream>
+#include <sstream>
+#include <system_error>
+
+namespace ipmsm {
+namespace {
+
+const char* const kColumns[4] = {"i_d", "i_q", "psi_d", "psi_q"};
+
+std::string trim(const std::string& s) {
+    const char* ws = " \t\r\n\f\v";
+    const auto b = s.find_first_not_of(ws);
+    if (b == std::string::npos) return std::string();
+    const auto e = s.find_last_not_of(ws);
+    return s.substr(b, e - b + 1);
+}
+
+std::vector<std::string> split_commas(const std::string& s) {
+    std::vector<std::string> out;
+    std::size_t start = 0;
+    for (;;) {
+        const auto c = s.find(',', start);
+        out.push_back(trim(s.substr(start, c == std::string::npos ? std::string::npos : c - start)));
+        if (c == std::string::npos) break;
+        start = c + 1;
+    }
+    return out;
+}
+
+std::string fmt(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.9g", v);
+    return b;
+}
+
+enum class NumStatus { ok, not_a_number, non_finite };
+
+// The whole (trimmed) text must be one number. std::from_chars rather than strtod: the same
+// strictness with an end-pointer check, but independent of the C locale, which the simulation
+// tool hosting the FMU may have set to a decimal comma.
+NumStatus parse_number(const std::string& text, double& value) {
+    const char* b = text.data();
+    const char* e = b + text.size();
+    if (b != e && *b == '+' && e - b > 1 && *(b + 1) != '-' && *(b + 1) != '+') ++b;
+    if (b == e) return NumStatus::not_a_number;
+    const auto r = std::from_chars(b, e, value, std::chars_format::general);
+    if (r.ptr != e) return NumStatus::not_a_number;
+    if (r.ec == std::errc::result_out_of_range) {
+        // Overflow is non-finite; underflow (e.g. 1e-400) is a legitimate zero.
+        double mag = 0;
+        for (const char* p = b; p < e; ++p)
+            if (*p == 'e' || *p == 'E') {
+                mag = std::atof(p + 1);  // only the exponent's sign matters; text already checked
+                break;
+            }
+        if (mag < 0) {
+            value = 0.0;
+            return NumStatus::ok;
+        }
+        return NumStatus::non_finite;
+    }
+    if (r.ec != std::errc()) return NumStatus::not_a_number;
+    return std::isfinite(value) ? NumStatus::ok : NumStatus::non_finite;
+}
+
+bool is_metadata_key(const std::string& k) {
+    if (k.empty() || !(std::isalpha(static_cast<unsigned char>(k[0])) || k[0] == '_')) return false;
+    for (char c : k)
+        if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '-'))
+            return false;
+    return true;
+}
+
+struct Row {
+    double v[4];
+    int line;
+};
+
+// Sorted distinct values; values within tol of the previous distinct value are the same node
+// (guards against 1e-15-level noise from spreadsheets and FEM exports).
+std::vector<double> distinct_axis(std::vector<double> v, double& tol) {
+    std::sort(v.begin(), v.end());
+    tol = 1e-9 * std::max(v.back() - v.front(), 1e-300);
+    std::vector<double> out;
+    for (double x : v)
+        if (out.empty() || x - out.back() > tol) out.push_back(x);
+    return out;
+}
+
+int axis_index(const std::vector<double>& axis, double x, double tol) {
+    auto it = std::lower_bound(axis.begin(), axis.end(), x - tol);
+    return static_cast<int>(it - axis.begin());
+}
+
+}  // namespace
+
+double FluxMapTable::metadata_number(const std::string& key, double fallback) const {
+    const auto it = metadata.find(key);
+    if (it == metadata.end()) return fallback;
+    double v = 0;
+    if (parse_number(trim(it->second), v) != NumStatus::ok)
+        throw FluxMapError("flux-map metadata '" + key + "': '" + it->second +
+                           "' is not a finite number");
+    return v;
+}
+
+FluxMapTable parse_flux_map(std::istream& in, const std::string& source_name) {
+    const std::string where = "flux map '" + source_name + "'";
+    auto fail_line = [&](int line, const std::string& what) {
+        throw FluxMapError(where + ", line " + std::to_string(line) + ": " + what);
+    };
+    auto fail = [&](const std::string& what) { throw FluxMapError(where + ": " + what); };
+
+    FluxMapTable t;
+    std::vector<Row> rows;
+    std::string raw;
+    int line = 0, header_line = 0, content_lines = 0;
+    while (std::getline(in, raw)) {
+        ++line;
+        if (line == 1 && raw.size() >= 3 && raw.compare(0, 3, "\xEF\xBB\xBF") == 0)
+            raw.erase(0, 3);  // UTF-8 byte-order mark (spreadsheet exports)
+        const std::string s = trim(raw);
+        if (s.empty()) continue;
+        ++content_lines;
+        if (s[0] == '#') {
+            const std::string body = trim(s.substr(1));
+            const auto colon = body.find(':');
+            if (colon != std::string::npos) {
+                const std::string key = trim(body.substr(0, colon));
+                if (is_metadata_key(key)) t.metadata[key] = trim(body.substr(colon + 1));
+            }
+            continue;
+        }
+        if (header_line == 0) {
+            const auto f = split_commas(s);
+            bool ok = f.size() == 4;
+            for (int c = 0; ok && c < 4; ++c) ok = f[c] == kColumns[c];
+            if (!ok) {
+                double dummy;
+                const bool numeric = !f.empty() && parse_number(f[0], dummy) == NumStatus::ok;
+                fail_line(line, std::string(numeric ? "header missing" : "wrong header") +
+                                    ": expected 'i_d,i_q,psi_d,psi_q', found '" + s + "'");
+            }
+            header_line = line;
+            continue;
+        }
+        const auto f = split_commas(s);
+        if (f.size() != 4)
+            fail_line(line, "expected 4 comma-separated values (i_d,i_q,psi_d,psi_q), found " +
+                                std::to_string(f.size()) + ": '" + s + "'");
+        Row r;
+        r.line = line;
+        for (int c = 0; c < 4; ++c) {
+            switch (parse_number(f[c], r.v[c])) {
+                case NumStatus::ok:
+                    break;
+                case NumStatus::not_a_number:
+                    fail_line(line, std::string("column ") + kColumns[c] + ": '" + f[c] +
+                                        "' is not a number");
+                    break;
+                case NumStatus::non_finite:
+                    fail_line(line, std::string("column ") + kColumns[c] + ": non-finite value '" +
+                                        f[c] + "'");
+                    break;
+            }
+        }
+        rows.push_back(r);
+    }
+    if (in.bad()) fail("read error after line " + std::to_string(line));
+    if (content_lines == 0) fail("empty file (expected '#' lines, the header 'i_d,i_q,psi_d,psi_q' and data rows)");
+    if (header_line == 0)
+        fail("no header line 'i_d,i_q,psi_d,psi_q' and no data (only '#' lines, " +
+             std::to_string(line) + " lines)");
+    if (rows.empty())
+        fail_line(header_line, "header but no data rows (file ends at line " + std::to_string(line) + ")");
+
+    // The grid: distinct axis values, every (i_d, i_q) pair exactly once.
+    std::vector<double> vd, vq;
+    vd.reserve(rows.size());
+    vq.reserve(rows.size());
+    for (const Row& r : rows) {
+        vd.push_back(r.v[0]);
+        vq.push_back(r.v[1]);
+    }
+    double tol_d, tol_q;
+    t.i_d = distinct_axis(vd, tol_d);
+    t.i_q = distinct_axis(vq, tol_q);
+    const std::size_t nd = t.i_d.size(), nq = t.i_q.size();
+    std::vector<int> at(nd * nq, 0);  // line of each grid point, 0: none yet
+    t.psi_d.assign(nd * nq, 0.0);
+    t.psi_q.assign(nd * nq, 0.0);
+    for (const Row& r : rows) {
+        const std::size_t j = axis_index(t.i_d, r.v[0], tol_d), k = axis_index(t.i_q, r.v[1], tol_q);
+        const std::size_t idx = k * nd + j;
+        if (at[idx] != 0)
+            fail_line(r.line, "duplicate grid point (i_d = " + fmt(r.v[0]) + " A, i_q = " +
+                                  fmt(r.v[1]) + " A), first given on line " + std::to_string(at[idx]));
+        at[idx] = r.line;
+        t.psi_d[idx] = r.v[2];
+        t.psi_q[idx] = r.v[3];
+    }
+    if (rows.size() != nd * nq) {
+        std::size_t missing = 0;
+        while (at[missing] != 0) ++missing;
+        fail("grid is not full and rectangular: " + std::to_string(nd) + " distinct i_d x " +
+             std::to_string(nq) + " distinct i_q values need " + std::to_string(nd * nq) +
+             " rows, found " + std::to_string(rows.size()) + "; missing e.g. (i_d = " +
+             fmt(t.i_d[missing % nd]) + " A, i_q = " + fmt(t.i_q[missing / nd]) + " A)");
+    }
+    if (nd < 4 || nq < 4)
+        fail("grid has " + std::to_string(nd) + " i_d x " + std::to_string(nq) +
+             " i_q points; at least 4 x 4 are needed");
+
+    // Strictly positive incremental self-inductances on the grid: psi_d rises with i_d along
+    // every i_q line, psi_q with i_q along every i_d line (a convex co-energy; without it the
+    // currents are not a function of the flux linkages, and the plant cannot be simulated).
+    for (std::size_t k = 0; k < nq; ++k)
+        for (std::size_t j = 0; j + 1 < nd; ++j) {
+            const std::size_t a = k * nd + j, b = a + 1;
+            if (!(t.psi_d[b] > t.psi_d[a]))
+                fail_line(at[b], "psi_d not strictly increasing in i_d along i_q = " + fmt(t.i_q[k]) +
+                                     " A: psi_d = " + fmt(t.psi_d[a]) + " Wb at i_d = " + fmt(t.i_d[j]) +
+                                     " A (line " + std::to_string(at[a]) + "), psi_d = " +
+                                     fmt(t.psi_d[b]) + " Wb at i_d = " + fmt(t.i_d[j + 1]) + " A");
+        }
+    for (std::size_t j = 0; j < nd; ++j)
+        for (std::size_t k = 0; k + 1 < nq; ++k) {
+            const std::size_t a = k * nd + j, b = a + nd;
+            if (!(t.psi_q[b] > t.psi_q[a]))
+                fail_line(at[b], "psi_q not strictly increasing in i_q along i_d = " + fmt(t.i_d[j]) +
+                                     " A: psi_q = " + fmt(t.psi_q[a]) + " Wb at i_q = " + fmt(t.i_q[k]) +
+                                     " A (line " + std::to_string(at[a]) + "), psi_q = " +
+                                     fmt(t.psi_q[b]) + " Wb at i_q = " + fmt(t.i_q[k + 1]) + " A");
+        }
+    return t;
+}
+
+FluxMapTable read_flux_map(const std::string& path) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec))
+        throw FluxMapError("flux map '" + path + "': cannot open file (it is a directory)");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+        const int err = errno;
+        throw FluxMapError("flux map '" + path + "': cannot open file" +
+                           (err ? std::string(" (") + std::strerror(err) + ")" : std::string()));
+    }
+    return parse_flux_map(in, path);
+}
+
+FluxMapTable linear_flux_map(double L_d, double L_q, double psi_m, double i_range, int n) {
+    if (n < 2) throw FluxMapError("linear_flux_map: n = " + std::to_string(n) + " < 2");
+    if (!(i_range > 0) || !std::isfinite(i_range) || !std::isfinite(L_d) || !std::isfinite(L_q) ||
+        !std::isfinite(psi_m))
+        throw FluxMapError("linear_flux_map: non-finite parameter or i_range <= 0");
+    FluxMapTable t;
+    t.i_d.resize(n);
+    for (int k = 0; k < n; ++k)  // symmetric to the last bit; exactly 0 in the middle for odd n
+        t.i_d[k] = i_range * static_cast<double>(2 * k - (n - 1)) / static_cast<double>(n - 1);
+    t.i_q = t.i_d;
+    t.psi_d.resize(static_cast<std::size_t>(n) * n);
+    t.psi_q.resize(t.psi_d.size());
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j) {
+            t.psi_d[static_cast<std::size_t>(k) * n + j] = L_d * t.i_d[j] + psi_m;
+            t.psi_q[static_cast<std::size_t>(k) * n + j] = L_q * t.i_q[k];
+        }
+    return t;
+}
+
+FluxMap::FluxMap(const FluxMapTable& table) : table_(table) {
+    const std::size_t N = table.i_d.size() * table.i_q.size();
+    if (table.psi_d.size() != N || table.psi_q.size() != N)
+        throw FluxMapError("FluxMap: table has " + std::to_string(table.i_d.size()) + " x " +
+                           std::to_string(table.i_q.size()) + " grid but " +
+                           std::to_string(table.psi_d.size()) + " psi_d and " +
+                           std::to_string(table.psi_q.size()) + " psi_q values");
+    try {
+        spline_ = BicubicSpline2D(table.i_d, table.i_q, {table.psi_d.data(), table.psi_q.data()});
+    } catch (const std::invalid_argument& e) {
+        throw FluxMapError(std::string("FluxMap: ") + e.what());
+    }
+    psi_m_ = eval(0.0, 0.0).psi_d;
+}
+
+}  // namespace ipmsm

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "bicubic_spline.hpp"
+
 namespace ipmsm {
 
 struct FluxMapError : std::runtime_error {
@@ -28,6 +30,13 @@ struct FluxMapTable {
 // Throws FluxMapError naming the file and line for: missing or unreadable file, no header,
 // no rows, text in numbers, non-finite values, duplicate points, a grid that is not full and
 // rectangular (at least 4 x 4), psi_d not increasing in i_d or psi_q not increasing in i_q.
+// Accepted: CRLF, blank lines, spaces/tabs around values, a UTF-8 byte-order mark, '#' lines
+// anywhere, a leading '+'. Numbers are parsed independently of the C locale and must be
+// consumed whole. '# key: value' lines (key: letters, digits, _ . -, starting with a letter or
+// _) become metadata; a repeated key keeps the last value. Axis values closer than 1e-9 of the
+// axis' span are the same node. Monotonicity is strict along every grid line (a positive
+// incremental self-inductance between nodes: a convex co-energy; the plant needs currents as a
+// function of flux linkages); the measured Baldor map satisfies it with margin.
 FluxMapTable read_flux_map(const std::string& path);
 FluxMapTable parse_flux_map(std::istream& in, const std::string& source_name);
 
@@ -50,28 +59,67 @@ struct FluxPoint2 : FluxPoint {
 
 // C2 bicubic-spline interpolant of a flux map. Outside the grid it extrapolates linearly from
 // the nearest boundary point (value and gradient continuous). Immutable and cheap to evaluate.
+//
+// Details (bicubic_spline.hpp): tensor-product cubic spline with not-a-knot end conditions,
+// exact for linear (indeed bicubic) data. Outside the grid each edge cell's cubic is continued
+// by its tangent: beyond an edge psi(i_b) + dpsi/di_n (i_n - i_b) with i_b the nearest boundary
+// point, beyond a corner the bilinear continuation of the corner's value, gradient and cross
+// derivative. Values and first derivatives are continuous everywhere, the second derivative
+// along the outward normal is zero outside, and all derivatives returned (inductances, second
+// derivatives) are the exact derivatives of the values returned, inside and outside; eval and
+// eval2 agree bit for bit. Caution: continued linearly along the outward normal, an edge's
+// tangential variation grows with distance (beyond the i_q edge, d psi_d / d i_d =
+// L_dd(i_b) + dL_dd/di_q (i_q - i_q,b)), so far outside a strongly cross-saturated map the
+// continuation can lose monotonicity (Baldor: L_dd < 0 some 9 A beyond its +-26 A i_q edge).
+// Keep the operating range inside the map.
+// A FluxMap may also be built from a table with as few as 2 x 2 points (linear_flux_map with
+// n = 2); read_flux_map requires 4 x 4.
 class FluxMap {
 public:
+    // Throws FluxMapError if the table's axes are not strictly ascending (>= 2 nodes each), the
+    // value arrays do not match the axes, or a value is not finite.
     explicit FluxMap(const FluxMapTable& table);
 
     FluxPoint eval(double i_d, double i_q) const;
     FluxPoint2 eval2(double i_d, double i_q) const;
 
     double psi_m() const { return psi_m_; }  // psi_d(0, 0), the PM flux linkage
-    double i_d_min() const { return id_.front(); }
-    double i_d_max() const { return id_.back(); }
-    double i_q_min() const { return iq_.front(); }
-    double i_q_max() const { return iq_.back(); }
+    double i_d_min() const { return spline_.x().front(); }
+    double i_d_max() const { return spline_.x().back(); }
+    double i_q_min() const { return spline_.y().front(); }
+    double i_q_max() const { return spline_.y().back(); }
     const FluxMapTable& table() const { return table_; }
+    const BicubicSpline2D& spline() const { return spline_; }  // fields 0: psi_d, 1: psi_q
 
 private:
     FluxMapTable table_;
-    std::vector<double> id_, iq_;
-    // Per cell: 16 bicubic coefficients for psi_d, then 16 for psi_q (implementation detail).
-    std::vector<double> coef_;
-    bool uniform_d_ = false, uniform_q_ = false;
-    double inv_dd_ = 0, inv_dq_ = 0;
+    BicubicSpline2D spline_;  // x = i_d, y = i_q; per cell 16 coefficients for psi_d, then psi_q
     double psi_m_ = 0;
 };
+
+inline FluxPoint FluxMap::eval(double i_d, double i_q) const {
+    SplineValue s[2];
+    spline_.eval<2>(i_d, i_q, s);
+    return FluxPoint{s[0].f, s[1].f, s[0].fx, s[0].fy, s[1].fx, s[1].fy};
+}
+
+inline FluxPoint2 FluxMap::eval2(double i_d, double i_q) const {
+    SplineValue2 s[2];
+    spline_.eval2<2>(i_d, i_q, s);
+    FluxPoint2 r;
+    r.psi_d = s[0].f;
+    r.psi_q = s[1].f;
+    r.L_dd = s[0].fx;
+    r.L_dq = s[0].fy;
+    r.L_qd = s[1].fx;
+    r.L_qq = s[1].fy;
+    r.psi_d_dd = s[0].fxx;
+    r.psi_d_dq = s[0].fxy;
+    r.psi_d_qq = s[0].fyy;
+    r.psi_q_dd = s[1].fxx;
+    r.psi_q_dq = s[1].fxy;
+    r.psi_q_qq = s[1].fyy;
+    return r;
+}
 
 }  // namespace ipmsm

@@ -1,0 +1,105 @@
+// Nanoseconds per FluxMap::eval / eval2 and InverseFluxMap::eval at random points (95 % inside
+// the grid, 5 % outside), on the measured Baldor map (uniform axes: O(1) cell lookup), on the
+// same map with a non-uniform i_d axis (binary search), and on a 41 x 41 linear map.
+// Prints a checksum so that the work cannot be optimised away. Times are the best of 9 rounds.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "flux_map.hpp"
+#include "inverse_flux_map.hpp"
+
+using namespace ipmsm;
+
+namespace {
+
+struct Points {
+    std::vector<double> x, y;
+};
+
+Points random_points(double x0, double x1, double y0, double y1, int n, unsigned seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    Points p;
+    for (int i = 0; i < n; ++i) {
+        const bool outside = u(rng) < 0.05;
+        const double s = outside ? 1.4 : 1.0;  // outside: up to 20 % beyond each edge
+        const double a = 0.5 + s * (u(rng) - 0.5), b = 0.5 + s * (u(rng) - 0.5);
+        p.x.push_back(x0 + a * (x1 - x0));
+        p.y.push_back(y0 + b * (y1 - y0));
+    }
+    return p;
+}
+
+// Best of 9 rounds (the machine is shared: the minimum is the least disturbed measurement).
+template <class F>
+double time_ns(const Points& p, int reps, double& checksum, F&& f) {
+    const std::size_t n = p.x.size();
+    for (std::size_t i = 0; i < n; ++i) checksum += f(p.x[i], p.y[i]);  // warm-up
+    double best = 1e300;
+    for (int round = 0; round < 9; ++round) {
+        const auto t0 = std::chrono::steady_clock::now();
+        for (int r = 0; r < reps; ++r)
+            for (std::size_t i = 0; i < n; ++i) checksum += f(p.x[i], p.y[i]);
+        const auto t1 = std::chrono::steady_clock::now();
+        best = std::min(best, std::chrono::duration<double, std::nano>(t1 - t0).count() /
+                                  (static_cast<double>(n) * reps));
+    }
+    return best;
+}
+
+void bench_map(const char* name, const FluxMap& m, bool with_inverse, double& checksum) {
+    const int N = 1 << 14, reps = 30;
+    const Points p = random_points(m.i_d_min(), m.i_d_max(), m.i_q_min(), m.i_q_max(), N, 42);
+    const double t1 = time_ns(p, reps, checksum, [&](double a, double b) {
+        const FluxPoint f = m.eval(a, b);
+        return f.psi_d + f.psi_q + f.L_dd + f.L_dq + f.L_qd + f.L_qq;
+    });
+    const double t2 = time_ns(p, reps, checksum, [&](double a, double b) {
+        const FluxPoint2 f = m.eval2(a, b);
+        return f.psi_d + f.L_qq + f.psi_d_dd + f.psi_d_dq + f.psi_d_qq + f.psi_q_dd + f.psi_q_dq +
+               f.psi_q_qq;
+    });
+    std::printf("%-34s %3zu x %3zu  uniform %d/%d  eval %6.1f ns  eval2 %6.1f ns\n", name,
+                m.table().i_d.size(), m.table().i_q.size(), m.spline().uniform_x(),
+                m.spline().uniform_y(), t1, t2);
+    if (!with_inverse) return;
+    const auto c0 = std::chrono::steady_clock::now();
+    const InverseFluxMap inv(m);
+    const auto c1 = std::chrono::steady_clock::now();
+    const Points q = random_points(inv.psi_d_min(), inv.psi_d_max(), inv.psi_q_min(),
+                                   inv.psi_q_max(), N, 7);
+    const double t3 = time_ns(q, reps, checksum, [&](double a, double b) {
+        const InverseFluxPoint f = inv.eval(a, b);
+        return f.i_d + f.i_q + f.G_dd + f.G_dq + f.G_qd + f.G_qq;
+    });
+    std::printf("%-34s inverse %3d x %3d (%.1f MB, built in %.1f ms)  eval %6.1f ns\n", "",
+                inv.n_psi_d(), inv.n_psi_q(), inv.memory_bytes() / 1e6,
+                std::chrono::duration<double, std::milli>(c1 - c0).count(), t3);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::string path = std::string(IPMSM_SOURCE_DIR) +
+                       "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
+    if (argc > 1) path = argv[1];
+    double checksum = 0;
+    try {
+        const FluxMapTable t = read_flux_map(path);
+        bench_map("Baldor (measured)", FluxMap(t), true, checksum);
+        FluxMapTable nu = t;  // non-uniform i_d axis: stretch the positive side by 10 %
+        for (double& v : nu.i_d)
+            if (v > 0) v *= 1.1;
+        bench_map("Baldor, non-uniform i_d", FluxMap(nu), false, checksum);
+    } catch (const FluxMapError& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return 1;
+    }
+    bench_map("linear 41 x 41", FluxMap(linear_flux_map(2e-4, 5e-4, 0.08, 400.0, 41)), true, checksum);
+    std::printf("checksum %.17g\n", checksum);
+    return 0;
+}

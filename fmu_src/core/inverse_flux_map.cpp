@@ -1,0 +1,196 @@
+// The inverse flux map: Newton inversion of the forward spline on a psi grid, then a spline.
+#include "inverse_flux_map.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+
+namespace ipmsm {
+namespace {
+
+double max_abs(double a, double b) { return std::max(std::abs(a), std::abs(b)); }
+
+}  // namespace
+
+bool InverseFluxMap::invert(const FluxMap& map, double psi_d, double psi_q, double& i_d,
+                            double& i_q, double tol, int* iterations) {
+    // Damped Newton on r(i) = psi(i) - psi*, backtracking on the max-norm of r. The step size
+    // is also capped at a quarter of the grid's extent so that a poor start cannot throw the
+    // iterate far into the extrapolated region in one step.
+    const double cap = 0.25 * std::max(map.i_d_max() - map.i_d_min(), map.i_q_max() - map.i_q_min());
+    FluxPoint p = map.eval(i_d, i_q);
+    double rd = p.psi_d - psi_d, rq = p.psi_q - psi_q;
+    double rn = max_abs(rd, rq);
+    int it = 0;
+    bool ok = false;
+    for (; it < 100; ++it) {
+        if (!std::isfinite(rn)) break;
+        if (rn <= tol) {
+            // Converged: one more full step takes the iterate to rounding level (so that a
+            // linear map's inverse is linear to rounding), kept only if it does no harm.
+            const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
+            if (std::abs(det) > 0 && rn > 0) {
+                const double nd = i_d - (p.L_qq * rd - p.L_dq * rq) / det;
+                const double nq = i_q - (-p.L_qd * rd + p.L_dd * rq) / det;
+                const FluxPoint pn = map.eval(nd, nq);
+                if (max_abs(pn.psi_d - psi_d, pn.psi_q - psi_q) <= rn) {
+                    i_d = nd;
+                    i_q = nq;
+                }
+            }
+            ok = true;
+            break;
+        }
+        const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
+        if (!(std::abs(det) > 0) || !std::isfinite(det)) break;
+        double dd = -(p.L_qq * rd - p.L_dq * rq) / det;
+        double dq = -(-p.L_qd * rd + p.L_dd * rq) / det;
+        const double len = max_abs(dd, dq);
+        if (len > cap) {
+            dd *= cap / len;
+            dq *= cap / len;
+        }
+        double a = 1.0;
+        bool accepted = false;
+        for (int ls = 0; ls < 40; ++ls, a *= 0.5) {
+            const double nd = i_d + a * dd, nq = i_q + a * dq;
+            const FluxPoint pn = map.eval(nd, nq);
+            const double nrd = pn.psi_d - psi_d, nrq = pn.psi_q - psi_q;
+            const double nrn = max_abs(nrd, nrq);
+            if (nrn < (1.0 - 1e-4 * a) * rn || (a == 1.0 && nrn <= tol)) {
+                i_d = nd;
+                i_q = nq;
+                p = pn;
+                rd = nrd;
+                rq = nrq;
+                rn = nrn;
+                accepted = true;
+                break;
+            }
+        }
+        if (!accepted) {
+            // No decrease even for tiny steps: at rounding level already, or stuck.
+            ok = rn <= 64 * tol;
+            break;
+        }
+    }
+    if (iterations) *iterations = it;
+    return ok;
+}
+
+InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options) {
+    const FluxMapTable& t = map.table();
+    const int nd = static_cast<int>(t.i_d.size()), nq = static_cast<int>(t.i_q.size());
+
+    // The psi box: bounding box of the images of the grid nodes and of the grid's edges (the
+    // spline between edge nodes may bulge slightly beyond the node values).
+    double dmin = std::numeric_limits<double>::infinity(), dmax = -dmin, qmin = dmin, qmax = -dmin;
+    auto take = [&](double id, double iq) {
+        const FluxPoint p = map.eval(id, iq);
+        dmin = std::min(dmin, p.psi_d);
+        dmax = std::max(dmax, p.psi_d);
+        qmin = std::min(qmin, p.psi_q);
+        qmax = std::max(qmax, p.psi_q);
+    };
+    constexpr int kSub = 8;
+    for (int k = 0; k < nq; ++k)
+        for (int j = 0; j < nd; ++j) {
+            take(t.i_d[j], t.i_q[k]);
+            const bool edge_q = k == 0 || k == nq - 1, edge_d = j == 0 || j == nd - 1;
+            for (int s = 1; s < kSub; ++s) {
+                if (edge_q && j + 1 < nd) take(t.i_d[j] + (t.i_d[j + 1] - t.i_d[j]) * s / kSub, t.i_q[k]);
+                if (edge_d && k + 1 < nq) take(t.i_d[j], t.i_q[k] + (t.i_q[k + 1] - t.i_q[k]) * s / kSub);
+            }
+        }
+    const double wd = dmax - dmin, wq = qmax - qmin;
+    if (!(wd > 0) || !(wq > 0) || !std::isfinite(wd) || !std::isfinite(wq))
+        throw FluxMapError("InverseFluxMap: the flux map's image has no extent in psi_d or psi_q");
+    dmin -= options.margin * wd;
+    dmax += options.margin * wd;
+    qmin -= options.margin * wq;
+    qmax += options.margin * wq;
+    // Automatic resolution: psi spacing at most half the smallest flux step between adjacent
+    // grid nodes along that axis (the most saturated cell then still spans two psi cells), at
+    // least three psi cells per current cell, at most 300 cells (or one per current cell).
+    double step_d = std::numeric_limits<double>::infinity(), step_q = step_d;
+    for (int k = 0; k < nq; ++k)
+        for (int j = 0; j < nd; ++j) {
+            const std::size_t i = static_cast<std::size_t>(k) * nd + j;
+            if (j + 1 < nd) step_d = std::min(step_d, std::abs(t.psi_d[i + 1] - t.psi_d[i]));
+            if (k + 1 < nq) step_q = std::min(step_q, std::abs(t.psi_q[i + nd] - t.psi_q[i]));
+        }
+    auto automatic = [](double width, double step, int n_current) {
+        const double cells = step > 0 ? std::ceil(width / (0.5 * step)) : 300.0;
+        const double lo = 3.0 * (n_current - 1), hi = std::max(300.0, n_current - 1.0);
+        return static_cast<int>(std::min(std::max(cells, lo), hi)) + 1;
+    };
+    const int md = options.n_psi_d > 0 ? options.n_psi_d : automatic(dmax - dmin, step_d, nd);
+    const int mq = options.n_psi_q > 0 ? options.n_psi_q : automatic(qmax - qmin, step_q, nq);
+    if (md < 2 || mq < 2) throw FluxMapError("InverseFluxMap: the psi grid needs at least 2 x 2 nodes");
+    std::vector<double> pd(md), pq(mq);
+    for (int j = 0; j < md; ++j) pd[j] = dmin + (dmax - dmin) * j / (md - 1);
+    for (int k = 0; k < mq; ++k) pq[k] = qmin + (qmax - qmin) * k / (mq - 1);
+    pd.back() = dmax;
+    pq.back() = qmax;
+
+    const double tol = 1e-14 * std::max({std::abs(dmin), std::abs(dmax), std::abs(qmin), std::abs(qmax), wd, wq});
+    std::vector<double> cd(static_cast<std::size_t>(md) * mq), cq(cd.size());
+
+    // Start guesses: the previous node of the row (continuation), else the node below, else
+    // the current-grid node whose flux linkages are nearest.
+    auto nearest_node = [&](double psd, double psq, double& id, double& iq) {
+        double best = std::numeric_limits<double>::infinity();
+        for (int k = 0; k < nq; ++k)
+            for (int j = 0; j < nd; ++j) {
+                const std::size_t i = static_cast<std::size_t>(k) * nd + j;
+                const double e = std::hypot((t.psi_d[i] - psd) / wd, (t.psi_q[i] - psq) / wq);
+                if (e < best) {
+                    best = e;
+                    id = t.i_d[j];
+                    iq = t.i_q[k];
+                }
+            }
+    };
+    const double gd0 = map.i_d_min(), gd1 = map.i_d_max(), gq0 = map.i_q_min(), gq1 = map.i_q_max();
+    for (int k = 0; k < mq; ++k)
+        for (int j = 0; j < md; ++j) {
+            const std::size_t idx = static_cast<std::size_t>(k) * md + j;
+            double id = 0, iq = 0;
+            bool ok = false;
+            for (int attempt = 0; attempt < 3 && !ok; ++attempt) {
+                if (attempt == 0 && j > 0) {
+                    id = cd[idx - 1];
+                    iq = cq[idx - 1];
+                } else if (attempt <= 1 && k > 0) {
+                    id = cd[idx - md];
+                    iq = cq[idx - md];
+                } else {
+                    nearest_node(pd[j], pq[k], id, iq);
+                }
+                ok = invert(map, pd[j], pq[k], id, iq, tol);
+            }
+            if (!ok) {
+                char b[256];
+                std::snprintf(b, sizeof b,
+                              "InverseFluxMap: cannot invert the flux map at psi_d = %.6g Wb, "
+                              "psi_q = %.6g Wb (Newton stalled near i_d = %.4g A, i_q = %.4g A): "
+                              "the map is not invertible there",
+                              pd[j], pq[k], id, iq);
+                throw FluxMapError(b);
+            }
+            const FluxPoint p = map.eval(id, iq);
+            max_residual_ = std::max(max_residual_, max_abs(p.psi_d - pd[j], p.psi_q - pq[k]));
+            const double out = std::max({gd0 - id, id - gd1, gq0 - iq, iq - gq1});
+            if (out > 1e-9 * std::max(gd1 - gd0, gq1 - gq0)) {
+                ++outside_nodes_;
+                max_outside_ = std::max(max_outside_, out);
+            }
+            cd[idx] = id;
+            cq[idx] = iq;
+        }
+    spline_ = BicubicSpline2D(pd, pq, {cd.data(), cq.data()});
+}
+
+}  // namespace ipmsm
