@@ -71,6 +71,14 @@ double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, 
     return vd * vd + vq * vq;
 }
 
+bool voltage_limit_is_optimal(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q) {
+    const Fields F = fields_at(flux, omega, R_s, i_d, i_q);
+    // Tangent of the torque curve, t = (-dT/di_q, dT/di_d); rates of c and g along it.
+    const double t_d = -F.T.q, t_q = F.T.d;
+    const double dc = F.c.d * t_d + F.c.q * t_q, dg = F.g.d * t_d + F.g.q * t_q;
+    return dc * dg <= 0.0;
+}
+
 Result solve(const MagnetFlux& flux, const Problem& P, double i_d, double i_q, int max_iterations,
              double tolerance_A, double max_step_A) {
     for (int k = 1; k <= max_iterations; ++k) {

@@ -30,10 +30,16 @@ struct Result {
     bool converged;
 };
 
-// From the seed (i_d, i_q), at most max_iterations steps; converged when a step is below
-// tolerance_A. Steps are limited to max_step_A to keep Newton on the seed's branch.
+// From the seed (i_d, i_q), at most max_iterations steps; converged after a step below
+// tolerance_A (Newton converges quadratically: the error left after a step of size d is of the
+// order d^2 / (current scale), far below the 1e-3 A default). Steps are limited to max_step_A to keep Newton on the seed's branch.
 Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double i_q,
-             int max_iterations = 12, double tolerance_A = 1e-6, double max_step_A = 50.0);
+             int max_iterations = 12, double tolerance_A = 1e-3, double max_step_A = 50.0);
+
+// The a-priori test of the paper, generalised to a flux map: at a point on the torque curve and
+// the voltage ellipse, does moving along the torque curve towards less current raise the
+// voltage? Then the point is the current minimum (Case ii); otherwise MTPA lies inside.
+bool voltage_limit_is_optimal(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);
 
 // Squared steady-state voltage at a current.
 double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);

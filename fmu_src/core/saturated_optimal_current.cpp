@@ -56,18 +56,39 @@ CurrentCommand SaturatedOptimalCurrent::solve(double T_ref, const OperatingLimit
 
 CurrentCommand SaturatedOptimalCurrent::solve_recursive(double T_ref, const OperatingLimits& lim,
                                                         double R_s, const MagnetFlux& flux) {
-    // Start from the last command, mirrored to this torque's sign.
-    double i_d = memory.op_i_d, i_q = sign_of(T_ref) * std::abs(memory.op_i_q);
-    CurrentCommand cmd;
-    for (int k = 1; k <= recursion_max_iterations; ++k) {
-        cmd = linear::optimal_current(apparent_machine(flux, i_d, i_q, R_s), pole_pairs_, T_ref, lim);
-        cmd.iterations = k;
-        const double moved = std::hypot(cmd.i_d - i_d, cmd.i_q - i_q);
-        i_d = cmd.i_d;
-        i_q = cmd.i_q;
-        if (moved < recursion_tolerance_A) break;
-    }
-    cmd.torque = torque_factor(pole_pairs_) * flux.reduced_torque(cmd.i_d, cmd.i_q);
+    const double s = sign_of(T_ref);
+    const double kT = torque_factor(pole_pairs_);
+    int iterations = 0;
+    // The recursion: linearise at the last point, solve with Ferrari, until it moves < 0.05 A.
+    auto recurse = [&](double T, double i_d, double i_q) {
+        CurrentCommand c;
+        for (int k = 1; k <= recursion_max_iterations; ++k) {
+            c = linear::optimal_current(apparent_machine(flux, i_d, i_q, R_s), pole_pairs_, T, lim);
+            ++iterations;
+            const double moved = std::hypot(c.i_d - i_d, c.i_q - i_q);
+            i_d = c.i_d;
+            i_q = c.i_q;
+            if (moved < recursion_tolerance_A) break;
+        }
+        return c;
+    };
+    // 1. T_max: the recursion on the limit point (the linearisation at the operating point
+    //    says little about the limit), from the last limit point.
+    const bool warm = memory.has_limit;
+    const CurrentCommand top = recurse(s * 1e30, warm ? memory.limit_i_d : memory.op_i_d,
+                                       s * std::abs(warm ? memory.limit_i_q : memory.op_i_q));
+    memory.limit_i_d = top.i_d;
+    memory.limit_i_q = top.i_q;
+    memory.has_limit = true;
+    const double T_max = std::max(0.0, s * kT * flux.reduced_torque(top.i_d, top.i_q));
+
+    // 2. The command for T_ref clamped to T_max, from the last command.
+    CurrentCommand cmd = top;
+    if (std::abs(T_ref) < T_max) cmd = recurse(T_ref, memory.op_i_d, s * std::abs(memory.op_i_q));
+    cmd.torque_max = T_max;
+    cmd.feasible = top.feasible;
+    cmd.iterations = iterations;
+    cmd.torque = kT * flux.reduced_torque(cmd.i_d, cmd.i_q);
     return cmd;
 }
 
@@ -147,26 +168,36 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
     linear::Point p = top;
     Region region = top_region;
     if (T_red < T_top) {
+        // The Ferrari seed's region says which conditions to solve first; the a-priori test on
+        // the map confirms it (or sends us to the other).
         const double target = s * T_red;
-        const linear::Point seed_i = mirrored(linear::mtpa(lin_op, T_red));
-        const auto r = newton(System::mtpa, target, seed_i);
-        if (r.converged && map_newton::voltage_sq(flux, lim.omega, R_s, r.i_d, r.i_q) <= V2 &&
-            current_sq(r.i_d, r.i_q) <= I2) {
+        const CurrentCommand seed = linear::optimal_current(lin_op, pole_pairs_, s * T_red * kT, {w_pos * s, lim.V_max, lim.I_max});
+        auto try_mtpa = [&]() {
+            const auto r = newton(System::mtpa, target, mirrored(linear::mtpa(lin_op, T_red)));
+            if (!r.converged || map_newton::voltage_sq(flux, lim.omega, R_s, r.i_d, r.i_q) > V2 ||
+                current_sq(r.i_d, r.i_q) > I2)
+                return false;
             p = {r.i_d, r.i_q};
             region = Region::mtpa;
-        } else {
-            linear::Point seed_ii;
-            const bool have_seed = T_red > 0 ? linear::voltage_limit(lin_op, w_pos, lim.V_max, T_red, seed_ii)
-                                             : linear::zero_torque(lin_op, w_pos, lim.V_max, seed_ii);
-            if (!have_seed) seed_ii = linear::Point{top.i_d, s * top.i_q};
-            const auto r2 = newton(System::voltage_limit, target, mirrored(seed_ii));
-            if (r2.converged && current_sq(r2.i_d, r2.i_q) <= I2) {
-                p = {r2.i_d, r2.i_q};
-                region = Region::voltage_limit;
-            } else {
-                converged = r2.converged;  // at the edge of reach: the limit point
+            return true;
+        };
+        auto try_voltage_limit = [&](bool must_be_optimal) {
+            linear::Point seed_ii{seed.i_d, s * seed.i_q};
+            if (seed.region != Region::voltage_limit) {
+                const bool have = T_red > 0 ? linear::voltage_limit(lin_op, w_pos, lim.V_max, T_red, seed_ii)
+                                            : linear::zero_torque(lin_op, w_pos, lim.V_max, seed_ii);
+                if (!have) seed_ii = linear::Point{top.i_d, s * top.i_q};
             }
-        }
+            const auto r = newton(System::voltage_limit, target, mirrored(seed_ii));
+            if (!r.converged || current_sq(r.i_d, r.i_q) > I2) return false;
+            if (must_be_optimal && !map_newton::voltage_limit_is_optimal(flux, lim.omega, R_s, r.i_d, r.i_q)) return false;
+            p = {r.i_d, r.i_q};
+            region = Region::voltage_limit;
+            return true;
+        };
+        const bool ok = seed.region == Region::voltage_limit ? (try_voltage_limit(true) || try_mtpa() || try_voltage_limit(false))
+                                                            : (try_mtpa() || try_voltage_limit(false));
+        if (!ok) converged = false;  // at the edge of reach: keep the limit point
         if (T_red == 0.0) region = Region::zero_torque;
     }
     cmd.i_d = p.i_d;

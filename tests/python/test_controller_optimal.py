@@ -48,8 +48,10 @@ def compare(controller_fmu, map_path, fmap, params, points, recursion, k_u=0.95)
     return rows
 
 
-def check(rows, I_max, current_tol, torque_tol, label):
-    """Assert the acceptance criteria; print what was measured."""
+def check(rows, I_max, current_tol, torque_tol, label, T_max_shortfall=None):
+    """Assert the acceptance criteria; print what was measured. T_max_shortfall: for a sub-optimal
+    method (the paper's recursion), how far below the true T_max its T_max may be; it must still
+    never claim more than is reachable, and must meet the torque it commands."""
     regions = Counter(r["region"] for r in rows)
     excess = [r["I"] / r["I_ref"] - 1 for r in rows if np.isfinite(r["I_ref"]) and r["I_ref"] > 0.02 * I_max]
     t_err = [abs(r["T_at_cmd"] - r["T_cmd_ref"]) / r["T_max_ref"] for r in rows if r["T_max_ref"] > 0]
@@ -62,8 +64,15 @@ def check(rows, I_max, current_tol, torque_tol, label):
         assert np.isfinite([r["i_d"], r["i_q"], r["T_cmd"], r["T_max"]]).all(), ctx
         assert r["I"] <= I_max * (1 + 1e-3), ctx
         assert r["V"] <= r["V_max"] * (1 + 1e-3), ctx
-        assert abs(abs(r["T_max"]) - r["T_max_ref"]) <= torque_tol * max(r["T_max_ref"], 1.0), ctx
-        assert abs(r["T_at_cmd"] - r["T_cmd_ref"]) <= torque_tol * max(r["T_max_ref"], 1.0), ctx
+        tol = torque_tol * max(r["T_max_ref"], 1.0)
+        if T_max_shortfall is None:
+            assert abs(abs(r["T_max"]) - r["T_max_ref"]) <= tol, ctx
+            assert abs(r["T_at_cmd"] - r["T_cmd_ref"]) <= tol, ctx
+        else:
+            assert r["T_max_ref"] * (1 - T_max_shortfall) - tol <= abs(r["T_max"]) <= r["T_max_ref"] + tol, ctx
+            assert abs(r["T_at_cmd"] - r["T_cmd"]) <= tol, ctx
+            if abs(r["T_cmd"]) < abs(r["T_cmd_ref"]) - tol:
+                continue  # clamped below the true optimum's torque: no current comparison
         if np.isfinite(r["I_ref"]):
             assert r["I"] <= r["I_ref"] * (1 + current_tol) + 1e-4 * I_max, ctx
     return regions, excess
@@ -109,7 +118,7 @@ def test_default_map_recursion1_meets_torque_with_excess_current(controller_fmu,
     rng = np.random.default_rng(3)
     points = list(operating_points(rng, 80, 1256.6, (250, 400), (253.15, 393.15), 300.0))
     rows = compare(controller_fmu, default_map_path, fmap, params, points, 1)
-    _, excess = check(rows, params["I_max"], 0.25, 1e-3, "default map, recursion 1")
+    _, excess = check(rows, params["I_max"], 0.25, 1e-3, "default map, recursion 1", T_max_shortfall=0.03)
     assert max(excess) > 1e-3, "recursion 1 should be measurably sub-optimal on a saturated map"
 
 

@@ -1,0 +1,160 @@
+// ns per call of the current-command computation, side by side in one run:
+//   Ferrari on a linear machine; recursion 1 and 2 on the default flux map; the 2-D tables;
+//   Eigen's companion-matrix solver on the same quartic; a Newton-Lagrange iteration from a
+//   fixed start (the online approach the paper replaced).
+// Saturated cases are timed two ways: "trajectory" (consecutive calls along a smooth
+// torque/speed ramp, as in a drive, warm starts) and "random" (every call a new operating point).
+//
+// Usage: build/bin/bench_controller [flux_map.csv]
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <unsupported/Eigen/Polynomials>
+
+#include "linear_optimal_current.hpp"
+#include "map_newton.hpp"
+#include "quartic.hpp"
+#include "saturated_optimal_current.hpp"
+#include "torque_table.hpp"
+
+using namespace ipmsm;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr int kPolePairs = 4;
+constexpr double kUdc = 355.0, kIMax = 500.0, kRs = 0.012;
+const double kVMax = 0.95 * kUdc / std::sqrt(3.0);
+constexpr double kWmMax = 1256.6370614359173;  // 12 000 r/min
+volatile double g_sink;
+
+struct Op {
+    double T, w_m;
+};
+
+std::vector<Op> random_ops(int n, unsigned seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<Op> v(n);
+    for (auto& o : v) o = {(2 * u(rng) - 1) * 320.0, (2 * u(rng) - 1) * kWmMax};
+    return v;
+}
+
+// A drive-like trajectory: torque and speed ramp smoothly, one call per 100 us.
+std::vector<Op> trajectory_ops(int n) {
+    std::vector<Op> v(n);
+    for (int k = 0; k < n; ++k) {
+        const double t = 1e-4 * k;
+        v[k] = {250.0 * std::sin(2 * M_PI * 0.7 * t), kWmMax * (0.5 + 0.45 * std::sin(2 * M_PI * 0.13 * t))};
+    }
+    return v;
+}
+
+template <class F>
+double ns_per_call(const std::vector<Op>& ops, int repeats, F&& f) {
+    double best = 1e300;
+    for (int r = 0; r < repeats; ++r) {
+        double sink = 0;
+        const auto t0 = Clock::now();
+        for (const Op& o : ops) sink += f(o);
+        const auto t1 = Clock::now();
+        g_sink = sink;
+        best = std::min(best, std::chrono::duration<double, std::nano>(t1 - t0).count() / ops.size());
+    }
+    return best;
+}
+
+void row(const char* name, double ns, const char* note = "") { std::printf("%-58s %9.1f ns  %s\n", name, ns, note); }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const std::string path = argc > 1 ? argv[1] : std::string(IPMSM_SOURCE_DIR) + "/plant/resources/ev_ipmsm_default.csv";
+    auto map = std::make_shared<const FluxMap>(read_flux_map(path));
+    const int N = 200000, R = 5;
+    const auto rnd = random_ops(N, 7);
+    const auto traj = trajectory_ops(N);
+    std::printf("bench_controller: %d calls per case, best of %d runs; map %s\n\n", N, R, path.c_str());
+
+    // Linear machine: the default map's nominal (unsaturated) parameters.
+    const SaturatedOptimalCurrent probe(map, kPolePairs);
+    const LinearMachine lin = probe.nominal_machine(kRs, 0.0);
+    auto linear_call = [&](const Op& o) {
+        const auto c = linear::optimal_current(lin, kPolePairs, o.T, {kPolePairs * o.w_m, kVMax, kIMax});
+        return c.i_d + c.i_q;
+    };
+    row("Ferrari, linear machine (clamp + MTPA/Case ii), random", ns_per_call(rnd, R, linear_call), "target <= 150 ns");
+
+    // One quartic, Ferrari vs Eigen's companion matrix: the Case i quartic of each operating point.
+    const double dL = lin.L_d - lin.L_q;
+    auto ferrari_quartic = [&](const Op& o) {
+        const double Tr = std::abs(o.T) / (1.5 * kPolePairs) + 1.0;
+        return solve_quartic(dL * dL, 0, 0, lin.psi_m * Tr, -Tr * Tr).root[0];
+    };
+    auto eigen_quartic = [&](const Op& o) {
+        const double Tr = std::abs(o.T) / (1.5 * kPolePairs) + 1.0;
+        Eigen::Matrix<double, 5, 1> c;
+        c << -Tr * Tr, lin.psi_m * Tr, 0, 0, dL * dL;
+        Eigen::PolynomialSolver<double, 4> s(c);
+        return s.roots()[0].real();
+    };
+    row("one Case i quartic: Ferrari", ns_per_call(rnd, R, ferrari_quartic));
+    row("one Case i quartic: Eigen companion matrix (PolynomialSolver)", ns_per_call(rnd, R, eigen_quartic));
+
+    // Newton-Lagrange on the linear machine from a fixed start (no Ferrari seed), MTPA only.
+    const auto lin_map = std::make_shared<const FluxMap>(linear_flux_map(lin.L_d, lin.L_q, lin.psi_m, 900.0, 7));
+    const MagnetFlux lin_flux(*lin_map, 0.0);
+    int nl_fail = 0;
+    auto newton_lagrange = [&](const Op& o) {
+        const map_newton::Problem P{map_newton::System::mtpa, 0.0, kRs, std::abs(o.T) / (1.5 * kPolePairs) + 1.0, kVMax, kIMax};
+        const auto r = map_newton::solve(lin_flux, P, -0.3 * kIMax, 0.6 * kIMax, 50, 1e-6, 50.0);
+        nl_fail += !r.converged;
+        return r.i_d + r.i_q;
+    };
+    row("Newton-Lagrange MTPA, linear machine, fixed start", ns_per_call(rnd, R, newton_lagrange));
+
+    // Saturated: recursion 1 and 2 on the map.
+    for (const auto& [label, ops] : {std::pair{"trajectory", &traj}, std::pair{"random", &rnd}}) {
+        for (Recursion mode : {Recursion::apparent, Recursion::optimal}) {
+            SaturatedOptimalCurrent solver(map, kPolePairs);
+            long iters = 0;
+            auto call = [&](const Op& o) {
+                const auto c = solver.solve(o.T, {kPolePairs * o.w_m, kVMax, kIMax}, kRs, 0.0, mode);
+                iters += c.iterations;
+                return c.i_d + c.i_q;
+            };
+            const double ns = ns_per_call(*ops, R, call);
+            char name[96], note[64];
+            std::snprintf(name, sizeof name, "Ferrari + recursion %d, default map, %s", static_cast<int>(mode), label);
+            std::snprintf(note, sizeof note, "%.2f iterations/call%s", double(iters) / (R * ops->size()),
+                          mode == Recursion::optimal ? ", target <= 1000 ns" : "");
+            row(name, ns, note);
+        }
+    }
+
+    // 2-D tables, 41 x 41.
+    for (TableAxis axis : {TableAxis::speed, TableAxis::flux}) {
+        TableSpec spec;
+        spec.axis = axis;
+        spec.u_dc = kUdc;
+        spec.I_max = kIMax;
+        spec.R_s = kRs;
+        spec.w_m_max = kWmMax;
+        const TorqueTable table(SaturatedOptimalCurrent(map, kPolePairs), spec);
+        auto call = [&](const Op& o) {
+            const auto c = table.lookup(o.T, o.w_m, kVMax);
+            return c.i_d + c.i_q;
+        };
+        char name[96];
+        std::snprintf(name, sizeof name, "2-D table 41x41 over torque x %s (%zu bytes), random",
+                      axis == TableAxis::speed ? "speed" : "V_max/omega", table.bytes());
+        row(name, ns_per_call(rnd, R, call));
+    }
+    if (nl_fail) std::printf("\nNewton-Lagrange did not converge in %d calls\n", nl_fail);
+    return 0;
+}
