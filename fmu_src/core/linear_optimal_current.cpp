@@ -103,6 +103,18 @@ bool voltage_limit(const LinearMachine& m, double omega, double V_max, double T_
     return best < INFINITY;
 }
 
+bool voltage_limit_is_optimal(const LinearMachine& m, double omega, Point p) {
+    const double dL = m.L_d - m.L_q;
+    // Tangent of the torque curve t = (-dT'/di_q, dT'/di_d); rates of |i|^2 and |v|^2 along it.
+    const double t_d = -(m.psi_m + dL * p.i_d), t_q = dL * p.i_q;
+    const double v_d = m.R_s * p.i_d - omega * m.L_q * p.i_q;
+    const double v_q = m.R_s * p.i_q + omega * (m.L_d * p.i_d + m.psi_m);
+    const double g_d = v_d * m.R_s + v_q * omega * m.L_d;   // half the gradient of |v|^2
+    const double g_q = -v_d * omega * m.L_q + v_q * m.R_s;
+    const double dc = p.i_d * t_d + p.i_q * t_q, dg = g_d * t_d + g_q * t_q;
+    return dc * dg <= 0.0;
+}
+
 bool zero_torque(const LinearMachine& m, double omega, double V_max, Point& out) {
     if (voltage_sq(m, omega, 0.0, 0.0) <= V_max * V_max) {
         out = {0.0, 0.0};
@@ -210,14 +222,29 @@ CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_
     } else if (T_red == 0.0) {
         if (!zero_torque(m, L.omega, L.V_max, p)) p = top.point;
         cmd.region = Region::zero_torque;
-    } else {
+    } else if (top.region == Region::mtpa) {
+        // Below the base speed for this torque side: MTPA first (seed Case i).
         p = mtpa(m, T_red);
         cmd.region = Region::mtpa;
         if (voltage_sq(m, L.omega, p.i_d, p.i_q) > L.V_max * L.V_max * (1.0 + kLimitSlack)) {
             cmd.region = Region::voltage_limit;
-            if (!voltage_limit(m, L.omega, L.V_max, T_red, p)) {  // only at the edge of reach
+            if (!voltage_limit(m, L.omega, L.V_max, T_red, p)) {
                 p = top.point;
                 cmd.region = top.region;
+            }
+        }
+    } else {
+        // Field weakening: the seed's order, Case ii first, then the a-priori test says whether
+        // MTPA is needed at all, which saves a quartic whenever the voltage limit is active.
+        cmd.region = Region::voltage_limit;
+        if (!voltage_limit(m, L.omega, L.V_max, T_red, p)) {
+            p = top.point;  // only at the edge of reach
+            cmd.region = top.region;
+        } else if (!voltage_limit_is_optimal(m, L.omega, p)) {
+            const Point q = mtpa(m, T_red);
+            if (voltage_sq(m, L.omega, q.i_d, q.i_q) <= L.V_max * L.V_max * (1.0 + kLimitSlack)) {
+                p = q;
+                cmd.region = Region::mtpa;
             }
         }
     }

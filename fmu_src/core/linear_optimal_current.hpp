@@ -27,6 +27,9 @@ Point mtpa_at_current(const LinearMachine& m, double I);
 // Case ii: T' meets the voltage ellipse (with R_s); the root with the largest i_q.
 // Returns false if the torque curve misses the ellipse.
 bool voltage_limit(const LinearMachine& m, double omega, double V_max, double T_red, Point& out);
+// The a-priori test at a Case ii point (seed Sec. V, generalised to R_s): true if moving along the
+// torque curve towards less current leaves the ellipse, i.e. the point is the current minimum.
+bool voltage_limit_is_optimal(const LinearMachine& m, double omega, Point p);
 // Zero torque: i_q = 0 and the smallest |i_d| that brings the voltage within V_max.
 bool zero_torque(const LinearMachine& m, double omega, double V_max, Point& out);
 // The maximum-torque point on the voltage ellipse (MTPV, with R_s).
