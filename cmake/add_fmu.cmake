@@ -1,1 +1,109 @@
+# add_fmu(NAME <ModelIdentifier>
+#         SOURCES <.cpp ...>            # the one with IPMSM_FMI2_EXPORT(Model), plus any model sources
+#         [LIBRARIES <targets ...>]     # linked into the FMU and its generator
+#         [RESOURCES <files ...>]       # copied into resources/ (files, not directories)
+#         [DOCUMENTATION <index.html>]) # copied to documentation/index.html
+#
+# Builds an FMI 2.0 co-simulation FMU for Linux x86-64:
+#   <NAME>                    the shared library <NAME>.so: hidden visibility, only the fmi2* functions
+#                             exported (fmu_src/fmi/exports.map), no undefined symbols, libstdc++ and
+#                             libgcc linked statically so that it needs only libc and libm, unused
+#                             sections dropped
+#   <NAME>_modelDescription   the generator: the same SOURCES compiled with IPMSM_FMI2_GENERATOR
+#   <NAME>_fmu (ALL)          runs the generator and assembles ${CMAKE_BINARY_DIR}/fmu/<NAME>/
+#                             (modelDescription.xml, binaries/linux64/<NAME>.so, resources/,
+#                             documentation/) and zips it to ${CMAKE_BINARY_DIR}/fmu/<NAME>.fmu,
+#                             again whenever the library, the generator, a resource, the
+#                             documentation or this file changes.
+#
+# This file is also the assembly script: `cmake -DFMU_CONFIG=<file> -P add_fmu.cmake`.
 
+if(CMAKE_SCRIPT_MODE_FILE)
+  include(${FMU_CONFIG})  # NAME, DIR, FMU, LIBRARY, GENERATOR, RESOURCES, DOCUMENTATION
+  file(REMOVE_RECURSE ${DIR})
+  file(MAKE_DIRECTORY ${DIR}/binaries/linux64 ${DIR}/resources)
+  execute_process(COMMAND ${GENERATOR} ${DIR}/modelDescription.xml RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${NAME}: the modelDescription.xml generator failed (${rc})")
+  endif()
+  file(COPY_FILE ${LIBRARY} ${DIR}/binaries/linux64/${NAME}.so)
+  foreach(r IN LISTS RESOURCES)
+    get_filename_component(r_name ${r} NAME)
+    file(COPY_FILE ${r} ${DIR}/resources/${r_name})
+  endforeach()
+  set(entries modelDescription.xml binaries resources)
+  if(DOCUMENTATION)
+    file(MAKE_DIRECTORY ${DIR}/documentation)
+    file(COPY_FILE ${DOCUMENTATION} ${DIR}/documentation/index.html)
+    list(APPEND entries documentation)
+  endif()
+  file(REMOVE ${FMU})
+  execute_process(
+    COMMAND ${CMAKE_COMMAND} -E tar cf ${FMU}.tmp --format=zip "--mtime=2000-01-01 00:00:00 UTC" -- ${entries}
+    WORKING_DIRECTORY ${DIR} RESULT_VARIABLE rc)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "${NAME}: zipping ${DIR} failed (${rc})")
+  endif()
+  file(RENAME ${FMU}.tmp ${FMU})
+  return()
+endif()
+
+set(IPMSM_ADD_FMU_SCRIPT ${CMAKE_CURRENT_LIST_FILE})
+set(IPMSM_FMI2_EXPORTS_MAP ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/exports.map)
+
+function(add_fmu)
+  cmake_parse_arguments(PARSE_ARGV 0 FMU "" "NAME;DOCUMENTATION" "SOURCES;LIBRARIES;RESOURCES")
+  if(NOT FMU_NAME OR NOT FMU_SOURCES)
+    message(FATAL_ERROR "add_fmu: NAME and SOURCES are required")
+  endif()
+  set(name ${FMU_NAME})
+  set(resources "")
+  foreach(r IN LISTS FMU_RESOURCES)
+    get_filename_component(r ${r} ABSOLUTE)
+    list(APPEND resources ${r})
+  endforeach()
+  set(documentation "")
+  if(FMU_DOCUMENTATION)
+    get_filename_component(documentation ${FMU_DOCUMENTATION} ABSOLUTE)
+  endif()
+
+  # The FMU's shared library.
+  add_library(${name} SHARED ${FMU_SOURCES})
+  target_link_libraries(${name} PRIVATE fmi2_glue ${FMU_LIBRARIES})
+  set_target_properties(${name} PROPERTIES
+    PREFIX "" OUTPUT_NAME ${name} SUFFIX ".so"
+    C_VISIBILITY_PRESET hidden CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON
+    LINK_DEPENDS ${IPMSM_FMI2_EXPORTS_MAP})
+  target_compile_options(${name} PRIVATE -ffunction-sections -fdata-sections)
+  target_link_options(${name} PRIVATE "LINKER:--version-script=${IPMSM_FMI2_EXPORTS_MAP}" "LINKER:--gc-sections")
+  if(NOT IPMSM_SANITIZE)  # the sanitizer runtimes are shared libraries with undefined hooks
+    target_link_options(${name} PRIVATE "LINKER:--no-undefined" -static-libstdc++ -static-libgcc)
+  endif()
+
+  # The modelDescription.xml generator: the same sources, IPMSM_FMI2_EXPORT expands to main().
+  add_executable(${name}_modelDescription ${FMU_SOURCES})
+  target_link_libraries(${name}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
+  target_compile_definitions(${name}_modelDescription PRIVATE
+    IPMSM_FMI2_GENERATOR IPMSM_FMU_VERSION="${PROJECT_VERSION}")
+
+  # Assembly and zip.
+  set(dir ${CMAKE_BINARY_DIR}/fmu/${name})
+  set(fmu ${CMAKE_BINARY_DIR}/fmu/${name}.fmu)
+  set(config ${CMAKE_CURRENT_BINARY_DIR}/${name}_fmu_config.cmake)
+  file(GENERATE OUTPUT ${config} CONTENT
+"set(NAME \"${name}\")
+set(DIR \"${dir}\")
+set(FMU \"${fmu}\")
+set(LIBRARY \"$<TARGET_FILE:${name}>\")
+set(GENERATOR \"$<TARGET_FILE:${name}_modelDescription>\")
+set(RESOURCES \"${resources}\")
+set(DOCUMENTATION \"${documentation}\")
+")
+  add_custom_command(
+    OUTPUT ${fmu}
+    COMMAND ${CMAKE_COMMAND} -DFMU_CONFIG=${config} -P ${IPMSM_ADD_FMU_SCRIPT}
+    DEPENDS ${name} ${name}_modelDescription ${resources} ${documentation} ${config} ${IPMSM_ADD_FMU_SCRIPT}
+    COMMENT "Packaging FMU ${fmu}"
+    VERBATIM)
+  add_custom_target(${name}_fmu ALL DEPENDS ${fmu})
+endfunction()

@@ -26,6 +26,15 @@
 // - fmi2Reset replaces the model with a fresh MyModel(context).
 // - fmi2GetFMUstate copies the model (copy constructor): keep large read-only data behind
 //   std::shared_ptr<const T>. Serialisation writes every variable's value plus save_state().
+// - Before each do_step and exit_initialization the glue copy-assigns the model to a scratch copy,
+//   and swaps it back if the call throws or leaves an output or local Real non-finite: keep
+//   copy-assignment cheap (it runs once per communication step) and swap non-throwing.
+// - The glue validates values before the model sees them: type, causality and state rules,
+//   finite Reals, [min, max] from the table. exit_initialization() checks what depends on
+//   several values (or on data).
+// - Deserialising a state saved after initialisation into an instance not yet initialised: the
+//   glue sets the saved values, calls exit_initialization() (to load data), sets the saved values
+//   again, then load_state().
 #pragma once
 
 #include <cstdint>

@@ -1,0 +1,303 @@
+// Writes the FMI 2.0 modelDescription.xml of a model (see model.hpp) from its variable table and
+// static members; start values come from a default-constructed M(fmi::Context{}), so they have one
+// source. The generator also checks the table against the standard's rules (names, descriptions,
+// causality/variability combinations, types, units, ranges, finite start values) and fails with a
+// list of the problems, which fails the build.
+//
+// An FMU's generator executable is one line (add_fmu builds it from the FMU's own .cpp, where
+// IPMSM_FMI2_EXPORT expands to this when IPMSM_FMI2_GENERATOR is defined):
+//
+//     IPMSM_FMI2_MODEL_DESCRIPTION_MAIN(MyModel)   // main: `gen [out.xml]`, stdout without argument
+#pragma once
+
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "fmi2_glue.hpp"
+#include "fmi2_support.hpp"
+#include "model.hpp"
+#include "variable.hpp"
+
+namespace fmi {
+
+// SI units known to the generator: exponents of the base units, and display units.
+struct DisplayUnit {
+    const char* name;
+    double factor;  // display value = factor * value + offset
+    double offset;
+};
+struct UnitInfo {
+    const char* name;
+    int kg, m, s, A, K, mol, cd, rad;
+    std::vector<DisplayUnit> display;
+};
+
+inline const std::vector<UnitInfo>& unit_table() {
+    static const double pi = std::acos(-1.0);
+    static const std::vector<UnitInfo> table = {
+        //  name     kg m  s   A  K mol cd rad
+        {"1", 0, 0, 0, 0, 0, 0, 0, 0, {}},
+        {"s", 0, 0, 1, 0, 0, 0, 0, 0, {{"ms", 1e3, 0}}},
+        {"Hz", 0, 0, -1, 0, 0, 0, 0, 0, {}},
+        {"m", 0, 1, 0, 0, 0, 0, 0, 0, {}},
+        {"m/s", 0, 1, -1, 0, 0, 0, 0, 0, {{"km/h", 3.6, 0}}},
+        {"kg", 1, 0, 0, 0, 0, 0, 0, 0, {}},
+        {"kg.m2", 1, 2, 0, 0, 0, 0, 0, 0, {}},
+        {"A", 0, 0, 0, 1, 0, 0, 0, 0, {}},
+        {"V", 1, 2, -3, -1, 0, 0, 0, 0, {}},
+        {"Ohm", 1, 2, -3, -2, 0, 0, 0, 0, {{"mOhm", 1e3, 0}}},
+        {"H", 1, 2, -2, -2, 0, 0, 0, 0, {{"mH", 1e3, 0}}},
+        {"Wb", 1, 2, -2, -1, 0, 0, 0, 0, {{"mWb", 1e3, 0}}},
+        {"W", 1, 2, -3, 0, 0, 0, 0, 0, {{"kW", 1e-3, 0}}},
+        {"J", 1, 2, -2, 0, 0, 0, 0, 0, {{"Wh", 1.0 / 3600.0, 0}, {"kWh", 1.0 / 3.6e6, 0}}},
+        {"N", 1, 1, -2, 0, 0, 0, 0, 0, {}},
+        {"N.m", 1, 2, -2, 0, 0, 0, 0, 0, {}},
+        {"rad", 0, 0, 0, 0, 0, 0, 0, 1, {{"deg", 180.0 / pi, 0}}},
+        {"rad/s", 0, 0, -1, 0, 0, 0, 0, 1, {{"rpm", 60.0 / (2.0 * pi), 0}}},
+        {"K", 0, 0, 0, 0, 1, 0, 0, 0, {{"degC", 1.0, -273.15}}},
+        {"1/K", 0, 0, 0, 0, -1, 0, 0, 0, {}},
+    };
+    return table;
+}
+
+inline const UnitInfo* find_unit(const std::string& name) {
+    for (const auto& u : unit_table())
+        if (name == u.name) return &u;
+    return nullptr;
+}
+
+inline std::string xml_escape(const std::string& s) {
+    std::string out;
+    for (char c : s) {
+        switch (c) {
+            case '&': out += "&amp;"; break;
+            case '<': out += "&lt;"; break;
+            case '>': out += "&gt;"; break;
+            case '"': out += "&quot;"; break;
+            case '\n': out += "&#10;"; break;
+            case '\t': out += "&#9;"; break;
+            case '\r': out += "&#13;"; break;
+            default: out += c;
+        }
+    }
+    return out;
+}
+
+namespace detail {
+
+inline bool empty(const char* s) { return s == nullptr || s[0] == '\0'; }
+
+// The rules of FMI 2.0 (section 2.2.7) this glue relies on; every problem found, one per line.
+template <class M>
+std::string table_problems(const M& defaults) {
+    const auto& vars = M::variables();
+    std::ostringstream p;
+    std::set<std::string> names;
+    if (!(M::default_step_size > 0.0) || !(M::default_stop_time > M::default_step_size))
+        p << "default_step_size must be > 0 and default_stop_time > default_step_size\n";
+    if (empty(M::model_identifier) || empty(M::guid) || empty(M::description))
+        p << "model_identifier, guid and description must be non-empty\n";
+    for (const auto& v : vars) {
+        const std::string name = v.name != nullptr ? v.name : "";
+        const std::string where = "variable \"" + name + "\": ";
+        if (name.empty() || name.find_first_of("\r\n\t") != std::string::npos) p << where << "bad name\n";
+        if (!names.insert(name).second) p << where << "the name is not unique\n";
+        if (empty(v.description)) p << where << "needs a description\n";
+        const Type type = type_of(v);
+        const Causality c = v.causality;
+        const Variability var = v.variability;
+        if (c == Causality::parameter && var != Variability::fixed && var != Variability::tunable)
+            p << where << "a parameter must be fixed or tunable\n";
+        if ((c == Causality::input || c == Causality::output) &&
+            (var == Variability::fixed || var == Variability::tunable))
+            p << where << "an input or output must be discrete or continuous\n";
+        if (type != Type::Real && var == Variability::continuous)
+            p << where << "only Reals can be continuous (use discrete)\n";
+        const bool has_unit = !empty(v.unit), has_display = !empty(v.display_unit);
+        if (type != Type::Real && (has_unit || has_display)) p << where << "only Reals have units in FMI 2.0\n";
+        if (has_unit) {
+            const UnitInfo* u = find_unit(v.unit);
+            if (u == nullptr) p << where << "unit \"" << v.unit << "\" is not in model_description.hpp's unit_table()\n";
+            else if (has_display) {
+                bool found = false;
+                for (const auto& d : u->display) found = found || std::string(d.name) == v.display_unit;
+                if (!found) p << where << "display unit \"" << v.display_unit << "\" is not defined for " << v.unit << "\n";
+            }
+        } else if (has_display) p << where << "a display unit needs a unit\n";
+        const bool has_min = v.min != -std::numeric_limits<double>::infinity();
+        const bool has_max = v.max != std::numeric_limits<double>::infinity();
+        if ((type == Type::Boolean || type == Type::String) && (has_min || has_max || v.min_exclusive))
+            p << where << "Booleans and Strings have no range\n";
+        if (std::isnan(v.min) || std::isnan(v.max) || v.min > v.max) p << where << "min > max\n";
+        if (type == Type::Integer) {
+            for (double b : {v.min, v.max})
+                if (std::isfinite(b) && (b != std::floor(b) || std::abs(b) > 2147483647.0))
+                    p << where << "Integer bounds must be integers\n";
+        }
+        if (type == Type::Real) {
+            const double x = defaults.*std::get<double M::*>(v.member);
+            if (!std::isfinite(x)) p << where << "the default-constructed model has " << number_text(x) << "\n";
+        }
+        if ((c == Causality::parameter || c == Causality::input) && (type == Type::Real || type == Type::Integer)) {
+            const double x = type == Type::Real ? defaults.*std::get<double M::*>(v.member)
+                                                : defaults.*std::get<int M::*>(v.member);
+            if (!in_range(v, x)) p << where << "start value " << number_text(x) << " is outside " << range_text(v) << "\n";
+        }
+    }
+    return p.str();
+}
+
+template <class M>
+std::string start_text(const M& m, const Variable<M>& v) {
+    return std::visit(
+        [&](auto ptr) -> std::string {
+            using T = std::decay_t<decltype(m.*ptr)>;
+            if constexpr (std::is_same_v<T, double>) return number_text(m.*ptr);
+            else if constexpr (std::is_same_v<T, int>) return std::to_string(m.*ptr);
+            else if constexpr (std::is_same_v<T, bool>) return m.*ptr ? "true" : "false";
+            else return xml_escape(m.*ptr);
+        },
+        v.member);
+}
+
+}  // namespace detail
+
+// The modelDescription.xml of M; throws std::runtime_error listing the table's problems.
+template <class M>
+std::string model_description() {
+    const M defaults{Context{}};
+    if (const std::string problems = detail::table_problems(defaults); !problems.empty())
+        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier + " breaks FMI 2.0 rules:\n" + problems);
+    const auto& vars = M::variables();
+    std::ostringstream x;
+    x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+      << "<fmiModelDescription\n"
+      << "  fmiVersion=\"2.0\"\n"
+      << "  modelName=\"" << xml_escape(M::model_identifier) << "\"\n"
+      << "  guid=\"" << xml_escape(M::guid) << "\"\n"
+      << "  description=\"" << xml_escape(M::description) << "\"\n"
+#ifdef IPMSM_FMU_VERSION
+      << "  version=\"" << xml_escape(IPMSM_FMU_VERSION) << "\"\n"
+#endif
+      << "  generationTool=\"ipmsm-fmu\"\n"
+      << "  variableNamingConvention=\"flat\">\n"
+      << "  <CoSimulation\n"
+      << "    modelIdentifier=\"" << xml_escape(M::model_identifier) << "\"\n"
+      << "    needsExecutionTool=\"false\"\n"
+      << "    canHandleVariableCommunicationStepSize=\"true\"\n"
+      << "    canInterpolateInputs=\"false\"\n"
+      << "    maxOutputDerivativeOrder=\"0\"\n"
+      << "    canRunAsynchronuously=\"false\"\n"
+      << "    canBeInstantiatedOnlyOncePerProcess=\"false\"\n"
+      << "    canNotUseMemoryManagementFunctions=\"true\"\n"
+      << "    canGetAndSetFMUstate=\"true\"\n"
+      << "    canSerializeFMUstate=\"true\"\n"
+      << "    providesDirectionalDerivative=\"false\"/>\n";
+
+    std::vector<const UnitInfo*> units;  // used ones, in table order
+    for (const auto& v : vars)
+        if (!detail::empty(v.unit)) {
+            const UnitInfo* u = find_unit(v.unit);
+            bool seen = false;
+            for (const UnitInfo* w : units) seen = seen || w == u;
+            if (!seen) units.push_back(u);
+        }
+    if (!units.empty()) {
+        x << "  <UnitDefinitions>\n";
+        for (const UnitInfo* u : units) {
+            x << "    <Unit name=\"" << xml_escape(u->name) << "\">\n      <BaseUnit";
+            const std::pair<const char*, int> exps[] = {{"kg", u->kg}, {"m", u->m},     {"s", u->s},   {"A", u->A},
+                                                        {"K", u->K},   {"mol", u->mol}, {"cd", u->cd}, {"rad", u->rad}};
+            for (const auto& [n, e] : exps)
+                if (e != 0) x << ' ' << n << "=\"" << e << '"';
+            x << "/>\n";
+            for (const auto& d : u->display) {
+                x << "      <DisplayUnit name=\"" << xml_escape(d.name) << "\" factor=\"" << number_text(d.factor) << '"';
+                if (d.offset != 0.0) x << " offset=\"" << number_text(d.offset) << '"';
+                x << "/>\n";
+            }
+            x << "    </Unit>\n";
+        }
+        x << "  </UnitDefinitions>\n";
+    }
+
+    x << "  <LogCategories>\n";
+    for (const auto& c : log_categories)
+        x << "    <Category name=\"" << c.name << "\" description=\"" << xml_escape(c.description) << "\"/>\n";
+    x << "  </LogCategories>\n";
+    x << "  <DefaultExperiment startTime=\"0\" stopTime=\"" << number_text(M::default_stop_time) << "\" stepSize=\""
+      << number_text(M::default_step_size) << "\"/>\n";
+
+    x << "  <ModelVariables>\n";
+    std::vector<std::size_t> outputs;
+    for (std::size_t i = 0; i < vars.size(); ++i) {
+        const auto& v = vars[i];
+        const Type type = type_of(v);
+        const bool computed = v.causality == Causality::output || v.causality == Causality::local;
+        if (v.causality == Causality::output) outputs.push_back(i + 1);
+        x << "    <ScalarVariable name=\"" << xml_escape(v.name) << "\" valueReference=\"" << i << "\" description=\""
+          << xml_escape(v.description) << "\" causality=\"" << causality_name(v.causality) << "\" variability=\""
+          << variability_name(v.variability) << '"';
+        if (computed) x << " initial=\"calculated\"";
+        x << ">\n      <" << type_name(type);
+        if (!detail::empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
+        if (!detail::empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
+        if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
+            auto bound = [&](double b) { return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b)); };
+            if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
+            if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
+        }
+        if (!computed) x << " start=\"" << detail::start_text(defaults, v) << '"';
+        x << "/>\n    </ScalarVariable>\n";
+    }
+    x << "  </ModelVariables>\n";
+
+    x << "  <ModelStructure>\n";
+    if (!outputs.empty()) {
+        x << "    <Outputs>\n";
+        for (std::size_t k : outputs) x << "      <Unknown index=\"" << k << "\"/>\n";
+        x << "    </Outputs>\n    <InitialUnknowns>\n";
+        for (std::size_t k : outputs) x << "      <Unknown index=\"" << k << "\"/>\n";
+        x << "    </InitialUnknowns>\n";
+    }
+    x << "  </ModelStructure>\n</fmiModelDescription>\n";
+    return x.str();
+}
+
+// main() of a generator: writes the XML to argv[1] (or stdout); exit code 1 with the reason.
+template <class M>
+int model_description_main(int argc, char** argv) {
+    try {
+        const std::string xml = model_description<M>();
+        if (argc < 2) {
+            std::cout << xml;
+            return std::cout.good() ? 0 : 1;
+        }
+        const std::string tmp = std::string(argv[1]) + ".tmp";
+        {
+            std::ofstream f(tmp, std::ios::binary);
+            f << xml;
+            if (!f.good()) throw std::runtime_error("cannot write " + tmp);
+        }
+        if (std::rename(tmp.c_str(), argv[1]) != 0) throw std::runtime_error(std::string("cannot write ") + argv[1]);
+        return 0;
+    } catch (const std::exception& e) {
+        std::cerr << "modelDescription.xml of " << M::model_identifier << ": " << e.what() << '\n';
+        return 1;
+    }
+}
+
+}  // namespace fmi
+
+#define IPMSM_FMI2_MODEL_DESCRIPTION_MAIN(Model) \
+    int main(int argc, char** argv) { return ::fmi::model_description_main<Model>(argc, argv); }

@@ -1,0 +1,144 @@
+// Unit tests of the pieces of the FMI 2.0 glue that the ToyLag FMU cannot reach: the variable-table
+// checks of the modelDescription.xml generator, its number formats, and fmuResourceLocation parsing.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "model_description.hpp"
+
+namespace {
+
+using fmi::Causality;
+using fmi::Variability;
+
+// A model whose table breaks one rule per entry.
+struct Bad {
+    static constexpr const char* model_identifier = "Bad";
+    static constexpr const char* guid = "{bad}";
+    static constexpr const char* description = "A broken table";
+    static constexpr double default_step_size = 0.1;
+    static constexpr double default_stop_time = 1.0;
+    static const std::vector<fmi::Variable<Bad>>& variables() {
+        static const std::vector<fmi::Variable<Bad>> v = {
+            {"a", &Bad::a, Causality::parameter, Variability::continuous, "V", "", "a"},
+            {"a", &Bad::a, Causality::input, Variability::continuous, "furlong", "", "a again"},
+            {"n", &Bad::n, Causality::output, Variability::continuous, "", "", "an Integer"},
+            {"b", &Bad::b, Causality::output, Variability::continuous, "V", "rpm", ""},
+            {"flag", &Bad::flag, Causality::input, Variability::discrete, "", "", "a Boolean", 0, 1},
+            {"c", &Bad::c, Causality::parameter, Variability::fixed, "A", "", "c", 0, 1},
+            {"n2", &Bad::n, Causality::parameter, Variability::fixed, "", "", "n2", 0.5, 10},
+            {"s", &Bad::s, Causality::input, Variability::tunable, "", "", "s"},
+            {"d", &Bad::a, Causality::parameter, Variability::fixed, "", "degC", "d"},
+            {"i", &Bad::n, Causality::parameter, Variability::fixed, "A", "", "i"},
+        };
+        return v;
+    }
+    explicit Bad(const fmi::Context&) {}
+    void exit_initialization() {}
+    void do_step(double, double) {}
+    void save_state(fmi::StateWriter&) const {}
+    void load_state(fmi::StateReader&) {}
+
+    double a = 0.0, b = std::nan(""), c = 5.0;
+    int n = 0;
+    bool flag = false;
+    std::string s;
+};
+
+struct Small {
+    static constexpr const char* model_identifier = "Small";
+    static constexpr const char* guid = "{small}";
+    static constexpr const char* description = "Small & <fine>";
+    static constexpr double default_step_size = 1e-4;
+    static constexpr double default_stop_time = 0.1;
+    static const std::vector<fmi::Variable<Small>>& variables() {
+        static const std::vector<fmi::Variable<Small>> v = {
+            {"u_dc", &Small::u_dc, Causality::input, Variability::continuous, "V", "", "DC link", 0, 2000, true},
+            {"count", &Small::count, Causality::parameter, Variability::fixed, "", "", "count", 1, 1e7},
+            {"name", &Small::name, Causality::parameter, Variability::fixed, "", "", "a \"name\""},
+            {"T", &Small::T, Causality::output, Variability::continuous, "K", "degC", "T"},
+            {"w", &Small::w, Causality::local, Variability::continuous, "rad/s", "rpm", "w"},
+        };
+        return v;
+    }
+    explicit Small(const fmi::Context&) {}
+    void exit_initialization() {}
+    void do_step(double, double) {}
+    void save_state(fmi::StateWriter&) const {}
+    void load_state(fmi::StateReader&) {}
+
+    double u_dc = 400.0;
+    int count = 10000000;
+    std::string name = "a<b>&\"c\"";
+    double T = 300.0, w = 0.0;
+};
+
+TEST(ModelDescription, ReportsEveryBrokenRule) {
+    const std::string p = fmi::detail::table_problems(Bad(fmi::Context{}));
+    for (const char* expected : {
+             "variable \"a\": a parameter must be fixed or tunable",
+             "variable \"a\": the name is not unique",
+             "unit \"furlong\" is not in model_description.hpp's unit_table()",
+             "variable \"n\": only Reals can be continuous",
+             "variable \"b\": needs a description",
+             "display unit \"rpm\" is not defined for V",
+             "variable \"b\": the default-constructed model has nan",
+             "variable \"flag\": Booleans and Strings have no range",
+             "variable \"c\": start value 5 is outside [0, 1]",
+             "variable \"n2\": Integer bounds must be integers",
+             "variable \"s\": an input or output must be discrete or continuous",
+             "variable \"d\": a display unit needs a unit",
+             "variable \"i\": only Reals have units",
+         })
+        EXPECT_NE(p.find(expected), std::string::npos) << "missing: " << expected << "\nin:\n" << p;
+    EXPECT_THROW(fmi::model_description<Bad>(), std::runtime_error);
+}
+
+TEST(ModelDescription, WritesValidAttributes) {
+    EXPECT_EQ(fmi::detail::table_problems(Small(fmi::Context{})), "");
+    const std::string x = fmi::model_description<Small>();
+    auto has = [&](const std::string& s) { return x.find(s) != std::string::npos; };
+    EXPECT_TRUE(has("description=\"Small &amp; &lt;fine&gt;\""));
+    EXPECT_TRUE(has("<Real unit=\"V\" min=\"0\" max=\"2000\" start=\"400\"/>"));
+    EXPECT_TRUE(has("<Integer min=\"1\" max=\"10000000\" start=\"10000000\"/>"));  // xs:int, no 1e+07
+    EXPECT_TRUE(has("<String start=\"a&lt;b&gt;&amp;&quot;c&quot;\"/>"));
+    EXPECT_TRUE(has("causality=\"output\" variability=\"continuous\" initial=\"calculated\">\n      <Real unit=\"K\" displayUnit=\"degC\"/>"));
+    EXPECT_TRUE(has("<DisplayUnit name=\"degC\" factor=\"1\" offset=\"-273.15\"/>"));
+    EXPECT_TRUE(has("<DisplayUnit name=\"rpm\" factor=\"9.549296585513721\"/>"));
+    EXPECT_TRUE(has("<DefaultExperiment startTime=\"0\" stopTime=\"0.1\" stepSize=\"1e-04\"/>"));
+    EXPECT_TRUE(has("<Outputs>\n      <Unknown index=\"4\"/>\n    </Outputs>"));
+    EXPECT_TRUE(has("<InitialUnknowns>\n      <Unknown index=\"4\"/>\n    </InitialUnknowns>"));
+    EXPECT_FALSE(has("index=\"5\""));  // a local is not an output
+}
+
+TEST(ResourceLocation, Forms) {
+    using fmi::resource_dir_from_uri;
+    EXPECT_EQ(resource_dir_from_uri("file:///a/b%20c/resources"), "/a/b c/resources");
+    EXPECT_EQ(resource_dir_from_uri("file:///a/b%20c/resources/"), "/a/b c/resources");
+    EXPECT_EQ(resource_dir_from_uri("file:/a/b/resources"), "/a/b/resources");
+    EXPECT_EQ(resource_dir_from_uri("file://localhost/a/b"), "/a/b");
+    EXPECT_EQ(resource_dir_from_uri("file:///a/100%25/%C3%A9"), "/a/100%/\xC3\xA9");
+    EXPECT_EQ(resource_dir_from_uri("/plain/path/"), "/plain/path");
+    EXPECT_EQ(resource_dir_from_uri("file:///"), "/");
+    EXPECT_EQ(resource_dir_from_uri(nullptr), "");
+    EXPECT_EQ(resource_dir_from_uri(""), "");
+    EXPECT_EQ(resource_dir_from_uri("file://otherhost/a"), "");
+    EXPECT_EQ(resource_dir_from_uri("http://localhost/a"), "");
+    EXPECT_EQ(resource_dir_from_uri("relative/a"), "");
+    EXPECT_EQ(resource_dir_from_uri("file:///a%2"), "");
+    EXPECT_EQ(resource_dir_from_uri("file:///a%zz"), "");
+    EXPECT_EQ(resource_dir_from_uri("file:///a%00b"), "");
+    EXPECT_EQ(resource_dir_from_uri("file:///a?query"), "");
+}
+
+TEST(NumberText, ShortestRoundTrip) {
+    EXPECT_EQ(fmi::number_text(0.1), "0.1");
+    EXPECT_EQ(fmi::number_text(293.15), "293.15");
+    EXPECT_EQ(fmi::number_text(-273.15), "-273.15");
+    EXPECT_EQ(std::stod(fmi::number_text(60.0 / (2.0 * std::acos(-1.0)))), 60.0 / (2.0 * std::acos(-1.0)));
+}
+
+}  // namespace
