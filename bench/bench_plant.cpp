@@ -1,0 +1,398 @@
+// Cost of one 100 us communication step of the IpmsmPlant at top speed under load, for the
+// CVODE settings the FMU uses and for the alternatives (Adams vs BDF, functional iteration vs
+// Newton, tolerances, re-initialising at every communication point vs keeping CVODE's history,
+// initial step, order limit, and CVODE's defaults).
+//
+// 1. Record: the IpmsmController and IpmsmPlant FMUs (build/fmu/*, dlopened) in closed loop at
+//    12 000 r/min (Jacobi exchange, 100 us): the torque command goes 0 -> 80 N.m (about the
+//    maximum there) and then either stays ("steady": the regulator's small corrections each step)
+//    or alternates 80 / 40 N.m every 10 ms ("steps": current transients). The plant's voltages of
+//    every step are recorded.
+// 2. Replay the recorded voltages through CvodeIntegrator (plant/cvode_integrator.hpp) with each
+//    setting: microseconds per step (best of several rounds), CVODE steps and RHS evaluations per
+//    step, and the largest current error against a reference run (Adams, rtol 1e-12).
+// 3. The same replay through the FMU's fmi2SetReal + fmi2DoStep (the whole FMI call, with the
+//    glue's per-step copy of the model), for the FMU's default settings and for cvode_method 2.
+//
+// Usage: bench_plant [rounds]. The FMUs are found next to this executable (../fmu/).
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cvode_integrator.hpp"
+#include "fmi2Functions.h"
+#include "flux_map.hpp"
+#include "inverse_flux_map.hpp"
+
+using namespace ipmsm;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kH = 1e-4;
+constexpr double kTopSpeed = 1256.6370614359173;  // rad/s, 12 000 r/min
+constexpr int kPolePairs = 4;
+constexpr double kRs = 0.012;
+
+void quiet_logger(fmi2ComponentEnvironment, fmi2String, fmi2Status status, fmi2String, fmi2String message, ...) {
+    if (status < fmi2Error) return;
+    char buf[4096];
+    va_list ap;
+    va_start(ap, message);
+    std::vsnprintf(buf, sizeof buf, message, ap);
+    va_end(ap);
+    std::fprintf(stderr, "FMU: %s\n", buf);
+}
+
+std::string attribute_after(const std::string& xml, std::size_t from, const char* attr) {
+    const std::string key = std::string(attr) + "=\"";
+    const std::size_t a = xml.find(key, from);
+    if (a == std::string::npos) return "";
+    const std::size_t b = xml.find('"', a + key.size());
+    return xml.substr(a + key.size(), b - a - key.size());
+}
+
+// One unzipped FMU's binary, dlopened.
+struct Fmu {
+    std::string dir, guid;
+    void* so = nullptr;
+    std::map<std::string, fmi2ValueReference> vr;
+    fmi2InstantiateTYPE* instantiate = nullptr;
+    fmi2FreeInstanceTYPE* free_instance = nullptr;
+    fmi2SetupExperimentTYPE* setup = nullptr;
+    fmi2EnterInitializationModeTYPE* enter_init = nullptr;
+    fmi2ExitInitializationModeTYPE* exit_init = nullptr;
+    fmi2GetRealTYPE* get_real = nullptr;
+    fmi2SetRealTYPE* set_real = nullptr;
+    fmi2SetIntegerTYPE* set_integer = nullptr;
+    fmi2DoStepTYPE* do_step = nullptr;
+    fmi2CallbackFunctions cb{quiet_logger, nullptr, nullptr, nullptr, nullptr};
+
+    explicit Fmu(const fs::path& d, const char* id) : dir(d.string()) {
+        std::ifstream f(d / "modelDescription.xml");
+        std::stringstream ss;
+        ss << f.rdbuf();
+        const std::string xml = ss.str();
+        guid = attribute_after(xml, 0, "guid");
+        for (std::size_t p = xml.find("<ScalarVariable"); p != std::string::npos; p = xml.find("<ScalarVariable", p + 1))
+            vr[attribute_after(xml, p, "name")] = static_cast<fmi2ValueReference>(std::stoul(attribute_after(xml, p, "valueReference")));
+        const std::string lib = (d / "binaries" / "linux64" / (std::string(id) + ".so")).string();
+        so = dlopen(lib.c_str(), RTLD_NOW | RTLD_LOCAL);
+        if (so == nullptr || guid.empty()) {
+            std::fprintf(stderr, "cannot load %s (%s): build the FMUs first\n", lib.c_str(), dlerror());
+            std::exit(2);
+        }
+        load(instantiate, "fmi2Instantiate");
+        load(free_instance, "fmi2FreeInstance");
+        load(setup, "fmi2SetupExperiment");
+        load(enter_init, "fmi2EnterInitializationMode");
+        load(exit_init, "fmi2ExitInitializationMode");
+        load(get_real, "fmi2GetReal");
+        load(set_real, "fmi2SetReal");
+        load(set_integer, "fmi2SetInteger");
+        load(do_step, "fmi2DoStep");
+    }
+    template <class F>
+    void load(F*& f, const char* name) {
+        f = reinterpret_cast<F*>(dlsym(so, name));
+        if (f == nullptr) std::exit(2);
+    }
+    // Instantiate, set Real and Integer parameters, initialise.
+    fmi2Component make(const char* name, const std::map<std::string, double>& reals,
+                       const std::map<std::string, int>& ints = {}) {
+        const std::string res = "file://" + dir + "/resources";
+        fmi2Component c = instantiate(name, fmi2CoSimulation, guid.c_str(), res.c_str(), &cb, fmi2False, fmi2False);
+        if (c == nullptr) std::exit(3);
+        ok(setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
+        ok(enter_init(c));
+        for (const auto& [n, v] : reals) set(c, n, v);
+        for (const auto& [n, v] : ints) {
+            const fmi2ValueReference r = vr.at(n);
+            const fmi2Integer x = v;
+            ok(set_integer(c, &r, 1, &x));
+        }
+        ok(exit_init(c));
+        return c;
+    }
+    void set(fmi2Component c, const std::string& n, double v) {
+        const fmi2ValueReference r = vr.at(n);
+        ok(set_real(c, &r, 1, &v));
+    }
+    double get(fmi2Component c, const std::string& n) {
+        const fmi2ValueReference r = vr.at(n);
+        double v = 0;
+        ok(get_real(c, &r, 1, &v));
+        return v;
+    }
+    static void ok(fmi2Status s) {
+        if (s > fmi2Warning) {
+            std::fprintf(stderr, "FMI call failed (%d)\n", static_cast<int>(s));
+            std::exit(3);
+        }
+    }
+};
+
+struct Trace {
+    const char* name;
+    double psi0[2], i0[2];
+    std::vector<double> u_d, u_q;
+    double T_e_end = 0, i_d_end = 0, i_q_end = 0;
+};
+
+// The closed loop (controller + plant FMUs, Jacobi exchange) at top speed; records the plant's
+// voltages after 20 ms of settling.
+Trace record(Fmu& ctrl_fmu, Fmu& plant_fmu, const char* name, const std::function<double(int)>& torque, int n) {
+    fmi2Component ctrl = ctrl_fmu.make("controller", {});
+    fmi2Component plant = plant_fmu.make("plant", {});
+    Trace tr;
+    tr.name = name;
+    double u_d = 0, u_q = 0;  // the controller's previous output: applied over this step
+    const int settle = 200;
+    for (int k = 0; k < settle + n; ++k) {
+        const double t = k * kH;
+        const double T_ref = torque(std::max(0, k - settle));
+        const double i_d = plant_fmu.get(plant, "i_d"), i_q = plant_fmu.get(plant, "i_q");
+        plant_fmu.set(plant, "u_d", u_d);
+        plant_fmu.set(plant, "u_q", u_q);
+        plant_fmu.set(plant, "w_m", kTopSpeed);
+        ctrl_fmu.set(ctrl, "T_ref", T_ref);
+        ctrl_fmu.set(ctrl, "w_m", kTopSpeed);
+        ctrl_fmu.set(ctrl, "i_d", i_d);
+        ctrl_fmu.set(ctrl, "i_q", i_q);
+        if (k == settle) {
+            tr.psi0[0] = plant_fmu.get(plant, "psi_d");
+            tr.psi0[1] = plant_fmu.get(plant, "psi_q");
+            tr.i0[0] = i_d;
+            tr.i0[1] = i_q;
+        }
+        if (k >= settle) {
+            tr.u_d.push_back(u_d);
+            tr.u_q.push_back(u_q);
+        }
+        Fmu::ok(plant_fmu.do_step(plant, t, kH, fmi2True));
+        Fmu::ok(ctrl_fmu.do_step(ctrl, t, kH, fmi2True));
+        u_d = ctrl_fmu.get(ctrl, "u_d_ref");
+        u_q = ctrl_fmu.get(ctrl, "u_q_ref");
+    }
+    tr.T_e_end = plant_fmu.get(plant, "T_e");
+    tr.i_d_end = plant_fmu.get(plant, "i_d");
+    tr.i_q_end = plant_fmu.get(plant, "i_q");
+    plant_fmu.free_instance(plant);
+    ctrl_fmu.free_instance(ctrl);
+    return tr;
+}
+
+struct Result {
+    double us_per_step = 0;
+    double steps = 0, rhs = 0;  // per communication step
+    std::vector<double> i;      // i_d, i_q per step, for the error
+};
+
+Result replay(const Trace& tr, const InverseFluxMap& inv, const CvodeSettings& s, int rounds) {
+    Result r;
+    DqFluxOde ode;
+    ode.inverse = &inv;
+    ode.omega = kPolePairs * kTopSpeed;
+    ode.R = kRs;
+    const std::size_t n = tr.u_d.size();
+    double best = 1e300;
+    for (int round = 0; round < rounds; ++round) {
+        CvodeIntegrator integ(s);
+        integ.reset(0.0, tr.psi0[0], tr.psi0[1]);
+        long steps = 0, rhs = 0;
+        std::vector<double> cur;
+        cur.reserve(2 * n);
+        // The first step creates CVODE's workspace (once per instance): not timed.
+        ode.u_d = tr.u_d[0];
+        ode.u_q = tr.u_q[0];
+        integ.advance(ode, kH);
+        const auto t0 = std::chrono::steady_clock::now();
+        for (std::size_t k = 1; k < n; ++k) {
+            ode.u_d = tr.u_d[k];
+            ode.u_q = tr.u_q[k];
+            integ.advance(ode, (k + 1) * kH);
+            steps += integ.stats().steps;
+            rhs += integ.stats().rhs_evals;
+        }
+        const auto t1 = std::chrono::steady_clock::now();
+        best = std::min(best, std::chrono::duration<double, std::micro>(t1 - t0).count() / (n - 1));
+        if (round == 0) {
+            // Currents along the trajectory (outside the timed loop: a second pass).
+            CvodeIntegrator again(s);
+            again.reset(0.0, tr.psi0[0], tr.psi0[1]);
+            for (std::size_t k = 0; k < n; ++k) {
+                ode.u_d = tr.u_d[k];
+                ode.u_q = tr.u_q[k];
+                again.advance(ode, (k + 1) * kH);
+                const InverseFluxPoint c = inv.eval(again.state().psi[0], again.state().psi[1]);
+                cur.push_back(c.i_d);
+                cur.push_back(c.i_q);
+            }
+            r.i = std::move(cur);
+            r.steps = static_cast<double>(steps) / (n - 1);
+            r.rhs = static_cast<double>(rhs) / (n - 1);
+        }
+    }
+    r.us_per_step = best;
+    return r;
+}
+
+double max_error(const std::vector<double>& a, const std::vector<double>& b) {
+    double e = 0;
+    for (std::size_t k = 0; k < a.size() && k < b.size(); ++k) e = std::max(e, std::abs(a[k] - b[k]));
+    return e;
+}
+
+// fmi2SetReal (u_d, u_q, w_m) + fmi2DoStep through the FMU, microseconds per step (best round).
+double fmu_replay(Fmu& plant_fmu, const Trace& tr, std::map<std::string, double> reals,
+                  const std::map<std::string, int>& ints, int rounds, double* do_step_only) {
+    double best = 1e300, best_step = 1e300;
+    const std::size_t n = tr.u_d.size();
+    const fmi2ValueReference in_vr[3] = {plant_fmu.vr.at("u_d"), plant_fmu.vr.at("u_q"), plant_fmu.vr.at("w_m")};
+    for (int round = 0; round < rounds; ++round) {
+        // Starts at the recorded currents (so at the recorded fluxes, to the inverse map's accuracy).
+        reals["i_d_start"] = tr.i0[0];
+        reals["i_q_start"] = tr.i0[1];
+        fmi2Component c = plant_fmu.make("bench", reals, ints);
+        double step_us = 0;
+        double in[3] = {tr.u_d[0], tr.u_q[0], kTopSpeed};
+        Fmu::ok(plant_fmu.set_real(c, in_vr, 3, in));
+        Fmu::ok(plant_fmu.do_step(c, 0.0, kH, fmi2True));  // creates the workspace: not timed
+        const auto t0 = std::chrono::steady_clock::now();
+        for (std::size_t k = 1; k < n; ++k) {
+            in[0] = tr.u_d[k];
+            in[1] = tr.u_q[k];
+            Fmu::ok(plant_fmu.set_real(c, in_vr, 3, in));
+            const auto s0 = std::chrono::steady_clock::now();
+            Fmu::ok(plant_fmu.do_step(c, k * kH, kH, fmi2True));
+            step_us += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - s0).count();
+        }
+        const auto t1 = std::chrono::steady_clock::now();
+        best = std::min(best, std::chrono::duration<double, std::micro>(t1 - t0).count() / (n - 1));
+        best_step = std::min(best_step, step_us / (n - 1));
+        plant_fmu.free_instance(c);
+    }
+    *do_step_only = best_step;
+    return best;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const int rounds = argc > 1 ? std::max(1, std::atoi(argv[1])) : 7;
+    const fs::path fmu_dir = fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "fmu";
+    Fmu ctrl(fmu_dir / "IpmsmController", "IpmsmController");
+    Fmu plant(fmu_dir / "IpmsmPlant", "IpmsmPlant");
+
+    const std::string map_path = std::string(IPMSM_SOURCE_DIR) + "/plant/resources/ev_ipmsm_default.csv";
+    const FluxMap map(read_flux_map(map_path));
+    const InverseFluxMap inv(map);
+
+    const int n = 1000;
+    // Torque commands after 20 ms at the first value: 60 N.m held (the current regulator corrects
+    // a little every step), 80 N.m held (about the maximum: the voltage is at its limit), a ramp
+    // 20 -> 80 N.m over the 100 ms, and steps 80 / 40 N.m every 10 ms (current transients).
+    std::vector<Trace> traces = {
+        record(ctrl, plant, "60Nm", [](int) { return 60.0; }, n),
+        record(ctrl, plant, "80Nm", [](int) { return 80.0; }, n),
+        record(ctrl, plant, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
+        record(ctrl, plant, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
+    for (const Trace& tr : traces)
+        std::printf("trace %-6s: 12000 r/min, %d steps of 100 us; at the end T_e = %.2f N.m, i = (%.1f, %.1f) A\n",
+                    tr.name, n, tr.T_e_end, tr.i_d_end, tr.i_q_end);
+
+    struct Variant {
+        std::string name;
+        CvodeSettings s;
+    };
+    // The FMU's choice (PlantModel::settings()) and one change at a time.
+    CvodeSettings chosen;
+    chosen.method = CvodeMethod::adams;
+    chosen.nonlinear = CvodeNonlinear::fixed_point;
+    chosen.rtol = chosen.atol = 1e-6;
+    chosen.reinit_each_step = true;
+    chosen.init_step = CvodeInitStep::curvature;
+    chosen.nonlin_conv_coef = 0.3;
+    auto with = [&](const std::function<void(CvodeSettings&)>& change) {
+        CvodeSettings s = chosen;
+        change(s);
+        return s;
+    };
+    auto tol_name = [](const char* what, double r, double a) {
+        char b[120];
+        std::snprintf(b, sizeof b, "%s rtol %.0e atol %.0e", what, r, a);
+        return std::string(b);
+    };
+    std::vector<Variant> variants = {
+        {"FMU choice: Adams, fixed point, reinit, h0 curvature, nlscoef 0.3, 1e-6", chosen},
+        {"  h0: CVODE's estimate", with([](auto& s) { s.init_step = CvodeInitStep::estimate; })},
+        {"  h0: last step of the previous call", with([](auto& s) { s.init_step = CvodeInitStep::previous_last; })},
+        {"  h0: next step planned in the previous call", with([](auto& s) { s.init_step = CvodeInitStep::previous_next; })},
+        {"  nlscoef 0.1 (CVODE's default)", with([](auto& s) { s.nonlin_conv_coef = 0; })},
+        {"  nlscoef 0.5", with([](auto& s) { s.nonlin_conv_coef = 0.5; })},
+        {"  max order 2", with([](auto& s) { s.max_order = 2; })},
+        {"  history kept (no reinit)", with([](auto& s) { s.reinit_each_step = false; })},
+        {"  history kept (no reinit), rtol atol 1e-7", with([](auto& s) { s.reinit_each_step = false; s.rtol = s.atol = 1e-7; })},
+        {"  Newton, analytic Jacobian", with([](auto& s) { s.nonlinear = CvodeNonlinear::newton_analytic; })},
+    };
+    for (auto [r, a] : {std::pair{1e-4, 1e-4}, {1e-5, 1e-5}, {3e-6, 3e-6}, {1e-6, 1e-7}, {1e-7, 1e-7}, {1e-8, 1e-8}})
+        variants.push_back({tol_name(" ", r, a), with([r = r, a = a](auto& s) { s.rtol = r; s.atol = a; })});
+    variants.push_back({"BDF, Newton, analytic J, reinit, h0 curvature (FMU cvode_method 2)",
+                        with([](auto& s) { s.method = CvodeMethod::bdf; s.nonlinear = CvodeNonlinear::newton_analytic; })});
+    variants.push_back({"  history kept (no reinit)", with([](auto& s) {
+                            s.method = CvodeMethod::bdf;
+                            s.nonlinear = CvodeNonlinear::newton_analytic;
+                            s.reinit_each_step = false;
+                        })});
+    variants.push_back({"  difference-quotient Jacobian", with([](auto& s) {
+                            s.method = CvodeMethod::bdf;
+                            s.nonlinear = CvodeNonlinear::newton_dq;
+                        })});
+    variants.push_back({"CVODE defaults (BDF, Newton, DQ J, h0 estimate, history kept), 1e-6",
+                        CvodeSettings::cvode_defaults(1e-6, 1e-6)});
+    variants.push_back({"  the same, re-initialised every step", with([](auto& s) {
+                            s = CvodeSettings::cvode_defaults(1e-6, 1e-6);
+                            s.reinit_each_step = true;
+                        })});
+    variants.push_back({"CVODE defaults, rtol 1e-4 (CVODE's example value) atol 1e-8", CvodeSettings::cvode_defaults(1e-4, 1e-8)});
+
+    for (const Trace& tr : traces) {
+        // Reference: Adams at rtol 1e-12, atol 1e-14 Wb, CVODE's own initial step.
+        CvodeSettings ref;
+        ref.rtol = 1e-12;
+        ref.atol = 1e-14;
+        ref.init_step = CvodeInitStep::estimate;
+        ref.max_steps = 1000000;
+        const Result reference = replay(tr, inv, ref, 1);
+        std::printf("\n== trace %s: replay through CvodeIntegrator (%d rounds, best)\n", tr.name, rounds);
+        std::printf("%-72s %9s %7s %7s %12s\n", "setting", "us/step", "steps", "RHS", "max |di| A");
+        for (const Variant& v : variants) {
+            const Result r = replay(tr, inv, v.s, rounds);
+            std::printf("%-72s %9.3f %7.2f %7.2f %12.3e\n", v.name.c_str(), r.us_per_step, r.steps, r.rhs,
+                        max_error(r.i, reference.i));
+        }
+        std::printf("-- the whole FMI call (fmi2SetReal of u_d, u_q, w_m + fmi2DoStep), FMU %s\n",
+                    (fmu_dir / "IpmsmPlant.fmu").c_str());
+        double step_only = 0;
+        double all = fmu_replay(plant, tr, {}, {}, rounds, &step_only);
+        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU defaults (Adams, rtol 1e-6, atol 1e-6)", all, step_only);
+        all = fmu_replay(plant, tr, {{"rtol", 3e-6}, {"atol", 3e-6}}, {}, rounds, &step_only);
+        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU rtol 3e-6, atol 3e-6", all, step_only);
+        all = fmu_replay(plant, tr, {}, {{"cvode_method", 2}}, rounds, &step_only);
+        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU cvode_method 2 (BDF, Newton, analytic J)", all, step_only);
+    }
+    return 0;
+}

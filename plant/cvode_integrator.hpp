@@ -1,0 +1,136 @@
+// CVODE (SUNDIALS 6.x, linked statically) for the plant's two flux-linkage states, wrapped so
+// that the plant model stays an ordinary copyable value.
+//
+// The integrator's state is plain data: the time, the flux linkages and the initial step size for
+// the next call. By default CVODE is re-initialised at every call of advance() (every
+// communication point): the inputs jump there anyway, and then the result of a call depends only
+// on that plain state, the ODE's inputs and the settings, never on CVODE's history. This makes
+// copies, FMU-state rollback and serialisation exact (bit-identical outputs) without touching
+// CVODE's internals. The CVODE objects (context, vector, solver memory, nonlinear and linear
+// solvers) live in a workspace that is scratch memory: created lazily on the first advance(),
+// kept by copy-assignment (which the FMI glue does once per step, so it must be cheap), never
+// copied (a copy gets a fresh workspace when it first integrates), and freed CVODE first, then the
+// solver objects, the vector and the context it points into.
+//
+// reinit_each_step = false (for the benchmark only) keeps CVODE's history across calls (input
+// jumps then go into CVODE's error control); copies of such an integrator are not exact.
+#pragma once
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "ipmsm_ode.hpp"
+
+namespace ipmsm {
+
+// A failure of CVODE, with CVODE's own message (captured by its error handler, not printed).
+struct CvodeError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+enum class CvodeMethod : int { adams = 1, bdf = 2 };
+
+enum class CvodeNonlinear : int {
+    fixed_point = 0,      // functional iteration: no Jacobian, no linear solver
+    newton_analytic = 1,  // Newton, dense 2 x 2 linear solver, Jacobian from the inverse map's dI/dpsi
+    newton_dq = 2,        // Newton, dense linear solver, CVODE's difference-quotient Jacobian
+};
+
+// Initial step size after a re-initialisation.
+enum class CvodeInitStep : int {
+    estimate = 0,       // CVODE's own estimate (costs RHS evaluations every call)
+    previous_last = 1,  // the last internal step size of the previous call (first call: estimate)
+    previous_next = 2,  // the step size CVODE would have tried next in the previous call
+    curvature = 3,      // from the solution's second derivative at the start, y'' = J f(y)
+                        // (J from the inverse map's dI/dpsi): the step whose order-1 local error
+                        // meets the tolerance; the whole interval if y'' = 0
+};
+
+struct CvodeSettings {
+    CvodeMethod method = CvodeMethod::adams;
+    CvodeNonlinear nonlinear = CvodeNonlinear::fixed_point;
+    int max_order = 0;          // 0: the method's maximum (Adams 12, BDF 5)
+    long max_steps = 10000;     // internal steps per advance() before CVODE gives up
+    double rtol = 1e-6;         // relative tolerance
+    double atol = 1e-6;         // absolute tolerance on the flux linkages, Wb
+    bool reinit_each_step = true;
+    CvodeInitStep init_step = CvodeInitStep::previous_last;
+    double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
+    double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
+
+    // Settings that shape CVODE's objects (a workspace is reused only if they match).
+    bool same_structure(const CvodeSettings& o) const {
+        return method == o.method && nonlinear == o.nonlinear && max_order == o.max_order &&
+               nonlin_conv_coef == o.nonlin_conv_coef;
+    }
+    // CVODE's defaults: BDF (order <= 5), Newton with a dense solver and difference-quotient
+    // Jacobian, its own initial step estimate, history kept across calls (no re-initialisation).
+    static CvodeSettings cvode_defaults(double rtol, double atol) {
+        CvodeSettings s;
+        s.method = CvodeMethod::bdf;
+        s.nonlinear = CvodeNonlinear::newton_dq;
+        s.max_order = 0;
+        s.max_steps = 500;
+        s.rtol = rtol;
+        s.atol = atol;
+        s.reinit_each_step = false;
+        s.init_step = CvodeInitStep::estimate;
+        return s;
+    }
+};
+
+// The exact state of the integrator (what a copy or a serialised FMU state must carry).
+struct CvodeState {
+    double t = 0;
+    double psi[2] = {0, 0};  // psi_d, psi_q, Wb
+    double h_next = 0;       // initial step size for the next advance(), s; 0: CVODE estimates
+};
+
+// Counters of the last advance().
+struct CvodeStats {
+    long steps = 0, rhs_evals = 0, error_test_fails = 0, nonlinear_iterations = 0,
+         nonlinear_failures = 0;
+    int last_order = 0;
+    double last_step = 0;
+};
+
+class CvodeIntegrator {
+public:
+    explicit CvodeIntegrator(const CvodeSettings& settings = {});
+    ~CvodeIntegrator();
+    CvodeIntegrator(const CvodeIntegrator& other);             // state and settings, no workspace
+    CvodeIntegrator& operator=(const CvodeIntegrator& other);  // keeps this workspace if compatible
+    CvodeIntegrator(CvodeIntegrator&& other) noexcept;
+    CvodeIntegrator& operator=(CvodeIntegrator&& other) noexcept;
+
+    // A new initial value (forgets the step-size hint).
+    void reset(double t, double psi_d, double psi_q);
+
+    // Integrates from state().t to t_end > state().t with the ODE's inputs held. Throws
+    // CvodeError (CVODE's message) and leaves the state unchanged if CVODE fails.
+    void advance(const DqFluxOde& ode, double t_end);
+
+    const CvodeState& state() const { return state_; }
+    void set_state(const CvodeState& s) { state_ = s; }
+    const CvodeSettings& settings() const { return settings_; }
+    // Tolerances and step limit may change between calls; the structure (method, nonlinear
+    // solver, order) may too, at the cost of a new workspace on the next advance().
+    void set_settings(const CvodeSettings& s) { settings_ = s; }
+    const CvodeStats& stats() const { return stats_; }
+    // CVODE's warnings (not errors) during the last advance(), "" if none.
+    const std::string& warnings() const { return warnings_; }
+
+private:
+    struct Workspace;
+    Workspace& workspace(double t0);
+    double initial_step(const DqFluxOde& ode, double span) const;
+
+    CvodeSettings settings_;
+    CvodeState state_;
+    CvodeStats stats_;
+    std::string warnings_;
+    std::unique_ptr<Workspace> ws_;
+};
+
+}  // namespace ipmsm

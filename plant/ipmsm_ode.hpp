@@ -1,0 +1,100 @@
+// The saturated IPMSM's electrical equations in rotor (dq) coordinates, free of FMI and of the
+// integrator. States are the flux linkages; the currents come from the inverse flux map, built
+// once from the flux map, so nothing is inverted during integration:
+//
+//     d psi_d / dt = u_d - R i_d + omega psi_q
+//     d psi_q / dt = u_q - R i_q - omega psi_d,     i = i_map(psi_d - delta_psi_m, psi_q)
+//
+// Conventions (../shared/spec/MATH.md): amplitude-invariant dq, peak values, PM flux on +d,
+// omega = p w_m, T_e = 1.5 p (psi_d i_q - psi_q i_d). A magnet temperature other than the map's
+// shifts the PM flux by delta_psi_m = psi_m k_psi_T (T_magnet - T_magnet_ref) (magnet_flux.hpp):
+// the forward map becomes psi(i) + (delta_psi_m, 0), its inverse i(psi_d - delta_psi_m, psi_q).
+//
+// Power balance (exact for these equations, 1.5 from the amplitude-invariant transform):
+//     P_elec = 1.5 (u_d i_d + u_q i_q) = 1.5 i . dpsi/dt + 1.5 R |i|^2 + T_e w_m
+// i.e. input power = rate of magnetic energy + copper loss + air-gap power. Iron loss is not in
+// the electrical equations: it is a drag on the shaft, T_shaft = T_e - P_fe / w_m, so that
+// P_mech = T_shaft w_m = T_e w_m - P_fe.
+#pragma once
+
+#include <cmath>
+
+#include "inverse_flux_map.hpp"
+
+namespace ipmsm {
+
+// The right-hand side with its inputs held (they are piecewise constant between communication
+// points). Plain data: the inverse map is borrowed, its owner keeps it alive.
+struct DqFluxOde {
+    const InverseFluxMap* inverse = nullptr;
+    double u_d = 0, u_q = 0;   // V
+    double omega = 0;          // electrical speed p w_m, rad/s
+    double R = 0;              // stator resistance at the winding temperature, Ohm
+    double delta_psi_m = 0;    // PM flux change from magnet temperature, Wb
+
+    InverseFluxPoint currents(double psi_d, double psi_q) const {
+        return inverse->eval(psi_d - delta_psi_m, psi_q);
+    }
+    void rhs(const double* psi, double* dpsi) const {
+        const InverseFluxPoint c = currents(psi[0], psi[1]);
+        dpsi[0] = u_d - R * c.i_d + omega * psi[1];
+        dpsi[1] = u_q - R * c.i_q - omega * psi[0];
+    }
+    // d(dpsi/dt)/d psi, row-major: J[0] = d f_d/d psi_d, J[1] = d f_d/d psi_q, J[2], J[3] for f_q.
+    void jacobian(const double* psi, double* J) const {
+        double f[2];
+        rhs_and_jacobian(psi, f, J);
+    }
+    void rhs_and_jacobian(const double* psi, double* dpsi, double* J) const {
+        const InverseFluxPoint c = currents(psi[0], psi[1]);
+        dpsi[0] = u_d - R * c.i_d + omega * psi[1];
+        dpsi[1] = u_q - R * c.i_q - omega * psi[0];
+        J[0] = -R * c.G_dd;
+        J[1] = -R * c.G_dq + omega;
+        J[2] = -R * c.G_qd - omega;
+        J[3] = -R * c.G_qq;
+    }
+};
+
+// Iron loss of the default motor's model (seed eq. 13, docs/motor/README.md):
+// P_fe = k_h f b^alpha + k_e f^2 b^2, f = p |w_m| / (2 pi), b = |psi| / psi_ref.
+struct IronLossModel {
+    double k_h = 0;        // W/Hz
+    double alpha = 2;      // 1
+    double k_e = 0;        // W/Hz^2
+    double psi_ref = 1;    // Wb
+
+    double power(int pole_pairs, double w_m, double psi_d, double psi_q) const {
+        const double f = pole_pairs * std::abs(w_m) / (2.0 * 3.14159265358979323846);
+        if (f == 0.0) return 0.0;
+        const double b = std::sqrt(psi_d * psi_d + psi_q * psi_q) / psi_ref;
+        const double b2 = b * b;
+        return k_h * f * (alpha == 2.0 ? b2 : std::pow(b, alpha)) + k_e * f * f * b2;
+    }
+};
+
+// Everything the plant reports at one instant.
+struct PlantOutputs {
+    double i_d, i_q;         // A
+    double T_e, T_shaft;     // N.m
+    double P_elec, P_mech;   // W
+    double P_cu, P_fe;       // W
+};
+
+inline PlantOutputs plant_outputs(const DqFluxOde& ode, int pole_pairs, double w_m, const IronLossModel& fe,
+                                  double psi_d, double psi_q) {
+    const InverseFluxPoint c = ode.currents(psi_d, psi_q);
+    PlantOutputs o;
+    o.i_d = c.i_d;
+    o.i_q = c.i_q;
+    o.T_e = 1.5 * pole_pairs * (psi_d * c.i_q - psi_q * c.i_d);
+    o.P_elec = 1.5 * (ode.u_d * c.i_d + ode.u_q * c.i_q);
+    o.P_cu = 1.5 * ode.R * (c.i_d * c.i_d + c.i_q * c.i_q);
+    o.P_fe = fe.power(pole_pairs, w_m, psi_d, psi_q);
+    const double drag = w_m != 0.0 ? o.P_fe / w_m : 0.0;  // iron-loss drag torque, sign of w_m
+    o.T_shaft = o.T_e - drag;
+    o.P_mech = o.T_shaft * w_m;
+    return o;
+}
+
+}  // namespace ipmsm

@@ -1,0 +1,89 @@
+// IpmsmPlant: the saturated IPMSM's electrical dynamics on a flux map, integrated by CVODE.
+// The model of the IpmsmPlant FMU; free of FMI types (the glue in ../fmu_src/fmi maps it).
+//
+// States psi_d, psi_q; currents from the inverse flux map (built once at initialisation);
+// d psi_d/dt = u_d - R i_d + omega psi_q, d psi_q/dt = u_q - R i_q - omega psi_d with the inputs
+// held over each communication step (ipmsm_ode.hpp). CVODE (Adams, functional iteration) is
+// re-initialised at every communication point, so the model's whole state is plain data and
+// copies, FMU-state rollback and serialisation are exact (cvode_integrator.hpp).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cvode_integrator.hpp"
+#include "flux_map.hpp"
+#include "inverse_flux_map.hpp"
+#include "ipmsm_ode.hpp"
+#include "model.hpp"
+#include "variable.hpp"
+
+namespace ipmsm {
+
+class PlantModel {
+public:
+    static constexpr const char* model_identifier = "IpmsmPlant";
+    static constexpr const char* guid = "{2acdb2e1-861a-46f0-8fab-2d079ed2d3fa}";
+    static constexpr const char* description =
+        "Saturated interior-PM synchronous motor: dq flux linkages as states on a flux map "
+        "(currents from the inverse map), magnet and winding temperatures, torque, shaft torque "
+        "with iron-loss drag, powers and losses; integrated by CVODE.";
+    static constexpr double default_step_size = 1e-4;
+    static constexpr double default_stop_time = 0.1;
+    static const std::vector<fmi::Variable<PlantModel>>& variables();
+
+    explicit PlantModel(const fmi::Context& context);
+    void exit_initialization();
+    void do_step(double t, double h);
+    void save_state(fmi::StateWriter& w) const;
+    void load_state(fmi::StateReader& r);
+
+    // --- inputs
+    double u_d = 0.0, u_q = 0.0;   // V
+    double w_m = 0.0;              // rad/s
+    double T_magnet = 293.15;      // K
+    double T_winding = 293.15;     // K
+    // --- outputs
+    double i_d = 0.0, i_q = 0.0;   // A
+    double psi_d = 0.0, psi_q = 0.0;  // Wb
+    double T_e = 0.0, T_shaft = 0.0;  // N.m
+    double P_elec = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0;  // W
+    double psi_m_T = 0.0;          // Wb, PM flux at T_magnet
+    double R_s_T = 0.0;            // Ohm, R_s at T_winding
+    int cvode_steps = 0;           // internal steps in the last step
+    int cvode_rhs_evals = 0;       // right-hand-side evaluations in the last step
+    // --- parameters (defaults: the default motor, plant/resources/ev_ipmsm_default.csv)
+    std::string flux_map;          // "" = resources/ev_ipmsm_default.csv
+    int pole_pairs = 4;
+    double R_s = 0.012;            // Ohm at T_winding_ref
+    double T_winding_ref = 293.15;  // K
+    double alpha_cu = 0.00393;     // 1/K
+    double k_psi_T = -0.0012;      // 1/K
+    double T_magnet_ref = 293.15;  // K
+    double fe_k_h = 1.06664735685;      // W/Hz
+    double fe_alpha = 2.0;
+    double fe_k_e = 0.00581807649193;   // W/Hz^2
+    double fe_psi_ref = 0.0780669432093;  // Wb
+    double i_d_start = 0.0, i_q_start = 0.0;  // A
+    double rtol = 1e-6;
+    double atol = 1e-6;            // Wb
+    int cvode_method = 1;          // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
+    int cvode_max_order = 0;       // 0: the method's maximum
+    int cvode_max_steps = 20000;   // per communication step
+
+    static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
+
+private:
+    DqFluxOde ode() const;        // the right-hand side for the present inputs (throws if invalid)
+    void update_outputs(const DqFluxOde& ode);
+    CvodeSettings settings() const;
+
+    std::shared_ptr<const fmi::Context> context_;
+    std::shared_ptr<const FluxMap> map_;
+    std::shared_ptr<const InverseFluxMap> inverse_;
+    CvodeIntegrator integrator_;
+    bool outside_warned_ = false;  // the currents left the map's grid (warned once per excursion)
+};
+
+}  // namespace ipmsm
