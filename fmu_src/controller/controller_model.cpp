@@ -60,23 +60,23 @@ const std::vector<V>& ControllerModel::variables() {
     return table;
 }
 
-ControllerModel::ControllerModel(const fmi::Context& context) : context_(context) {}
+ControllerModel::ControllerModel(const fmi::Context& context) : context_(&context) {}
 
 void ControllerModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.
-    const std::string path = flux_map.empty() ? context_.resource_dir + "/" + default_flux_map : flux_map;
-    if (flux_map.empty() && context_.resource_dir.empty())
+    const std::string path = flux_map.empty() ? context_->resource_dir + "/" + default_flux_map : flux_map;
+    if (flux_map.empty() && context_->resource_dir.empty())
         throw fmi::Error("flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
                          "set flux_map to a flux-map CSV");
     auto map = std::make_shared<const FluxMap>(read_flux_map(path));  // FluxMapError: says file and line
 
     const FluxMapTable& t = map->table();
     const double p_meta = t.metadata_number("pole_pairs", pole_pairs);
-    if (p_meta != pole_pairs && context_.log_warning) {
+    if (p_meta != pole_pairs && context_->log_warning) {
         std::ostringstream os;
         os << "flux map " << path << " says pole_pairs: " << p_meta << ", but the parameter pole_pairs is "
            << pole_pairs << "; using the parameter";
-        context_.log_warning(os.str());
+        context_->log_warning(os.str());
     }
     SaturatedOptimalCurrent solver(map, pole_pairs);
     std::shared_ptr<const TorqueTable> table;
@@ -98,13 +98,44 @@ void ControllerModel::exit_initialization() {
     solver_ = std::move(solver);
     regulator_ = CurrentRegulator(current_bandwidth, R_s);
     table_bytes = table_ ? static_cast<int>(table_->bytes()) : 0;
-    if (context_.log_info) {
+    initial_outputs();
+    if (context_->log_info) {
         std::ostringstream os;
         os << "flux map " << path << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
            << map_->psi_m() << " Wb; method " << method << ", recursion " << recursion;
         if (table_) os << ", 2-D table " << lut_n_torque << " x " << lut_n_speed << " (" << table_bytes << " bytes)";
-        context_.log_info(os.str());
+        context_->log_info(os.str());
     }
+}
+
+void ControllerModel::initial_outputs() {
+    // Outputs consistent with the initial inputs, before the first step: the current commands,
+    // and the voltage that holds the measured current (a flying start: at speed, u = 0 would
+    // short-circuit the machine over the first step).
+    const double omega = pole_pairs * w_m;
+    const double V_max = k_u * u_dc / kSqrt3;
+    const double shift = magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref);
+    const MagnetFlux flux(*map_, shift);
+    const CurrentCommand cmd = method == 1
+        ? solver_->solve(T_ref, {omega, V_max, I_max}, R_s, shift, static_cast<Recursion>(recursion))
+        : table_->lookup(T_ref, w_m, V_max);
+    const FluxPoint f = flux.eval(i_d, i_q);
+    double u_d = R_s * i_d - omega * f.psi_q, u_q = R_s * i_q + omega * f.psi_d;
+    const double u_lim = u_dc / kSqrt3, mag = std::hypot(u_d, u_q);
+    if (mag > u_lim) {
+        u_d *= u_lim / mag;
+        u_q *= u_lim / mag;
+    }
+    regulator_.state.u_d_prev = u_d_ref = u_d;
+    regulator_.state.u_q_prev = u_q_ref = u_q;
+    const double sign = T_ref < 0 ? -1.0 : 1.0;
+    i_d_ref = cmd.i_d;
+    i_q_ref = cmd.i_q;
+    T_max = sign * cmd.torque_max;
+    T_cmd = sign * std::min(std::abs(T_ref), cmd.torque_max);
+    T_est = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
+    region = static_cast<int>(cmd.region);
+    iterations = cmd.iterations;
 }
 
 void ControllerModel::do_step(double /*t*/, double h) {
@@ -129,11 +160,11 @@ void ControllerModel::do_step(double /*t*/, double h) {
           std::isfinite(T_estimated)))
         throw fmi::Error("the controller produced a non-finite value (inputs out of the flux map's sensible range?)");
 
-    if (!cmd.feasible && !warned_unreachable_ && context_.log_warning) {
+    if (!cmd.feasible && !warned_unreachable_ && context_->log_warning) {
         std::ostringstream os;
         os << "no current within I_max = " << I_max << " A keeps the voltage within V_max = " << V_max
            << " V at w_m = " << w_m << " rad/s: above the maximum speed; commanding i_d = " << cmd.i_d << " A";
-        context_.log_warning(os.str());
+        context_->log_warning(os.str());
     }
     warned_unreachable_ = !cmd.feasible;
     *solver_ = solver;

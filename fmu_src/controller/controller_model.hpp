@@ -67,7 +67,9 @@ public:
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:
-    fmi::Context context_;
+    void initial_outputs();
+
+    const fmi::Context* context_;  // owned by the FMI instance, which outlives every copy of the model
     std::shared_ptr<const FluxMap> map_;
     std::shared_ptr<const TorqueTable> table_;
     std::optional<SaturatedOptimalCurrent> solver_;  // its warm-start memory is state
