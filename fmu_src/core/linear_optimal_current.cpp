@@ -50,10 +50,15 @@ double reduced_torque(const LinearMachine& m, double i_d, double i_q) {
 Point mtpa(const LinearMachine& m, double T_red) {
     if (!(T_red > 0)) return {0.0, 0.0};
     const double dL = m.L_d - m.L_q;
-    // dL^2 i_q^4 + psi_m T' i_q - T'^2 = 0 has exactly one positive root (psi_m >= 0).
-    const RealRoots r = solve_quartic(dL * dL, 0.0, 0.0, m.psi_m * T_red, -T_red * T_red);
     double i_q = 0;
-    for (int k = 0; k < r.count; ++k) i_q = std::max(i_q, r.root[k]);
+    if (non_salient(m)) {
+        i_q = m.psi_m > 0 ? T_red / m.psi_m : 0.0;
+    } else {
+        // dL^2 i_q^4 + psi_m T' i_q - T'^2 = 0 has exactly one positive root (psi_m >= 0).
+        const double k = 1.0 / (dL * dL);
+        const RealRoots r = solve_depressed_quartic(0.0, m.psi_m * T_red * k, -T_red * T_red * k);
+        for (int j = 0; j < r.count; ++j) i_q = std::max(i_q, r.root[j]);
+    }
     if (!(i_q > 0)) return {0.0, 0.0};  // no torque producible (psi_m = 0 and dL = 0)
     // The MTPA condition psi_m i_d + dL (i_d^2 - i_q^2) = 0, solved for i_d without
     // cancellation (and without dividing by dL, so non-salient machines give i_d = 0).
@@ -85,7 +90,7 @@ bool voltage_limit(const LinearMachine& m, double omega, double V_max, double T_
     const double a2 = psi * psi * zq + 2.0 * R * w * dL * dL * T_red - V_max * V_max * dL * dL;
     const double a1 = -2.0 * psi * T_red * (R * R + w * w * m.L_d * m.L_q);
     const double a0 = T_red * T_red * (R * R + w * w * m.L_d * m.L_d);
-    const RealRoots r = solve_quartic(a4, 0.0, a2, a1, a0);
+    const RealRoots r = solve_depressed_quartic(a2 / a4, a1 / a4, a0 / a4);
     // Every intersection is on the ellipse; the current along the torque curve has its minimum
     // at the MTPA point (outside the ellipse here), so the best is the intersection with the
     // least current. (For the usual geometry that is the root with the largest i_q.)

@@ -591,4 +591,98 @@ RealRoots solve_quartic(double a, double b, double c, double d, double e) {
     return finish<4>(q, y, n, m);
 }
 
+
+// ---------------------------------------------------------------------------------------------
+// The fast path for depressed quartics (see quartic.hpp).
+
+namespace {
+
+inline double quad_root_pair(double b, double c, double& r1, double& r2) {
+    // x^2 + b x + c = 0, cancellation-free; returns the discriminant (negative: no real roots).
+    const double disc = b * b - 4.0 * c;
+    if (disc < 0.0) return disc;
+    const double t = -0.5 * (b + std::copysign(std::sqrt(disc), b));
+    r1 = t;
+    r2 = t != 0.0 ? c / t : 0.0;
+    return disc;
+}
+
+}  // namespace
+
+RealRoots solve_depressed_quartic(double p, double q, double r) {
+    RealRoots out;
+    if (!(std::isfinite(p) && std::isfinite(q) && std::isfinite(r))) return out;
+    double y[4];
+    int n = 0;
+    // Resolvent cubic m^3 + a2 m^2 + a1 m + a0 = 0; depressed by m = z - p/3: z^3 + P z + Q = 0.
+    const double a2 = p, a1 = 0.25 * p * p - r, a0 = -0.125 * q * q;
+    const double P = a1 - a2 * a2 / 3.0;
+    const double Q = 2.0 * a2 * a2 * a2 / 27.0 - a2 * a1 / 3.0 + a0;
+    const double D = 0.25 * Q * Q + P * P * P / 27.0;
+    double z;
+    if (D > 0.0) {  // one real root, Cardano without cancellation
+        const double A = -std::cbrt(0.5 * Q + std::copysign(std::sqrt(D), Q));
+        z = A + (A != 0.0 ? -P / (3.0 * A) : 0.0);
+    } else {  // three real roots (P <= 0): the largest, in trigonometric form
+        const double s = std::sqrt(std::max(0.0, -P / 3.0));
+        const double c = s > 0.0 ? std::clamp(-0.5 * Q / (s * s * s), -1.0, 1.0) : 0.0;
+        z = 2.0 * s * std::cos(std::acos(c) / 3.0);
+    }
+    double m = z - a2 / 3.0;
+    if (!std::isfinite(m) || !std::isfinite(D)) return solve_quartic(1.0, 0.0, p, q, r);  // extreme scales
+    {  // one Newton step on the resolvent (its largest root is simple unless q = 0)
+        const double f = ((m + a2) * m + a1) * m + a0, df = (3.0 * m + 2.0 * a2) * m + a1;
+        if (df > 0.0 && std::isfinite(f / df)) m -= f / df;
+    }
+    if (m > 0.0 && q != 0.0) {
+        // (y^2 + p/2 + m)^2 = 2m (y - q/(4m))^2  =>  y^2 -+ s y + p/2 + m +- q/(2s) = 0, s = sqrt(2m)
+        // (y^2 + p/2 + m)^2 = 2m (y - q/(4m))^2  =>  y^2 -+ s y + k +- l = 0, s = sqrt(2m),
+        // k = p/2 + m, l = q/(2s). The constants c+- = k +- l satisfy c+ c- = k^2 - l^2 = r, so
+        // k^2 = l^2 + r exactly: take |k| from that whenever it does not cancel, because
+        // p/2 + m cancels when the roots differ much in size, and m itself is only sqrt(eps)
+        // accurate when the resolvent's largest root is nearly double (s, a square root of m,
+        // stays accurate enough for the final Newton step). Only the sign comes from p/2 + m.
+        const double s = std::sqrt(2.0 * m), l = 0.5 * q / s, k_direct = 0.5 * p + m;
+        const double k2 = l * l + r;
+        const double k = (r >= 0.0 || k2 > 0.5 * l * l) ? std::copysign(std::sqrt(std::max(0.0, k2)), k_direct) : k_direct;
+        double c_plus = k + l, c_minus = k - l;
+        // Recompute the smaller constant from the product (no cancellation there).
+        if (std::abs(c_plus) >= std::abs(c_minus)) {
+            if (c_plus != 0.0) c_minus = r / c_plus;
+        } else {
+            c_plus = r / c_minus;
+        }
+        if (quad_root_pair(-s, c_plus, y[n], y[n + 1]) >= 0.0) n += 2;
+        if (quad_root_pair(s, c_minus, y[n], y[n + 1]) >= 0.0) n += 2;
+    } else {
+        // Biquadratic (q = 0, or the resolvent root rounded to <= 0): y^2 = w, w^2 + p w + r = 0.
+        double w1, w2;
+        if (quad_root_pair(p, r, w1, w2) >= 0.0) {
+            for (double w : {w1, w2}) {
+                if (w < 0.0) continue;
+                const double v = std::sqrt(w);
+                y[n++] = v;
+                y[n++] = -v;
+            }
+        }
+    }
+    // One Newton polish per root, kept only if it lowers |f|.
+    for (int k = 0; k < n; ++k) {
+        const double x = y[k];
+        const double f = ((x * x + p) * x + q) * x + r;
+        const double df = (4.0 * x * x + 2.0 * p) * x + q;
+        if (df != 0.0) {
+            const double x1 = x - f / df;
+            const double f1 = ((x1 * x1 + p) * x1 + q) * x1 + r;
+            if (std::isfinite(x1) && std::abs(f1) < std::abs(f)) y[k] = x1;
+        }
+    }
+    for (int k = 0; k < n; ++k)
+        if (!std::isfinite(y[k])) return solve_quartic(1.0, 0.0, p, q, r);
+    std::sort(y, y + n);
+    out.count = n;
+    for (int k = 0; k < n; ++k) out.root[k] = y[k];
+    return out;
+}
+
 }  // namespace ipmsm
