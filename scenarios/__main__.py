@@ -1,4 +1,4 @@
-"""Command line: python -m scenarios sweep [--out DIR] ..."""
+"""python -m scenarios {sweep, run, compare} ... (see --help of each)."""
 from __future__ import annotations
 
 import argparse
@@ -10,18 +10,53 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__)
+    ap.add_argument("--build", type=Path, default=ROOT / "build", help="build folder with fmu/ (and lib/, bin/)")
     sub = ap.add_subparsers(dest="cmd", required=True)
+
     sw = sub.add_parser("sweep", help="torque-speed sweep of the controller: table and plot of the optimal currents")
     sw.add_argument("--out", type=Path, default=ROOT / "out" / "sweep")
-    sw.add_argument("--fmu", type=Path, default=ROOT / "build" / "fmu" / "IpmsmController.fmu")
     sw.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
     sw.add_argument("--u-dc", type=float, default=355.0)
+
+    run = sub.add_parser("run", help="one drive cycle: summary.json, trace.csv, run.png")
+    run.add_argument("cycle", help="WLTC3b, UDDS, HWFET, US06, NEDC, or a CSV of time_s,speed_mps")
+    run.add_argument("--method", default="ferrari", choices=("ferrari", "lut_speed", "lut_flux"))
+    run.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
+    run.add_argument("--backend", default="auto", choices=("auto", "native", "fmpy"))
+    run.add_argument("--u-dc-scale", type=float, default=1.0, help="DC voltage seen by the drive / battery's")
+    run.add_argument("--magnet-degC", type=float, default=20.0)
+    run.add_argument("--out", type=Path, default=None)
+
+    cmp_ = sub.add_parser("compare", help="Ferrari versus 2-D tables over cycles and conditions: report.md")
+    cmp_.add_argument("--cycles", nargs="+", default=["WLTC3b"])
+    cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
+    cmp_.add_argument("--workers", type=int, default=None)
     args = ap.parse_args(argv)
+
     if args.cmd == "sweep":
         from .sweep import SweepSpec, run_sweep
-        s = run_sweep(args.fmu, args.out, SweepSpec(recursion=args.recursion, u_dc=args.u_dc))
+        s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
+                      SweepSpec(recursion=args.recursion, u_dc=args.u_dc))
         print(json.dumps({k: s[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
         print(f"wrote {args.out}/sweep.csv, summary.json, current_trajectories.png")
+    elif args.cmd == "run":
+        from .plots import plot_run
+        from .simulate import CELSIUS, Conditions, RunSpec, fmu_paths, simulate
+        cond = Conditions("custom" if (args.u_dc_scale, args.magnet_degC) != (1.0, 20.0) else "nominal",
+                          u_dc_scale=args.u_dc_scale, T_magnet=args.magnet_degC + CELSIUS,
+                          T_winding=args.magnet_degC + CELSIUS)
+        out = args.out or ROOT / "out" / f"{Path(args.cycle).stem}_{args.method}"
+        s = simulate(args.cycle, RunSpec(method=args.method, recursion=args.recursion, conditions=cond,
+                                         backend=args.backend), fmus=fmu_paths(args.build), out=out)
+        plot_run(out, f"{s['cycle']}, {args.method}")
+        keys = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
+                "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s", "real_time_factor")
+        print(json.dumps({k: s[k] for k in keys}, indent=1))
+        print(f"wrote {out}/summary.json, trace.csv, run.png")
+    elif args.cmd == "compare":
+        from .compare import run_study
+        run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers)
+        print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     return 0
 
 

@@ -1,0 +1,103 @@
+"""Pictures of a drive-cycle run (from its trace.csv): what a drive engineer looks at."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .flux_map import read_flux_map
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_MAP = ROOT / "plant" / "resources" / "ev_ipmsm_default.csv"
+RPM = 2 * math.pi / 60
+REGION_NAMES = {0: "zero torque", 1: "MTPA", 2: "voltage limit", 3: "current + voltage limit", 4: "MTPV"}
+
+
+def load_trace(path: Path) -> dict:
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    return {name: data[name] for name in data.dtype.names}
+
+
+def plot_run(run_dir: Path, title: str = "", u_dc_nominal: float = 355.0) -> Path:
+    """run.png in run_dir: speed tracking, torque, operating points on the envelope, currents in
+    the i_d-i_q plane, u_dc and the region over time."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tr = load_trace(run_dir / "trace.csv")
+    t = tr["time_s"]
+    fig, ax = plt.subplots(3, 2, figsize=(14, 12))
+    a = ax[0, 0]
+    a.plot(t, tr["v_ref_mps"] * 3.6, "k-", lw=1.2, label="cycle")
+    a.plot(t, tr["v_mps"] * 3.6, "C1--", lw=1, label="vehicle")
+    a.set(xlabel="time (s)", ylabel="speed (km/h)", title="Speed tracking")
+    a.legend()
+
+    a = ax[0, 1]
+    a.plot(t, tr["T_ref_Nm"], "k-", lw=0.8, label="T_ref (driver)")
+    a.plot(t, tr["T_e_Nm"], "C3-", lw=0.8, alpha=0.8, label="T_e delivered")
+    a.plot(t, tr["T_max_Nm"] * np.sign(tr["T_ref_Nm"] + 1e-12), "C0:", lw=0.8, label="±T_max")
+    a.set(xlabel="time (s)", ylabel="torque (N·m)", title="Torque: demand and delivered")
+    a.legend(fontsize=8)
+
+    a = ax[1, 0]
+    n_rpm = tr["w_m_rad_s"] / RPM
+    sc = a.scatter(n_rpm, tr["T_e_Nm"], c=tr["region"], cmap="viridis", s=4, vmin=0, vmax=4)
+    # envelope from the controller's T_max samples
+    order = np.argsort(n_rpm)
+    a.plot(n_rpm[order], np.maximum.accumulate(np.abs(tr["T_max_Nm"][order][::-1]))[::-1], "k-", lw=0.5, alpha=0.3)
+    a.set(xlabel="speed (r/min)", ylabel="T_e (N·m)", title="Operating points (colour: region)")
+    cb = fig.colorbar(sc, ax=a, ticks=list(REGION_NAMES))
+    cb.ax.set_yticklabels([REGION_NAMES[k] for k in REGION_NAMES], fontsize=7)
+    _efficiency_background(a, run_dir)
+
+    a = ax[1, 1]
+    fmap = read_flux_map(DEFAULT_MAP)
+    I_max = fmap.number("I_max_A")
+    th = np.linspace(0, 2 * np.pi, 300)
+    a.plot(I_max * np.cos(th), I_max * np.sin(th), "k--", lw=0.8, label=f"current limit {I_max:.0f} A")
+    a.scatter(tr["i_d_A"], tr["i_q_A"], c=tr["region"], cmap="viridis", s=3, vmin=0, vmax=4)
+    g_d, g_q = np.meshgrid(np.linspace(-560, 150, 240), np.linspace(-560, 560, 300))
+    psi_d, psi_q = fmap.flux(g_d, g_q)
+    V_max = 0.95 * u_dc_nominal / math.sqrt(3)
+    for n_e, col in ((6000, "C2"), (9000, "C1"), (12000, "C3")):
+        w = 4 * n_e * RPM
+        a.contour(g_d, g_q, np.hypot(-w * psi_q, w * psi_d), levels=[V_max], colors=[col], linewidths=0.8)
+        a.plot([], [], color=col, lw=0.8, label=f"voltage limit {n_e} r/min")
+    a.set(xlabel="i_d (A)", ylabel="i_q (A)", title="Currents in the i_d–i_q plane", aspect="equal")
+    a.legend(fontsize=7, loc="lower left")
+
+    a = ax[2, 0]
+    a.plot(t, tr["u_dc_V"], "C0-", lw=1)
+    a.set(xlabel="time (s)", ylabel="u_dc (V)", title="DC-link voltage")
+    a2 = a.twinx()
+    a2.plot(t, tr["soc"] * 100, "C2--", lw=1)
+    a2.set_ylabel("SOC (%)", color="C2")
+
+    a = ax[2, 1]
+    a.plot(t, tr["region"], "C4-", lw=0.6, drawstyle="steps-post")
+    a.set_yticks(list(REGION_NAMES), [REGION_NAMES[k] for k in REGION_NAMES])
+    a.set(xlabel="time (s)", title="Controller region")
+    for row in ax:
+        for a in row:
+            a.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    path = run_dir / "run.png"
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _efficiency_background(ax, run_dir: Path) -> None:
+    """The motor's efficiency map (docs/motor, brute force over the map) as grey contours, if present."""
+    import json
+    p = ROOT / "docs" / "motor" / "efficiency_map.json"
+    if not p.exists():
+        return
+    d = json.loads(p.read_text())
+    cs = ax.contour(np.array(d["speed_rpm"]), np.array(d["torque_Nm"]), np.array(d["efficiency"]).T * 100,
+                    levels=[80, 85, 90, 93, 95, 96], colors="0.6", linewidths=0.6)
+    ax.clabel(cs, fontsize=6, fmt="%g %%")
