@@ -1,0 +1,293 @@
+// Where the time of a coupled step goes: the drive-like profile of scenarios/bench_cosim.py run
+//   A  through the FMUs with libipmsm_cosim (the native master, 10 ms chunks, the default 14 probes)
+//   A0 the same without probes (coupling values only)
+//   B  the two models called directly, no FMI (ControllerModel, PlantModel linked in: the same
+//      sources as the FMUs), the same coupling: the models' own compute; the plant's and the
+//      controller's do_step timed separately (rdtsc)
+//   C  B plus what the glue's undoable() does per step besides the call: copy-assign each model
+//      to a backup, check the computed Reals are finite, and build the "the step from t = ..."
+//      text it passes (fmi2_glue.hpp do_step)
+// A and B must agree bit for bit (checked). A - C is then the rest of the FMI glue (set/get
+// validation, state checks, the call boundary) plus the master's loop.
+//   cosim_profile <unzipped controller dir> <unzipped plant dir> [seconds = 10] [repeats = 3] [drive|stress]
+#include <time.h>
+#include <x86intrin.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "controller_model.hpp"
+#include "cosim.h"
+#include "fmi2_support.hpp"
+#include "fmu_description.hpp"
+#include "plant_model.hpp"
+
+namespace {
+
+constexpr double kH = 1e-4;
+constexpr long long kChunk = 100;
+
+struct Inputs {
+    double T_ref, w_m, u_dc, T_magnet, T_winding;
+};
+
+// As scenarios/bench_cosim.py: profile(t, duration).
+double torque_pattern(double t) {
+    const double x = std::fmod(t, 10.0);
+    if (x < 2.0) return 150.0;
+    if (x < 4.0) return 150.0 - 50.0 * (x - 2.0);
+    if (x < 6.0) return -80.0;
+    if (x < 8.0) return -80.0 + 150.0 * (x - 6.0);
+    return 0.0;
+}
+
+bool g_stress = false;  // the "stress" profile: a new pseudo-random torque every 10 ms
+
+double stress_torque(double t) {
+    const long long j = std::llround(t / (kChunk * kH));
+    const double x = static_cast<double>((j * 2654435761LL + 12345) % 4294967296LL) / 4294967296.0;
+    return -250.0 + 500.0 * x;
+}
+
+Inputs profile(double t, double duration) {
+    const double x = t / duration, top = 12000.0 * 2.0 * M_PI / 60.0;
+    double w_m = top * std::min({1.0, x / 0.4, (1.0 - x) / 0.4});
+    w_m = std::max(w_m, 0.0);
+    const double T_ref = g_stress ? stress_torque(t) : torque_pattern(t);
+    return {T_ref, w_m, 355.0 - 2.5e-4 * T_ref * w_m, 273.15 + 60.0 + 30.0 * x, 273.15 + 70.0 + 40.0 * x};
+}
+
+double cpu_now() {
+    timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+struct Result {
+    double cpu = 0, wall = 0;           // s
+    double plant = 0, controller = 0, copies = 0, text = 0, checks = 0;  // s (B, C: rdtsc-timed parts)
+    double check = 0;                   // sum of T_e over all steps, and the last i_d (bit-compare)
+    double last_i_d = 0;
+};
+
+using cosim_tools::Description;
+
+Result run_fmus(const std::string& cdir, const std::string& pdir, const Description& cd, const Description& pd,
+                double seconds, bool probes) {
+    ipmsm_cosim* m = ipmsm_cosim_new(kH, nullptr, nullptr);
+    auto ok = [&](int rc) {
+        if (rc != 0) {
+            std::fprintf(stderr, "%s\n", ipmsm_cosim_error(m));
+            std::exit(1);
+        }
+    };
+    const Inputs in0 = profile(0.0, seconds);
+    ok(ipmsm_cosim_instantiate(m, 0, cdir.c_str(), "IpmsmController", cd.guid.c_str(), "controller", 0));
+    ok(ipmsm_cosim_instantiate(m, 1, pdir.c_str(), "IpmsmPlant", pd.guid.c_str(), "plant", 0));
+    ok(ipmsm_cosim_enter_initialization(m, 1, 0.0));
+    const unsigned p_start_vr[3] = {pd.vr.at("w_m"), pd.vr.at("T_magnet"), pd.vr.at("T_winding")};
+    const double p_start[3] = {in0.w_m, in0.T_magnet, in0.T_winding};
+    ok(ipmsm_cosim_set_real(m, 1, 3, p_start_vr, p_start));
+    ok(ipmsm_cosim_exit_initialization(m, 1));
+    const unsigned p_i_vr[2] = {pd.vr.at("i_d"), pd.vr.at("i_q")};
+    double i[2];
+    ok(ipmsm_cosim_get_real(m, 1, 2, p_i_vr, i));
+    ok(ipmsm_cosim_enter_initialization(m, 0, 0.0));
+    const unsigned c_start_vr[6] = {cd.vr.at("T_ref"), cd.vr.at("w_m"), cd.vr.at("u_dc"), cd.vr.at("T_magnet"),
+                                    cd.vr.at("i_d"), cd.vr.at("i_q")};
+    const double c_start[6] = {in0.T_ref, in0.w_m, in0.u_dc, in0.T_magnet, i[0], i[1]};
+    ok(ipmsm_cosim_set_real(m, 0, 6, c_start_vr, c_start));
+    ok(ipmsm_cosim_exit_initialization(m, 0));
+    const unsigned cvr[8] = {cd.vr.at("T_ref"), cd.vr.at("w_m"), cd.vr.at("u_dc"), cd.vr.at("T_magnet"),
+                             cd.vr.at("i_d"), cd.vr.at("i_q"), cd.vr.at("u_d_ref"), cd.vr.at("u_q_ref")};
+    const unsigned pvr[7] = {pd.vr.at("u_d"), pd.vr.at("u_q"), pd.vr.at("w_m"), pd.vr.at("T_magnet"),
+                             pd.vr.at("T_winding"), pd.vr.at("i_d"), pd.vr.at("i_q")};
+    ok(ipmsm_cosim_couple(m, cvr, pvr, 0));
+    // T_e first (the bit-compare), i_d second; then the rest of the default list
+    std::vector<int> unit, kind;
+    std::vector<unsigned> vr;
+    for (const char* n : {"T_e", "i_d", "T_shaft", "P_elec", "P_mech", "P_cu", "P_fe", "i_q"})
+        unit.push_back(1), kind.push_back(IPMSM_COSIM_REAL), vr.push_back(pd.vr.at(n));
+    unit.push_back(1), kind.push_back(IPMSM_COSIM_CURRENT_ABS), vr.push_back(0);
+    unit.push_back(1), kind.push_back(IPMSM_COSIM_CURRENT_SQ), vr.push_back(0);
+    for (const char* n : {"T_cmd", "T_max"}) unit.push_back(0), kind.push_back(IPMSM_COSIM_REAL), vr.push_back(cd.vr.at(n));
+    for (const char* n : {"region", "iterations"})
+        unit.push_back(0), kind.push_back(IPMSM_COSIM_INTEGER), vr.push_back(cd.vr.at(n));
+    const size_t np = probes ? unit.size() : 2;  // without probes: T_e and i_d only, for the check
+    ok(ipmsm_cosim_probes(m, np, unit.data(), kind.data(), vr.data()));
+    std::vector<double> mean(np), end(np);
+    const long long chunks = std::llround(seconds / (kChunk * kH));
+    Result r;
+    const double c0 = cpu_now();
+    const auto w0 = std::chrono::steady_clock::now();
+    for (long long c = 0; c < chunks; ++c) {
+        const Inputs in = profile(c * kChunk * kH, seconds);
+        const double slow[5] = {in.T_ref, in.w_m, in.u_dc, in.T_magnet, in.T_winding};
+        if (ipmsm_cosim_advance(m, kChunk, slow, mean.data(), end.data(), nullptr, 0, 0) < 0) ok(-1);
+        r.check += mean[0];  // the chunk's mean T_e
+    }
+    r.cpu = cpu_now() - c0;
+    r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+    r.last_i_d = end[1];
+    ipmsm_cosim_free(m);
+    return r;
+}
+
+Result run_models(const std::string& resources, double seconds, bool glue_extras, double ticks_per_s) {
+    fmi::Context ctx;
+    ctx.instance_name = "direct";
+    ctx.resource_dir = resources;
+    ipmsm::ControllerModel c(ctx), c_backup(ctx);
+    ipmsm::PlantModel p(ctx), p_backup(ctx);
+    const Inputs in0 = profile(0.0, seconds);
+    p.w_m = in0.w_m, p.T_magnet = in0.T_magnet, p.T_winding = in0.T_winding;
+    p.exit_initialization();
+    c.T_ref = in0.T_ref, c.w_m = in0.w_m, c.u_dc = in0.u_dc, c.T_magnet = in0.T_magnet, c.i_d = p.i_d, c.i_q = p.i_q;
+    c.exit_initialization();
+    c_backup = c;
+    p_backup = p;
+    double u_d = c.u_d_ref, u_q = c.u_q_ref, i_d = p.i_d, i_q = p.i_q;
+    const long long chunks = std::llround(seconds / (kChunk * kH));
+    Result r;
+    unsigned long long t_plant = 0, t_ctrl = 0, t_copy = 0, t_text = 0, t_check = 0;
+    long long k = 0;
+    size_t text_bytes = 0;
+    bool finite = true;
+    const double c0 = cpu_now();
+    const auto w0 = std::chrono::steady_clock::now();
+    for (long long ch = 0; ch < chunks; ++ch) {
+        const Inputs in = profile(ch * kChunk * kH, seconds);
+        c.T_ref = in.T_ref, c.w_m = in.w_m, c.u_dc = in.u_dc, c.T_magnet = in.T_magnet;
+        p.w_m = in.w_m, p.T_magnet = in.T_magnet, p.T_winding = in.T_winding;
+        double sum = 0.0;
+        for (long long s = 0; s < kChunk; ++s) {
+            const double t = static_cast<double>(k) * kH;
+            p.u_d = u_d, p.u_q = u_q;
+            c.i_d = i_d, c.i_q = i_q;
+            const unsigned long long a = __rdtsc();
+            unsigned long long a2 = a;
+            if (glue_extras) {
+                p_backup = p;
+                a2 = __rdtsc();
+                const std::string what = "the step from t = " + fmi::number_text(t) + " by h = " + fmi::number_text(kH);
+                text_bytes += what.size();
+            }
+            const unsigned long long b = __rdtsc();
+            p.do_step(t, kH);
+            const unsigned long long cc = __rdtsc();
+            if (glue_extras) {
+                finite &= std::isfinite(p.i_d) && std::isfinite(p.i_q) && std::isfinite(p.psi_d) &&
+                          std::isfinite(p.psi_q) && std::isfinite(p.T_e) && std::isfinite(p.T_shaft) &&
+                          std::isfinite(p.P_elec) && std::isfinite(p.P_mech) && std::isfinite(p.P_cu) &&
+                          std::isfinite(p.P_fe) && std::isfinite(p.psi_m_T) && std::isfinite(p.R_s_T);
+            }
+            const unsigned long long c2 = __rdtsc();
+            if (glue_extras) c_backup = c;
+            const unsigned long long c3 = __rdtsc();
+            if (glue_extras) {
+                const std::string what = "the step from t = " + fmi::number_text(t) + " by h = " + fmi::number_text(kH);
+                text_bytes += what.size();
+            }
+            const unsigned long long d = __rdtsc();
+            c.do_step(t, kH);
+            const unsigned long long e = __rdtsc();
+            if (glue_extras) {
+                finite &= std::isfinite(c.i_d_ref) && std::isfinite(c.i_q_ref) && std::isfinite(c.u_d_ref) &&
+                          std::isfinite(c.u_q_ref) && std::isfinite(c.T_cmd) && std::isfinite(c.T_max) &&
+                          std::isfinite(c.T_est);
+            }
+            const unsigned long long f = __rdtsc();
+            t_copy += (a2 - a) + (c3 - c2);
+            t_text += (b - a2) + (d - c3);
+            t_check += (c2 - cc) + (f - e);
+            t_plant += cc - b;
+            t_ctrl += e - d;
+            ++k;
+            i_d = p.i_d, i_q = p.i_q;
+            u_d = c.u_d_ref, u_q = c.u_q_ref;
+            sum += p.T_e;
+        }
+        r.check += sum / kChunk;
+    }
+    r.cpu = cpu_now() - c0;
+    r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+    r.plant = t_plant / ticks_per_s;
+    r.controller = t_ctrl / ticks_per_s;
+    r.copies = t_copy / ticks_per_s;
+    r.text = t_text / ticks_per_s;
+    r.checks = t_check / ticks_per_s;
+    r.last_i_d = p.i_d;
+    if (!finite || (glue_extras && text_bytes == 0)) r.check = std::nan("");
+    return r;
+}
+
+double calibrate_tsc() {
+    const auto w0 = std::chrono::steady_clock::now();
+    const unsigned long long t0 = __rdtsc();
+    while (std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count() < 0.2) {
+    }
+    const unsigned long long t1 = __rdtsc();
+    return (t1 - t0) / std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    if (argc < 3) {
+        std::fprintf(stderr, "usage: %s <unzipped controller dir> <unzipped plant dir> [seconds] [repeats]\n", argv[0]);
+        return 2;
+    }
+    const std::string cdir = argv[1], pdir = argv[2];
+    const double seconds = argc > 3 ? std::atof(argv[3]) : 10.0;
+    const int repeats = argc > 4 ? std::atoi(argv[4]) : 3;
+    g_stress = argc > 5 && std::string(argv[5]) == "stress";
+    const auto cd = cosim_tools::read_description(cdir), pd = cosim_tools::read_description(pdir);
+    const double tps = calibrate_tsc();
+    const double steps = std::llround(seconds / (kChunk * kH)) * static_cast<double>(kChunk);
+    auto best = [&](auto f) {
+        Result b;
+        b.cpu = 1e300;
+        for (int i = 0; i < repeats; ++i) {
+            Result r = f();
+            if (r.cpu < b.cpu) b = r;
+        }
+        return b;
+    };
+    const Result a = best([&] { return run_fmus(cdir, pdir, cd, pd, seconds, true); });
+    const Result a0 = best([&] { return run_fmus(cdir, pdir, cd, pd, seconds, false); });
+    const Result b = best([&] { return run_models(pdir + "/resources", seconds, false, tps); });
+    const Result c = best([&] { return run_models(pdir + "/resources", seconds, true, tps); });
+    const double us = 1e6 / steps;
+    std::printf("%s profile of scenarios/bench_cosim.py, %.0f s simulated (%.0f coupled steps), best of %d, "
+                "CPU time of this thread (us per coupled step):\n", g_stress ? "stress" : "drive", seconds, steps, repeats);
+    std::printf("  A  FMUs through libipmsm_cosim, 14 probes      %6.3f   (wall %6.3f)\n", a.cpu * us, a.wall * us);
+    std::printf("  A0 FMUs through libipmsm_cosim, 2 probes       %6.3f   (wall %6.3f)\n", a0.cpu * us, a0.wall * us);
+    std::printf("  B  models called directly, no FMI              %6.3f   (wall %6.3f)\n", b.cpu * us, b.wall * us);
+    std::printf("       plant do_step (CVODE + map)      %6.3f\n", b.plant * us);
+    std::printf("       controller do_step               %6.3f\n", b.controller * us);
+    std::printf("       loop, rdtsc                      %6.3f\n", b.cpu * us - (b.plant + b.controller) * us);
+    std::printf("  C  B + the glue's per-step copies, finite checks and step text  %6.3f   (wall %6.3f)\n", c.cpu * us,
+                c.wall * us);
+    std::printf("       plant do_step                    %6.3f\n", c.plant * us);
+    std::printf("       controller do_step               %6.3f\n", c.controller * us);
+    std::printf("       model copies (backup = model)    %6.3f\n", c.copies * us);
+    std::printf("       step text (number_text x2)       %6.3f\n", c.text * us);
+    std::printf("       finite checks                    %6.3f\n", c.checks * us);
+    std::printf("  A - C: the rest of the glue (set/get, validation, call boundary) + the master loop: %6.3f\n",
+                (a.cpu - c.cpu) * us);
+    std::printf("  A - A0: 12 more probes (one more fmi2GetReal per unit, one fmi2GetInteger): %6.3f\n",
+                (a.cpu - a0.cpu) * us);
+    // The FMU run and the direct run must be the same computation.
+    const bool same = a.last_i_d == b.last_i_d && a.last_i_d == c.last_i_d &&
+                      a.check == b.check && b.check == c.check;
+    std::printf("  A, B, C the same computation: %s (last i_d %.17g / %.17g / %.17g; sum of chunk means of T_e "
+                "%.17g / %.17g / %.17g)\n", same ? "yes" : "NO", a.last_i_d, b.last_i_d, c.last_i_d, a.check, b.check,
+                c.check);
+    std::printf("  WLTC 1800 s at A: %.1f s CPU\n", a.cpu / steps * 18e6);
+    return same ? 0 : 1;
+}
