@@ -96,14 +96,15 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
         raise ValueError(f"method {spec.method!r}: one of {', '.join(METHODS)}")
     c_params = dict(method=METHODS[spec.method], recursion=spec.recursion,
                     lut_u_dc=cond.lut_u_dc, lut_T_magnet=cond.lut_T_magnet)
-    veh, drv, bat = Vehicle(vp), Driver(vp, spec.driver), Battery(spec.battery, spec.soc0)
     n = int(round(cycle.duration_s / dt))
     t_ref = cycle.time_s[0] + dt * np.arange(n + 1)
     v_ref = cycle.speed_at(t_ref).tolist()
+    # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
+    veh, drv, bat = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver), Battery(spec.battery, spec.soc0)
     every = max(1, int(round(spec.trace_dt / dt)))
     outputs = ("T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q", "|i|", "|i|^2", "T_cmd", "T_max", "region")
 
-    acc = dict(E_elec=0.0, E_mech=0.0, E_cu=0.0, E_fe=0.0, E_inv=0.0, E_cu_opt=0.0, T_err2=0.0, T_err_max=0.0, n_T=0,
+    acc = dict(E_elec=0.0, E_mech=0.0, E_cu=0.0, E_fe=0.0, E_inv=0.0, E_cu_opt=0.0, T_err2=0.0, T_err_max=0.0, n_T=0, T_cmd2=0.0,
                I_excess2=0.0, n_I=0, t_sat=0.0, speed_err2=0.0)
     rows = []
     T_max_known = 1e9  # the controller reports its reach after the first step
@@ -112,7 +113,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
     ref = Fmu(controller_fmu, instance_name="reference", method=1, recursion=2) if spec.reference else None
     try:
         with DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend, outputs=outputs,
-                        u_dc=bat.u * cond.u_dc_scale, T_magnet=cond.T_magnet, T_winding=cond.T_winding) as cosim:
+                        w_m=motor_speed(veh.v, vp), u_dc=bat.u * cond.u_dc_scale, T_magnet=cond.T_magnet,
+                        T_winding=cond.T_winding) as cosim:
             for k in range(n):
                 v = veh.v
                 w_m = motor_speed(v, vp)
@@ -138,6 +140,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
                 # Torque error: delivered (mean T_e) against the command within reach.
                 T_err = m["T_e"] - m["T_cmd"]
                 acc["T_err2"] += T_err * T_err
+                acc["T_cmd2"] += m["T_cmd"] * m["T_cmd"]
                 acc["T_err_max"] = max(acc["T_err_max"], abs(T_err))
                 acc["n_T"] += 1
                 acc["speed_err2"] += (veh.v - v_ref[k + 1]) ** 2
@@ -171,6 +174,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
         distance_km=km, energy_battery_Wh=bat.E_terminal * Wh, Wh_per_km=bat.E_terminal * Wh / km,
         speed_rmse_mps=math.sqrt(acc["speed_err2"] / n),
         torque_rmse_Nm=math.sqrt(acc["T_err2"] / max(acc["n_T"], 1)), torque_error_max_Nm=acc["T_err_max"],
+        torque_cmd_rms_Nm=math.sqrt(acc["T_cmd2"] / max(acc["n_T"], 1)),
         copper_loss_Wh=acc["E_cu"] * Wh, copper_loss_optimal_Wh=acc["E_cu_opt"] * Wh if ref else None,
         current_excess_rms_A=math.sqrt(acc["I_excess2"] / acc["n_I"]) if acc["n_I"] else 0.0,
         iron_loss_Wh=acc["E_fe"] * Wh, motor_electric_Wh=acc["E_elec"] * Wh, shaft_Wh=acc["E_mech"] * Wh,

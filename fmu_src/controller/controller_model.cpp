@@ -136,6 +136,7 @@ void ControllerModel::initial_outputs() {
     T_est = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
     region = static_cast<int>(cmd.region);
     iterations = cmd.iterations;
+    cache_ = {true, T_ref, w_m, u_dc, T_magnet, cmd};
 }
 
 void ControllerModel::do_step(double /*t*/, double h) {
@@ -148,7 +149,10 @@ void ControllerModel::do_step(double /*t*/, double h) {
     SaturatedOptimalCurrent solver = *solver_;
     CurrentRegulator regulator = regulator_;
     CurrentCommand cmd;
-    if (method == 1) {
+    if (cache_.holds(*this)) {
+        cmd = cache_.cmd;
+        cmd.iterations = 0;
+    } else if (method == 1) {
         cmd = solver.solve(T_ref, {omega, V_max, I_max}, R_s, shift, static_cast<Recursion>(recursion));
     } else {
         cmd = table_->lookup(T_ref, w_m, V_max);
@@ -169,6 +173,7 @@ void ControllerModel::do_step(double /*t*/, double h) {
     warned_unreachable_ = !cmd.feasible;
     *solver_ = solver;
     regulator_ = regulator;
+    cache_ = {true, T_ref, w_m, u_dc, T_magnet, cmd};
     i_d_ref = cmd.i_d;
     i_q_ref = cmd.i_q;
     u_d_ref = u.u_d;
@@ -186,15 +191,18 @@ void ControllerModel::save_state(fmi::StateWriter& w) const {
     w.put(m);
     w.put(regulator_.state);
     w.put(warned_unreachable_);
+    w.put(cache_);
 }
 
 void ControllerModel::load_state(fmi::StateReader& r) {
     const auto m = r.get<SolverMemory>();
     const auto s = r.get<RegulatorState>();
     const auto warned = r.get<bool>();
+    const auto cache = r.get<CommandCache>();
     if (solver_) solver_->memory = m;
     regulator_.state = s;
     warned_unreachable_ = warned;
+    cache_ = cache;
 }
 
 }  // namespace ipmsm

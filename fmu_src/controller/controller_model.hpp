@@ -69,6 +69,19 @@ public:
 private:
     void initial_outputs();
 
+    // The last command and the inputs it was solved for: while T_ref, w_m, u_dc and T_magnet
+    // stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
+    // is the same, and is not solved again.
+    struct CommandCache {
+        bool valid = false;
+        double T_ref, w_m, u_dc, T_magnet;
+        CurrentCommand cmd;
+        bool holds(const ControllerModel& m) const {
+            return valid && T_ref == m.T_ref && w_m == m.w_m && u_dc == m.u_dc && T_magnet == m.T_magnet;
+        }
+    };
+    CommandCache cache_;
+
     const fmi::Context* context_;  // owned by the FMI instance, which outlives every copy of the model
     std::shared_ptr<const FluxMap> map_;
     std::shared_ptr<const TorqueTable> table_;
