@@ -114,20 +114,25 @@ def write_report(out: Path, results: list[dict], costs: dict) -> None:
              "are 41 × 41, built by the controller at initialisation for 355 V and 20 °C with the exact solver.",
              "*Copper loss vs optimum*: the run's copper loss over that of the exact optimum (Ferrari,",
              "recursion 2, the same delivered torque and conditions, evaluated every 10 ms). *Torque error*:",
-             "delivered T_e against the controller's own clamped command T_cmd, 10-ms means.", ""]
+             "delivered T_e against the controller's own clamped command T_cmd, 10-ms means. *Time above",
+             "V_max / voltage-limited*: share of the cycle (sampled every 10 ms) in which the current regulator's",
+             "voltage exceeded the planned V_max = k_u u_dc/√3, and in which it hit the inverter's linear range u_dc/√3. The optimum keeps 5 % of it in reserve (k_u = 0.95); a method",
+             "whose commands fall outside the voltage ellipse spends that reserve (and shows copper loss *below*",
+             "the optimum's) or, past it, loses torque.", ""]
     for cycle in dict.fromkeys(s["cycle"] for s in results):
         for cond in dict.fromkeys(s["conditions"]["name"] for s in results if s["cycle"] == cycle):
             lines += [f"## {cycle}, {cond}", "",
-                      "| method | Wh/km | torque error RMS / max (N·m) | copper loss vs optimum | current excess RMS (A) "
-                      "| controller ns/call | memory |",
-                      "|---|---|---|---|---|---|---|"]
+                      "| method | Wh/km | speed RMSE (km/h) | torque error RMS / max (N·m) | copper loss vs optimum "
+                      "| current excess RMS (A) | time above V_max / voltage-limited | controller ns/call | memory |",
+                      "|---|---|---|---|---|---|---|---|---|"]
             for s in results:
                 if s["cycle"] != cycle or s["conditions"]["name"] != cond:
                     continue
                 cu = s["copper_loss_Wh"] / s["copper_loss_optimal_Wh"] - 1 if s.get("copper_loss_optimal_Wh") else float("nan")
                 ns = costs.get(s["variant"])
-                lines.append(f"| {s['variant']} | {s['Wh_per_km']:.2f} | {s['torque_rmse_Nm']:.3f} / "
-                             f"{s['torque_error_max_Nm']:.2f} | {cu:+.2%} | {s['current_excess_rms_A']:.2f} | "
+                lines.append(f"| {s['variant']} | {s['Wh_per_km']:.2f} | {s['speed_rmse_mps'] * 3.6:.2f} | "
+                             f"{s['torque_rmse_Nm']:.3f} / {s['torque_error_max_Nm']:.2f} | {cu:+.2%} | "
+                             f"{s['current_excess_rms_A']:.2f} | {s['time_above_V_max_pct']:.1f} % / {s['time_voltage_limited_pct']:.1f} % | "
                              f"{'%.0f' % ns if ns else '–'} | {_memory(s)} |")
             lines.append("")
     lines += ["![Study](study.png)", "",

@@ -29,6 +29,9 @@ from .vehicle import Vehicle, VehicleParams, motor_speed, wheel_force
 ROOT = Path(__file__).resolve().parents[1]
 CELSIUS = 273.15  # K at 0 degC
 
+#: the controller's voltage utilisation k_u (its default): V_max = k_u u_dc / sqrt 3
+K_U = 0.95
+
 #: the contract's method names and the controller's `method` parameter
 METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
 
@@ -102,9 +105,10 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
     # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
     veh, drv, bat = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver), Battery(spec.battery, spec.soc0)
     every = max(1, int(round(spec.trace_dt / dt)))
-    outputs = ("T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q", "|i|", "|i|^2", "T_cmd", "T_max", "region")
+    outputs = ("T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q", "|i|", "|i|^2", "T_cmd", "T_max", "region",
+               "controller.u_ratio")
 
-    acc = dict(E_elec=0.0, E_mech=0.0, E_cu=0.0, E_fe=0.0, E_inv=0.0, E_cu_opt=0.0, T_err2=0.0, T_err_max=0.0, n_T=0, T_cmd2=0.0,
+    acc = dict(E_elec=0.0, E_mech=0.0, E_cu=0.0, E_fe=0.0, E_inv=0.0, E_cu_opt=0.0, T_err2=0.0, T_err_max=0.0, n_T=0, T_cmd2=0.0, t_over=0.0,
                I_excess2=0.0, n_I=0, t_sat=0.0, speed_err2=0.0)
     rows = []
     T_max_known = 1e9  # the controller reports its reach after the first step
@@ -125,6 +129,12 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
                                   T_winding=cond.T_winding)
                 m, e = r["mean"], r["end"]
                 T_max_known = abs(e["T_max"])
+                # Voltage use, sampled at the vehicle step: above the planned V_max = k_u u_dc / sqrt 3
+                # (the optimum's reserve for the regulator), and at the inverter's limit u_dc / sqrt 3.
+                if e["controller.u_ratio"] > K_U * (1.0 + 1e-3):
+                    acc["t_over"] += dt
+                if e["controller.u_ratio"] >= 1.0 - 1e-9:
+                    acc["t_sat"] += dt
                 F_w = wheel_force(m["T_shaft"], vp)
                 drv.applied(F_w - b.F_brake)
                 veh.step(F_w, b.F_brake, dt)
@@ -176,6 +186,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
         torque_rmse_Nm=math.sqrt(acc["T_err2"] / max(acc["n_T"], 1)), torque_error_max_Nm=acc["T_err_max"],
         torque_cmd_rms_Nm=math.sqrt(acc["T_cmd2"] / max(acc["n_T"], 1)),
         copper_loss_Wh=acc["E_cu"] * Wh, copper_loss_optimal_Wh=acc["E_cu_opt"] * Wh if ref else None,
+        time_above_V_max_pct=100.0 * acc["t_over"] / (n * dt), time_voltage_limited_s=acc["t_sat"], time_voltage_limited_pct=100.0 * acc["t_sat"] / (n * dt),
         current_excess_rms_A=math.sqrt(acc["I_excess2"] / acc["n_I"]) if acc["n_I"] else 0.0,
         iron_loss_Wh=acc["E_fe"] * Wh, motor_electric_Wh=acc["E_elec"] * Wh, shaft_Wh=acc["E_mech"] * Wh,
         battery_internal_loss_Wh=(bat.E_loss_R0 + bat.E_loss_R1) * Wh, battery_energy_residual_Wh=bat.energy_residual() * Wh, inverter_loss_Wh=acc["E_inv"] * Wh, aux_Wh=spec.P_aux * n * dt * Wh,

@@ -39,6 +39,7 @@ const std::vector<V>& ControllerModel::variables() {
         {"region", &M::region, Causality::output, Variability::discrete, "", "", "0 zero torque, 1 MTPA, 2 voltage limit (Case ii), 3 current and voltage limit, 4 MTPV"},
         {"iterations", &M::iterations, Causality::output, Variability::discrete, "", "", "Inductance-recursion (recursion 1) or Newton (recursion 2) iterations used this step"},
         {"voltage_saturated", &M::voltage_saturated, Causality::output, Variability::discrete, "", "", "The current regulator's voltage was limited to the inverter's linear range this step"},
+        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "", "Voltage command relative to the inverter's linear range u_dc/sqrt(3) (1: the regulator is voltage-limited)"},
         {"table_bytes", &M::table_bytes, Causality::output, Variability::discrete, "", "", "Memory of the 2-D tables (methods 2, 3), bytes; 0 for Ferrari"},
         // parameters
         {"method", &M::method, Causality::parameter, Variability::fixed, "", "", "1 Ferrari (online), 2 2-D table over torque x speed, 3 2-D table over torque x V_max/omega", 1, 3},
@@ -128,6 +129,7 @@ void ControllerModel::initial_outputs() {
     }
     regulator_.state.u_d_prev = u_d_ref = u_d;
     regulator_.state.u_q_prev = u_q_ref = u_q;
+    u_ratio = std::hypot(u_d, u_q) / u_lim;
     const double sign = T_ref < 0 ? -1.0 : 1.0;
     i_d_ref = cmd.i_d;
     i_q_ref = cmd.i_q;
@@ -179,6 +181,7 @@ void ControllerModel::do_step(double /*t*/, double h) {
     u_d_ref = u.u_d;
     u_q_ref = u.u_q;
     voltage_saturated = u.limited;
+    u_ratio = std::hypot(u.u_d, u.u_q) / (u_dc / kSqrt3);
     T_max = sign * cmd.torque_max;
     T_cmd = sign * std::min(std::abs(T_ref), cmd.torque_max);
     T_est = T_estimated;

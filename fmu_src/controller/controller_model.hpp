@@ -46,6 +46,7 @@ public:
     int region = 0;
     int iterations = 0;
     bool voltage_saturated = false;
+    double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
     // --- parameters (defaults: the default motor, plant/resources/ev_ipmsm_default.csv)
     int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
