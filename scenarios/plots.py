@@ -98,6 +98,10 @@ def _efficiency_background(ax, run_dir: Path) -> None:
     if not p.exists():
         return
     d = json.loads(p.read_text())
-    cs = ax.contour(np.array(d["speed_rpm"]), np.array(d["torque_Nm"]), np.array(d["efficiency"]).T * 100,
-                    levels=[80, 85, 90, 93, 95, 96], colors="0.6", linewidths=0.6)
+    eta = np.array([[np.nan if e is None else e for e in row] for row in d["efficiency"]], float)  # rows: torque
+    T = np.array(d["torque_Nm"])
+    n = np.array(d["speed_rpm"])
+    # Motoring map; regenerating points are drawn against its mirror image (same losses, to first order).
+    cs = ax.contour(n, T, eta * 100, levels=[80, 85, 90, 93, 95, 96], colors="0.6", linewidths=0.6)
+    ax.contour(n, -T, eta * 100, levels=[80, 85, 90, 93, 95, 96], colors="0.6", linewidths=0.6, linestyles=":")
     ax.clabel(cs, fontsize=6, fmt="%g %%")

@@ -251,6 +251,12 @@ def compute(csv_path=DEFAULT_CSV, plots_dir=None, json_path=None, verbose=True):
     if json_path is not None:
         Path(json_path).parent.mkdir(parents=True, exist_ok=True)
         Path(json_path).write_text(json.dumps(_rounded(res), indent=2) + "\n")
+    if json_path is not None:
+        # The efficiency map as data, for the drive-cycle plots (scenarios/plots.py): rows = torque.
+        grid = {"speed_rpm": [round(float(x), 3) for x in sp_map * RPM], "torque_Nm": [float(x) for x in tq_map],
+                "efficiency": [[None if not np.isfinite(e) else round(float(e), 5) for e in row] for row in eta],
+                "conditions": res["conditions"]}
+        (Path(json_path).parent / "efficiency_map.json").write_text(json.dumps(grid) + "\n")
     if plots_dir is not None:
         _plot(dr, speeds, T_e_max, T_sh_max, sp_map, tq_map, eta, base, k_pk, Path(plots_dir))
     return res
