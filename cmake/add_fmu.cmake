@@ -2,13 +2,17 @@
 #         SOURCES <.cpp ...>            # the one with IPMSM_FMI2_EXPORT(Model), plus any model sources
 #         [LIBRARIES <targets ...>]     # linked into the FMU and its generator
 #         [RESOURCES <files ...>]       # copied into resources/ (files, not directories)
-#         [DOCUMENTATION <index.html>]) # copied to documentation/index.html
+#         [DOCUMENTATION <index.html>]) # copied to documentation/index.html, with the variable
+#                                       # reference generated from the variable table inserted
 #
 # Builds an FMI 2.0 co-simulation FMU for Linux x86-64:
 #   <NAME>                    the shared library <NAME>.so: hidden visibility, only the fmi2* functions
-#                             exported (fmu_src/fmi/exports.map), no undefined symbols, libstdc++ and
-#                             libgcc linked statically so that it needs only libc and libm, unused
-#                             sections dropped
+#                             exported (fmu_src/fmi/exports.map), no undefined symbols, unused
+#                             sections dropped; libstdc++ linked statically, libgcc_s dynamically
+#                             (a static libgcc's unwinder needs glibc 2.35's _dl_find_object), and
+#                             the newer glibc symbol versions redirected to old ones
+#                             (fmu_src/fmi/glibc_compat.cpp): it needs libc, libm and libgcc_s of
+#                             glibc 2.17 or later (tests/python/test_conformance.py)
 #   <NAME>_modelDescription   the generator: the same SOURCES compiled with IPMSM_FMI2_GENERATOR
 #   <NAME>_fmu (ALL)          runs the generator and assembles ${CMAKE_BINARY_DIR}/fmu/<NAME>/
 #                             (modelDescription.xml, binaries/linux64/<NAME>.so, resources/,
@@ -22,10 +26,12 @@ if(CMAKE_SCRIPT_MODE_FILE)
   include(${FMU_CONFIG})  # NAME, DIR, FMU, LIBRARY, GENERATOR, RESOURCES, DOCUMENTATION
   file(REMOVE_RECURSE ${DIR})
   file(MAKE_DIRECTORY ${DIR}/binaries/linux64 ${DIR}/resources)
-  execute_process(COMMAND ${GENERATOR} ${DIR}/modelDescription.xml RESULT_VARIABLE rc)
+  execute_process(COMMAND ${GENERATOR} ${DIR}/modelDescription.xml --html ${DIR}.variables.html RESULT_VARIABLE rc)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "${NAME}: the modelDescription.xml generator failed (${rc})")
   endif()
+  file(READ ${DIR}.variables.html variables_html)
+  file(REMOVE ${DIR}.variables.html)
   file(COPY_FILE ${LIBRARY} ${DIR}/binaries/linux64/${NAME}.so)
   foreach(r IN LISTS RESOURCES)
     get_filename_component(r_name ${r} NAME)
@@ -33,8 +39,23 @@ if(CMAKE_SCRIPT_MODE_FILE)
   endforeach()
   set(entries modelDescription.xml binaries resources)
   if(DOCUMENTATION)
+    # the documentation, with the generated variable reference at <!-- ipmsm-fmu:variables --> or
+    # else before </body>
     file(MAKE_DIRECTORY ${DIR}/documentation)
-    file(COPY_FILE ${DOCUMENTATION} ${DIR}/documentation/index.html)
+    file(READ ${DOCUMENTATION} html)
+    string(FIND "${html}" "<!-- ipmsm-fmu:variables -->" at)
+    if(at GREATER_EQUAL 0)
+      string(REPLACE "<!-- ipmsm-fmu:variables -->" "${variables_html}" html "${html}")
+    else()
+      string(FIND "${html}" "</body>" at REVERSE)
+      if(at LESS 0)
+        message(FATAL_ERROR "${NAME}: ${DOCUMENTATION} has no </body>")
+      endif()
+      string(SUBSTRING "${html}" 0 ${at} head)
+      string(SUBSTRING "${html}" ${at} -1 tail)
+      set(html "${head}${variables_html}${tail}")
+    endif()
+    file(WRITE ${DIR}/documentation/index.html "${html}")
     list(APPEND entries documentation)
   endif()
   file(REMOVE ${FMU})
@@ -50,6 +71,7 @@ endif()
 
 set(IPMSM_ADD_FMU_SCRIPT ${CMAKE_CURRENT_LIST_FILE})
 set(IPMSM_FMI2_EXPORTS_MAP ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/exports.map)
+set(IPMSM_FMI2_GLIBC_COMPAT ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/glibc_compat.cpp)
 
 function(add_fmu)
   cmake_parse_arguments(PARSE_ARGV 0 FMU "" "NAME;DOCUMENTATION" "SOURCES;LIBRARIES;RESOURCES")
@@ -77,7 +99,11 @@ function(add_fmu)
   target_compile_options(${name} PRIVATE -ffunction-sections -fdata-sections)
   target_link_options(${name} PRIVATE "LINKER:--version-script=${IPMSM_FMI2_EXPORTS_MAP}" "LINKER:--gc-sections")
   if(NOT IPMSM_SANITIZE)  # the sanitizer runtimes are shared libraries with undefined hooks
-    target_link_options(${name} PRIVATE "LINKER:--no-undefined" -static-libstdc++ -static-libgcc)
+    # libstdc++ static (a target's own may be older than GCC 12's); libgcc_s.so.1 shared: a static
+    # libgcc's unwinder calls _dl_find_object (GLIBC_2.35). glibc_compat.cpp pins the rest.
+    target_sources(${name} PRIVATE ${IPMSM_FMI2_GLIBC_COMPAT})
+    target_link_options(${name} PRIVATE "LINKER:--no-undefined" -static-libstdc++ -shared-libgcc
+      "LINKER:--wrap=hypot,--wrap=exp,--wrap=log,--wrap=pow,--wrap=stat,--wrap=fstat64,--wrap=pthread_once")
   endif()
 
   # The modelDescription.xml generator: the same sources, IPMSM_FMI2_EXPORT expands to main().

@@ -8,7 +8,7 @@ cd "$ROOT"
 say() { printf '\033[1m[setup]\033[0m %s\n' "$*"; }
 
 # --- system packages (Debian names) ---
-APT_PACKAGES=(build-essential cmake ninja-build libeigen3-dev libsundials-dev libgtest-dev valgrind)
+APT_PACKAGES=(build-essential cmake ninja-build libeigen3-dev libsundials-dev libgtest-dev valgrind maven)
 missing=()
 for p in "${APT_PACKAGES[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -35,6 +35,9 @@ if ! cmp -s requirements.txt .venv/.requirements.installed; then
   cp requirements.txt .venv/.requirements.installed
 fi
 export PATH="$ROOT/.venv/bin:$PATH"
+
+# --- VDMCheck2 (FMI 2.0 model-description checker, Maven Central) -> build-tools/, for the tests ---
+source scripts/install_vdmcheck2.sh
 
 # --- build ---
 BUILD_TYPE=${BUILD_TYPE:-Release}

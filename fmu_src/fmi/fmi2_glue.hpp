@@ -32,6 +32,12 @@
 //   queries report fmi2Discard for the asynchronous kinds. currentCommunicationPoint must be where
 //   the previous step ended (relative tolerance 1e-9); the setupExperiment stop time is not
 //   enforced and its tolerance is not used (models have their own tolerance parameters).
+// - Outputs in Initialization Mode: FMI 2.0 lists the outputs as InitialUnknowns, which a master
+//   may read (fmi2GetReal) before fmi2ExitInitializationMode to propagate them to other FMUs
+//   (libcosim, container FMUs do). The glue answers such a Get of an output or local with the
+//   values the model will have right after fmi2ExitInitializationMode: it runs
+//   exit_initialization() on a copy of the model (logging muted), kept until the next Set. If that
+//   fails the Get fails with the reason (fmi2ExitInitializationMode would too).
 // - Per fmi2DoStep the glue copy-assigns the model once (to undo a failed step): models keep
 //   copy-assignment cheap (large read-only data behind std::shared_ptr<const T>).
 // - FMU states are full copies of the model plus the FMI state and time; fmi2FreeInstance frees
@@ -193,6 +199,8 @@ public:
     double time = 0.0;  // where the next step starts
 
     std::vector<std::string> strings;  // what fmi2GetString returned last
+    std::unique_ptr<M> initial;  // Initialization Mode: the model as exit_initialization() leaves it
+    bool quiet = false;          // the model's log messages are dropped (while computing `initial`)
     std::unordered_set<Snapshot<M>*> snapshots;
 
     Instance(const char* instance_name, fmi2CallbackLogger log, fmi2ComponentEnvironment env,
@@ -273,13 +281,46 @@ public:
         }
     }
 
+    // Initialization Mode: the model as fmi2ExitInitializationMode will leave it, for the Get of an
+    // output or local (see the header). Computed on a copy, with the model's logging muted; kept
+    // until a Set, fmi2SetFMUstate, fmi2Reset or fmi2ExitInitializationMode drops it.
+    const M& initial_model() {
+        if (initial) return *initial;
+        auto m = std::make_unique<M>(model);
+        struct Mute {
+            bool& q;
+            explicit Mute(bool& flag) : q(flag) { q = true; }
+            ~Mute() { q = false; }
+        } mute(quiet);
+        const char* why = "the outputs cannot be computed in Initialization Mode with the values set so far: ";
+        try {
+            m->exit_initialization();
+        } catch (const std::bad_alloc&) {
+            throw;
+        } catch (const std::exception& e) {
+            throw Error(why + std::string(e.what()) + " (fmi2ExitInitializationMode would fail the same way)");
+        } catch (...) {
+            throw Error(why + std::string("unknown exception (not a std::exception)"));
+        }
+        for (const Variable<M>* v : computed_reals<M>()) {
+            const double x = (*m).*std::get<double M::*>(v->member);
+            if (!std::isfinite(x))
+                throw Error(why + std::string("the model computes ") + v->name + " = " + number_text(x));
+        }
+        initial = std::move(m);
+        return *initial;
+    }
+
 private:
     Context make_context(std::string resource_dir) {
         Context c;
         c.instance_name = name;
         c.resource_dir = std::move(resource_dir);
-        c.log_info = [this](const std::string& m) { log(fmi2OK, LogCategory::events, m); };
+        c.log_info = [this](const std::string& m) {
+            if (!quiet) log(fmi2OK, LogCategory::events, m);
+        };
         c.log_warning = [this](const std::string& m) {
+            if (quiet) return;
             warned = true;
             log(fmi2Warning, LogCategory::warning, m);
         };
@@ -567,6 +608,7 @@ struct Fmi2 {
     static fmi2Status exit_initialization_mode(fmi2Component c) noexcept {
         return guarded<M>(c, "fmi2ExitInitializationMode", mask(Phase::initialization_mode), [&](In& in) {
             in.undoable([&] { in.model.exit_initialization(); }, "initialisation");
+            in.initial.reset();
             in.phase = Phase::step_complete;
             return fmi2OK;
         });
@@ -584,6 +626,7 @@ struct Fmi2 {
             M fresh(in.context);
             using std::swap;
             swap(in.model, fresh);
+            in.initial.reset();
             in.phase = Phase::instantiated;
             in.time = 0.0;
             return fmi2OK;
@@ -597,18 +640,23 @@ struct Fmi2 {
         return guarded<M>(c, fn, kGet, [&](In& in) {
             if (nvr == 0) return fmi2OK;
             if (vr == nullptr || value == nullptr) throw Error("vr[] or value[] is NULL with nvr > 0");
-            for (std::size_t i = 0; i < nvr; ++i) in.lookup(vr[i], type);
+            bool computed = false;  // an output or local: in Initialization Mode, from initial_model()
+            for (std::size_t i = 0; i < nvr; ++i) {
+                const auto& v = in.lookup(vr[i], type);
+                computed = computed || v.causality == Causality::output || v.causality == Causality::local;
+            }
+            const M& model = (computed && in.phase == Phase::initialization_mode) ? in.initial_model() : in.model;
             const auto& vars = variables<M>();
             if constexpr (std::is_same_v<C, fmi2String>) {
                 in.strings.resize(nvr);
-                for (std::size_t i = 0; i < nvr; ++i) in.strings[i] = in.model.*std::get<std::string M::*>(vars[vr[i]].member);
+                for (std::size_t i = 0; i < nvr; ++i) in.strings[i] = model.*std::get<std::string M::*>(vars[vr[i]].member);
                 for (std::size_t i = 0; i < nvr; ++i) value[i] = in.strings[i].c_str();
             } else {
                 for (std::size_t i = 0; i < nvr; ++i) {
                     const auto& m = vars[vr[i]].member;
-                    if constexpr (std::is_same_v<C, fmi2Real>) value[i] = in.model.*std::get<double M::*>(m);
-                    else if (type == Type::Integer) value[i] = in.model.*std::get<int M::*>(m);
-                    else value[i] = in.model.*std::get<bool M::*>(m) ? fmi2True : fmi2False;
+                    if constexpr (std::is_same_v<C, fmi2Real>) value[i] = model.*std::get<double M::*>(m);
+                    else if (type == Type::Integer) value[i] = model.*std::get<int M::*>(m);
+                    else value[i] = model.*std::get<bool M::*>(m) ? fmi2True : fmi2False;
                 }
             }
             return fmi2OK;
@@ -645,6 +693,7 @@ struct Fmi2 {
                 else if (type == Type::Integer) in.model.*std::get<int M::*>(m) = value[i];
                 else in.model.*std::get<bool M::*>(m) = value[i] != fmi2False;
             }
+            in.initial.reset();
             return fmi2OK;
         });
     }
@@ -679,6 +728,7 @@ struct Fmi2 {
             using std::swap;
             swap(in.model, copy);
             in.phase = s.phase;
+            in.initial.reset();
             in.time = s.time;
             return fmi2OK;
         });

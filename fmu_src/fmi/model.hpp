@@ -29,6 +29,9 @@
 // - Before each do_step and exit_initialization the glue copy-assigns the model to a scratch copy,
 //   and swaps it back if the call throws or leaves an output or local Real non-finite: keep
 //   copy-assignment cheap (it runs once per communication step) and swap non-throwing.
+// - exit_initialization() may also run on a copy of the model in Initialization Mode, to answer a
+//   Get of an output (InitialUnknowns) before fmi2ExitInitializationMode: it must have no effect
+//   outside the model object but its log messages (which the glue mutes there).
 // - The glue validates values before the model sees them: type, causality and state rules,
 //   finite Reals, [min, max] from the table. exit_initialization() checks what depends on
 //   several values (or on data).

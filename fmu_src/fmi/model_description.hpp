@@ -7,7 +7,11 @@
 // An FMU's generator executable is one line (add_fmu builds it from the FMU's own .cpp, where
 // IPMSM_FMI2_EXPORT expands to this when IPMSM_FMI2_GENERATOR is defined):
 //
-//     IPMSM_FMI2_MODEL_DESCRIPTION_MAIN(MyModel)   // main: `gen [out.xml]`, stdout without argument
+//     IPMSM_FMI2_MODEL_DESCRIPTION_MAIN(MyModel)   // main: `gen [out.xml] [--html table.html]`
+//
+// `--html` also writes the variable reference (an HTML <section> with one table row per variable:
+// name, value reference, causality, variability, type, unit, start, range, description), which
+// add_fmu inserts into the FMU's documentation/index.html: the documentation cannot drift either.
 #pragma once
 
 #include <cmath>
@@ -274,22 +278,84 @@ std::string model_description() {
     return x.str();
 }
 
-// main() of a generator: writes the XML to argv[1] (or stdout); exit code 1 with the reason.
+inline std::string html_escape(const std::string& s) {
+    std::string out;
+    for (char c : s) {
+        switch (c) {
+            case '&': out += "&amp;"; break;
+            case '<': out += "&lt;"; break;
+            case '>': out += "&gt;"; break;
+            case '"': out += "&quot;"; break;
+            default: out += c;
+        }
+    }
+    return out;
+}
+
+// The variable reference of M as an HTML section, from the same table as the XML.
+template <class M>
+std::string variables_html() {
+    const M defaults{Context{}};
+    const auto& vars = M::variables();
+    std::ostringstream h;
+    h << "<section id=\"variables\">\n<h2>Variable reference</h2>\n"
+      << "<p>Generated from the FMU's variable table, the source of <code>modelDescription.xml</code>. "
+      << "A value outside the range is refused with <code>fmi2Error</code> and changes nothing; "
+      << "<em>fixed</em> parameters can be set only before <code>fmi2ExitInitializationMode</code>. "
+      << "Units are SI; the display unit is what a tool may show instead.</p>\n<table>\n"
+      << "<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th>"
+      << "<th>start</th><th>range</th><th>description</th></tr>\n";
+    for (std::size_t i = 0; i < vars.size(); ++i) {
+        const auto& v = vars[i];
+        const Type type = type_of(v);
+        const bool computed = v.causality == Causality::output || v.causality == Causality::local;
+        std::string unit = detail::empty(v.unit) ? "" : v.unit;
+        if (!detail::empty(v.display_unit)) unit += std::string(" (") + v.display_unit + ")";
+        std::string range;
+        if (type == Type::Real || type == Type::Integer) {
+            range = range_text(v);
+            if (range == "any finite value") range = type == Type::Real ? "finite" : "";
+        }
+        const std::string start = computed ? "" : (type == Type::String ? "\"" + detail::start_text(defaults, v) + "\""
+                                                                          : detail::start_text(defaults, v));
+        h << "<tr><td><code>" << html_escape(v.name) << "</code></td><td>" << i << "</td><td>"
+          << causality_name(v.causality) << "</td><td>" << variability_name(v.variability) << "</td><td>"
+          << type_name(type) << "</td><td>" << html_escape(unit) << "</td><td>" << start << "</td><td>"
+          << html_escape(range) << "</td><td>" << html_escape(v.description) << "</td></tr>\n";
+    }
+    h << "</table>\n</section>\n";
+    return h.str();
+}
+
+inline void write_file_atomically(const std::string& path, const std::string& text) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream f(tmp, std::ios::binary);
+        f << text;
+        if (!f.good()) throw std::runtime_error("cannot write " + tmp);
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot write " + path);
+}
+
+// main() of a generator: `gen [out.xml] [--html table.html]`; the XML to stdout without out.xml;
+// exit code 1 with the reason.
 template <class M>
 int model_description_main(int argc, char** argv) {
     try {
+        std::string xml_path, html_path;
+        for (int i = 1; i < argc; ++i) {
+            const std::string a = argv[i];
+            if (a == "--html" && i + 1 < argc) html_path = argv[++i];
+            else if (xml_path.empty() && a.rfind("--", 0) != 0) xml_path = a;
+            else throw std::runtime_error("usage: " + std::string(argv[0]) + " [out.xml] [--html variables.html]");
+        }
         const std::string xml = model_description<M>();
-        if (argc < 2) {
+        if (!html_path.empty()) write_file_atomically(html_path, variables_html<M>());
+        if (xml_path.empty()) {
             std::cout << xml;
             return std::cout.good() ? 0 : 1;
         }
-        const std::string tmp = std::string(argv[1]) + ".tmp";
-        {
-            std::ofstream f(tmp, std::ios::binary);
-            f << xml;
-            if (!f.good()) throw std::runtime_error("cannot write " + tmp);
-        }
-        if (std::rename(tmp.c_str(), argv[1]) != 0) throw std::runtime_error(std::string("cannot write ") + argv[1]);
+        write_file_atomically(xml_path, xml);
         return 0;
     } catch (const std::exception& e) {
         std::cerr << "modelDescription.xml of " << M::model_identifier << ": " << e.what() << '\n';

@@ -1,0 +1,317 @@
+"""The coupled drive (IpmsmController + IpmsmPlant) in three FMI 2.0 masters, one scenario.
+
+Scenario: a torque step (0 -> 200 N.m at 2 ms) during a speed ramp (2000 -> 8000 r/min over
+50 ms) at 100 us, on the default motor; the speed ramp takes the drive from MTPA into field
+weakening, where the command is clamped to what is reachable.
+
+Coupling, the same in every master (what libcosim's fixed-step algorithm does):
+- Jacobi: both FMUs step from t_k to t_k + h; then the outputs are passed on (plant i_d, i_q ->
+  controller; controller u_d_ref, u_q_ref -> plant), to be used over the next step.
+- The external inputs T_ref, w_m (to both) are set before the step from t_k, with their values
+  at t_k (step index k: no floating-point test on the time).
+- Initialisation: both FMUs in Initialization Mode with the inputs at t = 0, the connections
+  passed plant -> controller, then controller -> plant (the controller's voltage output depends
+  on the measured currents: this order is exact in one pass), then fmi2ExitInitializationMode,
+  then the connections passed once more.
+
+Masters:
+- run_fmpy: this project's own master on fmpy's FMU2Slave; time_grid="ns" passes the times as
+  libcosim does (step_times).
+- run_libcosim: libcosim (PyPI libcosimpy), from scenarios/osp/OspSystemStructure.xml; T_ref and
+  w_m through an override manipulator.
+- run_container: fmpy's container FMU (fmpy.container_fmu) holding both FMUs, driven as one FMU.
+
+Each returns a structured numpy array, one row per step (the values at t_k + h), with the
+columns of COLUMNS. `compare` gives the largest difference of each column relative to the
+column's largest magnitude.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+H = 1e-4              # s, communication step
+N_STEPS = 500         # 50 ms
+STEP_AT = 20          # the torque step at t = 2 ms
+T_STEP = 200.0        # N.m
+RPM_START, RPM_END = 2000.0, 8000.0
+U_DC = 355.0          # V
+
+OSP_DIR = Path(__file__).resolve().parent / "osp"
+
+# (from FMU, variable, to FMU, variable); plant -> controller first (see the module docstring)
+CONNECTIONS = [
+    ("plant", "i_d", "controller", "i_d"),
+    ("plant", "i_q", "controller", "i_q"),
+    ("controller", "u_d_ref", "plant", "u_d"),
+    ("controller", "u_q_ref", "plant", "u_q"),
+]
+# the recorded outputs: (FMU, variable, FMI type)
+RECORDED = [
+    ("controller", "T_cmd", "Real"), ("controller", "T_max", "Real"),
+    ("controller", "i_d_ref", "Real"), ("controller", "i_q_ref", "Real"),
+    ("controller", "u_d_ref", "Real"), ("controller", "u_q_ref", "Real"),
+    ("controller", "region", "Integer"),
+    ("plant", "i_d", "Real"), ("plant", "i_q", "Real"), ("plant", "psi_d", "Real"), ("plant", "psi_q", "Real"),
+    ("plant", "T_e", "Real"), ("plant", "P_elec", "Real"),
+]
+COLUMNS = ["k", "T_ref", "w_m"] + [f"{fmu}.{name}" for fmu, name, _ in RECORDED]
+
+
+def torque(k: int) -> float:
+    """T_ref over the step from t_k = k h, N.m."""
+    return T_STEP if k >= STEP_AT else 0.0
+
+
+def speed(k: int) -> float:
+    """w_m over the step from t_k, rad/s."""
+    return (RPM_START + (RPM_END - RPM_START) * k / N_STEPS) * math.pi / 30.0
+
+
+def external(k: int) -> list[tuple[str, str, float]]:
+    """The external inputs at step k: (FMU, variable, value)."""
+    T, w = torque(k), speed(k)
+    return [("controller", "T_ref", T), ("controller", "w_m", w), ("plant", "w_m", w)]
+
+
+def _table(rows) -> np.ndarray:
+    return np.array([tuple(r) for r in rows], dtype=[(c, "f8") for c in COLUMNS])
+
+
+def _row(k, get):
+    return [k, torque(k), speed(k)] + [get(fmu, name, kind) for fmu, name, kind in RECORDED]
+
+
+def compare(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
+    """Per column: max |a - b| / max |a| (0 if both are all zero)."""
+    out = {}
+    for c in COLUMNS:
+        scale = float(np.max(np.abs(a[c])))
+        diff = float(np.max(np.abs(a[c] - b[c])))
+        out[c] = diff / scale if scale > 0 else diff
+    return out
+
+
+# --- the project's master (fmpy FMU2Slave) ---
+
+def step_times(k: int, time_grid: str = "kh") -> tuple[float, float]:
+    """(t_k, h_k) passed to fmi2DoStep. "kh": t_k = k h, h_k = h (this master). "ns": libcosim's
+    clock, integer nanoseconds: t_k = (k 100000 ns) / 1e9 s and h_k = t_{k+1} - t_k in double,
+    which differs from 1e-4 in its last bits at most steps."""
+    if time_grid == "kh":
+        return k * H, H
+    ns = round(H * 1e9)
+    t0, t1 = (k * ns) / 1e9, ((k + 1) * ns) / 1e9
+    return t0, t1 - t0
+
+
+def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str = "kh") -> np.ndarray:
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    fmus, vrs, dirs = {}, {}, []
+    try:
+        for key, path in (("controller", controller_fmu), ("plant", plant_fmu)):
+            md = read_model_description(str(path))
+            d = extract(str(path))
+            dirs.append(d)
+            f = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
+                          instanceName=key)
+            f.instantiate()
+            f.setupExperiment(startTime=0.0)
+            fmus[key] = f
+            vrs[key] = {v.name: v.valueReference for v in md.modelVariables}
+
+        def set_real(fmu, name, value):
+            fmus[fmu].setReal([vrs[fmu][name]], [value])
+
+        def get(fmu, name, kind="Real"):
+            getter = fmus[fmu].getReal if kind == "Real" else fmus[fmu].getInteger
+            return getter([vrs[fmu][name]])[0]
+
+        def exchange():
+            for src, out, dst, inp in CONNECTIONS:
+                set_real(dst, inp, get(src, out))
+
+        for f in fmus.values():
+            f.enterInitializationMode()
+        set_real("controller", "u_dc", U_DC)
+        for fmu, name, value in external(0):
+            set_real(fmu, name, value)
+        exchange()
+        for f in fmus.values():
+            f.exitInitializationMode()
+        exchange()
+        rows = []
+        for k in range(N_STEPS):
+            for fmu, name, value in external(k):
+                set_real(fmu, name, value)
+            t, h = step_times(k, time_grid)
+            for f in fmus.values():
+                f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+            exchange()
+            rows.append(_row(k, get))
+        for f in fmus.values():
+            f.terminate()
+        return _table(rows)
+    finally:
+        for f in fmus.values():
+            f.freeInstance()
+        for d in dirs:
+            shutil.rmtree(d, ignore_errors=True)
+
+
+# --- libcosim ---
+
+def osp_config(controller_fmu: str | Path, plant_fmu: str | Path, out_dir: str | Path) -> Path:
+    """scenarios/osp/OspSystemStructure.xml with its FMU sources pointed at the given files."""
+    ns = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
+    ET.register_namespace("", ns)
+    tree = ET.parse(OSP_DIR / "OspSystemStructure.xml")
+    sources = {"controller": Path(controller_fmu).resolve(), "plant": Path(plant_fmu).resolve()}
+    for sim in tree.getroot().iter(f"{{{ns}}}Simulator"):
+        sim.set("source", str(sources[sim.get("name")]))
+    out = Path(out_dir) / "OspSystemStructure.xml"
+    tree.write(out, xml_declaration=True, encoding="utf-8")
+    return out
+
+
+def run_libcosim(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarray:
+    from libcosimpy.CosimEnums import CosimExecutionState
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimManipulator import CosimManipulator
+    from libcosimpy.CosimObserver import CosimObserver
+
+    from fmpy import read_model_description
+
+    log_output_level(CosimLogLevel.ERROR)
+    vrs = {key: {v.name: v.valueReference for v in read_model_description(str(p)).modelVariables}
+           for key, p in (("controller", controller_fmu), ("plant", plant_fmu))}
+    with tempfile.TemporaryDirectory(prefix="ipmsm-osp-") as tmp:
+        execution = CosimExecution.from_osp_config_file(str(osp_config(controller_fmu, plant_fmu, tmp)))
+        index = {key: execution.slave_index_from_instance_name(key) for key in vrs}
+        assert None not in index.values(), f"the OSP configuration lacks a simulator: {index}"
+        manipulator = CosimManipulator.create_override()
+        observer = CosimObserver.create_last_value()
+        assert execution.add_manipulator(manipulator) is not False
+        assert execution.add_observer(observer) is not False
+        for fmu, name, value in external(0):
+            execution.real_initial_value(index[fmu], vrs[fmu][name], value)
+
+        def get(fmu, name, kind="Real"):
+            read = observer.last_real_values if kind == "Real" else observer.last_integer_values
+            return read(index[fmu], [vrs[fmu][name]])[0]
+
+        rows = []
+        for k in range(N_STEPS):
+            for fmu, name, value in external(k):
+                manipulator.slave_real_values(index[fmu], [vrs[fmu][name]], [value])
+            if not execution.step():
+                raise RuntimeError(f"libcosim: the step from t = {k * H} s failed")
+            rows.append(_row(k, get))
+        status = execution.status()
+        if status.state == CosimExecutionState.ERROR.value:
+            raise RuntimeError(f"libcosim: execution error {status.error_code}")
+        del execution
+        return _table(rows)
+
+
+# --- fmpy's container FMU ---
+
+def build_container(controller_fmu: str | Path, plant_fmu: str | Path, work_dir: str | Path) -> Path:
+    """A container FMU (fmpy.container_fmu) of the two FMUs with CONNECTIONS inside; inputs
+    T_ref, w_m (w_m to both), outputs "<fmu>.<name>" for RECORDED."""
+    import attrs
+    from fmpy import read_model_description
+    from fmpy.container_fmu.cli import create_container_fmu
+    from fmpy.container_fmu.config import Component, Configuration, Connection
+    from fmpy.model_description import CoSimulation, DefaultExperiment, ModelDescription, ModelVariable
+
+    comps, variables = {}, {}
+    for key, path in (("controller", controller_fmu), ("plant", plant_fmu)):
+        md = read_model_description(str(path))
+        comps[key] = Component(name=key, filename=Path(path), modelDescription=md)
+        variables[key] = {v.name: v for v in md.modelVariables}
+    time = ModelVariable(type="Real", variability="continuous", causality="independent", name="time")
+    T_ref = ModelVariable(type="Real", variability="continuous", causality="input", name="T_ref",
+                          start=repr(torque(0)))
+    w_m = ModelVariable(type="Real", variability="continuous", causality="input", name="w_m", start=repr(speed(0)))
+    mappings = {
+        T_ref: [(comps["controller"], variables["controller"]["T_ref"])],
+        w_m: [(comps["controller"], variables["controller"]["w_m"]), (comps["plant"], variables["plant"]["w_m"])],
+    }
+    outputs = []
+    for fmu, name, kind in RECORDED:
+        v = ModelVariable(type=kind, variability="continuous" if kind == "Real" else "discrete", causality="output",
+                          initial="calculated", name=f"{fmu}.{name}")
+        outputs.append(v)
+        mappings[v] = [(comps[fmu], variables[fmu][name])]
+    md = ModelDescription(
+        fmiVersion="2.0", modelName="IpmsmDrive", instantiationToken="{6f0e8a52-1d2b-4c3e-9a7f-5b4d3c2e1f00}",
+        defaultExperiment=DefaultExperiment(stopTime=str(N_STEPS * H), stepSize=str(H)),
+        coSimulation=CoSimulation(fixedInternalStepSize=H),
+        modelVariables=[time, T_ref, w_m] + outputs)
+    # fmpy 0.3.32 writes a connection's FMI 2 type ("Real") into container.json, where its container
+    # binary expects the FMI 3 name ("Float64"), as write_configuration does for the variables:
+    # the connectors are passed as copies with that name.
+    def connector(fmu, name):
+        v = variables[fmu][name]
+        return attrs.evolve(v, type={"Real": "Float64", "Integer": "Int32"}.get(v.type, v.type))
+
+    connections = [Connection(comps[a], [connector(a, x)], comps[b], [connector(b, y)]) for a, x, b, y in CONNECTIONS]
+    config = Configuration(parallelDoStep=False, modelDescription=md, components=list(comps.values()),
+                           connections=connections, variableMappings=mappings)
+    work_dir = Path(work_dir)
+    unzipdir = work_dir / "container"
+    unzipdir.mkdir(parents=True, exist_ok=True)
+    out = work_dir / "IpmsmDrive.fmu"
+    create_container_fmu(config, unzipdir, out)
+    return out
+
+
+def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarray:
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+
+    with tempfile.TemporaryDirectory(prefix="ipmsm-container-") as tmp:
+        container = build_container(controller_fmu, plant_fmu, tmp)
+        md = read_model_description(str(container))
+        vr = {v.name: v.valueReference for v in md.modelVariables}
+        d = extract(str(container), unzipdir=str(Path(tmp) / "run"))
+        fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
+                        instanceName="drive")
+        fmu.instantiate()
+        try:
+            fmu.setupExperiment(startTime=0.0)
+            fmu.enterInitializationMode()
+            fmu.setReal([vr["T_ref"], vr["w_m"]], [torque(0), speed(0)])
+            fmu.exitInitializationMode()
+
+            def get(f, name, kind="Real"):
+                getter = fmu.getReal if kind == "Real" else fmu.getInteger
+                return getter([vr[f"{f}.{name}"]])[0]
+
+            rows = []
+            t = 0.0  # the container adds up its fixed step: its clock, not k h (see compare_masters)
+            for k in range(N_STEPS):
+                fmu.setReal([vr["T_ref"], vr["w_m"]], [torque(k), speed(k)])
+                fmu.doStep(currentCommunicationPoint=t, communicationStepSize=H)
+                t += H
+                rows.append(_row(k, get))
+            fmu.terminate()
+        finally:
+            fmu.freeInstance()
+        return _table(rows)
+
+
+def compare_masters(controller_fmu, plant_fmu) -> dict[str, dict[str, float]]:
+    """Runs the three masters; the largest relative difference of each against run_fmpy."""
+    ref = run_fmpy(controller_fmu, plant_fmu)
+    return {"libcosim": compare(ref, run_libcosim(controller_fmu, plant_fmu)),
+            "container": compare(ref, run_container(controller_fmu, plant_fmu))}
