@@ -189,23 +189,45 @@ void ControllerModel::do_step(double /*t*/, double h) {
     iterations = cmd.iterations;
 }
 
+// Field by field (never whole structs: their padding bytes would carry garbage into the state).
 void ControllerModel::save_state(fmi::StateWriter& w) const {
-    const SolverMemory& m = solver_ ? solver_->memory : SolverMemory{};
-    w.put(m);
-    w.put(regulator_.state);
+    const SolverMemory m = solver_ ? solver_->memory : SolverMemory{};
+    for (double x : {m.op_i_d, m.op_i_q, m.limit_i_d, m.limit_i_q}) w.put(x);
+    w.put(m.has_limit);
+    const RegulatorState& r = regulator_.state;
+    for (double x : {r.v_d, r.v_q, r.u_d_prev, r.u_q_prev, r.psi_ref_d, r.psi_ref_q}) w.put(x);
+    w.put(r.primed);
     w.put(warned_unreachable_);
-    w.put(cache_);
+    const CommandCache& c = cache_;
+    w.put(c.valid);
+    for (double x : {c.T_ref, c.w_m, c.u_dc, c.T_magnet, c.cmd.i_d, c.cmd.i_q, c.cmd.torque, c.cmd.torque_max}) w.put(x);
+    w.put(static_cast<int>(c.cmd.region));
+    w.put(c.cmd.iterations);
+    w.put(c.cmd.feasible);
+    w.put(c.cmd.converged);
 }
 
-void ControllerModel::load_state(fmi::StateReader& r) {
-    const auto m = r.get<SolverMemory>();
-    const auto s = r.get<RegulatorState>();
-    const auto warned = r.get<bool>();
-    const auto cache = r.get<CommandCache>();
+void ControllerModel::load_state(fmi::StateReader& rd) {
+    SolverMemory m;
+    for (double* x : {&m.op_i_d, &m.op_i_q, &m.limit_i_d, &m.limit_i_q}) *x = rd.get<double>();
+    m.has_limit = rd.get<bool>();
+    RegulatorState r;
+    for (double* x : {&r.v_d, &r.v_q, &r.u_d_prev, &r.u_q_prev, &r.psi_ref_d, &r.psi_ref_q}) *x = rd.get<double>();
+    r.primed = rd.get<bool>();
+    const bool warned = rd.get<bool>();
+    CommandCache c;
+    c.valid = rd.get<bool>();
+    for (double* x : {&c.T_ref, &c.w_m, &c.u_dc, &c.T_magnet, &c.cmd.i_d, &c.cmd.i_q, &c.cmd.torque, &c.cmd.torque_max})
+        *x = rd.get<double>();
+    c.cmd.region = static_cast<Region>(rd.get<int>());
+    c.cmd.iterations = rd.get<int>();
+    c.cmd.feasible = rd.get<bool>();
+    c.cmd.converged = rd.get<bool>();
+    // All read: commit.
     if (solver_) solver_->memory = m;
-    regulator_.state = s;
+    regulator_.state = r;
     warned_unreachable_ = warned;
-    cache_ = cache;
+    cache_ = c;
 }
 
 }  // namespace ipmsm

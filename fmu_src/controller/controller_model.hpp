@@ -75,7 +75,7 @@ private:
     // is the same, and is not solved again.
     struct CommandCache {
         bool valid = false;
-        double T_ref, w_m, u_dc, T_magnet;
+        double T_ref = 0, w_m = 0, u_dc = 0, T_magnet = 0;
         CurrentCommand cmd;
         bool holds(const ControllerModel& m) const {
             return valid && T_ref == m.T_ref && w_m == m.w_m && u_dc == m.u_dc && T_magnet == m.T_magnet;

@@ -584,14 +584,8 @@ def test_random_call_sequences_under_valgrind(unzipped, name):
     assert "ERROR SUMMARY: 0 errors" in r.stderr, report
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "model bug (fmu_src/controller/controller_model.cpp save_state): SolverMemory and RegulatorState are "
-    "written with StateWriter::put as raw structs; their padding (after the bool members) is uninitialised "
-    "memory that goes into the serialised FMU state and its checksum, which fmi2DeSerializeFMUstate "
-    "compares: valgrind 'Conditional jump or move depends on uninitialised value(s)' in deserialise. "
-    "Fix: put the fields one by one (and get them so in load_state), then delete the suppression in "
-    "tests/valgrind/known_model_bugs.supp and this xfail."))
 def test_serialised_controller_state_has_no_uninitialised_bytes(unzipped):
+    """Serialised FMU states carry no uninitialised bytes (models write fields, never padded structs)."""
     r, report = _fuzz(unzipped, "IpmsmController", ["--sequences", "60", "--seed", "1000"],
                       wrapper=_valgrind(suppressions=False))
     assert r.returncode == 0 and "ERROR SUMMARY: 0 errors" in r.stderr, report
