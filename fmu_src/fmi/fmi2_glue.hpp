@@ -257,9 +257,10 @@ public:
     }
 
     // Runs f (a model call) so that, if it throws or leaves a computed Real non-finite, the model
-    // is as before. `what` describes the call for the log.
-    template <class F>
-    void undoable(F&& f, const std::string& what) {
+    // is as before. what() describes the call for the log; it is called only on failure (a step's
+    // description costs as much as the glue's whole per-step work otherwise).
+    template <class F, class W>
+    void undoable(F&& f, W&& what) {
         backup = model;
         try {
             f();
@@ -274,10 +275,10 @@ public:
             throw;
         } catch (const std::exception& e) {
             restore();
-            throw Error(undone(e.what(), what));
+            throw Error(undone(e.what(), what()));
         } catch (...) {
             restore();
-            throw Error(undone("unknown exception (not a std::exception)", what));
+            throw Error(undone("unknown exception (not a std::exception)", what()));
         }
     }
 
@@ -607,7 +608,7 @@ struct Fmi2 {
 
     static fmi2Status exit_initialization_mode(fmi2Component c) noexcept {
         return guarded<M>(c, "fmi2ExitInitializationMode", mask(Phase::initialization_mode), [&](In& in) {
-            in.undoable([&] { in.model.exit_initialization(); }, "initialisation");
+            in.undoable([&] { in.model.exit_initialization(); }, [] { return std::string("initialisation"); });
             in.initial.reset();
             in.phase = Phase::step_complete;
             return fmi2OK;
@@ -820,7 +821,7 @@ struct Fmi2 {
                 throw Error("currentCommunicationPoint = " + number_text(t) + " but the previous step ended at " +
                             number_text(in.time) + " (a step continues where the last one ended)");
             in.undoable([&] { in.model.do_step(t, h); },
-                        "the step from t = " + number_text(t) + " by h = " + number_text(h));
+                        [&] { return "the step from t = " + number_text(t) + " by h = " + number_text(h); });
             in.time = t + h;
             return fmi2OK;
         });
