@@ -584,7 +584,7 @@ def test_random_call_sequences_under_valgrind(unzipped, name):
     assert "ERROR SUMMARY: 0 errors" in r.stderr, report
 
 
-def test_serialised_controller_state_has_no_uninitialised_bytes(unzipped):
+def test_serialised_controller_state_has_no_uninitialised_bytes_valgrind(unzipped):
     """Serialised FMU states carry no uninitialised bytes (models write fields, never padded structs)."""
     r, report = _fuzz(unzipped, "IpmsmController", ["--sequences", "60", "--seed", "1000"],
                       wrapper=_valgrind(suppressions=False))
