@@ -109,19 +109,44 @@ void ControllerModel::exit_initialization() {
     }
 }
 
+ControllerModel::Conditions ControllerModel::conditions() const {
+    return {pole_pairs * w_m, k_u * u_dc / kSqrt3, magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref)};
+}
+
+CurrentCommand ControllerModel::current_command(const Conditions& c) {
+    if (cache_.holds(*this)) {
+        CurrentCommand cmd = cache_.cmd;
+        cmd.iterations = 0;
+        return cmd;
+    }
+    if (method == 1)
+        return solver_->solve(T_ref, {c.omega, c.V_max, I_max}, R_s, c.shift, static_cast<Recursion>(recursion));
+    return table_->lookup(T_ref, w_m, c.V_max);
+}
+
+void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux) {
+    const double sign = T_ref < 0 ? -1.0 : 1.0;
+    i_d_ref = cmd.i_d;
+    i_q_ref = cmd.i_q;
+    T_max = sign * cmd.torque_max;
+    T_cmd = sign * std::min(std::abs(T_ref), cmd.torque_max);
+    T_est = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
+    u_ratio = std::hypot(u_d_ref, u_q_ref) / (u_dc / kSqrt3);
+    region = static_cast<int>(cmd.region);
+    iterations = cmd.iterations;
+    cache_ = {true, T_ref, w_m, u_dc, T_magnet, cmd};
+}
+
 void ControllerModel::initial_outputs() {
     // Outputs consistent with the initial inputs, before the first step: the current commands,
     // and the voltage that holds the measured current (a flying start: at speed, u = 0 would
     // short-circuit the machine over the first step).
-    const double omega = pole_pairs * w_m;
-    const double V_max = k_u * u_dc / kSqrt3;
-    const double shift = magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref);
-    const MagnetFlux flux(*map_, shift);
-    const CurrentCommand cmd = method == 1
-        ? solver_->solve(T_ref, {omega, V_max, I_max}, R_s, shift, static_cast<Recursion>(recursion))
-        : table_->lookup(T_ref, w_m, V_max);
+    const Conditions c = conditions();
+    const MagnetFlux flux(*map_, c.shift);
+    cache_.valid = false;
+    const CurrentCommand cmd = current_command(c);
     const FluxPoint f = flux.eval(i_d, i_q);
-    double u_d = R_s * i_d - omega * f.psi_q, u_q = R_s * i_q + omega * f.psi_d;
+    double u_d = R_s * i_d - c.omega * f.psi_q, u_q = R_s * i_q + c.omega * f.psi_d;
     const double u_lim = u_dc / kSqrt3, mag = std::hypot(u_d, u_q);
     if (mag > u_lim) {
         u_d *= u_lim / mag;
@@ -129,64 +154,34 @@ void ControllerModel::initial_outputs() {
     }
     regulator_.state.u_d_prev = u_d_ref = u_d;
     regulator_.state.u_q_prev = u_q_ref = u_q;
-    u_ratio = std::hypot(u_d, u_q) / u_lim;
-    const double sign = T_ref < 0 ? -1.0 : 1.0;
-    i_d_ref = cmd.i_d;
-    i_q_ref = cmd.i_q;
-    T_max = sign * cmd.torque_max;
-    T_cmd = sign * std::min(std::abs(T_ref), cmd.torque_max);
-    T_est = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
-    region = static_cast<int>(cmd.region);
-    iterations = cmd.iterations;
-    cache_ = {true, T_ref, w_m, u_dc, T_magnet, cmd};
+    publish(cmd, flux);
 }
 
 void ControllerModel::do_step(double /*t*/, double h) {
-    const double omega = pole_pairs * w_m;
-    const double V_max = k_u * u_dc / kSqrt3;
-    const double shift = magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref);
-    const MagnetFlux flux(*map_, shift);
-
-    // Work on copies of the state; commit only when everything succeeded.
-    SaturatedOptimalCurrent solver = *solver_;
-    CurrentRegulator regulator = regulator_;
-    CurrentCommand cmd;
-    if (cache_.holds(*this)) {
-        cmd = cache_.cmd;
-        cmd.iterations = 0;
-    } else if (method == 1) {
-        cmd = solver.solve(T_ref, {omega, V_max, I_max}, R_s, shift, static_cast<Recursion>(recursion));
-    } else {
-        cmd = table_->lookup(T_ref, w_m, V_max);
-    }
-    const double sign = T_ref < 0 ? -1.0 : 1.0;
-    const VoltageCommand u = regulator.step(cmd.i_d, cmd.i_q, i_d, i_q, omega, u_dc, h, flux);
-    const double T_estimated = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
-    if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q) &&
-          std::isfinite(T_estimated)))
+    const Conditions c = conditions();
+    const MagnetFlux flux(*map_, c.shift);
+    // The step changes only the solver's warm starts and the regulator's state: keep them to
+    // undo a failing step (the outputs are written only at the end).
+    const SolverMemory memory = solver_->memory;
+    const RegulatorState regulator = regulator_.state;
+    const CurrentCommand cmd = current_command(c);
+    const VoltageCommand u = regulator_.step(cmd.i_d, cmd.i_q, i_d, i_q, c.omega, u_dc, h, flux);
+    if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q))) {
+        solver_->memory = memory;
+        regulator_.state = regulator;
         throw fmi::Error("the controller produced a non-finite value (inputs out of the flux map's sensible range?)");
-
+    }
     if (!cmd.feasible && !warned_unreachable_ && context_->log_warning) {
         std::ostringstream os;
-        os << "no current within I_max = " << I_max << " A keeps the voltage within V_max = " << V_max
+        os << "no current within I_max = " << I_max << " A keeps the voltage within V_max = " << c.V_max
            << " V at w_m = " << w_m << " rad/s: above the maximum speed; commanding i_d = " << cmd.i_d << " A";
         context_->log_warning(os.str());
     }
     warned_unreachable_ = !cmd.feasible;
-    *solver_ = solver;
-    regulator_ = regulator;
-    cache_ = {true, T_ref, w_m, u_dc, T_magnet, cmd};
-    i_d_ref = cmd.i_d;
-    i_q_ref = cmd.i_q;
     u_d_ref = u.u_d;
     u_q_ref = u.u_q;
     voltage_saturated = u.limited;
-    u_ratio = std::hypot(u.u_d, u.u_q) / (u_dc / kSqrt3);
-    T_max = sign * cmd.torque_max;
-    T_cmd = sign * std::min(std::abs(T_ref), cmd.torque_max);
-    T_est = T_estimated;
-    region = static_cast<int>(cmd.region);
-    iterations = cmd.iterations;
+    publish(cmd, flux);
 }
 
 // Field by field (never whole structs: their padding bytes would carry garbage into the state).

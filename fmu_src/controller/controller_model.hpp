@@ -68,6 +68,13 @@ public:
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:
+    // omega (electrical), V_max and the magnet's psi_d shift, from the inputs and parameters.
+    struct Conditions {
+        double omega, V_max, shift;
+    };
+    Conditions conditions() const;
+    CurrentCommand current_command(const Conditions& c);  // reuses the cache while it holds
+    void publish(const CurrentCommand& cmd, const MagnetFlux& flux);  // the command outputs (u_*_ref set)
     void initial_outputs();
 
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc and T_magnet
