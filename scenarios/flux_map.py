@@ -43,6 +43,32 @@ class FluxMap:
         return default
 
 
+#: the default motor's flux map (plant/motor/ makes it); its metadata is the motor's data sheet
+DEFAULT_MAP = Path(__file__).resolve().parents[1] / "plant" / "resources" / "ev_ipmsm_default.csv"
+
+
+@dataclass(frozen=True)
+class MotorData:
+    """What the scenarios need of a motor besides its flux linkages, from a map's `# key: value`
+    metadata (the same numbers the FMUs' parameters default to)."""
+
+    pole_pairs: int
+    R_s: float            # Ohm at T_winding_ref
+    T_winding_ref: float  # K
+    alpha_cu: float       # 1/K
+    I_max: float          # A, peak
+    k_u: float            # V_max = k_u u_dc / sqrt 3
+
+    @classmethod
+    def of(cls, fmap: "FluxMap") -> "MotorData":
+        return cls(int(fmap.number("pole_pairs")), fmap.number("R_s_ohm"), fmap.number("T_winding_ref_K"),
+                   fmap.number("alpha_cu_per_K"), fmap.number("I_max_A"), fmap.number("k_u"))
+
+    def R_s_at(self, T_winding: float) -> float:
+        """Winding resistance at T_winding (K)."""
+        return self.R_s * (1.0 + self.alpha_cu * (T_winding - self.T_winding_ref))
+
+
 def read_flux_map(path: str | Path) -> FluxMap:
     """Read the contract's CSV: '#' lines (with '# key: value' metadata), header i_d,i_q,psi_d,psi_q."""
     path = Path(path)

@@ -6,10 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .flux_map import read_flux_map
+from .flux_map import DEFAULT_MAP, MotorData, read_flux_map
 
 ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_MAP = ROOT / "plant" / "resources" / "ev_ipmsm_default.csv"
 RPM = 2 * math.pi / 60
 REGION_NAMES = {0: "zero torque", 1: "MTPA", 2: "voltage limit", 3: "current + voltage limit", 4: "MTPV"}
 
@@ -55,15 +54,16 @@ def plot_run(run_dir: Path, title: str = "", u_dc_nominal: float = 355.0) -> Pat
 
     a = ax[1, 1]
     fmap = read_flux_map(DEFAULT_MAP)
-    I_max = fmap.number("I_max_A")
+    motor = MotorData.of(fmap)
+    I_max = motor.I_max
     th = np.linspace(0, 2 * np.pi, 300)
     a.plot(I_max * np.cos(th), I_max * np.sin(th), "k--", lw=0.8, label=f"current limit {I_max:.0f} A")
     a.scatter(tr["i_d_A"], tr["i_q_A"], c=tr["region"], cmap="viridis", s=3, vmin=0, vmax=4)
     g_d, g_q = np.meshgrid(np.linspace(-560, 150, 240), np.linspace(-560, 560, 300))
     psi_d, psi_q = fmap.flux(g_d, g_q)
-    V_max = 0.95 * u_dc_nominal / math.sqrt(3)
+    V_max = motor.k_u * u_dc_nominal / math.sqrt(3)
     for n_e, col in ((6000, "C2"), (9000, "C1"), (12000, "C3")):
-        w = 4 * n_e * RPM
+        w = motor.pole_pairs * n_e * RPM
         a.contour(g_d, g_q, np.hypot(-w * psi_q, w * psi_d), levels=[V_max], colors=[col], linewidths=0.8)
         a.plot([], [], color=col, lw=0.8, label=f"voltage limit {n_e} r/min")
     a.set(xlabel="i_d (A)", ylabel="i_q (A)", title="Currents in the i_d–i_q plane", aspect="equal")

@@ -20,6 +20,7 @@ import numpy as np
 from .battery import Battery, BatteryParams
 from .cycles import Cycle, load_cycle
 from .driver import P_AUX_DEFAULT, BlendParams, Driver, DriverParams, blend
+from .flux_map import DEFAULT_MAP, MotorData, read_flux_map
 from .fmu import Fmu
 from .inverter import InverterParams, inverter_loss
 from .master import DriveCosim
@@ -28,9 +29,6 @@ from .vehicle import Vehicle, VehicleParams, motor_speed, wheel_force
 
 ROOT = Path(__file__).resolve().parents[1]
 CELSIUS = 273.15  # K at 0 degC
-
-#: the controller's voltage utilisation k_u (its default): V_max = k_u u_dc / sqrt 3
-K_U = 0.95
 
 #: the contract's method names and the controller's `method` parameter
 METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
@@ -103,6 +101,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
     t_ref = cycle.time_s[0] + dt * np.arange(n + 1)
     v_ref = cycle.speed_at(t_ref).tolist()
     # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
+    motor = MotorData.of(read_flux_map(DEFAULT_MAP))  # the FMUs' defaults: the reference's R_s, k_u
     veh, drv, bat = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver), Battery(spec.battery, spec.soc0)
     every = max(1, int(round(spec.trace_dt / dt)))
     outputs = ("T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q", "|i|", "|i|^2", "T_cmd", "T_max", "region",
@@ -131,7 +130,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
                 T_max_known = abs(e["T_max"])
                 # Voltage use, sampled at the vehicle step: above the planned V_max = k_u u_dc / sqrt 3
                 # (the optimum's reserve for the regulator), and at the inverter's limit u_dc / sqrt 3.
-                if e["controller.u_ratio"] > K_U * (1.0 + 1e-3):
+                if e["controller.u_ratio"] > motor.k_u * (1.0 + 1e-3):
                     acc["t_over"] += dt
                 if e["controller.u_ratio"] >= 1.0 - 1e-9:
                     acc["t_sat"] += dt
@@ -160,8 +159,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
                     ref.set(T_ref=m["T_e"], w_m=w_m, u_dc=u_dc, T_magnet=cond.T_magnet)
                     ref.step(k * dt, dt)
                     I_opt = math.hypot(*ref.get("i_d_ref", "i_q_ref"))
-                    R_T = ref_R(cond.T_winding)
-                    acc["E_cu_opt"] += 1.5 * R_T * I_opt * I_opt * dt
+                    acc["E_cu_opt"] += 1.5 * motor.R_s_at(cond.T_winding) * I_opt * I_opt * dt
                     if I > 1.0:
                         acc["I_excess2"] += (I - I_opt) ** 2
                         acc["n_I"] += 1
@@ -197,11 +195,6 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
     if out is not None:
         write_results(out, summary, rows)
     return summary
-
-
-def ref_R(T_winding: float, R_20: float = 0.012, alpha: float = 0.00393) -> float:
-    """The default motor's winding resistance at T_winding (plant/resources metadata)."""
-    return R_20 * (1.0 + alpha * (T_winding - (20.0 + CELSIUS)))
 
 
 def write_results(out: Path, summary: dict, rows: list) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .flux_map import read_flux_map
+from .flux_map import MotorData, read_flux_map
 from .fmu import Fmu
 from .progress import Progress
 
@@ -74,8 +74,9 @@ def plot_sweep(rows, spec: SweepSpec, controller_fmu: Path, path: Path) -> None:
 
     from fmpy import extract
     fmap = read_flux_map(Path(extract(str(controller_fmu))) / "resources" / "ev_ipmsm_default.csv")
-    p, R_s, I_max = 4, fmap.number("R_s_ohm"), fmap.number("I_max_A")
-    V_max = 0.95 * spec.u_dc / math.sqrt(3)
+    motor = MotorData.of(fmap)
+    p, R_s, I_max = motor.pole_pairs, motor.R_s, motor.I_max
+    V_max = motor.k_u * spec.u_dc / math.sqrt(3)
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 5.6), gridspec_kw=dict(width_ratios=[1.15, 1]))
     th = np.linspace(0, 2 * np.pi, 400)
