@@ -44,8 +44,12 @@ struct Limit {
     double T_red;
     Region region;  // mtpa (current limit only), mtpv or current_and_voltage_limit
     bool feasible;
+    // The torque below which MTPA is (estimated to be) within the voltage limit at this speed;
+    // +inf below the base speed. Only chooses which quartic optimal_current() solves first.
+    double T_base;
 };
 Limit max_torque(const LinearMachine& m, const OperatingLimits& lim);
+
 
 // The whole decision for one torque command (either sign, either speed sign): clamp to T_max,
 // then MTPA or Case ii. Fills every field of CurrentCommand (iterations = 0).

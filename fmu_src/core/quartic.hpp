@@ -37,6 +37,24 @@ RealRoots solve_quartic(double a, double b, double c, double d, double e);
 // it is several times faster than solve_quartic and as accurate; never NaN for finite input.
 RealRoots solve_depressed_quartic(double p, double q, double r);
 
+// The fast path's parts, for callers that want one root: pick it among the unpolished roots,
+// then polish only that one (the polish of all four roots is a third of the cost).
+// Ferrari's roots of x^4 + p x^2 + q x + r, unsorted and not polished (count, root[0..count)).
+RealRoots depressed_quartic_roots(double p, double q, double r);
+// One Newton step on x^4 + p x^2 + q x + r at x, kept only if it lowers |f|.
+double polish_depressed_root(double p, double q, double r, double x);
+// a x^4 + b x^3 + c x^2 + d x + e = 0 through the fast path (monic, depressed by x = y - b/4a),
+// unsorted and not polished, for quartics whose roots of interest are O(1) (the controller's
+// tan-half-angle quartics) or that are depressed already (b = 0). If the centroid -b/4a is
+// beyond 2^10 (a root near infinity) it returns solve_quartic()'s roots instead.
+RealRoots centred_quartic_roots(double a, double b, double c, double d, double e);
+// Two quartics (coefficients a..e each) through centred_quartic_roots at once: the two Ferrari
+// solutions are interleaved stage by stage, which lets the CPU overlap their latencies (about
+// 60 % of the time of two calls). For the controller's limit and command quartics.
+void centred_quartic_roots_2(const double (&c1)[5], const double (&c2)[5], RealRoots& r1, RealRoots& r2);
+// One Newton step on a x^4 + ... + e at x, kept only if it lowers |f|.
+double polish_quartic_root(double a, double b, double c, double d, double e, double x);
+
 // a x^3 + b x^2 + c x + d = 0, same conventions.
 RealRoots solve_cubic(double a, double b, double c, double d);
 
