@@ -41,6 +41,12 @@ Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double 
 // voltage? Then the point is the current minimum (Case ii); otherwise MTPA lies inside.
 bool voltage_limit_is_optimal(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);
 
+// T_max test at a point where the current circle meets the voltage ellipse: are both limits
+// active there (non-negative multipliers), so that neither MTPA at the current limit nor MTPV
+// is the better point? torque_sign: +1 for the largest torque, -1 for the most negative one.
+bool current_voltage_is_optimal(const MagnetFlux& flux, double omega, double R_s, double torque_sign,
+                                double i_d, double i_q);
+
 // Squared steady-state voltage at a current.
 double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);
 

@@ -92,119 +92,206 @@ CurrentCommand SaturatedOptimalCurrent::solve_recursive(double T_ref, const Oper
     return cmd;
 }
 
-CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const OperatingLimits& lim,
-                                                      double R_s, const MagnetFlux& flux) {
-    using map_newton::Problem;
-    using map_newton::System;
-    const double s = sign_of(T_ref);
-    const double kT = torque_factor(pole_pairs_);
-    const double V2 = lim.V_max * lim.V_max * (1.0 + kLimitSlack);
-    const double I2 = lim.I_max * lim.I_max * (1.0 + kLimitSlack);
-    int iterations = 0;
-    bool converged = true;
-    auto newton = [&](System sys, double T_red, linear::Point seed) {
-        const Problem P{sys, lim.omega, R_s, T_red, lim.V_max, lim.I_max};
-        const auto r = map_newton::solve(flux, P, seed.i_d, seed.i_q);
+namespace {
+
+using map_newton::System;
+
+// Newton's step tolerance, relative to I_max: converged after a step below it (0.025 A at
+// 500 A). Newton converges quadratically, so the error left is of the order of the last step
+// squared over the current scale: below 1e-7 I_max on the default and the measured map.
+constexpr double kNewtonStepTolerance = 5e-5;
+constexpr int kNewtonMaxIterations = 12;  // from a Ferrari seed, 2 to 4 are usual
+
+// The map-Newton solves of one solve_optimal() call for one torque sign s. The Ferrari seeds
+// (linear::) are computed for T >= 0 on the mirrored problem (omega, i_q) -> (s omega, s i_q).
+struct MapNewton {
+    MapNewton(const MagnetFlux& flux, const OperatingLimits& lim, double R_s, double s)
+        : flux(flux), lim(lim), R_s(R_s), s(s), w_pos(s * lim.omega),
+          V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)), I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)) {}
+
+    map_newton::Result solve(System sys, double T_red, linear::Point seed) {
+        const map_newton::Problem P{sys, lim.omega, R_s, T_red, lim.V_max, lim.I_max};
+        const auto r = map_newton::solve(flux, P, seed.i_d, seed.i_q, kNewtonMaxIterations,
+                                         kNewtonStepTolerance * lim.I_max);
         iterations += r.iterations;
         return r;
-    };
-    auto current_sq = [](double a, double b) { return a * a + b * b; };
+    }
+    linear::Point mirrored(linear::Point p) const { return {p.i_d, s * p.i_q}; }
+    // Limit tests at a point p (anything with i_d, i_q): a Newton result or a seed.
+    template <class P>
+    bool within_voltage(const P& p) const {
+        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2;
+    }
+    template <class P>
+    bool within_current(const P& p) const {
+        return p.i_d * p.i_d + p.i_q * p.i_q <= I2;
+    }
+    bool both_limits_active(const map_newton::Result& r) const {
+        return map_newton::current_voltage_is_optimal(flux, lim.omega, R_s, s, r.i_d, r.i_q);
+    }
+
+    const MagnetFlux& flux;
+    const OperatingLimits& lim;
+    const double R_s, s, w_pos;
+    const double V2, I2;  // squared limits with slack, for points computed on a limit
+    int iterations = 0;
+};
+
+// A T_max point on the map.
+struct MapLimit {
+    linear::Point point;
+    Region region;
+};
+
+// The T_max region and point predicted from Ferrari on the linearised machine, in the order of
+// linear::max_torque(), except that MTPA at the current limit is judged by the voltage on the
+// map at Ferrari's point: the machine is linearised at the last limit point, often far from
+// I_max, and its voltage there is the least reliable part of the prediction. The seed is for
+// T >= 0 (mirrored).
+bool predicted_region(const MapNewton& m, const LinearMachine& lin, linear::Point& seed, Region& region) {
+    seed = linear::mtpa_at_current(lin, m.lim.I_max);
+    region = Region::mtpa;
+    if (m.within_voltage(m.mirrored(seed))) return true;
+    region = Region::mtpv;
+    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed) && m.within_current(seed) &&
+        linear::reduced_torque(lin, seed.i_d, seed.i_q) >= 0)
+        return true;
+    region = Region::current_and_voltage_limit;
+    return linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed) &&
+           linear::reduced_torque(lin, seed.i_d, seed.i_q) >= 0;
+}
+
+// T_max with one Newton solve: on the predicted region, from Ferrari's point, confirmed on the
+// map by the condition that makes that region the optimum. False if the confirmation fails
+// (the prediction was wrong, or Newton did not converge).
+bool predicted_limit(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
+    linear::Point seed;
+    Region region;
+    if (!predicted_region(m, lin, seed, region)) return false;
+    map_newton::Result r{};
+    bool confirmed = false;
+    switch (region) {
+        case Region::mtpa:
+            r = m.solve(System::mtpa_at_current, 0, m.mirrored(seed));
+            confirmed = r.converged && m.within_voltage(r);
+            break;
+        case Region::mtpv:
+            r = m.solve(System::mtpv, 0, m.mirrored(seed));
+            confirmed = r.converged && m.within_current(r);
+            break;
+        case Region::current_and_voltage_limit:
+            r = m.solve(System::current_voltage, 0, m.mirrored(seed));
+            confirmed = r.converged && m.both_limits_active(r);
+            break;
+        default: break;
+    }
+    if (confirmed) out = {{r.i_d, r.i_q}, region};
+    return confirmed;
+}
+
+// T_max by elimination: MTPA at the current limit unless its voltage is too high, then MTPV
+// unless its current is too high, then the intersection of the two limits.
+bool limit_by_elimination(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
+    const auto r1 = m.solve(System::mtpa_at_current, 0, m.mirrored(linear::mtpa_at_current(lin, m.lim.I_max)));
+    if (r1.converged && m.within_voltage(r1)) {
+        out = {{r1.i_d, r1.i_q}, Region::mtpa};
+        return true;
+    }
+    linear::Point seed;
+    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed)) {
+        const auto r2 = m.solve(System::mtpv, 0, m.mirrored(seed));
+        if (r2.converged && m.within_current(r2)) {
+            out = {{r2.i_d, r2.i_q}, Region::mtpv};
+            return true;
+        }
+    }
+    if (linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed)) {
+        const auto r3 = m.solve(System::current_voltage, 0, m.mirrored(seed));
+        if (r3.converged) {
+            out = {{r3.i_d, r3.i_q}, Region::current_and_voltage_limit};
+            return true;
+        }
+    }
+    return false;
+}
+
+}  // namespace
+
+CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const OperatingLimits& lim,
+                                                      double R_s, const MagnetFlux& flux) {
+    const double s = sign_of(T_ref);
+    const double kT = torque_factor(pole_pairs_);
+    MapNewton m(flux, lim, R_s, s);
 
     // Ferrari seeds from the machine linearised (apparent inductances) at the last solutions.
-    // Seeds are computed for T >= 0 (linear:: functions) and mirrored: (omega, i_q) -> (s omega, s i_q).
-    const double w_pos = s * lim.omega;
-    const LinearMachine lin_op = apparent_machine(flux, memory.op_i_d, s * std::abs(memory.op_i_q), R_s);
-    const LinearMachine lin_lim =
-        memory.has_limit ? apparent_machine(flux, memory.limit_i_d, s * std::abs(memory.limit_i_q), R_s) : lin_op;
-    auto mirrored = [s](linear::Point p) { return linear::Point{p.i_d, s * p.i_q}; };
+    auto linearised_at = [&](double i_d, double i_q) { return apparent_machine(flux, i_d, s * std::abs(i_q), R_s); };
+    const LinearMachine lin_lim = memory.has_limit ? linearised_at(memory.limit_i_d, memory.limit_i_q)
+                                                   : linearised_at(memory.op_i_d, memory.op_i_q);
 
     // 1. The largest torque reachable now (this torque sign), on the map.
-    CurrentCommand cmd;
-    linear::Point top{};
-    double T_top = 0;  // reduced, >= 0
-    Region top_region = Region::zero_torque;
-    {
-        const auto r1 = newton(System::mtpa_at_current, 0, mirrored(linear::mtpa_at_current(lin_lim, lim.I_max)));
-        if (r1.converged && map_newton::voltage_sq(flux, lim.omega, R_s, r1.i_d, r1.i_q) <= V2) {
-            top = {r1.i_d, r1.i_q};
-            top_region = Region::mtpa;
-        } else {
-            linear::Point seed;
-            bool found = false;
-            if (linear::mtpv(lin_lim, w_pos, lim.V_max, seed)) {
-                const auto r2 = newton(System::mtpv, 0, mirrored(seed));
-                if (r2.converged && current_sq(r2.i_d, r2.i_q) <= I2) {
-                    top = {r2.i_d, r2.i_q};
-                    top_region = Region::mtpv;
-                    found = true;
-                }
-            }
-            if (!found && linear::current_voltage_intersection(lin_lim, w_pos, lim.V_max, lim.I_max, seed)) {
-                const auto r3 = newton(System::current_voltage, 0, mirrored(seed));
-                if (r3.converged) {
-                    top = {r3.i_d, r3.i_q};
-                    top_region = Region::current_and_voltage_limit;
-                    found = true;
-                }
-            }
-            if (!found) {
-                // No exact limit point on the map: above the maximum speed, or Newton failed.
-                // Fall back to the paper's recursion for this step.
-                CurrentCommand fb = solve_recursive(T_ref, lim, R_s, flux);
-                fb.iterations += iterations;
-                fb.converged = false;
-                return fb;
-            }
-        }
-        T_top = std::max(0.0, s * flux.reduced_torque(top.i_d, top.i_q));
-        memory.limit_i_d = top.i_d;
-        memory.limit_i_q = top.i_q;
-        memory.has_limit = true;
+    MapLimit top;
+    if (!predicted_limit(m, lin_lim, top) && !limit_by_elimination(m, lin_lim, top)) {
+        // No exact limit point on the map: above the maximum speed, or Newton failed.
+        // Fall back to the paper's recursion for this step.
+        CurrentCommand fb = solve_recursive(T_ref, lim, R_s, flux);
+        fb.iterations += m.iterations;
+        fb.converged = false;
+        return fb;
     }
-    cmd.torque_max = kT * T_top;
+    const double T_red_top = flux.reduced_torque(top.point.i_d, top.point.i_q);
+    const double T_top = std::max(0.0, s * T_red_top);  // reduced, >= 0
+    memory.limit_i_d = top.point.i_d;
+    memory.limit_i_q = top.point.i_q;
+    memory.has_limit = true;
 
     // 2. The command: clamped to T_max, else MTPA, else the voltage ellipse (Case ii).
     const double T_red = std::abs(T_ref) / kT;
-    linear::Point p = top;
-    Region region = top_region;
+    linear::Point p = top.point;
+    Region region = top.region;
+    bool converged = true;
     if (T_red < T_top) {
-        // The Ferrari seed's region says which conditions to solve first; the a-priori test on
-        // the map confirms it (or sends us to the other).
         const double target = s * T_red;
-        const CurrentCommand seed = linear::optimal_current(lin_op, pole_pairs_, s * T_red * kT, {w_pos * s, lim.V_max, lim.I_max});
+        const LinearMachine lin_op = linearised_at(memory.op_i_d, memory.op_i_q);
+        // Below the base speed for this torque side (T_max is MTPA) try MTPA first. In field
+        // weakening, the Ferrari Case ii point and its a-priori test say which to try first;
+        // the same test on the map confirms it (or sends us to the other).
+        linear::Point case_ii{};
+        const bool have_case_ii = top.region != Region::mtpa && T_red > 0 &&
+                                  linear::voltage_limit(lin_op, m.w_pos, lim.V_max, T_red, case_ii);
         auto try_mtpa = [&]() {
-            const auto r = newton(System::mtpa, target, mirrored(linear::mtpa(lin_op, T_red)));
-            if (!r.converged || map_newton::voltage_sq(flux, lim.omega, R_s, r.i_d, r.i_q) > V2 ||
-                current_sq(r.i_d, r.i_q) > I2)
-                return false;
+            const auto r = m.solve(System::mtpa, target, m.mirrored(linear::mtpa(lin_op, T_red)));
+            if (!r.converged || !m.within_voltage(r) || !m.within_current(r)) return false;
             p = {r.i_d, r.i_q};
             region = Region::mtpa;
             return true;
         };
         auto try_voltage_limit = [&](bool must_be_optimal) {
-            linear::Point seed_ii{seed.i_d, s * seed.i_q};
-            if (seed.region != Region::voltage_limit) {
-                const bool have = T_red > 0 ? linear::voltage_limit(lin_op, w_pos, lim.V_max, T_red, seed_ii)
-                                            : linear::zero_torque(lin_op, w_pos, lim.V_max, seed_ii);
-                if (!have) seed_ii = linear::Point{top.i_d, s * top.i_q};
+            linear::Point seed = case_ii;
+            if (!have_case_ii) {
+                const bool have = T_red > 0 ? linear::voltage_limit(lin_op, m.w_pos, lim.V_max, T_red, seed)
+                                            : linear::zero_torque(lin_op, m.w_pos, lim.V_max, seed);
+                if (!have) seed = m.mirrored(top.point);
             }
-            const auto r = newton(System::voltage_limit, target, mirrored(seed_ii));
-            if (!r.converged || current_sq(r.i_d, r.i_q) > I2) return false;
+            const auto r = m.solve(System::voltage_limit, target, m.mirrored(seed));
+            if (!r.converged || !m.within_current(r)) return false;
             if (must_be_optimal && !map_newton::voltage_limit_is_optimal(flux, lim.omega, R_s, r.i_d, r.i_q)) return false;
             p = {r.i_d, r.i_q};
             region = Region::voltage_limit;
             return true;
         };
-        const bool ok = seed.region == Region::voltage_limit ? (try_voltage_limit(true) || try_mtpa() || try_voltage_limit(false))
-                                                            : (try_mtpa() || try_voltage_limit(false));
+        const bool voltage_first = have_case_ii && linear::voltage_limit_is_optimal(lin_op, m.w_pos, case_ii);
+        const bool ok = voltage_first ? (try_voltage_limit(true) || try_mtpa() || try_voltage_limit(false))
+                                      : (try_mtpa() || try_voltage_limit(false));
         if (!ok) converged = false;  // at the edge of reach: keep the limit point
         if (T_red == 0.0) region = Region::zero_torque;
     }
+    CurrentCommand cmd;
     cmd.i_d = p.i_d;
     cmd.i_q = p.i_q;
     cmd.region = region;
-    cmd.torque = kT * flux.reduced_torque(p.i_d, p.i_q);
-    cmd.iterations = iterations;
+    cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(p.i_d, p.i_q) : T_red_top);
+    cmd.torque_max = kT * T_top;
+    cmd.iterations = m.iterations;
     cmd.converged = converged;
     return cmd;
 }
