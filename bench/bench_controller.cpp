@@ -88,6 +88,7 @@ int main(int argc, char** argv) {
         const auto c = linear::optimal_current(lin, kPolePairs, o.T, {kPolePairs * o.w_m, kVMax, kIMax});
         return c.i_d + c.i_q;
     };
+    row("Ferrari, linear machine (clamp + MTPA/Case ii), trajectory", ns_per_call(traj, R, linear_call), "target <= 150 ns");
     row("Ferrari, linear machine (clamp + MTPA/Case ii), random", ns_per_call(rnd, R, linear_call), "target <= 150 ns");
     {  // the same, split by where the operating point is
         // The nominal (unsaturated) machine's base speed is about 2000 r/min at 500 A.
