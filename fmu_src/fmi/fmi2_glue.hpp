@@ -678,13 +678,15 @@ struct Fmi2 {
                     if (value[i] == nullptr) throw Error(std::string(v.name) + ": the value is a NULL string");
                 } else if (type != Type::Boolean) {
                     const double x = static_cast<double>(value[i]);
-                    const std::string unit = (v.unit != nullptr && v.unit[0] != '\0') ? std::string(" ") + v.unit : "";
                     if (!std::isfinite(x))
                         throw Error(std::string(v.name) + " = " + number_text(x) + " is not a finite number; kept " +
                                     value_text(in.model, v));
-                    if (!in_range(v, x))
+                    if (!in_range(v, x)) {
+                        // built only for the message: this loop runs for every input of every fmi2SetReal
+                        const std::string unit = (v.unit != nullptr && v.unit[0] != '\0') ? std::string(" ") + v.unit : "";
                         throw Error(std::string(v.name) + " = " + number_text(x) + unit + " is out of range: it must be " +
                                     range_text(v) + "; kept " + value_text(in.model, v));
+                    }
                 }
             }
             for (std::size_t i = 0; i < nvr; ++i) {

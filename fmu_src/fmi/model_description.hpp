@@ -24,7 +24,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include "fmi2_glue.hpp"
@@ -161,17 +160,11 @@ std::string table_problems(const M& defaults) {
     return p.str();
 }
 
+// The glue's value_text, but a String bare and escaped (it goes into an attribute).
 template <class M>
 std::string start_text(const M& m, const Variable<M>& v) {
-    return std::visit(
-        [&](auto ptr) -> std::string {
-            using T = std::decay_t<decltype(m.*ptr)>;
-            if constexpr (std::is_same_v<T, double>) return number_text(m.*ptr);
-            else if constexpr (std::is_same_v<T, int>) return std::to_string(m.*ptr);
-            else if constexpr (std::is_same_v<T, bool>) return m.*ptr ? "true" : "false";
-            else return xml_escape(m.*ptr);
-        },
-        v.member);
+    if (type_of(v) == Type::String) return xml_escape(m.*std::get<std::string M::*>(v.member));
+    return glue::value_text(m, v);
 }
 
 }  // namespace detail
@@ -278,21 +271,8 @@ std::string model_description() {
     return x.str();
 }
 
-inline std::string html_escape(const std::string& s) {
-    std::string out;
-    for (char c : s) {
-        switch (c) {
-            case '&': out += "&amp;"; break;
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '"': out += "&quot;"; break;
-            default: out += c;
-        }
-    }
-    return out;
-}
-
-// The variable reference of M as an HTML section, from the same table as the XML.
+// The variable reference of M as an HTML section, from the same table as the XML (xml_escape's
+// entities and character references are HTML too).
 template <class M>
 std::string variables_html() {
     const M defaults{Context{}};
@@ -318,10 +298,10 @@ std::string variables_html() {
         }
         const std::string start = computed ? "" : (type == Type::String ? "\"" + detail::start_text(defaults, v) + "\""
                                                                           : detail::start_text(defaults, v));
-        h << "<tr><td><code>" << html_escape(v.name) << "</code></td><td>" << i << "</td><td>"
+        h << "<tr><td><code>" << xml_escape(v.name) << "</code></td><td>" << i << "</td><td>"
           << causality_name(v.causality) << "</td><td>" << variability_name(v.variability) << "</td><td>"
-          << type_name(type) << "</td><td>" << html_escape(unit) << "</td><td>" << start << "</td><td>"
-          << html_escape(range) << "</td><td>" << html_escape(v.description) << "</td></tr>\n";
+          << type_name(type) << "</td><td>" << xml_escape(unit) << "</td><td>" << start << "</td><td>"
+          << xml_escape(range) << "</td><td>" << xml_escape(v.description) << "</td></tr>\n";
     }
     h << "</table>\n</section>\n";
     return h.str();
