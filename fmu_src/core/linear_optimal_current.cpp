@@ -36,6 +36,24 @@ bool i_d_on_ellipse(const LinearMachine& m, double omega, double V_max, double i
     return true;
 }
 
+// Half the gradient of |v|^2 with respect to (i_d, i_q) at a current.
+struct VoltageGradient {
+    double d, q;
+};
+
+VoltageGradient half_voltage_gradient(const LinearMachine& m, double omega, Point p) {
+    const double v_d = m.R_s * p.i_d - omega * m.L_q * p.i_q;
+    const double v_q = m.R_s * p.i_q + omega * (m.L_d * p.i_d + m.psi_m);
+    return {v_d * m.R_s + v_q * omega * m.L_d, -v_d * omega * m.L_q + v_q * m.R_s};
+}
+
+// V_max^2 with the slack, so that a point computed on the voltage limit counts as within it.
+double voltage_limit_sq(const OperatingLimits& lim) { return lim.V_max * lim.V_max * (1.0 + kLimitSlack); }
+
+bool within_voltage(const LinearMachine& m, const OperatingLimits& lim, Point p) {
+    return voltage_sq(m, lim.omega, p.i_d, p.i_q) <= voltage_limit_sq(lim);
+}
+
 }  // namespace
 
 double voltage_sq(const LinearMachine& m, double omega, double i_d, double i_q) {
@@ -85,11 +103,8 @@ bool voltage_limit_is_optimal(const LinearMachine& m, double omega, Point p) {
     const double dL = m.L_d - m.L_q;
     // Tangent of the torque curve t = (-dT'/di_q, dT'/di_d); rates of |i|^2 and |v|^2 along it.
     const double t_d = -(m.psi_m + dL * p.i_d), t_q = dL * p.i_q;
-    const double v_d = m.R_s * p.i_d - omega * m.L_q * p.i_q;
-    const double v_q = m.R_s * p.i_q + omega * (m.L_d * p.i_d + m.psi_m);
-    const double g_d = v_d * m.R_s + v_q * omega * m.L_d;   // half the gradient of |v|^2
-    const double g_q = -v_d * omega * m.L_q + v_q * m.R_s;
-    const double dc = p.i_d * t_d + p.i_q * t_q, dg = g_d * t_d + g_q * t_q;
+    const VoltageGradient g = half_voltage_gradient(m, omega, p);
+    const double dc = p.i_d * t_d + p.i_q * t_q, dg = g.d * t_d + g.q * t_q;
     return dc * dg <= 0.0;
 }
 
@@ -173,11 +188,8 @@ double base_torque_estimate(const LinearMachine& m, const OperatingLimits& lim, 
 // at this point rather than at an MTPV point inside the circle.
 bool current_limit_binds(const LinearMachine& m, double omega, Point p) {
     const double dL = m.L_d - m.L_q;
-    const double v_d = m.R_s * p.i_d - omega * m.L_q * p.i_q;
-    const double v_q = m.R_s * p.i_q + omega * (m.L_d * p.i_d + m.psi_m);
-    const double g_d = v_d * m.R_s + v_q * omega * m.L_d;  // half the gradient of |v|^2
-    const double g_q = -v_d * omega * m.L_q + v_q * m.R_s;
-    const double t_d = -g_q, t_q = g_d;                    // tangent of the ellipse
+    const VoltageGradient g = half_voltage_gradient(m, omega, p);
+    const double t_d = -g.q, t_q = g.d;  // tangent of the ellipse
     const double dT = dL * p.i_q * t_d + (m.psi_m + dL * p.i_d) * t_q;
     const double dc = p.i_d * t_d + p.i_q * t_q;
     return dT * dc > 0.0;
@@ -201,7 +213,7 @@ bool intersection_limit_at(const LinearMachine& m, Point p, double T_base, Limit
 
 // max_torque() given the MTPA point at I_max and its squared voltage.
 Limit max_torque_from(const LinearMachine& m, const OperatingLimits& lim, Point p1, double v1) {
-    if (v1 <= lim.V_max * lim.V_max * (1.0 + kLimitSlack))
+    if (v1 <= voltage_limit_sq(lim))
         return {p1, reduced_torque(m, p1.i_d, p1.i_q), Region::mtpa, true, INFINITY};
     const double T_base = base_torque_estimate(m, lim, v1);
     // Field weakening: T_max is at MTPV if that point is inside the current circle, else where
@@ -248,7 +260,7 @@ bool limit_from(const IntersectionQuartic& q, const LinearMachine& m, const Oper
 bool command_from(const MtpaQuartic& q, const LinearMachine& m, const OperatingLimits& lim, const RealRoots& r,
                   Point& p, Region& region) {
     region = Region::mtpa;
-    return q.point(r, p) && voltage_sq(m, lim.omega, p.i_d, p.i_q) <= lim.V_max * lim.V_max * (1.0 + kLimitSlack);
+    return q.point(r, p) && within_voltage(m, lim, p);
 }
 
 bool command_from(const VoltageLimitQuartic& q, const LinearMachine& m, const OperatingLimits& lim,
@@ -313,14 +325,13 @@ CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_
     const OperatingLimits L{sign * lim.omega, lim.V_max, lim.I_max};
     const double kT = torque_factor(pole_pairs);
     const double T_red = std::abs(T_ref) / kT;
-    const double V2 = L.V_max * L.V_max * (1.0 + kLimitSlack);
 
     CurrentCommand cmd;
     const Point p1 = mtpa_at_current(m, L.I_max);
     const double v1 = voltage_sq(m, L.omega, p1.i_d, p1.i_q);
     Limit top;
     Point p{0.0, 0.0};
-    if (v1 > V2 && T_red > 0 && field_weakening_together(m, L, T_red, v1, top, p, cmd.region)) {
+    if (v1 > voltage_limit_sq(L) && T_red > 0 && field_weakening_together(m, L, T_red, v1, top, p, cmd.region)) {
         // done: limit and command from one combined solve
     } else {
         // The sequential path: below the base speed, zero torque, non-salient machines, and
@@ -341,7 +352,7 @@ CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_
             // speed (predicted): MTPA first (seed Case i), Case ii if its voltage is too high.
             p = mtpa(m, T_red);
             cmd.region = Region::mtpa;
-            if (voltage_sq(m, L.omega, p.i_d, p.i_q) > V2) {
+            if (voltage_sq(m, L.omega, p.i_d, p.i_q) > voltage_limit_sq(L)) {
                 cmd.region = Region::voltage_limit;
                 if (!voltage_limit(m, L.omega, L.V_max, T_red, p)) {
                     p = top.point;
@@ -357,7 +368,7 @@ CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_
                 cmd.region = top.region;
             } else if (!voltage_limit_is_optimal(m, L.omega, p)) {
                 const Point q = mtpa(m, T_red);
-                if (voltage_sq(m, L.omega, q.i_d, q.i_q) <= V2) {
+                if (within_voltage(m, L, q)) {
                     p = q;
                     cmd.region = Region::mtpa;
                 }

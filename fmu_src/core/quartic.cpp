@@ -357,6 +357,24 @@ inline double largest_cubic_root(double a2, double a1, double a0) {
     return scale2(m, k);
 }
 
+// The monic quartic y^4 + B y^3 + C y^2 + D y + E about y = sh, by synthetic division:
+// z^4 + (B + 4 sh) z^3 + P z^2 + Q z + R with P = p''(sh)/2, Q = p'(sh), R = p(sh).
+struct TaylorShift {
+    double P, Q, R;
+};
+
+inline TaylorShift taylor_shift(double B, double C, double D, double E, double sh) {
+    double c3 = B + sh;
+    double c2 = C + sh * c3;
+    double c1 = D + sh * c2;
+    const double R = E + sh * c1;
+    c3 += sh;
+    c2 += sh * c3;
+    const double Q = c1 + sh * c2;
+    c3 += sh;
+    return {c2 + sh * c3, Q, R};
+}
+
 // Roots y of the monic scaled quartic y^4 + B y^3 + C y^2 + D y + E (|B..E| < 2) by Ferrari's
 // method; returns the number found in y[0..4) (unsorted, unpolished).
 int ferrari_monic(double B, double C, double D, double E, double* y, const MonicPoly& whole) {
@@ -573,16 +591,7 @@ RealRoots solve_quartic(double a, double b, double c, double d, double e) {
     // accuracy, at 0.5 a double root next to a complex pair of similar size stays on the
     // undepressed side with a cancelling g^2 (residuals up to 5e-15 instead of 1e-15).
     const double sh = -0.25 * B;
-    // Taylor shift of y^4 + B y^3 + C y^2 + D y + E to y = z + sh (synthetic division).
-    double c3 = B + sh;
-    double c2 = C + sh * c3;
-    double c1 = D + sh * c2;
-    const double R = E + sh * c1;  // p(sh)
-    c3 += sh;
-    c2 += sh * c3;
-    const double Q = c1 + sh * c2;  // p'(sh)
-    c3 += sh;
-    const double P = c2 + sh * c3;  // p''(sh) / 2   (the z^3 coefficient B + 4 sh is 0)
+    const auto [P, Q, R] = taylor_shift(B, C, D, E, sh);  // the z^3 coefficient B + 4 sh is 0
     const double s1 = kDepressRatio * std::fabs(sh), s2 = s1 * s1;
     double y[4];
     int n;
@@ -637,18 +646,13 @@ inline double depressed_value(double p, double q, double r, double x) { return (
 
 // Sorts the first n (0, 2 or 4) entries without branches on the data.
 inline void sort_up_to_4(double* y, int n) {
-    auto order = [y](int i, int j) {
-        const double a = y[i], b = y[j];
-        y[i] = std::min(a, b);
-        y[j] = std::max(a, b);
-    };
-    if (n == 2) order(0, 1);
-    if (n == 4) {
-        order(0, 1);
-        order(2, 3);
-        order(0, 2);
-        order(1, 3);
-        order(1, 2);
+    if (n == 2) cswap(y[0], y[1]);
+    if (n == 4) {  // the network of finish()
+        cswap(y[0], y[1]);
+        cswap(y[2], y[3]);
+        cswap(y[0], y[2]);
+        cswap(y[1], y[3]);
+        cswap(y[1], y[2]);
     }
 }
 
@@ -747,35 +751,39 @@ Centred centre(const double (&c)[5]) {
     const double inv_a = 1.0 / c[0], B = c[1] * inv_a, C = c[2] * inv_a, D = c[3] * inv_a, E = c[4] * inv_a;
     const double sh = -0.25 * B;  // the centroid of the roots
     if (!(std::fabs(sh) <= kCentredMaxShift) || !std::isfinite(C + D + E)) return {0, 0, 0, 0, false};
-    double c3 = B + sh, c2 = C + sh * c3, c1 = D + sh * c2;
-    const double R = E + sh * c1;
-    c3 += sh;
-    c2 += sh * c3;
-    const double Q = c1 + sh * c2;
-    c3 += sh;
-    const double P = c2 + sh * c3;
-    return {P, Q, R, sh, true};
+    const TaylorShift z = taylor_shift(B, C, D, E, sh);
+    return {z.P, z.Q, z.R, sh, true};
 }
 
 void unshift(RealRoots& out, double shift) {
     for (int k = 0; k < out.count; ++k) out.root[k] += shift;
 }
 
-}  // namespace
-
+// Ferrari's roots of x^4 + p x^2 + q x + r, unsorted and not polished.
 RealRoots depressed_quartic_roots(double p, double q, double r) {
     RealRoots out;
     ferrari_lanes<1>(&p, &q, &r, &out);
     return out;
 }
 
+// The roots of the quartic c, centred as z (solve_quartic's if z is not usable).
+RealRoots roots_centred(const Centred& z, const double (&c)[5]) {
+    if (!z.ok) return solve_quartic(c[0], c[1], c[2], c[3], c[4]);
+    RealRoots out = depressed_quartic_roots(z.p, z.q, z.r);
+    unshift(out, z.shift);
+    return out;
+}
+
+// One Newton step on x^4 + p x^2 + q x + r at x, kept only if it lowers |f| (false for NaN: a
+// zero slope keeps x).
 double polish_depressed_root(double p, double q, double r, double x) {
     const double f = depressed_value(p, q, r, x);
     const double df = (4.0 * x * x + 2.0 * p) * x + q;
     const double x1 = x - f / df;
-    // Kept only if it lowers |f| (false for NaN: a zero slope keeps x).
     return std::fabs(depressed_value(p, q, r, x1)) < std::fabs(f) ? x1 : x;
 }
+
+}  // namespace
 
 RealRoots solve_depressed_quartic(double p, double q, double r) {
     RealRoots out = depressed_quartic_roots(p, q, r);
@@ -787,18 +795,14 @@ RealRoots solve_depressed_quartic(double p, double q, double r) {
 
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e) {
     const double coef[5] = {a, b, c, d, e};
-    const Centred z = centre(coef);
-    if (!z.ok) return solve_quartic(a, b, c, d, e);
-    RealRoots out = depressed_quartic_roots(z.p, z.q, z.r);
-    unshift(out, z.shift);
-    return out;
+    return roots_centred(centre(coef), coef);
 }
 
 void centred_quartic_roots_2(const double (&c1)[5], const double (&c2)[5], RealRoots& r1, RealRoots& r2) {
     const Centred z1 = centre(c1), z2 = centre(c2);
     if (!(z1.ok && z2.ok)) {
-        r1 = z1.ok ? centred_quartic_roots(c1[0], c1[1], c1[2], c1[3], c1[4]) : solve_quartic(c1[0], c1[1], c1[2], c1[3], c1[4]);
-        r2 = z2.ok ? centred_quartic_roots(c2[0], c2[1], c2[2], c2[3], c2[4]) : solve_quartic(c2[0], c2[1], c2[2], c2[3], c2[4]);
+        r1 = roots_centred(z1, c1);
+        r2 = roots_centred(z2, c2);
         return;
     }
     const double p[2] = {z1.p, z2.p}, q[2] = {z1.q, z2.q}, r[2] = {z1.r, z2.r};

@@ -39,10 +39,6 @@ RealRoots solve_depressed_quartic(double p, double q, double r);
 
 // The fast path's parts, for callers that want one root: pick it among the unpolished roots,
 // then polish only that one (the polish of all four roots is a third of the cost).
-// Ferrari's roots of x^4 + p x^2 + q x + r, unsorted and not polished (count, root[0..count)).
-RealRoots depressed_quartic_roots(double p, double q, double r);
-// One Newton step on x^4 + p x^2 + q x + r at x, kept only if it lowers |f|.
-double polish_depressed_root(double p, double q, double r, double x);
 // a x^4 + b x^3 + c x^2 + d x + e = 0 through the fast path (monic, depressed by x = y - b/4a),
 // unsorted and not polished, for quartics whose roots of interest are O(1) (the controller's
 // tan-half-angle quartics) or that are depressed already (b = 0). If the centroid -b/4a is

@@ -161,58 +161,49 @@ bool predicted_region(const MapNewton& m, const LinearMachine& lin, linear::Poin
            linear::reduced_torque(lin, seed.i_d, seed.i_q) >= 0;
 }
 
+// T_max on the map in a given region: Newton on that region's system from a Ferrari seed (for
+// T >= 0), then the limit the region leaves free must hold at the result; on the intersection
+// of both limits, if `check_kkt`, also the signs of the multipliers.
+bool limit_on_map(MapNewton& m, Region region, linear::Point seed, bool check_kkt, MapLimit& out) {
+    map_newton::Result r{};
+    bool ok = false;
+    switch (region) {
+        case Region::mtpa:
+            r = m.solve(System::mtpa_at_current, 0, m.mirrored(seed));
+            ok = r.converged && m.within_voltage(r);
+            break;
+        case Region::mtpv:
+            r = m.solve(System::mtpv, 0, m.mirrored(seed));
+            ok = r.converged && m.within_current(r);
+            break;
+        case Region::current_and_voltage_limit:
+            r = m.solve(System::current_voltage, 0, m.mirrored(seed));
+            ok = r.converged && (!check_kkt || m.both_limits_active(r));
+            break;
+        default: break;
+    }
+    if (ok) out = {{r.i_d, r.i_q}, region};
+    return ok;
+}
+
 // T_max with one Newton solve: on the predicted region, from Ferrari's point, confirmed on the
 // map by the condition that makes that region the optimum. False if the confirmation fails
 // (the prediction was wrong, or Newton did not converge).
 bool predicted_limit(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
     linear::Point seed;
     Region region;
-    if (!predicted_region(m, lin, seed, region)) return false;
-    map_newton::Result r{};
-    bool confirmed = false;
-    switch (region) {
-        case Region::mtpa:
-            r = m.solve(System::mtpa_at_current, 0, m.mirrored(seed));
-            confirmed = r.converged && m.within_voltage(r);
-            break;
-        case Region::mtpv:
-            r = m.solve(System::mtpv, 0, m.mirrored(seed));
-            confirmed = r.converged && m.within_current(r);
-            break;
-        case Region::current_and_voltage_limit:
-            r = m.solve(System::current_voltage, 0, m.mirrored(seed));
-            confirmed = r.converged && m.both_limits_active(r);
-            break;
-        default: break;
-    }
-    if (confirmed) out = {{r.i_d, r.i_q}, region};
-    return confirmed;
+    return predicted_region(m, lin, seed, region) && limit_on_map(m, region, seed, true, out);
 }
 
 // T_max by elimination: MTPA at the current limit unless its voltage is too high, then MTPV
 // unless its current is too high, then the intersection of the two limits.
 bool limit_by_elimination(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
-    const auto r1 = m.solve(System::mtpa_at_current, 0, m.mirrored(linear::mtpa_at_current(lin, m.lim.I_max)));
-    if (r1.converged && m.within_voltage(r1)) {
-        out = {{r1.i_d, r1.i_q}, Region::mtpa};
-        return true;
-    }
+    if (limit_on_map(m, Region::mtpa, linear::mtpa_at_current(lin, m.lim.I_max), false, out)) return true;
     linear::Point seed;
-    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed)) {
-        const auto r2 = m.solve(System::mtpv, 0, m.mirrored(seed));
-        if (r2.converged && m.within_current(r2)) {
-            out = {{r2.i_d, r2.i_q}, Region::mtpv};
-            return true;
-        }
-    }
-    if (linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed)) {
-        const auto r3 = m.solve(System::current_voltage, 0, m.mirrored(seed));
-        if (r3.converged) {
-            out = {{r3.i_d, r3.i_q}, Region::current_and_voltage_limit};
-            return true;
-        }
-    }
-    return false;
+    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed) && limit_on_map(m, Region::mtpv, seed, false, out))
+        return true;
+    return linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed) &&
+           limit_on_map(m, Region::current_and_voltage_limit, seed, false, out);
 }
 
 }  // namespace

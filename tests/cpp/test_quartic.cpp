@@ -159,6 +159,12 @@ struct Truth {
     bool exact = false;           // coefficients exact (dyadic roots): multiplicities are exact
 };
 
+// The monic quartic with the roots of t.
+Quartic monic_with_roots(const Truth& t) {
+    return from_roots(1.0, t.real.data(), static_cast<int>(t.real.size()), t.complex.data(),
+                      static_cast<int>(t.complex.size()));
+}
+
 std::string fmt(double v) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.3g", v);
@@ -408,9 +414,7 @@ TEST_F(QuarticClasses, ClusteredRoots) {
         } else {
             for (int k = kc; k < 4; ++k) t.real.push_back(sign() * pow10(-2, 2) * U(0.1, 1));
         }
-        run_one(from_roots(1.0, t.real.data(), static_cast<int>(t.real.size()), t.complex.data(),
-                           static_cast<int>(t.complex.size())),
-                &t, st);
+        run_one(monic_with_roots(t), &t, st);
     }
     finish(st);
 }
@@ -440,8 +444,7 @@ TEST_F(QuarticClasses, ExactDoubleRoots) {
                 break;
             }
         }
-        const Quartic q = from_roots(1.0, t.real.data(), static_cast<int>(t.real.size()),
-                                     t.complex.data(), static_cast<int>(t.complex.size()));
+        const Quartic q = monic_with_roots(t);
         if (i % 4 == 3) {  // a triple root: residual and Eigen comparison only
             ++st.polys;
             const RealRoots res = solve_quartic(q.c[0], q.c[1], q.c[2], q.c[3], q.c[4]);
@@ -466,9 +469,7 @@ TEST_F(QuarticClasses, WidelyScaledRoots) {
             const double m = pow10(-4, 4), ph = U(0.05, 3.09);
             t.complex = std::vector<cplx>{cplx(m * std::cos(ph), m * std::sin(ph))};
         }
-        run_one(from_roots(1.0, t.real.data(), static_cast<int>(t.real.size()), t.complex.data(),
-                           static_cast<int>(t.complex.size())),
-                &t, st);
+        run_one(monic_with_roots(t), &t, st);
     }
     finish(st);
 }
