@@ -30,10 +30,12 @@ class FluxMap:
         """PM flux linkage psi_d(0, 0), Wb."""
         return float(self._sd.ev(0.0, 0.0))
 
-    def flux(self, i_d, i_q, psi_d_shift: float = 0.0):
-        """(psi_d, psi_q) at currents (arrays broadcast); psi_d_shift models magnet temperature."""
+    def flux(self, i_d, i_q, psi_d_shift: float = 0.0, dx: int = 0, dy: int = 0):
+        """(psi_d, psi_q) at currents (arrays broadcast); psi_d_shift models magnet temperature.
+        dx, dy > 0: their partial derivatives of those orders in i_d, i_q instead (H, H/A, ...)."""
         i_d, i_q = np.broadcast_arrays(np.asarray(i_d, float), np.asarray(i_q, float))
-        return self._sd.ev(i_d, i_q) + psi_d_shift, self._sq.ev(i_d, i_q)
+        shift = psi_d_shift if dx == dy == 0 else 0.0
+        return self._sd.ev(i_d, i_q, dx=dx, dy=dy) + shift, self._sq.ev(i_d, i_q, dx=dx, dy=dy)
 
     def number(self, key: str, default: float | None = None) -> float:
         if key in self.metadata:

@@ -8,6 +8,20 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 
+def get_values(fmu: FMU2Slave, variables: dict, *names):
+    """The named variables' values (variables: name -> ScalarVariable), each through its type's
+    getter: one value for one name, else a list."""
+    out = [getattr(fmu, "get" + variables[n].type)([variables[n].valueReference])[0] for n in names]
+    return out[0] if len(out) == 1 else out
+
+
+def set_values(fmu: FMU2Slave, variables: dict, **values) -> None:
+    """Set variables by name, each through its type's setter, the values passed as they are."""
+    for name, value in values.items():
+        v = variables[name]
+        getattr(fmu, "set" + v.type)([v.valueReference], [value])
+
+
 class Fmu:
     """One instance of a co-simulation FMU. Parameters go in at construction; then
     step(t, h) with inputs set by name. Use as a context manager (frees the instance)."""
@@ -42,13 +56,7 @@ class Fmu:
                 self.fmu.setString([v.valueReference], [str(value)])
 
     def get(self, *names):
-        out = []
-        for name in names:
-            v = self.vars[name]
-            getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,
-                      "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[v.type]
-            out.append(getter([v.valueReference])[0])
-        return out[0] if len(out) == 1 else out
+        return get_values(self.fmu, self.vars, *names)
 
     def step(self, t: float, h: float) -> None:
         self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)

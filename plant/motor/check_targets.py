@@ -23,7 +23,8 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import RectBivariateSpline
+
+from scenarios.flux_map import read_flux_map
 
 from .iron_loss import IronLossCoefficients
 from .make_default_map import DEFAULT_CSV, REPO_ROOT
@@ -31,43 +32,13 @@ from .make_default_map import DEFAULT_CSV, REPO_ROOT
 RPM = 30 / math.pi  # r/min per rad/s
 
 
-def read_flux_map(path):
-    """Read a flux-map CSV: (i_d axis, i_q axis, psi_d[j, k], psi_q[j, k], metadata dict)."""
-    meta, rows = {}, []
-    with open(path) as fh:
-        for line in fh:
-            line = line.strip()
-            if not line:
-                continue
-            if line.startswith("#"):
-                key, sep, value = line[1:].partition(": ")
-                if sep and key.strip() and " " not in key.strip():
-                    meta[key.strip()] = value.strip()
-            elif line.startswith("i_d"):
-                assert line.replace(" ", "") == "i_d,i_q,psi_d,psi_q", line
-            else:
-                rows.append([float(x) for x in line.split(",")])
-    data = np.array(rows)
-    i_d, i_q = np.unique(data[:, 0]), np.unique(data[:, 1])
-    if len(data) != len(i_d) * len(i_q):
-        raise ValueError(f"{path}: not a full rectangular grid")
-    j = np.searchsorted(i_d, data[:, 0])
-    k = np.searchsorted(i_q, data[:, 1])
-    psi_d = np.full((len(i_d), len(i_q)), np.nan)
-    psi_q = np.full_like(psi_d, np.nan)
-    psi_d[j, k], psi_q[j, k] = data[:, 2], data[:, 3]
-    if np.isnan(psi_d).any():
-        raise ValueError(f"{path}: duplicate grid points")
-    return i_d, i_q, psi_d, psi_q, meta
-
-
 class Drive:
     """The map's machine with its drive limits, as the metadata describe it."""
 
     def __init__(self, path):
-        self.i_d_axis, self.i_q_axis, psi_d, psi_q, meta = read_flux_map(path)
-        self.meta = meta
-        num = lambda k: float(meta[k])  # noqa: E731
+        self.map = read_flux_map(path)
+        self.i_d_axis, self.i_q_axis = self.map.i_d, self.map.i_q
+        num = self.map.number
         self.p = int(num("pole_pairs"))
         self.R_s = num("R_s_ohm")
         self.I_max = num("I_max_A")
@@ -78,12 +49,10 @@ class Drive:
         self.fe = IronLossCoefficients(
             k_h=num("fe_k_h_W_per_Hz"), alpha=num("fe_alpha"), k_e=num("fe_k_e_W_per_Hz2"), psi_ref=num("fe_psi_ref_Wb")
         )
-        self._sd = RectBivariateSpline(self.i_d_axis, self.i_q_axis, psi_d, kx=3, ky=3, s=0)
-        self._sq = RectBivariateSpline(self.i_d_axis, self.i_q_axis, psi_q, kx=3, ky=3, s=0)
 
     def psi(self, i_d, i_q, dx=0, dy=0):
         """Interpolated psi_d, psi_q (or their derivatives) at scattered points."""
-        return self._sd.ev(i_d, i_q, dx=dx, dy=dy), self._sq.ev(i_d, i_q, dx=dx, dy=dy)
+        return self.map.flux(i_d, i_q, dx=dx, dy=dy)
 
 
 class Candidates:

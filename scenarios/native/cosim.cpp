@@ -35,11 +35,10 @@ const char* status_name(fmi2Status s) {
     return "an unknown fmi2Status";
 }
 
-std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
-std::string format(const char* fmt, ...) {
-    va_list ap;
-    va_start(ap, fmt);
-    char buf[512];
+// printf into a std::string of any length ("" if the format is bad); ap is consumed.
+std::string vformat(const char* fmt, va_list ap) __attribute__((format(printf, 1, 0)));
+std::string vformat(const char* fmt, va_list ap) {
+    char buf[1024];
     va_list ap2;
     va_copy(ap2, ap);
     const int n = std::vsnprintf(buf, sizeof buf, fmt, ap);
@@ -52,6 +51,14 @@ std::string format(const char* fmt, ...) {
         s.resize(static_cast<size_t>(n));
     }
     va_end(ap2);
+    return s;
+}
+
+std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
+std::string format(const char* fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    std::string s = vformat(fmt, ap);
     va_end(ap);
     return s;
 }
@@ -186,19 +193,9 @@ void logger(fmi2ComponentEnvironment env, fmi2String /*instance*/, fmi2Status st
     try {
         std::string text;
         if (message != nullptr) {
-            va_list ap, ap2;
+            va_list ap;
             va_start(ap, message);
-            va_copy(ap2, ap);
-            char buf[1024];
-            const int n = std::vsnprintf(buf, sizeof buf, message, ap);
-            if (n >= 0 && static_cast<size_t>(n) < sizeof buf) {
-                text.assign(buf, static_cast<size_t>(n));
-            } else if (n >= 0) {
-                text.resize(static_cast<size_t>(n) + 1);
-                std::vsnprintf(&text[0], text.size(), message, ap2);
-                text.resize(static_cast<size_t>(n));
-            }
-            va_end(ap2);
+            text = vformat(message, ap);
             va_end(ap);
         }
         if (u->pending.size() < 1000)

@@ -103,11 +103,7 @@ Result run_fmus(const std::string& cdir, const std::string& pdir, const Descript
     const double c_start[6] = {in0.T_ref, in0.w_m, in0.u_dc, in0.T_magnet, i[0], i[1]};
     ok(ipmsm_cosim_set_real(m, 0, 6, c_start_vr, c_start));
     ok(ipmsm_cosim_exit_initialization(m, 0));
-    const unsigned cvr[8] = {cd.vr.at("T_ref"), cd.vr.at("w_m"), cd.vr.at("u_dc"), cd.vr.at("T_magnet"),
-                             cd.vr.at("i_d"), cd.vr.at("i_q"), cd.vr.at("u_d_ref"), cd.vr.at("u_q_ref")};
-    const unsigned pvr[7] = {pd.vr.at("u_d"), pd.vr.at("u_q"), pd.vr.at("w_m"), pd.vr.at("T_magnet"),
-                             pd.vr.at("T_winding"), pd.vr.at("i_d"), pd.vr.at("i_q")};
-    ok(ipmsm_cosim_couple(m, cvr, pvr, 0));
+    ok(cosim_tools::couple(m, cd, pd));
     // T_e first (the bit-compare), i_d second; then the rest of the default list
     std::vector<int> unit, kind;
     std::vector<unsigned> vr;

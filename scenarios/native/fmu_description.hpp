@@ -10,6 +10,8 @@
 #include <sstream>
 #include <string>
 
+#include "cosim.h"
+
 namespace cosim_tools {
 
 struct Description {
@@ -39,6 +41,16 @@ inline Description read_description(const std::string& dir) {
         std::exit(2);
     }
     return d;
+}
+
+// ipmsm_cosim_couple with the value references it takes (cosim.h), by name: controller unit 0,
+// plant unit 1.
+inline int couple(ipmsm_cosim* m, const Description& cd, const Description& pd, long long k0 = 0) {
+    const unsigned cvr[8] = {cd.vr.at("T_ref"), cd.vr.at("w_m"), cd.vr.at("u_dc"), cd.vr.at("T_magnet"),
+                             cd.vr.at("i_d"), cd.vr.at("i_q"), cd.vr.at("u_d_ref"), cd.vr.at("u_q_ref")};
+    const unsigned pvr[7] = {pd.vr.at("u_d"), pd.vr.at("u_q"), pd.vr.at("w_m"), pd.vr.at("T_magnet"),
+                             pd.vr.at("T_winding"), pd.vr.at("i_d"), pd.vr.at("i_q")};
+    return ipmsm_cosim_couple(m, cvr, pvr, k0);
 }
 
 }  // namespace cosim_tools

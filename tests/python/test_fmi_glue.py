@@ -34,13 +34,14 @@ from fmpy.fmi2 import (
     fmi2ModelExchange,
     fmi2OK,
     fmi2PendingStatus,
-    fmi2Real,
     fmi2Terminated,
     fmi2True,
     fmi2ValueReference,
     fmi2Warning,
 )
 from fmpy.validation import validate_fmu
+
+from scenarios.fmu import get_values, set_values
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 FMU_DIR = pathlib.Path(os.environ.get("IPMSM_FMU_DIR", REPO / "build" / "fmu"))
@@ -112,18 +113,11 @@ class Toy:
         return self.vars[name].valueReference
 
     def set(self, **values):
-        for name, value in values.items():
-            v = self.vars[name]
-            setter = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
-                      "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}[v.type]
-            setter([v.valueReference], [value])
+        set_values(self.fmu, self.vars, **values)
 
     def get(self, name):
-        v = self.vars[name]
-        getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,
-                  "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[v.type]
-        value = getter([v.valueReference])[0]
-        return value.decode() if v.type == "String" else value
+        value = get_values(self.fmu, self.vars, name)
+        return value.decode() if self.vars[name].type == "String" else value
 
     def init(self, **params):
         self.fmu.setupExperiment(startTime=0.0)

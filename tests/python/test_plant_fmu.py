@@ -28,6 +28,7 @@ from fmpy.fmi2 import (
 from fmpy.validation import validate_fmu
 
 from scenarios.flux_map import linear_flux_map, read_flux_map, write_flux_map
+from scenarios.fmu import get_values, set_values
 
 ROOT = Path(__file__).resolve().parents[2]
 OUTPUTS = ("i_d", "i_q", "psi_d", "psi_q", "T_e", "T_shaft", "P_elec", "P_mech", "P_cu", "P_fe")
@@ -79,20 +80,10 @@ class Plant:
         self.freed = False
 
     def set(self, **values):
-        for name, value in values.items():
-            v = self.vars[name]
-            setter = {"Real": self.fmu.setReal, "Integer": self.fmu.setInteger,
-                      "Boolean": self.fmu.setBoolean, "String": self.fmu.setString}[v.type]
-            setter([v.valueReference], [value])
+        set_values(self.fmu, self.vars, **values)
 
     def get(self, *names):
-        out = []
-        for name in names:
-            v = self.vars[name]
-            getter = {"Real": self.fmu.getReal, "Integer": self.fmu.getInteger,
-                      "Boolean": self.fmu.getBoolean, "String": self.fmu.getString}[v.type]
-            out.append(getter([v.valueReference])[0])
-        return out[0] if len(out) == 1 else out
+        return get_values(self.fmu, self.vars, *names)
 
     def init(self, **values):
         self.fmu.setupExperiment(startTime=0.0)
