@@ -5,6 +5,7 @@
 #include <limits>
 #include <sstream>
 
+#include "machine.hpp"
 #include "magnet_flux.hpp"
 
 namespace ipmsm {
@@ -16,8 +17,6 @@ using M = PlantModel;
 
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
-// Temperatures outside this range are not a working motor, K (the controller uses the same).
-constexpr double kTempMin = 173.15, kTempMax = 573.15;
 constexpr double kVoltageMax = 1e4;  // V: far beyond any traction inverter
 constexpr double kSpeedMax = 1e4;    // rad/s mechanical (95 000 r/min)
 
@@ -35,8 +34,8 @@ const std::vector<V>& PlantModel::variables() {
         {"u_d", &M::u_d, Causality::input, Variability::continuous, "V", "", "d-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step", -kVoltageMax, kVoltageMax},
         {"u_q", &M::u_q, Causality::input, Variability::continuous, "V", "", "q-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step", -kVoltageMax, kVoltageMax},
         {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm", "Mechanical rotor speed, set by the vehicle side (either sign)", -kSpeedMax, kSpeedMax},
-        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC", "Magnet temperature: the PM flux is psi_m (1 + k_psi_T (T_magnet - T_magnet_ref))", kTempMin, kTempMax},
-        {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC", "Winding temperature: R = R_s (1 + alpha_cu (T_winding - T_winding_ref))", kTempMin, kTempMax},
+        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC", "Magnet temperature: the PM flux is psi_m (1 + k_psi_T (T_magnet - T_magnet_ref))", kTemperatureMin_K, kTemperatureMax_K},
+        {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC", "Winding temperature: R = R_s (1 + alpha_cu (T_winding - T_winding_ref))", kTemperatureMin_K, kTemperatureMax_K},
         // outputs
         {"i_d", &M::i_d, Causality::output, Variability::continuous, "A", "", "d-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
         {"i_q", &M::i_q, Causality::output, Variability::continuous, "A", "", "q-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
@@ -56,10 +55,10 @@ const std::vector<V>& PlantModel::variables() {
         {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "", "Path of a flux-map CSV (the contract's format); empty: the default map in resources/"},
         {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)", 1, 100},
         {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "Stator resistance at T_winding_ref", 0.0, 1e3},
-        {"T_winding_ref", &M::T_winding_ref, Causality::parameter, Variability::fixed, "K", "degC", "Winding temperature at which R_s holds", kTempMin, kTempMax},
+        {"T_winding_ref", &M::T_winding_ref, Causality::parameter, Variability::fixed, "K", "degC", "Winding temperature at which R_s holds", kTemperatureMin_K, kTemperatureMax_K},
         {"alpha_cu", &M::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "", "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
         {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "", "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
-        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature at which the flux map holds", kTempMin, kTempMax},
+        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
         {"fe_k_h", &M::fe_k_h, Causality::parameter, Variability::fixed, "J", "", "Iron loss: hysteresis coefficient, W/Hz (0: no hysteresis loss)", 0.0, 1e6},
         {"fe_alpha", &M::fe_alpha, Causality::parameter, Variability::fixed, "1", "", "Iron loss: exponent of b in the hysteresis term", 0.5, 4.0},
         {"fe_k_e", &M::fe_k_e, Causality::parameter, Variability::fixed, "", "", "Iron loss: eddy-current coefficient, W/Hz^2 (0: no eddy-current loss)", 0.0, 1e3},
@@ -101,7 +100,7 @@ void PlantModel::exit_initialization() {
     const std::string path = flux_map.empty() ? ctx.resource_dir + "/" + default_flux_map : flux_map;
     if (cvode_method == 2 && cvode_max_order > 5)
         throw fmi::Error("cvode_max_order = " + std::to_string(cvode_max_order) + ": BDF (cvode_method 2) has orders 1 to 5");
-    if (alpha_cu * (kTempMin - T_winding_ref) <= -1.0)
+    if (alpha_cu * (kTemperatureMin_K - T_winding_ref) <= -1.0)
         throw fmi::Error("alpha_cu = " + num(alpha_cu) + " 1/K with T_winding_ref = " + num(T_winding_ref) +
                          " K makes the resistance negative at admissible winding temperatures");
 

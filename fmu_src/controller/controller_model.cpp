@@ -3,6 +3,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "machine.hpp"
 #include "magnet_flux.hpp"
 
 namespace ipmsm {
@@ -15,8 +16,6 @@ using M = ControllerModel;
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kSqrt3 = 1.7320508075688772;
-// Magnet temperatures outside this range are not an NdFeB magnet in a working motor, K.
-constexpr double kMagnetTempMin = 173.15, kMagnetTempMax = 573.15;
 }  // namespace
 
 const std::vector<V>& ControllerModel::variables() {
@@ -27,7 +26,7 @@ const std::vector<V>& ControllerModel::variables() {
         {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "", "Measured DC-link voltage", 0.0, kInf, true},
         {"i_d", &M::i_d, Causality::input, Variability::continuous, "A", "", "Measured d-axis current (peak, amplitude-invariant)"},
         {"i_q", &M::i_q, Causality::input, Variability::continuous, "A", "", "Measured q-axis current (peak, amplitude-invariant)"},
-        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC", "Magnet temperature (estimate)", kMagnetTempMin, kMagnetTempMax},
+        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC", "Magnet temperature (estimate)", kTemperatureMin_K, kTemperatureMax_K},
         // outputs
         {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "", "d-axis current command"},
         {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "", "q-axis current command"},
@@ -49,10 +48,10 @@ const std::vector<V>& ControllerModel::variables() {
         {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "", "Stator resistance", 0.0, kInf},
         {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "", "Peak current limit", 0.0, kInf, true},
         {"k_u", &M::k_u, Causality::parameter, Variability::fixed, "1", "", "Voltage utilisation of the current commands: V_max = k_u u_dc / sqrt(3)", 0.0, 1.0, true},
-        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature at which the flux map holds", kMagnetTempMin, kMagnetTempMax},
+        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
         {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "", "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
         {"lut_u_dc", &M::lut_u_dc, Causality::parameter, Variability::fixed, "V", "", "DC voltage the 2-D tables are built for (methods 2, 3)", 0.0, kInf, true},
-        {"lut_T_magnet", &M::lut_T_magnet, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature the 2-D tables are built for (methods 2, 3)", kMagnetTempMin, kMagnetTempMax},
+        {"lut_T_magnet", &M::lut_T_magnet, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature the 2-D tables are built for (methods 2, 3)", kTemperatureMin_K, kTemperatureMax_K},
         {"lut_n_torque", &M::lut_n_torque, Causality::parameter, Variability::fixed, "", "", "2-D table grid points along torque", 3, 1001},
         {"lut_n_speed", &M::lut_n_speed, Causality::parameter, Variability::fixed, "", "", "2-D table grid points along speed (method 2) or V_max/omega (method 3)", 3, 1001},
         {"w_m_max", &M::w_m_max, Causality::parameter, Variability::fixed, "rad/s", "rpm", "Top of the 2-D tables' speed axis", 0.0, kInf, true},

@@ -42,4 +42,8 @@ struct CurrentCommand {
 
 inline double torque_factor(int pole_pairs) { return 1.5 * pole_pairs; }
 
+// The temperatures (magnets, windings) both FMUs accept, K: -100 .. 300 degC. Outside this range
+// the machine is not a working motor (an NdFeB magnet, enamelled copper).
+constexpr double kTemperatureMin_K = 173.15, kTemperatureMax_K = 573.15;
+
 }  // namespace ipmsm
