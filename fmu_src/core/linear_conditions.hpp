@@ -20,6 +20,32 @@ inline double i_d_on_torque_curve(const LinearMachine& m, double T_red, double i
 
 inline RealRoots roots_of(const double (&c)[5]) { return centred_quartic_roots(c[0], c[1], c[2], c[3], c[4]); }
 
+// One Newton step on the quartic c from x: the rule of polish_quartic_root, with both ends
+// kept, so that a caller maps both to a point at once (the two divisions overlap the second
+// evaluation of c instead of following it) and selects.
+struct NewtonStep {
+    double x0, x1;
+    bool better;  // |c(x1)| < |c(x0)|: take x1 (false for NaN)
+};
+
+inline NewtonStep newton_step(const double (&c)[5], double x) {
+    const double f = (((c[0] * x + c[1]) * x + c[2]) * x + c[3]) * x + c[4];
+    const double df = ((4.0 * c[0] * x + 3.0 * c[1]) * x + 2.0 * c[2]) * x + c[3];
+    const double x1 = x - f / df;
+    const double f1 = (((c[0] * x1 + c[1]) * x1 + c[2]) * x1 + c[3]) * x1 + c[4];
+    return {x, x1, std::fabs(f1) < std::fabs(f)};
+}
+
+// p1 if take, else p0, per component (a select, not a branch: `take` is a coin toss for a root
+// that is exact to rounding already).
+inline Point choose(bool take, Point p1, Point p0) {
+    return {take ? p1.i_d : p0.i_d, take ? p1.i_q : p0.i_q};
+}
+
+// The roots come in four slots, the unused ones 0 (RealRoots). The rules below look at all four
+// with selects instead of branches: on random operating points the number of roots and the
+// winner are unpredictable, and a mispredicted branch costs more than the extra arithmetic.
+
 // Case i (MTPA) for a salient machine: dL^2 i_q^4 + psi_m T' i_q - T'^2 = 0, monic; exactly one
 // positive root (psi_m >= 0, T' > 0).
 struct MtpaQuartic {
@@ -29,15 +55,19 @@ struct MtpaQuartic {
         c[4] = -T_red * T_red * k;
     }
     bool point(const RealRoots& r, Point& out) const {
-        double i_q = 0;
-        for (int j = 0; j < r.count; ++j) i_q = std::max(i_q, r.root[j]);
+        double i_q = 0;  // the unused slots (0) do not change the largest root
+        for (int j = 0; j < 4; ++j) i_q = std::max(i_q, r.root[j]);
         if (!(i_q > 0)) return false;
-        i_q = polish_quartic_root(c[0], c[1], c[2], c[3], c[4], i_q);
         // The MTPA condition psi_m i_d + dL (i_d^2 - i_q^2) = 0, solved for i_d without
         // cancellation (and without dividing by dL).
         const double dL = m.L_d - m.L_q;
-        const double s = std::sqrt(m.psi_m * m.psi_m + 4.0 * dL * dL * i_q * i_q);
-        out = {2.0 * dL * i_q * i_q / (m.psi_m + s), i_q};
+        auto at = [&](double y) {
+            const double s = std::sqrt(m.psi_m * m.psi_m + 4.0 * dL * dL * y * y);
+            return Point{2.0 * dL * y * y / (m.psi_m + s), y};
+        };
+        const NewtonStep st = newton_step(c, i_q);
+        const Point p0 = at(st.x0), p1 = at(st.x1);
+        out = choose(st.better, p1, p0);
         return true;
     }
     const LinearMachine& m;
@@ -60,19 +90,18 @@ struct VoltageLimitQuartic {
         // at the MTPA point (outside the ellipse here), so the best is the intersection with the
         // least current. (For the usual geometry that is the root with the largest i_q.)
         double best = INFINITY, best_i_q = 0;
-        for (int k = 0; k < r.count; ++k) {
+        for (int k = 0; k < 4; ++k) {
             const double i_q = r.root[k];
-            if (!(i_q > 0)) continue;
             const double i_d = i_d_on_torque_curve(m, T_red, i_q);
             const double I2 = i_d * i_d + i_q * i_q;
-            if (I2 < best) {
-                best = I2;
-                best_i_q = i_q;
-            }
+            const bool take = k < r.count && i_q > 0 && I2 < best;
+            best = take ? I2 : best;
+            best_i_q = take ? i_q : best_i_q;
         }
         if (!(best < INFINITY)) return false;
-        const double i_q = polish_quartic_root(c[0], c[1], c[2], c[3], c[4], best_i_q);
-        out = {i_d_on_torque_curve(m, T_red, i_q), i_q};
+        const NewtonStep st = newton_step(c, best_i_q);
+        const double i_d0 = i_d_on_torque_curve(m, T_red, st.x0), i_d1 = i_d_on_torque_curve(m, T_red, st.x1);
+        out = choose(st.better, Point{i_d1, st.x1}, Point{i_d0, st.x0});
         return true;
     }
     const LinearMachine& m;
@@ -106,15 +135,20 @@ struct MtpvQuartic {
         if (!valid) return false;
         // Candidates: the stationary points, and th = 0 (u = infinity), where the degree drops.
         double best = reduced_torque(m, ad + bd, aq + bq), best_u = INFINITY;
-        for (int j = 0; j < r.count; ++j) {
+        for (int j = 0; j < 4; ++j) {
             const Point p = at(r.root[j]);
             const double T = reduced_torque(m, p.i_d, p.i_q);
-            if (T > best) {
-                best = T;
-                best_u = r.root[j];
-            }
+            const bool take = j < r.count && T > best;
+            best = take ? T : best;
+            best_u = take ? r.root[j] : best_u;
         }
-        out = best_u == INFINITY ? Point{ad + bd, aq + bq} : at(polish_quartic_root(c[0], c[1], c[2], c[3], c[4], best_u));
+        if (best_u == INFINITY) {
+            out = Point{ad + bd, aq + bq};
+        } else {
+            const NewtonStep st = newton_step(c, best_u);
+            const Point p0 = at(st.x0), p1 = at(st.x1);
+            out = choose(st.better, p1, p0);
+        }
         return std::isfinite(best);
     }
     const LinearMachine& m;
@@ -141,18 +175,17 @@ struct IntersectionQuartic {
     }
     bool point(const RealRoots& r, Point& out) const {
         double best = -INFINITY, best_u = 0;
-        for (int j = 0; j < r.count; ++j) {
-            if (!(r.root[j] < 0)) continue;
+        for (int j = 0; j < 4; ++j) {
             const Point p = at(r.root[j]);
             const double T = reduced_torque(m, p.i_d, p.i_q);
-            if (T > best) {
-                best = T;
-                best_u = r.root[j];
-            }
+            const bool take = j < r.count && r.root[j] < 0 && T > best;
+            best = take ? T : best;
+            best_u = take ? r.root[j] : best_u;
         }
         if (!(best > -INFINITY)) return false;
-        const double u = polish_quartic_root(c[0], c[1], c[2], c[3], c[4], best_u);
-        out = at(u < 0 ? u : best_u);
+        const NewtonStep st = newton_step(c, best_u);
+        const Point p0 = at(st.x0), p1 = at(st.x1);
+        out = choose(st.better && st.x1 < 0, p1, p0);
         return true;
     }
     const LinearMachine& m;
