@@ -6,17 +6,18 @@
 #pragma once
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "linear_optimal_current.hpp"
 #include "quartic.hpp"
 
 namespace ipmsm::linear::conditions {
-
-// On the torque curve, i_d from i_q: T' = i_q (psi_m + dL i_d).
-inline double i_d_on_torque_curve(const LinearMachine& m, double T_red, double i_q) {
-    return (T_red / i_q - m.psi_m) / (m.L_d - m.L_q);
-}
 
 inline RealRoots roots_of(const double (&c)[5]) { return centred_quartic_roots(c[0], c[1], c[2], c[3], c[4]); }
 
@@ -36,15 +37,42 @@ inline NewtonStep newton_step(const double (&c)[5], double x) {
     return {x, x1, std::fabs(f1) < std::fabs(f)};
 }
 
-// p1 if take, else p0, per component (a select, not a branch: `take` is a coin toss for a root
-// that is exact to rounding already).
+// a if take, else b, as a select rather than a branch. On random operating points the winning
+// root and the polish's `better` (a coin toss for a root exact to rounding already) are
+// unpredictable, and a mispredicted branch costs more than both candidates' arithmetic. GCC
+// turns a plain ?: on doubles into a branch, hence the SSE2 masks (baseline on x86-64).
+inline double select(bool take, double a, double b) {
+#if defined(__SSE2__)
+    const __m128d mask = _mm_castsi128_pd(_mm_set1_epi64x(-static_cast<long long>(take)));
+    return _mm_cvtsd_f64(_mm_or_pd(_mm_and_pd(mask, _mm_set_sd(a)), _mm_andnot_pd(mask, _mm_set_sd(b))));
+#else
+    return take ? a : b;
+#endif
+}
+
 inline Point choose(bool take, Point p1, Point p0) {
-    return {take ? p1.i_d : p0.i_d, take ? p1.i_q : p0.i_q};
+    return {select(take, p1.i_d, p0.i_d), select(take, p1.i_q, p0.i_q)};
+}
+
+// Arg-max and arg-min without branches: a key with the candidate's slot (0..7) in its lowest
+// three mantissa bits; std::max/min of keys (maxsd/minsd) then carries the slot along. Ties
+// closer than 2^-49 relative go by slot. Keys must be finite (clamp +-inf to +-DBL_MAX first).
+inline double tagged(double key, unsigned slot) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &key, sizeof bits);
+    bits = (bits & ~std::uint64_t{7}) | slot;
+    std::memcpy(&key, &bits, sizeof key);
+    return key;
+}
+
+inline unsigned slot_of(double key) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &key, sizeof bits);
+    return static_cast<unsigned>(bits & 7);
 }
 
 // The roots come in four slots, the unused ones 0 (RealRoots). The rules below look at all four
-// with selects instead of branches: on random operating points the number of roots and the
-// winner are unpredictable, and a mispredicted branch costs more than the extra arithmetic.
+// (each says why an unused slot cannot win) and pick with keys and selects, not branches.
 
 // Case i (MTPA) for a salient machine: dL^2 i_q^4 + psi_m T' i_q - T'^2 = 0, monic; exactly one
 // positive root (psi_m >= 0, T' > 0).
@@ -77,7 +105,8 @@ struct MtpaQuartic {
 // Case ii for a salient machine: the torque curve T' meets the voltage ellipse (with R_s), a
 // depressed quartic in i_q.
 struct VoltageLimitQuartic {
-    VoltageLimitQuartic(const LinearMachine& m, double omega, double V_max, double T_red) : m(m), T_red(T_red) {
+    VoltageLimitQuartic(const LinearMachine& m, double omega, double V_max, double T_red)
+        : m(m), T_red(T_red), inv_dL(1.0 / (m.L_d - m.L_q)) {
         const double R = m.R_s, w = omega, dL = m.L_d - m.L_q, psi = m.psi_m;
         const double zq = R * R + w * w * m.L_q * m.L_q;
         const double inv_a4 = 1.0 / (dL * dL * zq);
@@ -85,27 +114,30 @@ struct VoltageLimitQuartic {
         c[3] = -2.0 * psi * T_red * (R * R + w * w * m.L_d * m.L_q) * inv_a4;
         c[4] = T_red * T_red * (R * R + w * w * m.L_d * m.L_d) * inv_a4;
     }
+    // On the torque curve, i_d from i_q: T' = i_q (psi_m + dL i_d).
+    double i_d_at(double i_q) const { return (T_red / i_q - m.psi_m) * inv_dL; }
     bool point(const RealRoots& r, Point& out) const {
         // Every intersection is on the ellipse; the current along the torque curve has its minimum
         // at the MTPA point (outside the ellipse here), so the best is the intersection with the
         // least current. (For the usual geometry that is the root with the largest i_q.)
-        double best = INFINITY, best_i_q = 0;
-        for (int k = 0; k < 4; ++k) {
+        // Key: the current squared; DBL_MAX for i_q <= 0 (also the unused slots, whose 0 makes i_d
+        // infinite), by max with +-DBL_MAX signed like -i_q.
+        double best = DBL_MAX;
+        for (unsigned k = 0; k < 4; ++k) {
             const double i_q = r.root[k];
-            const double i_d = i_d_on_torque_curve(m, T_red, i_q);
-            const double I2 = i_d * i_d + i_q * i_q;
-            const bool take = k < r.count && i_q > 0 && I2 < best;
-            best = take ? I2 : best;
-            best_i_q = take ? i_q : best_i_q;
+            const double i_d = i_d_at(i_q);
+            const double I2 = std::min(i_d * i_d + i_q * i_q, DBL_MAX);
+            best = std::min(best, tagged(std::max(I2, std::copysign(DBL_MAX, -i_q)), k));
         }
-        if (!(best < INFINITY)) return false;
+        if (!(best < 0.5 * DBL_MAX)) return false;
+        const double best_i_q = r.root[slot_of(best)];
         const NewtonStep st = newton_step(c, best_i_q);
-        const double i_d0 = i_d_on_torque_curve(m, T_red, st.x0), i_d1 = i_d_on_torque_curve(m, T_red, st.x1);
+        const double i_d0 = i_d_at(st.x0), i_d1 = i_d_at(st.x1);
         out = choose(st.better, Point{i_d1, st.x1}, Point{i_d0, st.x0});
         return true;
     }
     const LinearMachine& m;
-    double T_red;
+    double T_red, inv_dL;
     double c[5] = {1.0, 0.0, 0.0, 0.0, 0.0};
 };
 
@@ -134,14 +166,14 @@ struct MtpvQuartic {
     bool point(const RealRoots& r, Point& out) const {
         if (!valid) return false;
         // Candidates: the stationary points, and th = 0 (u = infinity), where the degree drops.
-        double best = reduced_torque(m, ad + bd, aq + bq), best_u = INFINITY;
-        for (int j = 0; j < 4; ++j) {
+        // An unused slot (u = 0) is a point on the ellipse, never above its maximum: harmless.
+        double best = tagged(std::max(reduced_torque(m, ad + bd, aq + bq), -DBL_MAX), 4);
+        for (unsigned j = 0; j < 4; ++j) {
             const Point p = at(r.root[j]);
-            const double T = reduced_torque(m, p.i_d, p.i_q);
-            const bool take = j < r.count && T > best;
-            best = take ? T : best;
-            best_u = take ? r.root[j] : best_u;
+            best = std::max(best, tagged(std::max(reduced_torque(m, p.i_d, p.i_q), -DBL_MAX), j));
         }
+        const unsigned k = slot_of(best);
+        const double best_u = k < 4 ? r.root[k] : INFINITY;
         if (best_u == INFINITY) {
             out = Point{ad + bd, aq + bq};
         } else {
@@ -149,7 +181,7 @@ struct MtpvQuartic {
             const Point p0 = at(st.x0), p1 = at(st.x1);
             out = choose(st.better, p1, p0);
         }
-        return std::isfinite(best);
+        return std::fabs(best) < DBL_MAX;
     }
     const LinearMachine& m;
     bool valid;
@@ -174,15 +206,16 @@ struct IntersectionQuartic {
         return {I * (1.0 - 2.0 * h), -2.0 * I * u * h};
     }
     bool point(const RealRoots& r, Point& out) const {
-        double best = -INFINITY, best_u = 0;
-        for (int j = 0; j < 4; ++j) {
+        // Key: the torque; -DBL_MAX for u >= 0 (i_q <= 0, also the unused slots), by min with
+        // +-DBL_MAX signed like -u.
+        double best = -DBL_MAX;
+        for (unsigned j = 0; j < 4; ++j) {
             const Point p = at(r.root[j]);
-            const double T = reduced_torque(m, p.i_d, p.i_q);
-            const bool take = j < r.count && r.root[j] < 0 && T > best;
-            best = take ? T : best;
-            best_u = take ? r.root[j] : best_u;
+            const double T = std::max(reduced_torque(m, p.i_d, p.i_q), -DBL_MAX);
+            best = std::max(best, tagged(std::min(T, std::copysign(DBL_MAX, -r.root[j])), j));
         }
-        if (!(best > -INFINITY)) return false;
+        if (!(best > -0.5 * DBL_MAX)) return false;
+        const double best_u = r.root[slot_of(best)];
         const NewtonStep st = newton_step(c, best_u);
         const Point p0 = at(st.x0), p1 = at(st.x1);
         out = choose(st.better && st.x1 < 0, p1, p0);

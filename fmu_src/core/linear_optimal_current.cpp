@@ -142,6 +142,7 @@ namespace {
 struct LimitEstimate {
     bool mtpv;     // the MTPV point is inside the current circle
     double T_red;  // the lossless T_max (NaN if the estimate fails)
+    Point p;       // where it is (the seed of limit_by_newton)
 };
 
 LimitEstimate lossless_limit_estimate(const LinearMachine& m, const OperatingLimits& lim) {
@@ -155,19 +156,20 @@ LimitEstimate lossless_limit_estimate(const LinearMachine& m, const OperatingLim
     }
     const double lam_q = std::sqrt(std::max(0.0, Lam2 - lam_d * lam_d));
     const double i_d = (lam_d - m.psi_m) / m.L_d, i_q = lam_q / m.L_q;
-    if (i_d * i_d + i_q * i_q <= I2) return {true, reduced_torque(m, i_d, i_q)};
+    if (i_d * i_d + i_q * i_q <= I2) return {true, reduced_torque(m, i_d, i_q), {i_d, i_q}};
     // The quadratic in i_d, cancellation-free (a = 0 only for non-salient machines: one root).
     const double a = m.L_d * m.L_d - m.L_q * m.L_q, b = 2.0 * m.psi_m * m.L_d;
     const double c = m.psi_m * m.psi_m + m.L_q * m.L_q * I2 - Lam2;
     const double t = -0.5 * (b + std::copysign(std::sqrt(b * b - 4.0 * a * c), b));  // NaN: no intersection
     const double roots[2] = {t / a, c / t};
-    double T = NAN;
+    LimitEstimate e{false, NAN, {0.0, 0.0}};
     for (double x : roots) {
         if (!(x * x <= I2)) continue;
-        const double T_x = reduced_torque(m, x, std::sqrt(I2 - x * x));
-        if (!(T_x <= T)) T = T_x;  // the larger (NaN at first)
+        const Point p{x, std::sqrt(I2 - x * x)};
+        const double T_x = reduced_torque(m, p.i_d, p.i_q);
+        if (!(T_x <= e.T_red)) e = {false, T_x, p};  // the larger (NaN at first)
     }
-    return {false, T};
+    return e;
 }
 
 // The torque at which MTPA meets the voltage ellipse at this speed, estimated without a quartic:
@@ -241,74 +243,83 @@ Limit max_torque_from(const LinearMachine& m, const OperatingLimits& lim, Point 
     return {{-lim.I_max, 0.0}, 0.0, Region::zero_torque, false, 0.0};
 }
 
-// The combined path for field weakening with a torque command: the limit needs one quartic
-// (MTPV or the intersection) and the command another (MTPA or Case ii). Both are predicted,
-// solved together (centred_quartic_roots_2) and confirmed by the same checks as the sequential
-// path; a failed check returns false and the caller takes the sequential path.
-bool limit_from(const MtpvQuartic& q, const LinearMachine& m, const OperatingLimits& lim, const RealRoots& r,
-                double T_base, Limit& top) {
+// Newton's method on a limit quartic (MTPV or the intersection, in its u) from a seed near a
+// simple root: true once a step is below kNewtonTol (1 + |u|), after which the root is exact to
+// rounding (quadratic convergence: the next step would be ~1e-16); false if that takes more
+// than kNewtonSteps (a seed too far, or a near-double root near the maximum speed).
+constexpr int kNewtonSteps = 6;
+constexpr double kNewtonTol = 1e-8;
+
+bool newton_root(const double (&c)[5], double& u) {
+    for (int k = 0; k < kNewtonSteps; ++k) {
+        const double f = (((c[0] * u + c[1]) * u + c[2]) * u + c[3]) * u + c[4];
+        const double df = ((4.0 * c[0] * u + 3.0 * c[1]) * u + 2.0 * c[2]) * u + c[3];
+        const double step = f / df;
+        u -= step;
+        if (std::fabs(step) <= kNewtonTol * (1.0 + std::fabs(u))) return std::isfinite(u);
+    }
+    return false;
+}
+
+// T_max in field weakening as MATH.md allows it with R_s: the lossless (R_s = 0) closed form,
+// polished on the limit's own quartic by Newton's method. It runs alongside the command's
+// Ferrari solution (the two are independent, so the CPU overlaps them) and is confirmed by the
+// checks of the Ferrari path: the current limit (MTPV) or its KKT sign (intersection), and the
+// torque within kClampMargin of the estimate (the same root, not a far one). A failed check
+// returns false: the caller then takes the all-Ferrari sequential path.
+bool limit_by_newton(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, double T_base,
+                     Limit& top) {
+    if (!(e.T_red > 0)) return false;
     Point p;
-    return q.point(r, p) && mtpv_limit_at(m, lim, p, T_base, top);
+    if (e.mtpv) {
+        const MtpvQuartic Q(m, lim.omega, lim.V_max);
+        // The lossless point's voltage angle: v = omega (-L_q i_q, L_d i_d + psi_m) with |v| = V_max,
+        // u = tan((th - pi) / 2) = -v_q / (V_max - v_d).
+        const double v_d = -lim.omega * m.L_q * e.p.i_q, v_q = lim.omega * (m.L_d * e.p.i_d + m.psi_m);
+        double u = -v_q / (lim.V_max - v_d);
+        if (!(Q.valid && newton_root(Q.c, u))) return false;
+        p = Q.at(u);
+        if (!mtpv_limit_at(m, lim, p, T_base, top)) return false;
+    } else {
+        const IntersectionQuartic Q(m, lim.omega, lim.V_max, lim.I_max);
+        double u = -(lim.I_max + e.p.i_d) / e.p.i_q;  // the lossless point's angle on the circle
+        if (!(newton_root(Q.c, u) && u < 0)) return false;
+        p = Q.at(u);
+        if (!(current_limit_binds(m, lim.omega, p) && intersection_limit_at(m, p, T_base, top))) return false;
+    }
+    return std::abs(top.T_red - e.T_red) <= kClampMargin * e.T_red;
 }
 
-bool limit_from(const IntersectionQuartic& q, const LinearMachine& m, const OperatingLimits& lim,
-                const RealRoots& r, double T_base, Limit& top) {
-    Point p;
-    return q.point(r, p) && current_limit_binds(m, lim.omega, p) && intersection_limit_at(m, p, T_base, top);
-}
-
-bool command_from(const MtpaQuartic& q, const LinearMachine& m, const OperatingLimits& lim, const RealRoots& r,
-                  Point& p, Region& region) {
-    region = Region::mtpa;
-    return q.point(r, p) && within_voltage(m, lim, p);
-}
-
-bool command_from(const VoltageLimitQuartic& q, const LinearMachine& m, const OperatingLimits& lim,
-                  const RealRoots& r, Point& p, Region& region) {
-    region = Region::voltage_limit;
-    return q.point(r, p) && voltage_limit_is_optimal(m, lim.omega, p);
-}
-
-template <class LimitQuartic, class CommandQuartic>
-bool solve_together(const LimitQuartic& lq, const CommandQuartic& cq, const LinearMachine& m,
-                    const OperatingLimits& lim, double T_red, double T_base, Limit& top, Point& p, Region& region) {
-    RealRoots r_limit, r_command;
-    centred_quartic_roots_2(lq.c, cq.c, r_limit, r_command);
-    if (!limit_from(lq, m, lim, r_limit, T_base, top)) return false;
-    if (T_red >= top.T_red) {  // clamped: the command quartic was not needed
+// Field weakening with a torque command: the limit by limit_by_newton, the command by one
+// Ferrari solution (MTPA or Case ii, predicted by the base-torque estimate) and the checks of
+// the sequential path; a failed prediction or check returns false and the caller takes the
+// sequential path. A command above T_max finds no valid Case ii point and is clamped.
+bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, double T_red, double v1,
+                          Limit& top, Point& p, Region& region) {
+    if (non_salient(m)) return false;  // MTPA and Case ii are closed forms there
+    const double T_base = base_torque_estimate(m, lim, v1);
+    const LimitEstimate estimate = lossless_limit_estimate(m, lim);
+    // The limit first: its Newton chain is short in instructions but long in latency, so the
+    // command's Ferrari solution below runs in its shadow (the CPU overlaps independent work
+    // only within a window of a few hundred instructions).
+    const bool limit_ok = limit_by_newton(m, lim, estimate, T_base, top);
+    bool command_ok;
+    if (T_red <= T_base) {
+        const MtpaQuartic cq(m, T_red);
+        region = Region::mtpa;
+        command_ok = cq.point(roots_of(cq.c), p) && within_voltage(m, lim, p);
+    } else {
+        const VoltageLimitQuartic cq(m, lim.omega, lim.V_max, T_red);
+        region = Region::voltage_limit;
+        command_ok = cq.point(roots_of(cq.c), p) && voltage_limit_is_optimal(m, lim.omega, p);
+    }
+    if (!limit_ok) return false;
+    if (T_red >= top.T_red) {  // clamped
         p = top.point;
         region = top.region;
         return true;
     }
-    return command_from(cq, m, lim, r_command, p, region);
-}
-
-template <class LimitQuartic>
-bool solve_clamped(const LimitQuartic& lq, const LinearMachine& m, const OperatingLimits& lim, double T_red,
-                   double T_base, Limit& top, Point& p, Region& region) {
-    if (!limit_from(lq, m, lim, roots_of(lq.c), T_base, top) || !(T_red >= top.T_red)) return false;
-    p = top.point;
-    region = top.region;
-    return true;
-}
-
-bool field_weakening_together(const LinearMachine& m, const OperatingLimits& lim, double T_red, double v1,
-                              Limit& top, Point& p, Region& region) {
-    if (non_salient(m)) return false;  // MTPA and Case ii are closed forms there
-    const double T_base = base_torque_estimate(m, lim, v1);
-    const LimitEstimate estimate = lossless_limit_estimate(m, lim);
-    // Well above the lossless T_max the command is clamped: the limit quartic alone.
-    const bool clamped = T_red > estimate.T_red * (1.0 + kClampMargin);
-    auto with_limit = [&](const auto& lq) {
-        if (clamped) return solve_clamped(lq, m, lim, T_red, T_base, top, p, region);
-        if (T_red <= T_base) return solve_together(lq, MtpaQuartic(m, T_red), m, lim, T_red, T_base, top, p, region);
-        return solve_together(lq, VoltageLimitQuartic(m, lim.omega, lim.V_max, T_red), m, lim, T_red, T_base, top, p, region);
-    };
-    if (estimate.mtpv) {
-        const MtpvQuartic lq(m, lim.omega, lim.V_max);
-        return lq.valid && with_limit(lq);
-    }
-    return with_limit(IntersectionQuartic(m, lim.omega, lim.V_max, lim.I_max));
+    return command_ok;
 }
 
 }  // namespace
@@ -331,7 +342,7 @@ CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_
     const double v1 = voltage_sq(m, L.omega, p1.i_d, p1.i_q);
     Limit top;
     Point p{0.0, 0.0};
-    if (v1 > voltage_limit_sq(L) && T_red > 0 && field_weakening_together(m, L, T_red, v1, top, p, cmd.region)) {
+    if (v1 > voltage_limit_sq(L) && T_red > 0 && field_weakening_fast(m, L, T_red, v1, top, p, cmd.region)) {
         // done: limit and command from one combined solve
     } else {
         // The sequential path: below the base speed, zero torque, non-salient machines, and
