@@ -21,22 +21,6 @@ namespace ipmsm::linear::conditions {
 
 inline RealRoots roots_of(const double (&c)[5]) { return centred_quartic_roots(c[0], c[1], c[2], c[3], c[4]); }
 
-// One Newton step on the quartic c from x: the rule of polish_quartic_root, with both ends
-// kept, so that a caller maps both to a point at once (the two divisions overlap the second
-// evaluation of c instead of following it) and selects.
-struct NewtonStep {
-    double x0, x1;
-    bool better;  // |c(x1)| < |c(x0)|: take x1 (false for NaN)
-};
-
-inline NewtonStep newton_step(const double (&c)[5], double x) {
-    const double f = (((c[0] * x + c[1]) * x + c[2]) * x + c[3]) * x + c[4];
-    const double df = ((4.0 * c[0] * x + 3.0 * c[1]) * x + 2.0 * c[2]) * x + c[3];
-    const double x1 = x - f / df;
-    const double f1 = (((c[0] * x1 + c[1]) * x1 + c[2]) * x1 + c[3]) * x1 + c[4];
-    return {x, x1, std::fabs(f1) < std::fabs(f)};
-}
-
 // a if take, else b, as a select rather than a branch. On random operating points the winning
 // root and the polish's `better` (a coin toss for a root exact to rounding already) are
 // unpredictable, and a mispredicted branch costs more than both candidates' arithmetic. GCC

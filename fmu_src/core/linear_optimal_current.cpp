@@ -252,9 +252,8 @@ constexpr double kNewtonTol = 1e-8;
 
 bool newton_root(const double (&c)[5], double& u) {
     for (int k = 0; k < kNewtonSteps; ++k) {
-        const double f = (((c[0] * u + c[1]) * u + c[2]) * u + c[3]) * u + c[4];
-        const double df = ((4.0 * c[0] * u + 3.0 * c[1]) * u + 2.0 * c[2]) * u + c[3];
-        const double step = f / df;
+        const QuarticValue v = quartic_value(c, u);
+        const double step = v.f / v.df;
         u -= step;
         if (std::fabs(step) <= kNewtonTol * (1.0 + std::fabs(u))) return std::isfinite(u);
     }

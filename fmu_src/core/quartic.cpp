@@ -676,89 +676,71 @@ inline void sort_up_to_4(double* y, int n) {
     }
 }
 
-// Ferrari's roots of N depressed quartics x^4 + p x^2 + q x + r, stage by stage across the
-// lanes: each solution is one long chain of dependent divisions and square roots, and the CPU
-// overlaps independent chains only when they sit close together in the instruction stream
-// (two interleaved solutions take ~60 % of the time of two calls one after the other).
-template <int N>
-void ferrari_lanes(const double* p, const double* q, const double* r, RealRoots* out) {
+// Ferrari's roots of the depressed quartic x^4 + p x^2 + q x + r, unsorted and not polished.
+RealRoots depressed_quartic_roots(double p, double q, double r) {
     constexpr double kThird = 1.0 / 3.0;
-    double a1[N], a0[N], P[N], Q[N], D[N], m[N];
+    RealRoots o;
+    if (!(std::isfinite(p) && std::isfinite(q) && std::isfinite(r))) return o;  // count 0
     // Resolvent cubic m^3 + a2 m^2 + a1 m + a0 = 0 (a2 = p); depressed by m = z - p/3: z^3 + P z + Q = 0.
-    for (int j = 0; j < N; ++j) {
-        a1[j] = 0.25 * p[j] * p[j] - r[j];
-        a0[j] = -0.125 * q[j] * q[j];
-        const double a2_3 = p[j] * kThird;
-        P[j] = a1[j] - p[j] * a2_3;
-        Q[j] = (2.0 / 27.0) * p[j] * p[j] * p[j] - a1[j] * a2_3 + a0[j];
-        D[j] = 0.25 * Q[j] * Q[j] + P[j] * P[j] * P[j] * (1.0 / 27.0);
+    const double a1 = 0.25 * p * p - r, a0 = -0.125 * q * q;
+    const double a2_3 = p * kThird;
+    const double P = a1 - p * a2_3;
+    const double Q = (2.0 / 27.0) * p * p * p - a1 * a2_3 + a0;
+    const double D = 0.25 * Q * Q + P * P * P * (1.0 / 27.0);
+    double z;
+    if (D > 0.0) {  // one real root, Cardano without cancellation
+        const double A = -cbrt_fast(0.5 * Q + std::copysign(std::sqrt(D), Q));
+        z = A + (A != 0.0 ? -P * kThird / A : 0.0);
+    } else {  // three real roots (P <= 0): the largest, in trigonometric form
+        const double s = std::sqrt(std::max(0.0, -P * kThird));
+        const double c = s > 0.0 ? std::clamp(-0.5 * Q / (s * s * s), -1.0, 1.0) : 0.0;
+        z = 2.0 * s * cos_third_acos(c);
     }
-    for (int j = 0; j < N; ++j) {
-        double z;
-        if (D[j] > 0.0) {  // one real root, Cardano without cancellation
-            const double A = -cbrt_fast(0.5 * Q[j] + std::copysign(std::sqrt(D[j]), Q[j]));
-            z = A + (A != 0.0 ? -P[j] * kThird / A : 0.0);
-        } else {  // three real roots (P <= 0): the largest, in trigonometric form
-            const double s = std::sqrt(std::max(0.0, -P[j] * kThird));
-            const double c = s > 0.0 ? std::clamp(-0.5 * Q[j] / (s * s * s), -1.0, 1.0) : 0.0;
-            z = 2.0 * s * cos_third_acos(c);
-        }
-        m[j] = z - p[j] * kThird;
-    }
-    for (int j = 0; j < N; ++j) {  // one Newton step on the resolvent (its largest root is simple unless q = 0)
-        const double f = ((m[j] + p[j]) * m[j] + a1[j]) * m[j] + a0[j];
-        const double df = (3.0 * m[j] + 2.0 * p[j]) * m[j] + a1[j];
+    double m = z - p * kThird;
+    {  // one Newton step on the resolvent (its largest root is simple unless q = 0)
+        const double f = ((m + p) * m + a1) * m + a0;
+        const double df = (3.0 * m + 2.0 * p) * m + a1;
         const double dm = f / df;
-        if (df > 0.0 && std::isfinite(dm)) m[j] -= dm;
+        if (df > 0.0 && std::isfinite(dm)) m -= dm;
     }
-    for (int j = 0; j < N; ++j) {
-        RealRoots& o = out[j];
-        o = RealRoots{};
-        if (!(std::isfinite(p[j]) && std::isfinite(q[j]) && std::isfinite(r[j]))) continue;  // count 0
-        if (!std::isfinite(m[j]) || !std::isfinite(D[j])) {  // extreme scales
-            o = solve_quartic(1.0, 0.0, p[j], q[j], r[j]);
-            continue;
-        }
-        double* y = o.root;
-        int n = 0;
-        if (m[j] > 0.0 && q[j] != 0.0) {
-            // (y^2 + p/2 + m)^2 = 2m (y - q/(4m))^2  =>  y^2 -+ s y + k +- l = 0, s = sqrt(2m),
-            // k = p/2 + m, l = q/(2s). The constants c+- = k +- l satisfy c+ c- = k^2 - l^2 = r, so
-            // k^2 = l^2 + r exactly: take |k| from that whenever it does not cancel, because
-            // p/2 + m cancels when the roots differ much in size, and m itself is only sqrt(eps)
-            // accurate when the resolvent's largest root is nearly double (s, a square root of m,
-            // stays accurate enough for the final Newton step). Only the sign comes from p/2 + m.
-            // l = q / (2 s) = q s / (4 m): the division runs alongside the square root.
-            const double s = std::sqrt(2.0 * m[j]), l = (0.25 * q[j] / m[j]) * s, k_direct = 0.5 * p[j] + m[j];
-            const double k2 = l * l + r[j];
-            const double k = (r[j] >= 0.0 || k2 > 0.5 * l * l) ? std::copysign(std::sqrt(std::max(0.0, k2)), k_direct) : k_direct;
-            // The smaller constant from the product (no cancellation there).
-            const bool plus_big = std::fabs(k + l) >= std::fabs(k - l);
-            const double c_big = plus_big ? k + l : k - l;
-            const double c_small = c_big != 0.0 ? r[j] / c_big : 0.0;
-            const double c_plus = plus_big ? c_big : c_small, c_minus = plus_big ? c_small : c_big;
-            if (quad_root_pair(-s, c_plus, y[n], y[n + 1]) >= 0.0) n += 2;
-            if (quad_root_pair(s, c_minus, y[n], y[n + 1]) >= 0.0) n += 2;
-        } else {
-            // Biquadratic (q = 0, or the resolvent root rounded to <= 0): y^2 = w, w^2 + p w + r = 0.
-            double w1, w2;
-            if (quad_root_pair(p[j], r[j], w1, w2) >= 0.0) {
-                for (double w : {w1, w2}) {
-                    if (w < 0.0) continue;
-                    const double v = std::sqrt(w);
-                    y[n++] = v;
-                    y[n++] = -v;
-                }
+    if (!std::isfinite(m) || !std::isfinite(D)) return solve_quartic(1.0, 0.0, p, q, r);  // extreme scales
+    double* y = o.root;
+    int n = 0;
+    if (m > 0.0 && q != 0.0) {
+        // (y^2 + p/2 + m)^2 = 2m (y - q/(4m))^2  =>  y^2 -+ s y + k +- l = 0, s = sqrt(2m),
+        // k = p/2 + m, l = q/(2s). The constants c+- = k +- l satisfy c+ c- = k^2 - l^2 = r, so
+        // k^2 = l^2 + r exactly: take |k| from that whenever it does not cancel, because
+        // p/2 + m cancels when the roots differ much in size, and m itself is only sqrt(eps)
+        // accurate when the resolvent's largest root is nearly double (s, a square root of m,
+        // stays accurate enough for the final Newton step). Only the sign comes from p/2 + m.
+        // l = q / (2 s) = q s / (4 m): the division runs alongside the square root.
+        const double s = std::sqrt(2.0 * m), l = (0.25 * q / m) * s, k_direct = 0.5 * p + m;
+        const double k2 = l * l + r;
+        const double k = (r >= 0.0 || k2 > 0.5 * l * l) ? std::copysign(std::sqrt(std::max(0.0, k2)), k_direct) : k_direct;
+        // The smaller constant from the product (no cancellation there).
+        const bool plus_big = std::fabs(k + l) >= std::fabs(k - l);
+        const double c_big = plus_big ? k + l : k - l;
+        const double c_small = c_big != 0.0 ? r / c_big : 0.0;
+        const double c_plus = plus_big ? c_big : c_small, c_minus = plus_big ? c_small : c_big;
+        if (quad_root_pair(-s, c_plus, y[n], y[n + 1]) >= 0.0) n += 2;
+        if (quad_root_pair(s, c_minus, y[n], y[n + 1]) >= 0.0) n += 2;
+    } else {
+        // Biquadratic (q = 0, or the resolvent root rounded to <= 0): y^2 = w, w^2 + p w + r = 0.
+        double w1, w2;
+        if (quad_root_pair(p, r, w1, w2) >= 0.0) {
+            for (double w : {w1, w2}) {
+                if (w < 0.0) continue;
+                const double v = std::sqrt(w);
+                y[n++] = v;
+                y[n++] = -v;
             }
         }
-        bool finite = true;
-        for (int k = 0; k < 4; ++k) finite &= std::isfinite(y[k]);
-        if (!finite) {
-            o = solve_quartic(1.0, 0.0, p[j], q[j], r[j]);
-            continue;
-        }
-        o.count = n;
     }
+    bool finite = true;
+    for (int k = 0; k < 4; ++k) finite &= std::isfinite(y[k]);
+    if (!finite) return solve_quartic(1.0, 0.0, p, q, r);
+    o.count = n;
+    return o;
 }
 
 // A general quartic in the fast path's form: monic and depressed, x = y + shift.
@@ -780,13 +762,6 @@ Centred centre(const double (&c)[5]) {
 
 void unshift(RealRoots& out, double shift) {
     for (int k = 0; k < out.count; ++k) out.root[k] += shift;
-}
-
-// Ferrari's roots of x^4 + p x^2 + q x + r, unsorted and not polished.
-RealRoots depressed_quartic_roots(double p, double q, double r) {
-    RealRoots out;
-    ferrari_lanes<1>(&p, &q, &r, &out);
-    return out;
 }
 
 // The roots of the quartic c, centred as z (solve_quartic's if z is not usable).
@@ -819,30 +794,6 @@ RealRoots solve_depressed_quartic(double p, double q, double r) {
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e) {
     const double coef[5] = {a, b, c, d, e};
     return roots_centred(centre(coef), coef);
-}
-
-void centred_quartic_roots_2(const double (&c1)[5], const double (&c2)[5], RealRoots& r1, RealRoots& r2) {
-    const Centred z1 = centre(c1), z2 = centre(c2);
-    if (!(z1.ok && z2.ok)) {
-        r1 = roots_centred(z1, c1);
-        r2 = roots_centred(z2, c2);
-        return;
-    }
-    const double p[2] = {z1.p, z2.p}, q[2] = {z1.q, z2.q}, r[2] = {z1.r, z2.r};
-    RealRoots out[2];
-    ferrari_lanes<2>(p, q, r, out);
-    r1 = out[0];
-    r2 = out[1];
-    unshift(r1, z1.shift);
-    unshift(r2, z2.shift);
-}
-
-double polish_quartic_root(double a, double b, double c, double d, double e, double x) {
-    const double f = (((a * x + b) * x + c) * x + d) * x + e;
-    const double df = ((4.0 * a * x + 3.0 * b) * x + 2.0 * c) * x + d;
-    const double x1 = x - f / df;
-    const double f1 = (((a * x1 + b) * x1 + c) * x1 + d) * x1 + e;
-    return std::fabs(f1) < std::fabs(f) ? x1 : x;
 }
 
 }  // namespace ipmsm

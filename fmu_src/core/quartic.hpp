@@ -18,6 +18,8 @@
 // - No heap allocation, no exceptions; thread-safe (no state).
 #pragma once
 
+#include <cmath>
+
 namespace ipmsm {
 
 struct RealRoots {
@@ -44,12 +46,29 @@ RealRoots solve_depressed_quartic(double p, double q, double r);
 // tan-half-angle quartics) or that are depressed already (b = 0). If the centroid -b/4a is
 // beyond 2^10 (a root near infinity) it returns solve_quartic()'s roots instead.
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e);
-// Two quartics (coefficients a..e each) through centred_quartic_roots at once: the two Ferrari
-// solutions are interleaved stage by stage, which lets the CPU overlap their latencies (about
-// 60 % of the time of two calls). For the controller's limit and command quartics.
-void centred_quartic_roots_2(const double (&c1)[5], const double (&c2)[5], RealRoots& r1, RealRoots& r2);
-// One Newton step on a x^4 + ... + e at x, kept only if it lowers |f|.
-double polish_quartic_root(double a, double b, double c, double d, double e, double x);
+
+// A quartic c[0] x^4 + ... + c[4] and its slope at x (Horner).
+struct QuarticValue {
+    double f, df;
+};
+inline QuarticValue quartic_value(const double (&c)[5], double x) {
+    return {(((c[0] * x + c[1]) * x + c[2]) * x + c[3]) * x + c[4],
+            ((4.0 * c[0] * x + 3.0 * c[1]) * x + 2.0 * c[2]) * x + c[3]};
+}
+
+// One Newton step on the quartic c from a root estimate x0, to x1. `better` says whether it
+// lowered |c(x)| (false for NaN): then take x1, else keep x0 (at a double root p and p' are both
+// rounding noise and the step is arbitrary). Both ends are returned so that a caller can map both
+// to what it needs at once and select, instead of waiting for the comparison.
+struct NewtonStep {
+    double x0, x1;
+    bool better;
+};
+inline NewtonStep newton_step(const double (&c)[5], double x0) {
+    const QuarticValue v = quartic_value(c, x0);
+    const double x1 = x0 - v.f / v.df;
+    return {x0, x1, std::fabs(quartic_value(c, x1).f) < std::fabs(v.f)};
+}
 
 // a x^3 + b x^2 + c x + d = 0, same conventions.
 RealRoots solve_cubic(double a, double b, double c, double d);

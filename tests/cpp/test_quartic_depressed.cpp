@@ -88,9 +88,8 @@ TEST(DepressedQuartic, KnownRootsAndNoNaN) {
 // The general quartics of the fast path (centred_quartic_roots, the controller's tan-half-angle
 // quartics) against the robust solver: random quartics with four or two real roots of order 1
 // around a random centroid within the fast path's range, each root polished once as the
-// controller does. Also: the two-at-once solver gives the same roots as two single calls, and
-// far-off centroids (a root near infinity) are handed to the robust solver.
-TEST(CentredQuartic, MatchesTheRobustSolverAndPairsAreIdentical) {
+// controller does. Also: far-off centroids (a root near infinity) are handed to the robust solver.
+TEST(CentredQuartic, MatchesTheRobustSolverAfterOnePolish) {
     const double kCentre = 16;  // centroids in [-16, 16], clusters of width 2 (gaps >= 1e-3)
     std::mt19937_64 rng(13);
     std::uniform_real_distribution<double> u(-1, 1);
@@ -116,18 +115,13 @@ TEST(CentredQuartic, MatchesTheRobustSolverAndPairsAreIdentical) {
         }
         const RealRoots fast = centred_quartic_roots(c[0], c[1], c[2], c[3], c[4]);
         const RealRoots robust = solve_quartic(c[0], c[1], c[2], c[3], c[4]);
-        RealRoots other, pair_a, pair_b;
-        const double d[5] = {c[0], -c[1], c[2], -c[3], c[4]};  // roots -x_i
-        other = centred_quartic_roots(d[0], d[1], d[2], d[3], d[4]);
-        centred_quartic_roots_2(c, d, pair_a, pair_b);
-        ASSERT_EQ(pair_a.count, fast.count) << n;
-        ASSERT_EQ(pair_b.count, other.count) << n;
-        for (int k = 0; k < fast.count; ++k) ASSERT_EQ(pair_a.root[k], fast.root[k]) << n;
-        for (int k = 0; k < other.count; ++k) ASSERT_EQ(pair_b.root[k], other.root[k]) << n;
         if (fast.count != robust.count) continue;  // only near double roots (gap >= 1e-3 here: never seen)
         ++compared;
         double polished[4];
-        for (int k = 0; k < fast.count; ++k) polished[k] = polish_quartic_root(c[0], c[1], c[2], c[3], c[4], fast.root[k]);
+        for (int k = 0; k < fast.count; ++k) {
+            const NewtonStep st = newton_step(c, fast.root[k]);
+            polished[k] = st.better ? st.x1 : st.x0;
+        }
         // Ascending, as the robust solver's roots (an insertion sort: std::sort on this 4-array
         // trips GCC 12's -Warray-bounds).
         for (int i = 1; i < fast.count; ++i)
