@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
         std::vector<Op> low, high;
         for (const Op& o : rnd) (std::abs(o.w_m) < 1500 * M_PI / 30 ? low : high).push_back(o);
         row("  ... below 1500 r/min (MTPA region: 1 closed form + 1 quartic)", ns_per_call(low, R, linear_call));
-        row("  ... above 1500 r/min (field weakening: 2 quartics at once)", ns_per_call(high, R, linear_call));
+        row("  ... above 1500 r/min (field weakening: T_max by Newton + 1 quartic)", ns_per_call(high, R, linear_call));
     }
 
     // One quartic, Ferrari vs Eigen's companion matrix: the Case i quartic of each operating point.
