@@ -1,7 +1,8 @@
 // The linear machine's optimality conditions, each as one quartic c[0] x^4 + ... + c[4] = 0 and
 // the rule that reads its point from the real roots (used by linear_optimal_current.cpp only).
-// The roots come unpolished from Ferrari's fast path (quartic.hpp), alone or two quartics
-// together; the rule chooses among them, then polishes only the chosen root on c. All for the
+// The roots come unpolished from Ferrari's fast path (quartic.hpp); the rule chooses among
+// them, then polishes only the chosen root on c (MTPV and the intersection also take a root
+// polished by Newton from elsewhere, through at()). All for the
 // T' >= 0 side (linear_optimal_current.hpp) and a salient machine (L_d != L_q).
 #pragma once
 

@@ -14,8 +14,8 @@ namespace {
 constexpr double kLimitSlack = 1e-9;
 
 // T_max with R_s differs from the lossless estimate by less than this (the default motor at
-// 1500..12000 r/min: within 3.0 %); a command further above is taken as clamped (and checked).
-constexpr double kClampMargin = 0.05;
+// 1500..12000 r/min: within 3.0 %); a Newton-polished T_max further off is taken as a wrong root.
+constexpr double kEstimateMargin = 0.05;
 
 // Below this |L_d - L_q| / max(L_d, L_q) the machine is treated as non-salient (surface PM).
 constexpr double kNonSalient = 1e-9;
@@ -197,7 +197,7 @@ bool current_limit_binds(const LinearMachine& m, double omega, Point p) {
     return dT * dc > 0.0;
 }
 
-// The limit checks, shared by the sequential and the combined paths.
+// The limit checks, shared by the sequential and the fast field-weakening paths.
 bool mtpv_limit_at(const LinearMachine& m, const OperatingLimits& lim, Point p, double T_base, Limit& out) {
     if (!(p.i_d * p.i_d + p.i_q * p.i_q <= lim.I_max * lim.I_max * (1.0 + kLimitSlack))) return false;
     const double T = reduced_torque(m, p.i_d, p.i_q);
@@ -261,10 +261,9 @@ bool newton_root(const double (&c)[5], double& u) {
 }
 
 // T_max in field weakening as MATH.md allows it with R_s: the lossless (R_s = 0) closed form,
-// polished on the limit's own quartic by Newton's method. It runs alongside the command's
-// Ferrari solution (the two are independent, so the CPU overlaps them) and is confirmed by the
-// checks of the Ferrari path: the current limit (MTPV) or its KKT sign (intersection), and the
-// torque within kClampMargin of the estimate (the same root, not a far one). A failed check
+// polished on the limit's own quartic by Newton's method: about 4 steps from the estimate, in
+// place of a second Ferrari solution. It is confirmed by the checks of the Ferrari path: the current limit (MTPV) or its KKT sign (intersection), and the
+// torque within kEstimateMargin of the estimate (the same root, not a far one). A failed check
 // returns false: the caller then takes the all-Ferrari sequential path.
 bool limit_by_newton(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, double T_base,
                      Limit& top) {
@@ -286,7 +285,7 @@ bool limit_by_newton(const LinearMachine& m, const OperatingLimits& lim, const L
         p = Q.at(u);
         if (!(current_limit_binds(m, lim.omega, p) && intersection_limit_at(m, p, T_base, top))) return false;
     }
-    return std::abs(top.T_red - e.T_red) <= kClampMargin * e.T_red;
+    return std::abs(top.T_red - e.T_red) <= kEstimateMargin * e.T_red;
 }
 
 // Field weakening with a torque command: the limit by limit_by_newton, the command by one
@@ -298,9 +297,6 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
     if (non_salient(m)) return false;  // MTPA and Case ii are closed forms there
     const double T_base = base_torque_estimate(m, lim, v1);
     const LimitEstimate estimate = lossless_limit_estimate(m, lim);
-    // The limit first: its Newton chain is short in instructions but long in latency, so the
-    // command's Ferrari solution below runs in its shadow (the CPU overlaps independent work
-    // only within a window of a few hundred instructions).
     const bool limit_ok = limit_by_newton(m, lim, estimate, T_base, top);
     bool command_ok;
     if (T_red <= T_base) {
@@ -342,10 +338,10 @@ CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_
     Limit top;
     Point p{0.0, 0.0};
     if (v1 > voltage_limit_sq(L) && T_red > 0 && field_weakening_fast(m, L, T_red, v1, top, p, cmd.region)) {
-        // done: limit and command from one combined solve
+        // done: T_max by Newton, the command by one Ferrari solution
     } else {
         // The sequential path: below the base speed, zero torque, non-salient machines, and
-        // whenever a prediction of the combined path was wrong.
+        // whenever a prediction or check of the fast path failed.
         top = max_torque_from(m, L, p1, v1);
         if (!top.feasible) {
             cmd.feasible = false;
