@@ -6,6 +6,7 @@
 // torque/speed ramp, as in a drive, warm starts) and "random" (every call a new operating point).
 //
 // Usage: build/bin/bench_controller [flux_map.csv]
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -69,6 +70,25 @@ double ns_per_call(const std::vector<Op>& ops, int repeats, F&& f) {
     return best;
 }
 
+// The same, but each call's inputs depend on the previous call's result (by a term that is zero,
+// which the CPU cannot know): the latency of one call, without the overlap of independent calls.
+template <class F>
+double ns_per_call_chained(const std::vector<Op>& ops, int repeats, F&& f) {
+    double best = 1e300;
+    for (int r = 0; r < repeats; ++r) {
+        double sink = 0;
+        const auto t0 = Clock::now();
+        for (const Op& o : ops) {
+            const double zero = sink * 0.0;
+            sink = std::min(sink + f(Op{o.T + zero, o.w_m + zero}), 1e300);
+        }
+        const auto t1 = Clock::now();
+        g_sink = sink;
+        best = std::min(best, std::chrono::duration<double, std::nano>(t1 - t0).count() / ops.size());
+    }
+    return best;
+}
+
 void row(const char* name, double ns, const char* note = "") { std::printf("%-58s %9.1f ns  %s\n", name, ns, note); }
 
 }  // namespace
@@ -118,6 +138,13 @@ int main(int argc, char** argv) {
     };
     row("one Case i quartic: Ferrari, depressed fast path (used online)", ns_per_call(rnd, R, ferrari_depressed));
     row("one Case i quartic: Eigen companion matrix (PolynomialSolver)", ns_per_call(rnd, R, eigen_quartic));
+    row("  ... latency of the depressed fast path (calls chained)", ns_per_call_chained(rnd, R, ferrari_depressed));
+    {
+        std::vector<Op> high;
+        for (const Op& o : rnd)
+            if (std::abs(o.w_m) >= 1500 * M_PI / 30) high.push_back(o);
+        row("  ... latency of the linear machine above 1500 r/min (calls chained)", ns_per_call_chained(high, R, linear_call));
+    }
 
     // Newton-Lagrange on the linear machine from a fixed start (no Ferrari seed), MTPA only.
     const auto lin_map = std::make_shared<const FluxMap>(linear_flux_map(lin.L_d, lin.L_q, lin.psi_m, 900.0, 7));
