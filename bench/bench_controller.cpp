@@ -56,31 +56,22 @@ std::vector<Op> trajectory_ops(int n) {
     return v;
 }
 
-template <class F>
+// ns per call, best of `repeats` runs over ops. Independent calls (the default) overlap in the
+// CPU as far as its window allows; Chained makes each call's inputs depend on the previous
+// result (by a term that is zero, which the CPU cannot know): the latency of one call.
+template <bool Chained = false, class F>
 double ns_per_call(const std::vector<Op>& ops, int repeats, F&& f) {
     double best = 1e300;
     for (int r = 0; r < repeats; ++r) {
         double sink = 0;
         const auto t0 = Clock::now();
-        for (const Op& o : ops) sink += f(o);
-        const auto t1 = Clock::now();
-        g_sink = sink;
-        best = std::min(best, std::chrono::duration<double, std::nano>(t1 - t0).count() / ops.size());
-    }
-    return best;
-}
-
-// The same, but each call's inputs depend on the previous call's result (by a term that is zero,
-// which the CPU cannot know): the latency of one call, without the overlap of independent calls.
-template <class F>
-double ns_per_call_chained(const std::vector<Op>& ops, int repeats, F&& f) {
-    double best = 1e300;
-    for (int r = 0; r < repeats; ++r) {
-        double sink = 0;
-        const auto t0 = Clock::now();
         for (const Op& o : ops) {
-            const double zero = sink * 0.0;
-            sink = std::min(sink + f(Op{o.T + zero, o.w_m + zero}), 1e300);
+            if constexpr (Chained) {
+                const double zero = sink * 0.0;
+                sink = std::min(sink + f(Op{o.T + zero, o.w_m + zero}), 1e300);
+            } else {
+                sink += f(o);
+            }
         }
         const auto t1 = Clock::now();
         g_sink = sink;
@@ -110,13 +101,12 @@ int main(int argc, char** argv) {
     };
     row("Ferrari, linear machine (clamp + MTPA/Case ii), trajectory", ns_per_call(traj, R, linear_call), "target <= 150 ns");
     row("Ferrari, linear machine (clamp + MTPA/Case ii), random", ns_per_call(rnd, R, linear_call), "target <= 150 ns");
-    {  // the same, split by where the operating point is
-        // The nominal (unsaturated) machine's base speed is about 2000 r/min at 500 A.
-        std::vector<Op> low, high;
-        for (const Op& o : rnd) (std::abs(o.w_m) < 1500 * M_PI / 30 ? low : high).push_back(o);
-        row("  ... below 1500 r/min (MTPA region: 1 closed form + 1 quartic)", ns_per_call(low, R, linear_call));
-        row("  ... above 1500 r/min (field weakening: T_max by Newton + 1 quartic)", ns_per_call(high, R, linear_call));
-    }
+    // The same, split by where the operating point is.
+    // The nominal (unsaturated) machine's base speed is about 2000 r/min at 500 A.
+    std::vector<Op> low, high;
+    for (const Op& o : rnd) (std::abs(o.w_m) < 1500 * M_PI / 30 ? low : high).push_back(o);
+    row("  ... below 1500 r/min (MTPA region: 1 closed form + 1 quartic)", ns_per_call(low, R, linear_call));
+    row("  ... above 1500 r/min (field weakening: T_max by Newton + 1 quartic)", ns_per_call(high, R, linear_call));
 
     // One quartic, Ferrari vs Eigen's companion matrix: the Case i quartic of each operating point.
     const double dL = lin.L_d - lin.L_q;
@@ -138,13 +128,8 @@ int main(int argc, char** argv) {
     };
     row("one Case i quartic: Ferrari, depressed fast path (used online)", ns_per_call(rnd, R, ferrari_depressed));
     row("one Case i quartic: Eigen companion matrix (PolynomialSolver)", ns_per_call(rnd, R, eigen_quartic));
-    row("  ... latency of the depressed fast path (calls chained)", ns_per_call_chained(rnd, R, ferrari_depressed));
-    {
-        std::vector<Op> high;
-        for (const Op& o : rnd)
-            if (std::abs(o.w_m) >= 1500 * M_PI / 30) high.push_back(o);
-        row("  ... latency of the linear machine above 1500 r/min (calls chained)", ns_per_call_chained(high, R, linear_call));
-    }
+    row("  ... latency of the depressed fast path (calls chained)", ns_per_call<true>(rnd, R, ferrari_depressed));
+    row("  ... latency of the linear machine above 1500 r/min (calls chained)", ns_per_call<true>(high, R, linear_call));
 
     // Newton-Lagrange on the linear machine from a fixed start (no Ferrari seed), MTPA only.
     const auto lin_map = std::make_shared<const FluxMap>(linear_flux_map(lin.L_d, lin.L_q, lin.psi_m, 900.0, 7));

@@ -39,6 +39,15 @@ inline Point choose(bool take, Point p1, Point p0) {
     return {select(take, p1.i_d, p0.i_d), select(take, p1.i_q, p0.i_q)};
 }
 
+// The point at root estimate x of the quartic c after newton_step: at() of both ends, then a
+// select. x1 is taken only if it lowered |c| and is below x1_below (a root's side condition).
+template <class At>
+Point polished_point(const double (&c)[5], double x, At at, double x1_below = INFINITY) {
+    const NewtonStep st = newton_step(c, x);
+    const Point p0 = at(st.x0), p1 = at(st.x1);
+    return choose(st.better && st.x1 < x1_below, p1, p0);
+}
+
 // Arg-max and arg-min without branches: a key with the candidate's slot (0..7) in its lowest
 // three mantissa bits; std::max/min of keys (maxsd/minsd) then carries the slot along. Ties
 // closer than 2^-49 relative go by slot. Keys must be finite (clamp +-inf to +-DBL_MAX first).
@@ -78,9 +87,7 @@ struct MtpaQuartic {
             const double s = std::sqrt(m.psi_m * m.psi_m + 4.0 * dL * dL * y * y);
             return Point{2.0 * dL * y * y / (m.psi_m + s), y};
         };
-        const NewtonStep st = newton_step(c, i_q);
-        const Point p0 = at(st.x0), p1 = at(st.x1);
-        out = choose(st.better, p1, p0);
+        out = polished_point(c, i_q, at);
         return true;
     }
     const LinearMachine& m;
@@ -116,9 +123,7 @@ struct VoltageLimitQuartic {
         }
         if (!(best < 0.5 * DBL_MAX)) return false;
         const double best_i_q = r.root[slot_of(best)];
-        const NewtonStep st = newton_step(c, best_i_q);
-        const double i_d0 = i_d_at(st.x0), i_d1 = i_d_at(st.x1);
-        out = choose(st.better, Point{i_d1, st.x1}, Point{i_d0, st.x0});
+        out = polished_point(c, best_i_q, [&](double i_q) { return Point{i_d_at(i_q), i_q}; });
         return true;
     }
     const LinearMachine& m;
@@ -159,13 +164,7 @@ struct MtpvQuartic {
         }
         const unsigned k = slot_of(best);
         const double best_u = k < 4 ? r.root[k] : INFINITY;
-        if (best_u == INFINITY) {
-            out = Point{ad + bd, aq + bq};
-        } else {
-            const NewtonStep st = newton_step(c, best_u);
-            const Point p0 = at(st.x0), p1 = at(st.x1);
-            out = choose(st.better, p1, p0);
-        }
+        out = best_u == INFINITY ? Point{ad + bd, aq + bq} : polished_point(c, best_u, [&](double u) { return at(u); });
         return std::fabs(best) < DBL_MAX;
     }
     const LinearMachine& m;
@@ -201,9 +200,7 @@ struct IntersectionQuartic {
         }
         if (!(best > -0.5 * DBL_MAX)) return false;
         const double best_u = r.root[slot_of(best)];
-        const NewtonStep st = newton_step(c, best_u);
-        const Point p0 = at(st.x0), p1 = at(st.x1);
-        out = choose(st.better && st.x1 < 0, p1, p0);
+        out = polished_point(c, best_u, [&](double u) { return at(u); }, 0.0);  // i_q > 0 <=> u < 0
         return true;
     }
     const LinearMachine& m;

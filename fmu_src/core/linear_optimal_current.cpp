@@ -133,9 +133,9 @@ bool current_voltage_intersection(const LinearMachine& m, double omega, double V
 namespace {
 
 // T_max in field weakening, estimated for the lossless (R_s = 0) machine, where it is closed
-// form. It chooses the work, never the result: which limit quartic to solve (is the MTPV point
-// inside the current circle?), and whether the command is clamped so that its own quartic can
-// be skipped. In flux coordinates lambda = (psi_m + L_d i_d, L_q i_q) on the circle
+// form. It says which limit applies (is the MTPV point inside the current circle?) and seeds
+// limit_by_newton with its point; the result always comes from the machine with R_s. In flux
+// coordinates lambda = (psi_m + L_d i_d, L_q i_q) on the circle
 // |lambda| = V/omega the torque lambda_q (psi_m L_q + dL lambda_d) / (L_d L_q) is stationary
 // where 2 dL lambda_d^2 + psi_m L_q lambda_d - dL (V/omega)^2 = 0 (MTPV); the current circle
 // meets the ellipse where (L_d^2 - L_q^2) i_d^2 + 2 psi_m L_d i_d + psi_m^2 + L_q^2 I^2 = (V/omega)^2.
@@ -176,8 +176,8 @@ LimitEstimate lossless_limit_estimate(const LinearMachine& m, const OperatingLim
 // along the MTPA curve |v|^2 grows with the current; interpolated linearly in I^2 between i = 0
 // and the MTPA point at I_max (|v|^2 = v1_sq > V_max^2 there), it gives the current I_b at the
 // ellipse, and the MTPA torque at I_b. Wrong by a few per cent at most (192 of 101 427 random
-// field-weakening commands on the default motor land on the other side), which costs one extra
-// quartic, never accuracy.
+// field-weakening commands on the default motor land on the other side), which costs the
+// sequential path's extra quartics, never accuracy.
 double base_torque_estimate(const LinearMachine& m, const OperatingLimits& lim, double v1_sq) {
     const double v0_sq = voltage_sq(m, lim.omega, 0.0, 0.0), V2 = lim.V_max * lim.V_max;
     if (!(V2 > v0_sq)) return 0.0;  // above the corner speed: the back-EMF alone exceeds V_max

@@ -183,6 +183,15 @@ inline void cswap(double& x, double& y) {
     y = hi;
 }
 
+// Sorts y[0..4) ascending: a five-comparator network, no branches on the data.
+inline void sort4(double* y) {
+    cswap(y[0], y[1]);
+    cswap(y[2], y[3]);
+    cswap(y[0], y[2]);
+    cswap(y[1], y[3]);
+    cswap(y[1], y[2]);
+}
+
 // Adds the exact root 0 to a sorted list (count < 4).
 inline RealRoots with_zero_root(RealRoots r) {
     int i = r.count;
@@ -477,11 +486,7 @@ template <int N>
 inline RealRoots finish(const double (&q)[N + 1], const double* yin, int n, int m) {
     double y[4];
     for (int i = 0; i < 4; ++i) y[i] = i < n ? yin[i] : HUGE_VAL;
-    cswap(y[0], y[1]);
-    cswap(y[2], y[3]);
-    cswap(y[0], y[2]);
-    cswap(y[1], y[3]);
-    cswap(y[1], y[2]);
+    sort4(y);
     // Sorted: the nearest other root is a neighbour, and steps of at most half the gap keep
     // the order. (A twin's gap 0 is skipped by taking the next distinct neighbour: y[i-2] or
     // y[i+2] can only matter for a double root, whose copies move alike.)
@@ -662,18 +667,10 @@ inline double quad_root_pair(double b, double c, double& r1, double& r2) {
     return disc;
 }
 
-inline double depressed_value(double p, double q, double r, double x) { return ((x * x + p) * x + q) * x + r; }
-
-// Sorts the first n (0, 2 or 4) entries without branches on the data.
+// Sorts the first n (0, 2 or 4) entries.
 inline void sort_up_to_4(double* y, int n) {
     if (n == 2) cswap(y[0], y[1]);
-    if (n == 4) {  // the network of finish()
-        cswap(y[0], y[1]);
-        cswap(y[2], y[3]);
-        cswap(y[0], y[2]);
-        cswap(y[1], y[3]);
-        cswap(y[1], y[2]);
-    }
+    if (n == 4) sort4(y);
 }
 
 // Ferrari's roots of the depressed quartic x^4 + p x^2 + q x + r, unsorted and not polished.
@@ -743,57 +740,31 @@ RealRoots depressed_quartic_roots(double p, double q, double r) {
     return o;
 }
 
-// A general quartic in the fast path's form: monic and depressed, x = y + shift.
-struct Centred {
-    double p, q, r, shift;
-    bool ok;  // false: a root near infinity, use solve_quartic
-};
-
-Centred centre(const double (&c)[5]) {
-    // Already monic and depressed (the controller's MTPA and voltage-limit quartics): as is.
-    if (c[0] == 1.0 && c[1] == 0.0) return {c[2], c[3], c[4], 0.0, true};
-    // Monic, then depressed by x = y - b/(4a) (Taylor shift by synthetic division).
-    const double inv_a = 1.0 / c[0], B = c[1] * inv_a, C = c[2] * inv_a, D = c[3] * inv_a, E = c[4] * inv_a;
-    const double sh = -0.25 * B;  // the centroid of the roots
-    if (!(std::fabs(sh) <= kCentredMaxShift) || !std::isfinite(C + D + E)) return {0, 0, 0, 0, false};
-    const TaylorShift z = taylor_shift(B, C, D, E, sh);
-    return {z.P, z.Q, z.R, sh, true};
-}
-
-void unshift(RealRoots& out, double shift) {
-    for (int k = 0; k < out.count; ++k) out.root[k] += shift;
-}
-
-// The roots of the quartic c, centred as z (solve_quartic's if z is not usable).
-RealRoots roots_centred(const Centred& z, const double (&c)[5]) {
-    if (!z.ok) return solve_quartic(c[0], c[1], c[2], c[3], c[4]);
-    RealRoots out = depressed_quartic_roots(z.p, z.q, z.r);
-    unshift(out, z.shift);
-    return out;
-}
-
-// One Newton step on x^4 + p x^2 + q x + r at x, kept only if it lowers |f| (false for NaN: a
-// zero slope keeps x).
-double polish_depressed_root(double p, double q, double r, double x) {
-    const double f = depressed_value(p, q, r, x);
-    const double df = (4.0 * x * x + 2.0 * p) * x + q;
-    const double x1 = x - f / df;
-    return std::fabs(depressed_value(p, q, r, x1)) < std::fabs(f) ? x1 : x;
-}
-
 }  // namespace
 
 RealRoots solve_depressed_quartic(double p, double q, double r) {
     RealRoots out = depressed_quartic_roots(p, q, r);
     // Every root polished, over all four slots (no data-dependent branches; unused slots are 0).
-    for (int k = 0; k < 4; ++k) out.root[k] = k < out.count ? polish_depressed_root(p, q, r, out.root[k]) : 0.0;
+    const double c[5] = {1.0, 0.0, p, q, r};
+    for (int k = 0; k < 4; ++k) {
+        const NewtonStep st = newton_step(c, out.root[k]);
+        out.root[k] = k < out.count ? (st.better ? st.x1 : st.x0) : 0.0;
+    }
     sort_up_to_4(out.root, out.count);
     return out;
 }
 
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e) {
-    const double coef[5] = {a, b, c, d, e};
-    return roots_centred(centre(coef), coef);
+    // Already monic and depressed (the controller's MTPA and voltage-limit quartics): as is.
+    if (a == 1.0 && b == 0.0) return depressed_quartic_roots(c, d, e);
+    // Monic, then depressed by x = y + sh about the centroid sh of the roots.
+    const double inv_a = 1.0 / a, B = b * inv_a, C = c * inv_a, D = d * inv_a, E = e * inv_a;
+    const double sh = -0.25 * B;
+    if (!(std::fabs(sh) <= kCentredMaxShift) || !std::isfinite(C + D + E)) return solve_quartic(a, b, c, d, e);
+    const TaylorShift z = taylor_shift(B, C, D, E, sh);
+    RealRoots out = depressed_quartic_roots(z.P, z.Q, z.R);
+    for (int k = 0; k < out.count; ++k) out.root[k] += sh;
+    return out;
 }
 
 }  // namespace ipmsm
