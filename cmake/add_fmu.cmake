@@ -3,7 +3,8 @@
 #         [LIBRARIES <targets ...>]     # linked into the FMU and its generator
 #         [RESOURCES <files ...>]       # copied into resources/ (files, not directories)
 #         [DOCUMENTATION <index.html>]) # copied to documentation/index.html, with the variable
-#                                       # reference generated from the variable table inserted
+#                                       # reference generated from the variable table put at
+#                                       # its <!-- ipmsm-fmu:variables --> marker (required)
 #
 # Builds an FMI 2.0 co-simulation FMU for Linux x86-64:
 #   <NAME>                    the shared library <NAME>.so: hidden visibility, only the fmi2* functions
@@ -26,12 +27,14 @@ if(CMAKE_SCRIPT_MODE_FILE)
   include(${FMU_CONFIG})  # NAME, DIR, FMU, LIBRARY, GENERATOR, RESOURCES, DOCUMENTATION
   file(REMOVE_RECURSE ${DIR})
   file(MAKE_DIRECTORY ${DIR}/binaries/linux64 ${DIR}/resources)
-  execute_process(COMMAND ${GENERATOR} ${DIR}/modelDescription.xml --html ${DIR}.variables.html RESULT_VARIABLE rc)
+  set(html_args)
+  if(DOCUMENTATION)
+    set(html_args --html ${DIR}.variables.html)
+  endif()
+  execute_process(COMMAND ${GENERATOR} ${DIR}/modelDescription.xml ${html_args} RESULT_VARIABLE rc)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "${NAME}: the modelDescription.xml generator failed (${rc})")
   endif()
-  file(READ ${DIR}.variables.html variables_html)
-  file(REMOVE ${DIR}.variables.html)
   file(COPY_FILE ${LIBRARY} ${DIR}/binaries/linux64/${NAME}.so)
   foreach(r IN LISTS RESOURCES)
     get_filename_component(r_name ${r} NAME)
@@ -39,22 +42,16 @@ if(CMAKE_SCRIPT_MODE_FILE)
   endforeach()
   set(entries modelDescription.xml binaries resources)
   if(DOCUMENTATION)
-    # the documentation, with the generated variable reference at <!-- ipmsm-fmu:variables --> or
-    # else before </body>
+    # the documentation, with the generated variable reference at <!-- ipmsm-fmu:variables -->
+    file(READ ${DIR}.variables.html variables_html)
+    file(REMOVE ${DIR}.variables.html)
     file(MAKE_DIRECTORY ${DIR}/documentation)
     file(READ ${DOCUMENTATION} html)
     string(FIND "${html}" "<!-- ipmsm-fmu:variables -->" at)
-    if(at GREATER_EQUAL 0)
-      string(REPLACE "<!-- ipmsm-fmu:variables -->" "${variables_html}" html "${html}")
-    else()
-      string(FIND "${html}" "</body>" at REVERSE)
-      if(at LESS 0)
-        message(FATAL_ERROR "${NAME}: ${DOCUMENTATION} has no </body>")
-      endif()
-      string(SUBSTRING "${html}" 0 ${at} head)
-      string(SUBSTRING "${html}" ${at} -1 tail)
-      set(html "${head}${variables_html}${tail}")
+    if(at LESS 0)
+      message(FATAL_ERROR "${NAME}: ${DOCUMENTATION} has no <!-- ipmsm-fmu:variables --> marker")
     endif()
+    string(REPLACE "<!-- ipmsm-fmu:variables -->" "${variables_html}" html "${html}")
     file(WRITE ${DIR}/documentation/index.html "${html}")
     list(APPEND entries documentation)
   endif()

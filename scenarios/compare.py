@@ -36,7 +36,7 @@ VARIANTS = (
 
 
 def _slug(s: str) -> str:
-    s = re.sub(r"(?<![A-Za-z0-9])-(?=[0-9])", "minus ", s)  # "-20 degC" and "120 degC" stay apart
+    s = re.sub(r"(?<![A-Za-z0-9])-(?=[0-9])", "minus ", s)  # "-20 degC" and "20 degC" stay apart
     return re.sub(r"[^A-Za-z0-9]+", "_", s).strip("_").lower()
 
 

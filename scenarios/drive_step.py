@@ -51,16 +51,13 @@ CONNECTIONS = [
     ("controller", "u_d_ref", "plant", "u_d"),
     ("controller", "u_q_ref", "plant", "u_q"),
 ]
-# the recorded outputs: (FMU, variable, FMI type)
+# the recorded outputs: (FMU, variable); their FMI types come from the model descriptions
 RECORDED = [
-    ("controller", "T_cmd", "Real"), ("controller", "T_max", "Real"),
-    ("controller", "i_d_ref", "Real"), ("controller", "i_q_ref", "Real"),
-    ("controller", "u_d_ref", "Real"), ("controller", "u_q_ref", "Real"),
-    ("controller", "region", "Integer"),
-    ("plant", "i_d", "Real"), ("plant", "i_q", "Real"), ("plant", "psi_d", "Real"), ("plant", "psi_q", "Real"),
-    ("plant", "T_e", "Real"), ("plant", "P_elec", "Real"),
+    ("controller", "T_cmd"), ("controller", "T_max"), ("controller", "i_d_ref"), ("controller", "i_q_ref"),
+    ("controller", "u_d_ref"), ("controller", "u_q_ref"), ("controller", "region"),
+    ("plant", "i_d"), ("plant", "i_q"), ("plant", "psi_d"), ("plant", "psi_q"), ("plant", "T_e"), ("plant", "P_elec"),
 ]
-COLUMNS = ["k", "T_ref", "w_m"] + [f"{fmu}.{name}" for fmu, name, _ in RECORDED]
+COLUMNS = ["k", "T_ref", "w_m"] + [f"{fmu}.{name}" for fmu, name in RECORDED]
 
 
 def torque(k: int) -> float:
@@ -84,7 +81,7 @@ def _table(rows) -> np.ndarray:
 
 
 def _row(k, get):
-    return [k, torque(k), speed(k)] + [get(fmu, name, kind) for fmu, name, kind in RECORDED]
+    return [k, torque(k), speed(k)] + [get(fmu, name) for fmu, name in RECORDED]
 
 
 def compare(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
@@ -114,7 +111,9 @@ def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str =
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    fmus, vrs, dirs = {}, {}, []
+    from .fmu import get_values, set_values
+
+    fmus, variables, dirs = {}, {}, []
     try:
         for key, path in (("controller", controller_fmu), ("plant", plant_fmu)):
             md = read_model_description(str(path))
@@ -125,14 +124,13 @@ def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str =
             f.instantiate()
             f.setupExperiment(startTime=0.0)
             fmus[key] = f
-            vrs[key] = {v.name: v.valueReference for v in md.modelVariables}
+            variables[key] = {v.name: v for v in md.modelVariables}
 
         def set_real(fmu, name, value):
-            fmus[fmu].setReal([vrs[fmu][name]], [value])
+            set_values(fmus[fmu], variables[fmu], **{name: value})
 
-        def get(fmu, name, kind="Real"):
-            getter = fmus[fmu].getReal if kind == "Real" else fmus[fmu].getInteger
-            return getter([vrs[fmu][name]])[0]
+        def get(fmu, name):
+            return get_values(fmus[fmu], variables[fmu], name)
 
         def exchange():
             for src, out, dst, inp in CONNECTIONS:
@@ -191,27 +189,28 @@ def run_libcosim(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarra
     from fmpy import read_model_description
 
     log_output_level(CosimLogLevel.ERROR)
-    vrs = {key: {v.name: v.valueReference for v in read_model_description(str(p)).modelVariables}
-           for key, p in (("controller", controller_fmu), ("plant", plant_fmu))}
+    variables = {key: {v.name: v for v in read_model_description(str(p)).modelVariables}
+                 for key, p in (("controller", controller_fmu), ("plant", plant_fmu))}
     with tempfile.TemporaryDirectory(prefix="ipmsm-osp-") as tmp:
         execution = CosimExecution.from_osp_config_file(str(osp_config(controller_fmu, plant_fmu, tmp)))
-        index = {key: execution.slave_index_from_instance_name(key) for key in vrs}
+        index = {key: execution.slave_index_from_instance_name(key) for key in variables}
         assert None not in index.values(), f"the OSP configuration lacks a simulator: {index}"
         manipulator = CosimManipulator.create_override()
         observer = CosimObserver.create_last_value()
         assert execution.add_manipulator(manipulator) is not False
         assert execution.add_observer(observer) is not False
         for fmu, name, value in external(0):
-            execution.real_initial_value(index[fmu], vrs[fmu][name], value)
+            execution.real_initial_value(index[fmu], variables[fmu][name].valueReference, value)
 
-        def get(fmu, name, kind="Real"):
-            read = observer.last_real_values if kind == "Real" else observer.last_integer_values
-            return read(index[fmu], [vrs[fmu][name]])[0]
+        def get(fmu, name):
+            v = variables[fmu][name]
+            read = observer.last_real_values if v.type == "Real" else observer.last_integer_values
+            return read(index[fmu], [v.valueReference])[0]
 
         rows = []
         for k in range(N_STEPS):
             for fmu, name, value in external(k):
-                manipulator.slave_real_values(index[fmu], [vrs[fmu][name]], [value])
+                manipulator.slave_real_values(index[fmu], [variables[fmu][name].valueReference], [value])
             if not execution.step():
                 raise RuntimeError(f"libcosim: the step from t = {k * H} s failed")
             rows.append(_row(k, get))
@@ -247,7 +246,8 @@ def build_container(controller_fmu: str | Path, plant_fmu: str | Path, work_dir:
         w_m: [(comps["controller"], variables["controller"]["w_m"]), (comps["plant"], variables["plant"]["w_m"])],
     }
     outputs = []
-    for fmu, name, kind in RECORDED:
+    for fmu, name in RECORDED:
+        kind = variables[fmu][name].type
         v = ModelVariable(type=kind, variability="continuous" if kind == "Real" else "discrete", causality="output",
                           initial="calculated", name=f"{fmu}.{name}")
         outputs.append(v)
@@ -279,10 +279,13 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
+    from .fmu import get_values
+
     with tempfile.TemporaryDirectory(prefix="ipmsm-container-") as tmp:
         container = build_container(controller_fmu, plant_fmu, tmp)
         md = read_model_description(str(container))
-        vr = {v.name: v.valueReference for v in md.modelVariables}
+        variables = {v.name: v for v in md.modelVariables}
+        vr = {name: v.valueReference for name, v in variables.items()}
         d = extract(str(container), unzipdir=str(Path(tmp) / "run"))
         fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
                         instanceName="drive")
@@ -293,12 +296,11 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
             fmu.setReal([vr["T_ref"], vr["w_m"]], [torque(0), speed(0)])
             fmu.exitInitializationMode()
 
-            def get(f, name, kind="Real"):
-                getter = fmu.getReal if kind == "Real" else fmu.getInteger
-                return getter([vr[f"{f}.{name}"]])[0]
+            def get(f, name):
+                return get_values(fmu, variables, f"{f}.{name}")
 
             rows = []
-            t = 0.0  # the container adds up its fixed step: its clock, not k h (see compare_masters)
+            t = 0.0  # the container adds up its fixed step: its clock, not k h
             for k in range(N_STEPS):
                 fmu.setReal([vr["T_ref"], vr["w_m"]], [torque(k), speed(k)])
                 fmu.doStep(currentCommunicationPoint=t, communicationStepSize=H)
@@ -309,9 +311,3 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
             fmu.freeInstance()
         return _table(rows)
 
-
-def compare_masters(controller_fmu, plant_fmu) -> dict[str, dict[str, float]]:
-    """Runs the three masters; the largest relative difference of each against run_fmpy."""
-    ref = run_fmpy(controller_fmu, plant_fmu)
-    return {"libcosim": compare(ref, run_libcosim(controller_fmu, plant_fmu)),
-            "container": compare(ref, run_container(controller_fmu, plant_fmu))}

@@ -140,9 +140,7 @@ const std::vector<const Variable<M>*>& computed_reals() {
     static const std::vector<const Variable<M>*> list = [] {
         std::vector<const Variable<M>*> l;
         for (const auto& v : variables<M>())
-            if (type_of(v) == Type::Real &&
-                (v.causality == Causality::output || v.causality == Causality::local))
-                l.push_back(&v);
+            if (type_of(v) == Type::Real && is_computed(v.causality)) l.push_back(&v);
         return l;
     }();
     return list;
@@ -256,6 +254,14 @@ public:
         }
     }
 
+    static double value_of(const M& m, const Variable<M>* v) { return m.*std::get<double M::*>(v->member); }
+    // The first computed Real of m that is not finite, or nullptr.
+    static const Variable<M>* first_non_finite(const M& m) {
+        for (const Variable<M>* v : computed_reals<M>())
+            if (!std::isfinite(value_of(m, v))) return v;
+        return nullptr;
+    }
+
     // Runs f (a model call) so that, if it throws or leaves a computed Real non-finite, the model
     // is as before. what() describes the call for the log; it is called only on failure (a step's
     // description costs as much as the glue's whole per-step work otherwise).
@@ -264,12 +270,9 @@ public:
         backup = model;
         try {
             f();
-            for (const Variable<M>* v : computed_reals<M>()) {
-                const double x = model.*std::get<double M::*>(v->member);
-                if (!std::isfinite(x))
-                    throw Error(std::string("the model computed ") + v->name + " = " + number_text(x) +
-                                ", not a finite number");
-            }
+            if (const Variable<M>* v = first_non_finite(model))
+                throw Error(std::string("the model computed ") + v->name + " = " + number_text(value_of(model, v)) +
+                            ", not a finite number");
         } catch (const std::bad_alloc&) {
             restore();
             throw;
@@ -303,11 +306,8 @@ public:
         } catch (...) {
             throw Error(why + std::string("unknown exception (not a std::exception)"));
         }
-        for (const Variable<M>* v : computed_reals<M>()) {
-            const double x = (*m).*std::get<double M::*>(v->member);
-            if (!std::isfinite(x))
-                throw Error(why + std::string("the model computes ") + v->name + " = " + number_text(x));
-        }
+        if (const Variable<M>* v = first_non_finite(*m))
+            throw Error(why + std::string("the model computes ") + v->name + " = " + number_text(value_of(*m, v)));
         initial = std::move(m);
         return *initial;
     }
@@ -641,12 +641,14 @@ struct Fmi2 {
         return guarded<M>(c, fn, kGet, [&](In& in) {
             if (nvr == 0) return fmi2OK;
             if (vr == nullptr || value == nullptr) throw Error("vr[] or value[] is NULL with nvr > 0");
-            bool computed = false;  // an output or local: in Initialization Mode, from initial_model()
+            // In Initialization Mode an output or local comes from initial_model().
+            const bool init = in.phase == Phase::initialization_mode;
+            bool from_initial = false;
             for (std::size_t i = 0; i < nvr; ++i) {
                 const auto& v = in.lookup(vr[i], type);
-                computed = computed || v.causality == Causality::output || v.causality == Causality::local;
+                from_initial = from_initial || (init && is_computed(v.causality));
             }
-            const M& model = (computed && in.phase == Phase::initialization_mode) ? in.initial_model() : in.model;
+            const M& model = from_initial ? in.initial_model() : in.model;
             const auto& vars = variables<M>();
             if constexpr (std::is_same_v<C, fmi2String>) {
                 in.strings.resize(nvr);

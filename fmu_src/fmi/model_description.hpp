@@ -240,7 +240,7 @@ std::string model_description() {
     for (std::size_t i = 0; i < vars.size(); ++i) {
         const auto& v = vars[i];
         const Type type = type_of(v);
-        const bool computed = v.causality == Causality::output || v.causality == Causality::local;
+        const bool computed = is_computed(v.causality);
         if (v.causality == Causality::output) outputs.push_back(i + 1);
         x << "    <ScalarVariable name=\"" << xml_escape(v.name) << "\" valueReference=\"" << i << "\" description=\""
           << xml_escape(v.description) << "\" causality=\"" << causality_name(v.causality) << "\" variability=\""
@@ -288,7 +288,7 @@ std::string variables_html() {
     for (std::size_t i = 0; i < vars.size(); ++i) {
         const auto& v = vars[i];
         const Type type = type_of(v);
-        const bool computed = v.causality == Causality::output || v.causality == Causality::local;
+        const bool computed = is_computed(v.causality);
         std::string unit = detail::empty(v.unit) ? "" : v.unit;
         if (!detail::empty(v.display_unit)) unit += std::string(" (") + v.display_unit + ")";
         std::string range;

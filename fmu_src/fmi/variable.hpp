@@ -10,6 +10,8 @@
 namespace fmi {
 
 enum class Causality { parameter, input, output, local };
+// Outputs and locals: the variables the model computes (a master cannot set them).
+inline bool is_computed(Causality c) { return c == Causality::output || c == Causality::local; }
 enum class Variability { fixed, tunable, discrete, continuous };
 
 // A pointer to the model member that holds the variable's value; its type is the FMI type

@@ -18,10 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.flux_map import DEFAULT_MAP as DEFAULT_CSV
+
 from . import iron_loss, saturation
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_CSV = REPO_ROOT / "plant" / "resources" / "ev_ipmsm_default.csv"
 
 
 @dataclass(frozen=True)

@@ -226,6 +226,12 @@ std::uint64_t hash_string(const char* s) {
     return h;
 }
 
+// The FMI type names, by the fuzzer's kind index 0..3.
+constexpr const char* kTypeName[] = {"Real", "Integer", "Boolean", "String"};
+
+// fmi2Instantiate's resource location of an FMU unpacked in dir.
+std::string resource_uri(const std::string& dir) { return "file://" + dir + "/resources"; }
+
 struct Options {
     std::string dir;
     long sequences = 1000;
@@ -239,7 +245,7 @@ class Fuzzer {
 public:
     Fuzzer(const Api& api, const ModelInfo& m, const Options& o) : f_(api), m_(m), o_(o) {
         make_files();
-        resource_uri_ = "file://" + o.dir + "/resources";
+        resource_uri_ = resource_uri(o.dir);
         for (const auto& v : m_.vars) {
             if (v.type == 'R' && v.computed()) real_outputs_.push_back(v.vr);
             if (v.name == "flux_map") flux_map_vr_ = static_cast<long>(v.vr);
@@ -432,7 +438,6 @@ private:
 
     bool allowed(const std::string& fn) const {
         const Phase p = phase_;
-        const bool any = true;
         const bool get = p == Phase::init || p == Phase::step_complete || p == Phase::terminated;
         const bool set = p == Phase::instantiated || p == Phase::init || p == Phase::step_complete;
         if (fn == "setup" || fn == "enter") return p == Phase::instantiated;
@@ -441,7 +446,7 @@ private:
         if (fn == "get") return get;
         if (fn == "set") return set;
         if (fn == "status") return p == Phase::step_complete || p == Phase::terminated;
-        return any;
+        return true;
     }
 
     // A call that may change the instance: if it returns Error, nothing may have changed.
@@ -608,7 +613,7 @@ private:
         std::vector<std::string> sv(n);
         std::vector<fmi2String> sp(n);
         std::ostringstream call;
-        call << "fmi2Set" << (kind == 0 ? "Real" : kind == 1 ? "Integer" : kind == 2 ? "Boolean" : "String") << "(";
+        call << "fmi2Set" << kTypeName[kind] << "(";
         for (int i = 0; i < n; ++i) {
             const Var* v = random_var(type, chance(0.9));
             const int r = pick(20);
@@ -655,7 +660,7 @@ private:
         fmi2String s = nullptr;
         const fmi2ValueReference* vrp = (mode == 0 || mode == 1) ? nullptr : &vr;
         const bool null_value = mode == 0 || mode == 2;
-        const std::string call = std::string("fmi2Get") + (kind == 0 ? "Real" : kind == 1 ? "Integer" : kind == 2 ? "Boolean" : "String") +
+        const std::string call = std::string("fmi2Get") + kTypeName[kind] +
                                  "(vr " + std::to_string(vr) + ", mode " + std::to_string(mode) + ")";
         int st = 0;
         switch (kind) {
@@ -1010,7 +1015,7 @@ int main(int argc, char** argv) {
     for (long i = 0; i < o.sequences; ++i) fuzz.run_sequence(o.seed + static_cast<std::uint64_t>(i));
     int bad = static_cast<int>(fuzz.violations) + static_cast<int>(log_violations);
     if (log_violations) std::printf("VIOLATION: %ld malformed logger calls\n", log_violations.load());
-    if (o.threads) bad += thread_check(api, m, "file://" + o.dir + "/resources");
+    if (o.threads) bad += thread_check(api, m, resource_uri(o.dir));
     std::printf("%-30s %8s %8s %8s %8s %9s\n", "function", "OK", "Warning", "Discard", "Error", "seconds");
     for (const auto& [fn, st] : fuzz.per_function)
         std::printf("%-30s %8ld %8ld %8ld %8ld %9.3f\n", fn.c_str(), st[0], st[1], st[2], st[3], fuzz.seconds[fn]);

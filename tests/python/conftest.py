@@ -2,6 +2,7 @@ import os
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -9,6 +10,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 SHARED = ROOT.parent / "shared"
 BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", ROOT / "build" / "fmu"))
+
+
+def same(a, b) -> bool:
+    """Bit-identical rows of outputs."""
+    return np.array(a, dtype=float).tobytes() == np.array(b, dtype=float).tobytes()
 
 
 def fmu_path(name: str) -> Path:

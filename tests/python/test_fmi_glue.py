@@ -41,6 +41,7 @@ from fmpy.fmi2 import (
 )
 from fmpy.validation import validate_fmu
 
+from conftest import same
 from scenarios.fmu import get_values, set_values
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
@@ -172,11 +173,6 @@ def refused(toy, call, *args, status=fmi2Error, match=None, **kwargs):
         text = "\n".join(toy.log.messages())
         assert match in text, f"log lacks {match!r}:\n{text}"
     return e.value
-
-
-def same(a, b):
-    """Bit-identical rows of outputs."""
-    return np.array(a, dtype=float).tobytes() == np.array(b, dtype=float).tobytes()
 
 
 # --- the package ---

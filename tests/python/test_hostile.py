@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import fmi2_raw as raw
-from conftest import BUILD_FMU, fmu_path
+from conftest import BUILD_FMU, fmu_path, same
 from fmi2_raw import ERROR, OK, WARNING
 from scenarios.flux_map import linear_flux_map, write_flux_map
 
@@ -63,10 +63,6 @@ def run(inst, n, inputs, k0=0):
         assert status in (OK, WARNING), f"step {k}: {raw.STATUS[status]}\n{inst.log.text()}"
         rows.append(inst.outputs())
     return rows
-
-
-def same(a, b) -> bool:
-    return np.array(a, dtype=float).tobytes() == np.array(b, dtype=float).tobytes()
 
 
 def twins(make, name, **params):
