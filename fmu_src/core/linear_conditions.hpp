@@ -1,8 +1,8 @@
 // The linear machine's optimality conditions, each as one quartic c[0] x^4 + ... + c[4] = 0 and
 // the rule that reads its point from the real roots (used by linear_optimal_current.cpp only).
-// The roots come unpolished from Ferrari's fast path (quartic.hpp); the rule chooses among
+// The roots come unpolished from Ferrari's fast path (quartic_fast.hpp); the rule chooses among
 // them, then polishes only the chosen root on c (MTPV and the intersection also take a root
-// polished by Newton from elsewhere, through at()). All for the
+// polished by Halley's method from elsewhere, through at()). All for the
 // T' >= 0 side (linear_optimal_current.hpp) and a salient machine (L_d != L_q).
 #pragma once
 
@@ -11,29 +11,19 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 #include "linear_optimal_current.hpp"
 #include "quartic.hpp"
+#include "quartic_fast.hpp"
 
 namespace ipmsm::linear::conditions {
 
 inline RealRoots roots_of(const double (&c)[5]) { return centred_quartic_roots(c[0], c[1], c[2], c[3], c[4]); }
 
-// a if take, else b, as a select rather than a branch. On random operating points the winning
-// root and the polish's `better` (a coin toss for a root exact to rounding already) are
-// unpredictable, and a mispredicted branch costs more than both candidates' arithmetic. GCC
-// turns a plain ?: on doubles into a branch, hence the SSE2 masks (baseline on x86-64).
-inline double select(bool take, double a, double b) {
-#if defined(__SSE2__)
-    const __m128d mask = _mm_castsi128_pd(_mm_set1_epi64x(-static_cast<long long>(take)));
-    return _mm_cvtsd_f64(_mm_or_pd(_mm_and_pd(mask, _mm_set_sd(a)), _mm_andnot_pd(mask, _mm_set_sd(b))));
-#else
-    return take ? a : b;
-#endif
-}
+// Selects rather than branches (fast::select): on random operating points the winning root and
+// the polish's decision are unpredictable, and a mispredicted branch costs more than computing
+// both candidates.
+using fast::select;
 
 // After newton_step: the point of x1 if `take`, else of x0. Each rule computes both points
 // first (p0, p1), so that their divisions overlap the step's second evaluation of the quartic.
@@ -90,6 +80,10 @@ struct MtpaQuartic {
     double c[5] = {1.0, 0.0, 0.0, 0.0, 0.0};
 };
 
+// The largest Newton step, relative to the root, that VoltageLimitQuartic::point() takes from
+// the fast path's unpolished root (its genuine corrections are ~1e-10 relative or less).
+constexpr double kNewtonStepMax = 0x1p-24;
+
 // Case ii for a salient machine: the torque curve T' meets the voltage ellipse (with R_s), a
 // depressed quartic in i_q.
 struct VoltageLimitQuartic {
@@ -118,10 +112,18 @@ struct VoltageLimitQuartic {
             best = std::min(best, tagged(std::max(I2, std::copysign(DBL_MAX, -i_q)), k));
         }
         if (!(best < 0.5 * DBL_MAX)) return false;
-        const double best_i_q = r.root[slot_of(best)];
-        const NewtonStep st = newton_step(c, best_i_q);
-        const double i_d0 = i_d_at(st.x0), i_d1 = i_d_at(st.x1);
-        out = choose(st.better, Point{i_d1, st.x1}, Point{i_d0, st.x0});
+        const double x0 = r.root[slot_of(best)];
+        // One Newton step, taken if it is small: a genuine correction of a root that the fast path
+        // gives to ~1e-10 or better (at a double root p and p' are rounding noise and the step
+        // arbitrary). The size test needs no second evaluation of the quartic, and i_d follows to
+        // first order, T'/x = (T'/x0) (1 - dx/x0) + O(dx^2): no division after the step. Both
+        // shorten the chain that every field-weakening command waits for.
+        const double inv_x0 = 1.0 / x0;
+        const QuarticValue v = quartic_value(c, x0);
+        const double dx = -v.f / v.df;
+        const double x = x0 + select(std::fabs(dx) <= kNewtonStepMax * std::fabs(x0), dx, 0.0);
+        const double T_over_x = T_red * inv_x0 * (1.0 - (x - x0) * inv_x0);
+        out = Point{(T_over_x - m.psi_m) * inv_dL, x};
         return true;
     }
     const LinearMachine& m;

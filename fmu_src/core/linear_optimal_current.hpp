@@ -7,6 +7,8 @@
 // in optimal_current().
 #pragma once
 
+#include <cmath>
+
 #include "machine.hpp"
 
 namespace ipmsm::linear {
@@ -45,14 +47,31 @@ struct Limit {
     Region region;  // mtpa (current limit only), mtpv or current_and_voltage_limit
     bool feasible;
     // The torque below which MTPA is (estimated to be) within the voltage limit at this speed;
-    // +inf below the base speed. Only chooses which quartic optimal_current() solves first.
+    // +inf below the base speed. Only chooses which quartic optimal_current() solves first (the
+    // field-weakening fast path predicts with its square and leaves +inf here).
     double T_base;
 };
 Limit max_torque(const LinearMachine& m, const OperatingLimits& lim);
 
 
 // The whole decision for one torque command (either sign, either speed sign): clamp to T_max,
-// then MTPA or Case ii. Fills every field of CurrentCommand (iterations = 0).
+// then MTPA or Case ii. Fills every field of CurrentCommand (iterations = 0). A controller of one
+// machine keeps one solver: it computes what depends on the machine and the current limit once
+// (MTPA at I_max, again when I_max changes). Not for concurrent use by several threads.
+class CommandSolver {
+public:
+    CommandSolver(const LinearMachine& m, int pole_pairs);
+    CurrentCommand operator()(double T_ref, const OperatingLimits& lim);
+
+private:
+    LinearMachine m_;
+    double kT_, inv_kT_;  // torque factor 1.5 p and its inverse
+    double I_max_ = NAN;  // the current limit that p1_ is for (NaN: none yet)
+    Point p1_{0.0, 0.0};  // MTPA at I_max_
+};
+
+// The same for a single command (a solver built for the call: the saturated solver's machine
+// changes with every iteration).
 CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_ref,
                                const OperatingLimits& lim);
 

@@ -40,6 +40,7 @@
 //
 // No heap allocation, no exceptions, no iteration apart from the single Newton step per root.
 #include "quartic.hpp"
+#include "quartic_fast.hpp"
 
 #include <algorithm>
 #include <cfloat>
@@ -615,135 +616,16 @@ RealRoots solve_quartic(double a, double b, double c, double d, double e) {
 
 namespace {
 
-// cbrt_fast's Halley steps: each cubes the relative error, 3.2e-2 -> 3.3e-5 -> 3.6e-14.
-constexpr int kCbrtHalleySteps = 2;
-// Largest and smallest |x| for which cbrt_fast's bit trick and Halley steps stay normal.
-constexpr double kFastCbrtMin = 0x1p-300, kFastCbrtMax = 0x1p300;
-
-// Cube root to ~1e-15 relative, about three times faster than glibc's cbrt: a third of the
-// exponent by integer arithmetic (relative error <= 3.2 %; the constant is Kahan's), then two
-// Halley steps (each cubes the relative error: 3e-2 -> 3e-5 -> 3e-14). The resolvent root it
-// feeds gets a Newton step and every root a polish, so 1e-13 is far more than enough.
-inline double cbrt_fast(double a) {
-    const double x = std::fabs(a);
-    if (!(x > kFastCbrtMin && x < kFastCbrtMax)) return std::cbrt(a);  // 0, tiny, huge, inf, NaN
-    std::uint64_t bits;
-    std::memcpy(&bits, &x, sizeof bits);
-    bits = bits / 3 + 0x2A9F7893782DA1CEull;
-    double y;
-    std::memcpy(&y, &bits, sizeof y);
-    for (int k = 0; k < kCbrtHalleySteps; ++k) {
-        const double y3 = y * y * y;
-        y *= (y3 + 2.0 * x) / (2.0 * y3 + x);
-    }
-    return std::copysign(y, a);
-}
-
-// cos(acos(c) / 3) for c in [-1, 1], to 5.5e-10 (the resolvent root it gives gets a Newton step,
-// which squares that): the largest root of the trigonometric form without acos and cos, about
-// four times faster. The function is smooth (analytic) in delta = sqrt((1 + c) / 2), not in c
-// (its derivative is infinite at c = -1, where two roots of the cubic merge); this is its
-// degree-9 interpolant at the Chebyshev nodes of t = 2 delta - 1 in [-1, 1], in powers of t.
-inline double cos_third_acos(double c) {
-    constexpr double k[10] = {0.76604444273159433,     0.24740906643480404,    -0.015509169100052247,
-                              0.0024663472272839172,   -0.00050427800952661532, 0.00011646974919498619,
-                              -2.8499026575801157e-05, 7.4195274194721653e-06,  -2.4961721109661992e-06,
-                              6.9693870159426301e-07};
-    const double t = 2.0 * std::sqrt(0.5 * (1.0 + c)) - 1.0;
-    // Estrin's scheme: four levels of multiply-add instead of Horner's nine (latency).
-    const double t2 = t * t, t4 = t2 * t2, t8 = t4 * t4;
-    const double p01 = k[0] + k[1] * t, p23 = k[2] + k[3] * t, p45 = k[4] + k[5] * t, p67 = k[6] + k[7] * t,
-                 p89 = k[8] + k[9] * t;
-    return (p01 + p23 * t2) + (p45 + p67 * t2) * t4 + p89 * t8;
-}
-
-inline double quad_root_pair(double b, double c, double& r1, double& r2) {
-    // x^2 + b x + c = 0, cancellation-free; returns the discriminant (negative: no real roots).
-    const double disc = b * b - 4.0 * c;
-    if (disc < 0.0) return disc;
-    const double t = -0.5 * (b + std::copysign(std::sqrt(disc), b));
-    r1 = t;
-    r2 = t != 0.0 ? c / t : 0.0;
-    return disc;
-}
-
 // Sorts the first n (0, 2 or 4) entries.
 inline void sort_up_to_4(double* y, int n) {
     if (n == 2) cswap(y[0], y[1]);
     if (n == 4) sort4(y);
 }
 
-// Ferrari's roots of the depressed quartic x^4 + p x^2 + q x + r, unsorted and not polished.
-RealRoots depressed_quartic_roots(double p, double q, double r) {
-    constexpr double kThird = 1.0 / 3.0;
-    RealRoots o;
-    if (!(std::isfinite(p) && std::isfinite(q) && std::isfinite(r))) return o;  // count 0
-    // Resolvent cubic m^3 + a2 m^2 + a1 m + a0 = 0 (a2 = p); depressed by m = z - p/3: z^3 + P z + Q = 0.
-    const double a1 = 0.25 * p * p - r, a0 = -0.125 * q * q;
-    const double a2_3 = p * kThird;
-    const double P = a1 - p * a2_3;
-    const double Q = (2.0 / 27.0) * p * p * p - a1 * a2_3 + a0;
-    const double D = 0.25 * Q * Q + P * P * P * (1.0 / 27.0);
-    double z;
-    if (D > 0.0) {  // one real root, Cardano without cancellation
-        const double A = -cbrt_fast(0.5 * Q + std::copysign(std::sqrt(D), Q));
-        z = A + (A != 0.0 ? -P * kThird / A : 0.0);
-    } else {  // three real roots (P <= 0): the largest, in trigonometric form
-        const double s = std::sqrt(std::max(0.0, -P * kThird));
-        const double c = s > 0.0 ? std::clamp(-0.5 * Q / (s * s * s), -1.0, 1.0) : 0.0;
-        z = 2.0 * s * cos_third_acos(c);
-    }
-    double m = z - p * kThird;
-    {  // one Newton step on the resolvent (its largest root is simple unless q = 0)
-        const double f = ((m + p) * m + a1) * m + a0;
-        const double df = (3.0 * m + 2.0 * p) * m + a1;
-        const double dm = f / df;
-        if (df > 0.0 && std::isfinite(dm)) m -= dm;
-    }
-    if (!std::isfinite(m) || !std::isfinite(D)) return solve_quartic(1.0, 0.0, p, q, r);  // extreme scales
-    double* y = o.root;
-    int n = 0;
-    if (m > 0.0 && q != 0.0) {
-        // (y^2 + p/2 + m)^2 = 2m (y - q/(4m))^2  =>  y^2 -+ s y + k +- l = 0, s = sqrt(2m),
-        // k = p/2 + m, l = q/(2s). The constants c+- = k +- l satisfy c+ c- = k^2 - l^2 = r, so
-        // k^2 = l^2 + r exactly: take |k| from that whenever it does not cancel, because
-        // p/2 + m cancels when the roots differ much in size, and m itself is only sqrt(eps)
-        // accurate when the resolvent's largest root is nearly double (s, a square root of m,
-        // stays accurate enough for the final Newton step). Only the sign comes from p/2 + m.
-        // l = q / (2 s) = q s / (4 m): the division runs alongside the square root.
-        const double s = std::sqrt(2.0 * m), l = (0.25 * q / m) * s, k_direct = 0.5 * p + m;
-        const double k2 = l * l + r;
-        const double k = (r >= 0.0 || k2 > 0.5 * l * l) ? std::copysign(std::sqrt(std::max(0.0, k2)), k_direct) : k_direct;
-        // The smaller constant from the product (no cancellation there).
-        const bool plus_big = std::fabs(k + l) >= std::fabs(k - l);
-        const double c_big = plus_big ? k + l : k - l;
-        const double c_small = c_big != 0.0 ? r / c_big : 0.0;
-        const double c_plus = plus_big ? c_big : c_small, c_minus = plus_big ? c_small : c_big;
-        if (quad_root_pair(-s, c_plus, y[n], y[n + 1]) >= 0.0) n += 2;
-        if (quad_root_pair(s, c_minus, y[n], y[n + 1]) >= 0.0) n += 2;
-    } else {
-        // Biquadratic (q = 0, or the resolvent root rounded to <= 0): y^2 = w, w^2 + p w + r = 0.
-        double w1, w2;
-        if (quad_root_pair(p, r, w1, w2) >= 0.0) {
-            for (double w : {w1, w2}) {
-                if (w < 0.0) continue;
-                const double v = std::sqrt(w);
-                y[n++] = v;
-                y[n++] = -v;
-            }
-        }
-    }
-    bool finite = true;
-    for (int k = 0; k < 4; ++k) finite &= std::isfinite(y[k]);
-    if (!finite) return solve_quartic(1.0, 0.0, p, q, r);
-    o.count = n;
-    return o;
-}
-
 }  // namespace
 
 RealRoots solve_depressed_quartic(double p, double q, double r) {
-    RealRoots out = depressed_quartic_roots(p, q, r);
+    RealRoots out = fast::depressed_quartic_roots(p, q, r, [] {});
     // Every root polished, over all four slots (no data-dependent branches; unused slots are 0).
     const double c[5] = {1.0, 0.0, p, q, r};
     for (int k = 0; k < 4; ++k) {
@@ -756,13 +638,13 @@ RealRoots solve_depressed_quartic(double p, double q, double r) {
 
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e) {
     // Already monic and depressed (the controller's MTPA and voltage-limit quartics): as is.
-    if (a == 1.0 && b == 0.0) return depressed_quartic_roots(c, d, e);
+    if (a == 1.0 && b == 0.0) return fast::depressed_quartic_roots(c, d, e, [] {});
     // Monic, then depressed by x = y + sh about the centroid sh of the roots.
     const double inv_a = 1.0 / a, B = b * inv_a, C = c * inv_a, D = d * inv_a, E = e * inv_a;
     const double sh = -0.25 * B;
     if (!(std::fabs(sh) <= kCentredMaxShift) || !std::isfinite(C + D + E)) return solve_quartic(a, b, c, d, e);
     const TaylorShift z = taylor_shift(B, C, D, E, sh);
-    RealRoots out = depressed_quartic_roots(z.P, z.Q, z.R);
+    RealRoots out = fast::depressed_quartic_roots(z.P, z.Q, z.R, [] {});
     for (int k = 0; k < out.count; ++k) out.root[k] += sh;
     return out;
 }

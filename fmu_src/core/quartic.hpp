@@ -33,8 +33,8 @@ RealRoots solve_quartic(double a, double b, double c, double d, double e);
 
 // x^4 + p x^2 + q x + r = 0 (depressed, monic): the form of the controller's own quartics (MTPA
 // and Case ii have no cubic term). Ferrari directly: the largest root m of the resolvent cubic
-// m^3 + p m^2 + (p^2/4 - r) m - q^2/8 (trigonometric form for three real roots, Cardano
-// otherwise, then one Newton step on it), two quadratics, one Newton polish per root. No
+// m^3 + p m^2 + (p^2/4 - r) m - q^2/8 (trigonometric form and one Newton step for three real
+// roots, Cardano otherwise), two quadratics, one Newton polish per root (quartic_fast.hpp). No
 // scaling or degree tests: for well-scaled coefficients (|roots| within ~1e-6..1e6 of each other)
 // it is several times faster than solve_quartic and as accurate; never NaN for finite input.
 RealRoots solve_depressed_quartic(double p, double q, double r);

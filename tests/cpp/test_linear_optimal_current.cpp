@@ -136,11 +136,12 @@ TEST(LinearOptimalCurrent, AboveMaximumSpeedIsReportedInfeasible) {
     EXPECT_TRUE(std::isfinite(c.i_d) && std::isfinite(c.i_q));
 }
 
-// optimal_current() finds T_max in field weakening by Newton's method from the lossless closed
-// form (beside the command's Ferrari solution); max_torque() by Ferrari on the limit quartics.
+// optimal_current() finds T_max in field weakening by Halley's method from the lossless closed
+// form (between the stages of the command's Ferrari solution); max_torque() by Ferrari on the
+// limit quartics.
 // Two independent routes to one number, on random machines (R_s up to 0.05 ohm), speeds and
 // torque signs.
-TEST(LinearOptimalCurrent, TorqueLimitByNewtonMatchesFerrari) {
+TEST(LinearOptimalCurrent, TorqueLimitByHalleyMatchesFerrari) {
     std::mt19937_64 rng(20261122);
     int compared = 0;
     double worst = 0;
@@ -157,4 +158,23 @@ TEST(LinearOptimalCurrent, TorqueLimitByNewtonMatchesFerrari) {
     }
     std::cout << "[ measured ] " << compared << " cases; worst relative difference of T_max " << worst << "\n";
     EXPECT_GT(compared, 90000);
+}
+
+// A solver kept for one machine (MTPA at I_max cached, recomputed when I_max changes) gives the
+// same commands, bit for bit, as a fresh solver per call, whatever the sequence of I_max.
+TEST(LinearOptimalCurrent, KeptSolverMatchesAFreshOneAsTheCurrentLimitChanges) {
+    std::mt19937_64 rng(20261123);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const Case first = random_case(rng);
+    linear::CommandSolver kept(first.m, kPolePairs);
+    for (int n = 0; n < 20000; ++n) {
+        Case c = random_case(rng);
+        c.m = first.m;
+        if (u(rng) < 0.5) c.lim.I_max = first.lim.I_max;  // runs of one limit, and changes
+        const CurrentCommand a = kept(c.T_ref, c.lim), b = linear::optimal_current(c.m, kPolePairs, c.T_ref, c.lim);
+        ASSERT_EQ(a.i_d, b.i_d) << n;
+        ASSERT_EQ(a.i_q, b.i_q) << n;
+        ASSERT_EQ(a.torque_max, b.torque_max) << n;
+        ASSERT_EQ(a.region, b.region) << n;
+    }
 }
