@@ -95,10 +95,11 @@ int main(int argc, char** argv) {
     // Linear machine: the default map's nominal (unsaturated) parameters.
     const SaturatedOptimalCurrent probe(map, kPolePairs);
     const LinearMachine lin = probe.nominal_machine(kRs, 0.0);
-    // One solver for the machine, as a controller keeps it (MTPA at I_max computed once).
-    linear::CommandSolver linear_solver(lin, kPolePairs);
+    // One solver kept across calls, as the controller keeps it (SaturatedOptimalCurrent, recursion 0):
+    // MTPA at I_max is computed again only when the machine or I_max changes.
+    linear::CommandSolver linear_solver(kPolePairs);
     auto linear_call = [&](const Op& o) {
-        const auto c = linear_solver(o.T, {kPolePairs * o.w_m, kVMax, kIMax});
+        const auto c = linear_solver(lin, o.T, {kPolePairs * o.w_m, kVMax, kIMax});
         return c.i_d + c.i_q;
     };
     auto linear_free_call = [&](const Op& o) {
@@ -111,7 +112,7 @@ int main(int argc, char** argv) {
     // The nominal (unsaturated) machine's base speed is about 2000 r/min at 500 A.
     std::vector<Op> low, high;
     for (const Op& o : rnd) (std::abs(o.w_m) < 1500 * M_PI / 30 ? low : high).push_back(o);
-    row("  ... below 1500 r/min (MTPA region: 1 closed form + 1 quartic)", ns_per_call(low, R, linear_call));
+    row("  ... below 1500 r/min (MTPA region: 1 quartic)", ns_per_call(low, R, linear_call));
     row("  ... above 1500 r/min (field weakening: T_max by Halley + 1 quartic)", ns_per_call(high, R, linear_call));
     row("  ... random, a new solver per call (linear::optimal_current)", ns_per_call(rnd, R, linear_free_call));
 

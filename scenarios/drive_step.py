@@ -126,7 +126,7 @@ def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str =
             fmus[key] = f
             variables[key] = {v.name: v for v in md.modelVariables}
 
-        def set_real(fmu, name, value):
+        def set_value(fmu, name, value):
             set_values(fmus[fmu], variables[fmu], **{name: value})
 
         def get(fmu, name):
@@ -134,13 +134,13 @@ def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str =
 
         def exchange():
             for src, out, dst, inp in CONNECTIONS:
-                set_real(dst, inp, get(src, out))
+                set_value(dst, inp, get(src, out))
 
         for f in fmus.values():
             f.enterInitializationMode()
-        set_real("controller", "u_dc", U_DC)
+        set_value("controller", "u_dc", U_DC)
         for fmu, name, value in external(0):
-            set_real(fmu, name, value)
+            set_value(fmu, name, value)
         exchange()
         for f in fmus.values():
             f.exitInitializationMode()
@@ -148,7 +148,7 @@ def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str =
         rows = []
         for k in range(N_STEPS):
             for fmu, name, value in external(k):
-                set_real(fmu, name, value)
+                set_value(fmu, name, value)
             t, h = step_times(k, time_grid)
             for f in fmus.values():
                 f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
@@ -279,13 +279,12 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from .fmu import get_values
+    from .fmu import get_values, set_values
 
     with tempfile.TemporaryDirectory(prefix="ipmsm-container-") as tmp:
         container = build_container(controller_fmu, plant_fmu, tmp)
         md = read_model_description(str(container))
         variables = {v.name: v for v in md.modelVariables}
-        vr = {name: v.valueReference for name, v in variables.items()}
         d = extract(str(container), unzipdir=str(Path(tmp) / "run"))
         fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
                         instanceName="drive")
@@ -293,7 +292,7 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
         try:
             fmu.setupExperiment(startTime=0.0)
             fmu.enterInitializationMode()
-            fmu.setReal([vr["T_ref"], vr["w_m"]], [torque(0), speed(0)])
+            set_values(fmu, variables, T_ref=torque(0), w_m=speed(0))
             fmu.exitInitializationMode()
 
             def get(f, name):
@@ -302,7 +301,7 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
             rows = []
             t = 0.0  # the container adds up its fixed step: its clock, not k h
             for k in range(N_STEPS):
-                fmu.setReal([vr["T_ref"], vr["w_m"]], [torque(k), speed(k)])
+                set_values(fmu, variables, T_ref=torque(k), w_m=speed(k))
                 fmu.doStep(currentCommunicationPoint=t, communicationStepSize=H)
                 t += H
                 rows.append(_row(k, get))

@@ -25,8 +25,8 @@ inline RealRoots roots_of(const double (&c)[5]) { return centred_quartic_roots(c
 // both candidates.
 using fast::select;
 
-// After newton_step: the point of x1 if `take`, else of x0. Each rule computes both points
-// first (p0, p1), so that their divisions overlap the step's second evaluation of the quartic.
+// After newton_step: the point of x1 if `take`, else of x0. The rules that use it compute both
+// points first (p0, p1), so that their divisions overlap the step's second evaluation of the quartic.
 // (A shared helper taking at() as a lambda was tried: GCC did not inline it, 5 % slower.)
 inline Point choose(bool take, Point p1, Point p0) {
     return {select(take, p1.i_d, p0.i_d), select(take, p1.i_q, p0.i_q)};
@@ -131,12 +131,23 @@ struct VoltageLimitQuartic {
     double c[5] = {1.0, 0.0, 0.0, 0.0, 0.0};
 };
 
+// A current as an affine function of an angle th (on the voltage ellipse or the current circle),
+// in the variable u = tan((th - pi) / 2) of the limit quartics below:
+// i = a + b cos th + g sin th, cos th = 1 - 2h, sin th = -2uh, h = 1 / (1 + u^2).
+struct AngleMap {
+    double ad = 0, bd = 0, gd = 0, aq = 0, bq = 0, gq = 0;
+    Point at(double u) const {
+        const double h = 1.0 / (1.0 + u * u), cs = 1.0 - 2.0 * h, sn = -2.0 * u * h;
+        return {ad + bd * cs + gd * sn, aq + bq * cs + gq * sn};
+    }
+};
+
 // MTPV: on the ellipse, v = V (cos th, sin th) and i = M^-1 (v - (0, omega psi_m)) is affine in
 // (cos th, sin th); T'(th) is then a quadratic form whose stationary points are the roots of a
 // quartic in t = tan(th / 2). We use u = tan((th - pi) / 2) = -1 / t instead: the MTPV point (v
 // mostly along -d) lies near u = 0 and the leading coefficient is the derivative at th = 0, far
 // from it, so the fast path is well conditioned. cos th = 1 - 2h, sin th = -2uh, h = 1 / (1 + u^2).
-struct MtpvQuartic {
+struct MtpvQuartic : AngleMap {
     MtpvQuartic(const LinearMachine& m, double omega, double V_max) : m(m) {
         const double R = m.R_s, w = omega, psi = m.psi_m, dL = m.L_d - m.L_q;
         const double det = R * R + w * w * m.L_d * m.L_q;
@@ -148,10 +159,6 @@ struct MtpvQuartic {
         const double d = psi * bq + dL * (ad * bq + bd * aq);
         const double e = psi * gq + dL * (ad * gq + gd * aq);
         c[0] = k + e, c[1] = 2.0 * d - 4.0 * (b - a), c[2] = -6.0 * k, c[3] = 4.0 * (b - a) + 2.0 * d, c[4] = k - e;
-    }
-    Point at(double u) const {
-        const double h = 1.0 / (1.0 + u * u), cs = 1.0 - 2.0 * h, sn = -2.0 * u * h;
-        return {ad + bd * cs + gd * sn, aq + bq * cs + gq * sn};
     }
     bool point(const RealRoots& r, Point& out) const {
         if (!valid) return false;
@@ -175,7 +182,6 @@ struct MtpvQuartic {
     }
     const LinearMachine& m;
     bool valid;
-    double ad, bd, gd, aq, bq, gq;  // i = (ad + bd cos + gd sin, aq + bq cos + gq sin)
     double c[5];
 };
 
@@ -183,17 +189,14 @@ struct MtpvQuartic {
 // is a quadratic form in (cos, sin), a quartic in tan(ph / 2). Again in u = tan((ph - pi) / 2):
 // i = (-I, 0) is u = 0, the field-weakening intersections (i_d < 0 < i_q) have u in (-1, 0), and
 // the leading coefficient is |v|^2 - V^2 at i = (I, 0), far outside the ellipse. i_q > 0 <=> u < 0.
-struct IntersectionQuartic {
-    IntersectionQuartic(const LinearMachine& m, double omega, double V_max, double I) : m(m), I(I) {
+struct IntersectionQuartic : AngleMap {
+    IntersectionQuartic(const LinearMachine& m, double omega, double V_max, double I) : m(m) {
+        bd = I, gq = I;  // i = I (cos th, sin th)
         const double R = m.R_s, w = omega, psi = m.psi_m, dL = m.L_d - m.L_q;
         const double A = I * I * w * w * m.L_d * m.L_d, B = I * I * w * w * m.L_q * m.L_q;
         const double C = 2.0 * I * I * R * w * dL, D = 2.0 * I * w * w * psi * m.L_d;
         const double E = 2.0 * I * w * R * psi, F = I * I * R * R + w * w * psi * psi - V_max * V_max;
         c[0] = A + D + F, c[1] = -2.0 * (C + E), c[2] = 2.0 * (F - A) + 4.0 * B, c[3] = 2.0 * (C - E), c[4] = A - D + F;
-    }
-    Point at(double u) const {
-        const double h = 1.0 / (1.0 + u * u);
-        return {I * (1.0 - 2.0 * h), -2.0 * I * u * h};
     }
     bool point(const RealRoots& r, Point& out) const {
         // Key: the torque; -DBL_MAX for u >= 0 (i_q <= 0, also the unused slots), by min with
@@ -212,7 +215,6 @@ struct IntersectionQuartic {
         return true;
     }
     const LinearMachine& m;
-    double I;
     double c[5];
 };
 

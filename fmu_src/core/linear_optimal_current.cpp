@@ -15,7 +15,8 @@ namespace {
 constexpr double kLimitSlack = 1e-9;
 
 // T_max with R_s differs from the lossless estimate by less than this (the default motor at
-// 1500..12000 r/min: within 3.0 %); a Newton-polished T_max further off is taken as a wrong root.
+// 1500..12000 r/min: within 3.0 %): a polished T_max further off is taken as a wrong root, and a
+// command further above is clamped without solving its quartic.
 constexpr double kEstimateMargin = 0.05;
 
 // Below this |L_d - L_q| / max(L_d, L_q) the machine is treated as non-salient (surface PM).
@@ -257,7 +258,7 @@ Limit max_torque_from(const LinearMachine& m, const OperatingLimits& lim, Point 
 // (whose mispredictions cost more than the step): from the lossless seed, within 3 % in torque,
 // two steps leave at most 4e-9 (relative, 1.7e5 random field-weakening operating points); the
 // third is then exact to rounding and its size confirms convergence. The steps are taken one at a
-// time by step(), so that the command's Ferrari solution can interleave them. finish() confirms
+// time by advance(), so that the command's Ferrari solution can interleave them. finish() confirms
 // the result with the checks of the Ferrari path: the current limit (MTPV) or its KKT sign
 // (intersection), and the torque within kEstimateMargin of the estimate (the same root, not a
 // far one); false sends the caller to the all-Ferrari sequential path.
@@ -267,21 +268,21 @@ constexpr double kHalleyTol = 1e-8;  // the last step, relative to 1 + |u|
 struct LimitPolish {
     double c[5];
     double u, step = 0.0;
-    double ad, bd, gd, aq, bq, gq;  // i = (ad + bd cos th + gd sin th, aq + bq cos th + gq sin th)
+    AngleMap map;  // the limit's point from u
     bool mtpv, valid;
     LimitPolish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e) : mtpv(e.mtpv) {
         if (mtpv) {
             const MtpvQuartic Q(m, lim.omega, lim.V_max);
             std::copy(Q.c, Q.c + 5, c);
-            ad = Q.ad, bd = Q.bd, gd = Q.gd, aq = Q.aq, bq = Q.bq, gq = Q.gq, valid = Q.valid;
+            map = Q, valid = Q.valid;
             // The lossless point's voltage angle: v = omega (-L_q i_q, L_d i_d + psi_m) with
             // |v| = V_max, u = tan((th - pi) / 2) = -v_q / (V_max - v_d).
             const double v_d = -lim.omega * m.L_q * e.p.i_q, v_q = lim.omega * (m.L_d * e.p.i_d + m.psi_m);
             u = -v_q / (lim.V_max - v_d);
-        } else {  // on the circle: i = I (cos th, sin th)
+        } else {
             const IntersectionQuartic Q(m, lim.omega, lim.V_max, lim.I_max);
             std::copy(Q.c, Q.c + 5, c);
-            ad = 0, bd = lim.I_max, gd = 0, aq = 0, bq = 0, gq = lim.I_max, valid = true;
+            map = Q, valid = true;
             u = -(lim.I_max + e.p.i_d) / e.p.i_q;  // the lossless point's angle on the circle
         }
     }
@@ -291,12 +292,10 @@ struct LimitPolish {
         step = 2.0 * v.f * v.df / (2.0 * v.df * v.df - v.f * d2);
         u -= step;
     }
-    // T_base: not estimated here (the fast path predicts with its square).
-    bool finish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, double T_base,
-                Limit& top) const {
+    bool finish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, Limit& top) const {
+        constexpr double T_base = INFINITY;  // not estimated here (the fast path predicts with its square)
         if (!(valid && e.T_red > 0 && std::fabs(step) <= kHalleyTol * (1.0 + std::fabs(u)))) return false;
-        const double h = 1.0 / (1.0 + u * u), cs = 1.0 - 2.0 * h, sn = -2.0 * u * h;
-        const Point p{ad + bd * cs + gd * sn, aq + bq * cs + gq * sn};
+        const Point p = map.at(u);
         if (mtpv) {
             if (!mtpv_limit_at(m, lim, p, T_base, top)) return false;
         } else {
@@ -317,7 +316,6 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
     if (non_salient(m)) return false;  // MTPA and Case ii are closed forms there
     const double T_base_sq = base_torque_sq_estimate(m, lim, v1);
     const LimitEstimate estimate = lossless_limit_estimate(m, lim);
-    const double T_base = INFINITY;  // not needed by the fast path's results
     LimitPolish limit(m, lim, estimate);
     int steps = 0;
     auto limit_step = [&] {
@@ -339,7 +337,7 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
                      voltage_limit_is_optimal(m, lim.omega, p);
     }
     while (steps < kHalleySteps) limit_step();  // clamped without a quartic, or a solver's early exit
-    if (!limit.finish(m, lim, estimate, T_base, top)) return false;
+    if (!limit.finish(m, lim, estimate, top)) return false;
     if (T_red >= top.T_red) {  // clamped
         p = top.point;
         region = top.region;
@@ -355,11 +353,9 @@ Limit max_torque(const LinearMachine& m, const OperatingLimits& lim) {
     return max_torque_from(m, lim, p1, voltage_sq(m, lim.omega, p1.i_d, p1.i_q));
 }
 
-CommandSolver::CommandSolver(const LinearMachine& m, int pole_pairs)
-    : m_(m), kT_(torque_factor(pole_pairs)), inv_kT_(1.0 / kT_) {}
+CommandSolver::CommandSolver(int pole_pairs) : kT_(torque_factor(pole_pairs)), inv_kT_(1.0 / kT_) {}
 
-CurrentCommand CommandSolver::operator()(double T_ref, const OperatingLimits& lim) {
-    const LinearMachine& m = m_;
+CurrentCommand CommandSolver::operator()(const LinearMachine& m, double T_ref, const OperatingLimits& lim) {
     // Mirror negative torque onto positive: (T, omega, i_q) -> (-T, -omega, -i_q).
     const double sign = T_ref < 0 ? -1.0 : 1.0;
     const OperatingLimits L{sign * lim.omega, lim.V_max, lim.I_max};
@@ -368,10 +364,11 @@ CurrentCommand CommandSolver::operator()(double T_ref, const OperatingLimits& li
 
     CurrentCommand cmd;
     // MTPA at I_max decides between the MTPA region and field weakening and enters the base-torque
-    // estimate: computed once per current limit, it is known at once (and so is the branch on it).
-    if (!(L.I_max == I_max_)) {
+    // estimate: kept while the machine and the current limit stay, it is known at once (and so is
+    // the branch on it).
+    if (!(L.I_max == I_max_ && m.psi_m == psi_m_ && m.L_d == L_d_ && m.L_q == L_q_)) {
         p1_ = mtpa_at_current(m, L.I_max);
-        I_max_ = L.I_max;
+        psi_m_ = m.psi_m, L_d_ = m.L_d, L_q_ = m.L_q, I_max_ = L.I_max;
     }
     const Point p1 = p1_;
     const double v1 = voltage_sq(m, L.omega, p1.i_d, p1.i_q);
@@ -429,7 +426,7 @@ CurrentCommand CommandSolver::operator()(double T_ref, const OperatingLimits& li
 }
 
 CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_ref, const OperatingLimits& lim) {
-    return CommandSolver(m, pole_pairs)(T_ref, lim);
+    return CommandSolver(pole_pairs)(m, T_ref, lim);
 }
 
 }  // namespace ipmsm::linear

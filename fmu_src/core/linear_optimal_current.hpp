@@ -55,23 +55,23 @@ Limit max_torque(const LinearMachine& m, const OperatingLimits& lim);
 
 
 // The whole decision for one torque command (either sign, either speed sign): clamp to T_max,
-// then MTPA or Case ii. Fills every field of CurrentCommand (iterations = 0). A controller of one
-// machine keeps one solver: it computes what depends on the machine and the current limit once
-// (MTPA at I_max, again when I_max changes). Not for concurrent use by several threads.
+// then MTPA or Case ii. Fills every field of CurrentCommand (iterations = 0). A controller keeps
+// one solver (SaturatedOptimalCurrent does): MTPA at I_max, which depends on the machine and the
+// current limit only, is computed again only when one of them changes. Not for concurrent use by
+// several threads.
 class CommandSolver {
 public:
-    CommandSolver(const LinearMachine& m, int pole_pairs);
-    CurrentCommand operator()(double T_ref, const OperatingLimits& lim);
+    explicit CommandSolver(int pole_pairs);
+    CurrentCommand operator()(const LinearMachine& m, double T_ref, const OperatingLimits& lim);
 
 private:
-    LinearMachine m_;
     double kT_, inv_kT_;  // torque factor 1.5 p and its inverse
-    double I_max_ = NAN;  // the current limit that p1_ is for (NaN: none yet)
-    Point p1_{0.0, 0.0};  // MTPA at I_max_
+    // MTPA at I_max (p1_) and what it was computed for (NaN: nothing yet).
+    double psi_m_ = NAN, L_d_ = NAN, L_q_ = NAN, I_max_ = NAN;
+    Point p1_{0.0, 0.0};
 };
 
-// The same for a single command (a solver built for the call: the saturated solver's machine
-// changes with every iteration).
+// The same with a solver built for the call.
 CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_ref,
                                const OperatingLimits& lim);
 

@@ -628,10 +628,7 @@ RealRoots solve_depressed_quartic(double p, double q, double r) {
     RealRoots out = fast::depressed_quartic_roots(p, q, r, [] {});
     // Every root polished, over all four slots (no data-dependent branches; unused slots are 0).
     const double c[5] = {1.0, 0.0, p, q, r};
-    for (int k = 0; k < 4; ++k) {
-        const NewtonStep st = newton_step(c, out.root[k]);
-        out.root[k] = k < out.count ? (st.better ? st.x1 : st.x0) : 0.0;
-    }
+    for (int k = 0; k < 4; ++k) out.root[k] = k < out.count ? newton_step(c, out.root[k]).root() : 0.0;
     sort_up_to_4(out.root, out.count);
     return out;
 }

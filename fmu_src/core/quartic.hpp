@@ -63,6 +63,7 @@ inline QuarticValue quartic_value(const double (&c)[5], double x) {
 struct NewtonStep {
     double x0, x1;
     bool better;
+    double root() const { return better ? x1 : x0; }  // the polished root
 };
 inline NewtonStep newton_step(const double (&c)[5], double x0) {
     const QuarticValue v = quartic_value(c, x0);

@@ -28,7 +28,7 @@ inline double select(bool take, double a, double b) {
 }
 
 // Cardano's resolvent root is taken as it is if its terms cancel by at most 4 bits (a factor 16).
-constexpr double kCancelledBits = 16.0;
+constexpr double kCancellationFactor = 16.0;
 // Largest and smallest x for which inv_cbrt's bit trick and steps stay normal.
 constexpr double kInvCbrtMin = 0x1p-300, kInvCbrtMax = 0x1p300;
 
@@ -113,7 +113,7 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
     // One Newton step on the resolvent (its largest root is simple unless q = 0) where m is not
     // accurate to a few ulps: after the trigonometric form (it squares cos_third_acos's error),
     // and after Cardano if z - p/3 cancels by more than 4 bits.
-    if (!(kCancelledBits * std::fabs(m) >= cancelled)) {
+    if (!(kCancellationFactor * std::fabs(m) >= cancelled)) {
         const double f = ((m + p) * m + a1) * m + a0;
         const double df = (3.0 * m + 2.0 * p) * m + a1;
         const double dm = f / df;

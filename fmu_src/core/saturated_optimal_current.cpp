@@ -18,7 +18,7 @@ double sign_of(double T) { return T < 0 ? -1.0 : 1.0; }
 }  // namespace
 
 SaturatedOptimalCurrent::SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs)
-    : map_(std::move(map)), pole_pairs_(pole_pairs) {
+    : map_(std::move(map)), pole_pairs_(pole_pairs), linear_(pole_pairs) {
     const FluxPoint f0 = map_->eval(0.0, 0.0);
     nominal_L_d_ = f0.L_dd;
     nominal_L_q_ = f0.L_qq;
@@ -44,7 +44,7 @@ CurrentCommand SaturatedOptimalCurrent::solve(double T_ref, const OperatingLimit
     CurrentCommand cmd;
     switch (mode) {
         case Recursion::nominal:
-            cmd = linear::optimal_current(nominal_machine(R_s, psi_d_shift), pole_pairs_, T_ref, lim);
+            cmd = linear_(nominal_machine(R_s, psi_d_shift), T_ref, lim);
             break;
         case Recursion::apparent: cmd = solve_recursive(T_ref, lim, R_s, flux); break;
         case Recursion::optimal: cmd = solve_optimal(T_ref, lim, R_s, flux); break;
@@ -63,7 +63,7 @@ CurrentCommand SaturatedOptimalCurrent::solve_recursive(double T_ref, const Oper
     auto recurse = [&](double T, double i_d, double i_q) {
         CurrentCommand c;
         for (int k = 1; k <= recursion_max_iterations; ++k) {
-            c = linear::optimal_current(apparent_machine(flux, i_d, i_q, R_s), pole_pairs_, T, lim);
+            c = linear_(apparent_machine(flux, i_d, i_q, R_s), T, lim);
             ++iterations;
             const double moved = std::hypot(c.i_d - i_d, c.i_q - i_q);
             i_d = c.i_d;

@@ -58,6 +58,7 @@ private:
     std::shared_ptr<const FluxMap> map_;
     int pole_pairs_;
     double nominal_L_d_, nominal_L_q_;  // incremental inductances at i = 0
+    linear::CommandSolver linear_;       // Ferrari on a linear machine (recursions 0 and 1)
 };
 
 }  // namespace ipmsm

@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.flux_map import read_flux_map
+from scenarios.flux_map import DEFAULT_MAP, read_flux_map
 
 from .iron_loss import IronLossCoefficients
-from .make_default_map import DEFAULT_CSV, REPO_ROOT
 
+REPO_ROOT = Path(__file__).resolve().parents[2]
 RPM = 30 / math.pi  # r/min per rad/s
 
 
@@ -37,7 +37,6 @@ class Drive:
 
     def __init__(self, path):
         self.map = read_flux_map(path)
-        self.i_d_axis, self.i_q_axis = self.map.i_d, self.map.i_q
         num = self.map.number
         self.p = int(num("pole_pairs"))
         self.R_s = num("R_s_ohm")
@@ -152,7 +151,7 @@ def map_properties(dr: Drive) -> dict:
     L_qq_I = float(dr.psi(0.0, I, dy=1)[1])
     psi_d_I = float(dr.psi(0.0, I)[0])
     # characteristic current: psi_d(i_d, 0) = 0
-    i_d = np.linspace(dr.i_d_axis[0], 0.0, 200001)
+    i_d = np.linspace(dr.map.i_d[0], 0.0, 200001)
     psi_d0 = dr.psi(i_d, np.zeros_like(i_d))[0]
     i_ch = float(-i_d[np.argmin(np.abs(psi_d0))])
     return {
@@ -170,7 +169,7 @@ def map_properties(dr: Drive) -> dict:
     }
 
 
-def compute(csv_path=DEFAULT_CSV, plots_dir=None, json_path=None, verbose=True):
+def compute(csv_path=DEFAULT_MAP, plots_dir=None, json_path=None, verbose=True):
     dr = Drive(csv_path)
     c = Candidates(dr)
     speeds = np.linspace(25.0, dr.w_m_max * RPM, 480) / RPM  # rad/s, 25 r/min steps
@@ -334,8 +333,8 @@ def _plot(dr, speeds, T_e_max, T_sh_max, sp_map, tq_map, eta, base, k_pk, out: P
     plt.close(fig)
     # flux-linkage curves (the map itself)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.8), constrained_layout=True)
-    i_d = np.linspace(dr.i_d_axis[0], dr.i_d_axis[-1], 300)
-    i_q = np.linspace(0.0, dr.i_q_axis[-1], 300)
+    i_d = np.linspace(dr.map.i_d[0], dr.map.i_d[-1], 300)
+    i_q = np.linspace(0.0, dr.map.i_q[-1], 300)
     for n_, frac in enumerate((0.0, 0.5, 1.0)):
         x = frac * dr.I_max
         a1.plot(i_d, dr.psi(i_d, np.full_like(i_d, x))[0] * 1e3, color=f"C{n_}", label=f"$i_q$ = {x:g} A")
@@ -356,7 +355,7 @@ def _plot(dr, speeds, T_e_max, T_sh_max, sp_map, tq_map, eta, base, k_pk, out: P
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--csv", type=Path, default=DEFAULT_CSV)
+    ap.add_argument("--csv", type=Path, default=DEFAULT_MAP)
     ap.add_argument("--out-dir", type=Path, default=REPO_ROOT / "docs" / "motor")
     ap.add_argument("--no-plots", action="store_true")
     args = ap.parse_args(argv)

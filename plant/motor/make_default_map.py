@@ -18,11 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.flux_map import DEFAULT_MAP as DEFAULT_CSV
+from scenarios.flux_map import DEFAULT_MAP
 
 from . import iron_loss, saturation
 
-REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass(frozen=True)
@@ -157,7 +156,7 @@ def csv_text(motor: MotorData = MotorData()) -> str:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", type=Path, default=DEFAULT_CSV, help=f"output file (default {DEFAULT_CSV})")
+    ap.add_argument("--out", type=Path, default=DEFAULT_MAP, help=f"output file (default {DEFAULT_MAP})")
     args = ap.parse_args(argv)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(csv_text(MotorData()))

@@ -54,29 +54,16 @@ Setup make(const std::string& cdir, const std::string& pdir, const Description& 
     ok(ipmsm_cosim_instantiate(m, 0, cdir.c_str(), "IpmsmController", cd.guid.c_str(),
                                (std::string("controller") + suffix).c_str(), 0));
     ok(ipmsm_cosim_instantiate(m, 1, pdir.c_str(), "IpmsmPlant", pd.guid.c_str(), (std::string("plant") + suffix).c_str(), 0));
-    // The plant first: the controller's flying start needs the plant's initial current.
-    ok(ipmsm_cosim_enter_initialization(m, 1, 0.0));
-    if (plant_max_steps > 0) {
-        const unsigned vr = pd.vr.at("cvode_max_steps");
-        ok(ipmsm_cosim_set_integer(m, 1, 1, &vr, &plant_max_steps));
-    }
-    const char* empty = "";
-    const unsigned map_vr = pd.vr.at("flux_map");
-    ok(ipmsm_cosim_set_string(m, 1, 1, &map_vr, &empty));
-    const unsigned p_start_vr[3] = {pd.vr.at("w_m"), pd.vr.at("T_magnet"), pd.vr.at("T_winding")};
-    const double p_start[3] = {w_m, 353.15, 373.15};
-    ok(ipmsm_cosim_set_real(m, 1, 3, p_start_vr, p_start));
-    ok(ipmsm_cosim_exit_initialization(m, 1));
-    const unsigned p_i_vr[2] = {pd.vr.at("i_d"), pd.vr.at("i_q")};
-    double i[2];
-    ok(ipmsm_cosim_get_real(m, 1, 2, p_i_vr, i));
-    ok(ipmsm_cosim_enter_initialization(m, 0, 0.0));
-    const unsigned c_start_vr[6] = {cd.vr.at("T_ref"), cd.vr.at("w_m"), cd.vr.at("u_dc"), cd.vr.at("T_magnet"),
-                                    cd.vr.at("i_d"), cd.vr.at("i_q")};
-    const double c_start[6] = {0.0, w_m, 355.0, 353.15, i[0], i[1]};
-    ok(ipmsm_cosim_set_real(m, 0, 6, c_start_vr, c_start));
-    ok(ipmsm_cosim_exit_initialization(m, 0));
-    ok(cosim_tools::couple(m, cd, pd));
+    ok(cosim_tools::start_coupled(m, cd, pd, {0.0, w_m, 355.0, 353.15, 373.15}, [&](ipmsm_cosim* mm) {
+        int rc = 0;
+        if (plant_max_steps > 0) {
+            const unsigned vr = pd.vr.at("cvode_max_steps");
+            rc = ipmsm_cosim_set_integer(mm, 1, 1, &vr, &plant_max_steps);
+        }
+        const char* empty = "";
+        const unsigned map_vr = pd.vr.at("flux_map");
+        return rc != 0 ? rc : ipmsm_cosim_set_string(mm, 1, 1, &map_vr, &empty);
+    }));
     std::vector<int> unit, kind;
     std::vector<unsigned> vr;
     for (const char* n : {"T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q"}) {

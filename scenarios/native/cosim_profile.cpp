@@ -89,21 +89,7 @@ Result run_fmus(const std::string& cdir, const std::string& pdir, const Descript
     const Inputs in0 = profile(0.0, seconds);
     ok(ipmsm_cosim_instantiate(m, 0, cdir.c_str(), "IpmsmController", cd.guid.c_str(), "controller", 0));
     ok(ipmsm_cosim_instantiate(m, 1, pdir.c_str(), "IpmsmPlant", pd.guid.c_str(), "plant", 0));
-    ok(ipmsm_cosim_enter_initialization(m, 1, 0.0));
-    const unsigned p_start_vr[3] = {pd.vr.at("w_m"), pd.vr.at("T_magnet"), pd.vr.at("T_winding")};
-    const double p_start[3] = {in0.w_m, in0.T_magnet, in0.T_winding};
-    ok(ipmsm_cosim_set_real(m, 1, 3, p_start_vr, p_start));
-    ok(ipmsm_cosim_exit_initialization(m, 1));
-    const unsigned p_i_vr[2] = {pd.vr.at("i_d"), pd.vr.at("i_q")};
-    double i[2];
-    ok(ipmsm_cosim_get_real(m, 1, 2, p_i_vr, i));
-    ok(ipmsm_cosim_enter_initialization(m, 0, 0.0));
-    const unsigned c_start_vr[6] = {cd.vr.at("T_ref"), cd.vr.at("w_m"), cd.vr.at("u_dc"), cd.vr.at("T_magnet"),
-                                    cd.vr.at("i_d"), cd.vr.at("i_q")};
-    const double c_start[6] = {in0.T_ref, in0.w_m, in0.u_dc, in0.T_magnet, i[0], i[1]};
-    ok(ipmsm_cosim_set_real(m, 0, 6, c_start_vr, c_start));
-    ok(ipmsm_cosim_exit_initialization(m, 0));
-    ok(cosim_tools::couple(m, cd, pd));
+    ok(cosim_tools::start_coupled(m, cd, pd, {in0.T_ref, in0.w_m, in0.u_dc, in0.T_magnet, in0.T_winding}));
     // T_e first (the bit-compare), i_d second; then the rest of the default list
     std::vector<int> unit, kind;
     std::vector<unsigned> vr;

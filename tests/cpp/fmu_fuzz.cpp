@@ -80,6 +80,9 @@ std::string attr(const std::string& tag, const char* name) {
     return tag.substr(from, tag.find('"', from) - from);
 }
 
+// The FMI type names, by the fuzzer's kind index 0..3.
+constexpr const char* kTypeName[] = {"Real", "Integer", "Boolean", "String"};
+
 ModelInfo read_model_description(const std::string& path) {
     std::ifstream f(path);
     if (!f) {
@@ -102,7 +105,7 @@ ModelInfo read_model_description(const std::string& path) {
         v.vr = static_cast<fmi2ValueReference>(std::stoul(attr(head, "valueReference")));
         v.causality = attr(head, "causality");
         v.variability = attr(head, "variability");
-        for (const char* t : {"Real", "Integer", "Boolean", "String"}) {
+        for (const char* t : kTypeName) {
             const auto p = body.find(std::string("<") + t);
             if (p == std::string::npos) continue;
             const std::string tag = body.substr(p, body.find('>', p) - p);
@@ -225,9 +228,6 @@ std::uint64_t hash_string(const char* s) {
     for (; *s; ++s) h = (h ^ static_cast<unsigned char>(*s)) * 1099511628211ull;
     return h;
 }
-
-// The FMI type names, by the fuzzer's kind index 0..3.
-constexpr const char* kTypeName[] = {"Real", "Integer", "Boolean", "String"};
 
 // fmi2Instantiate's resource location of an FMU unpacked in dir.
 std::string resource_uri(const std::string& dir) { return "file://" + dir + "/resources"; }
@@ -605,7 +605,7 @@ private:
 
     void set_values() {
         const int kind = pick(4);
-        const char type = "RIBS"[kind];
+        const char type = kTypeName[kind][0];
         const int n = chance(0.1) ? 0 : (chance(0.7) ? 1 : 2 + pick(3));
         std::vector<fmi2ValueReference> vr(n);
         std::vector<double> rv(n);
@@ -648,7 +648,7 @@ private:
 
     void get_values() {
         const int kind = pick(4);
-        const char type = "RIBS"[kind];
+        const char type = kTypeName[kind][0];
         const Var* v = random_var(type);
         const int mode = pick(12);  // 0: n = 0 with NULLs, 1: NULL vr, 2: NULL value, 3: unknown vr, 4: wrong type
         fmi2ValueReference vr = v ? v->vr : 0;

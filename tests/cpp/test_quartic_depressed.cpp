@@ -118,10 +118,7 @@ TEST(CentredQuartic, MatchesTheRobustSolverAfterOnePolish) {
         if (fast.count != robust.count) continue;  // only near double roots (gap >= 1e-3 here: never seen)
         ++compared;
         double polished[4];
-        for (int k = 0; k < fast.count; ++k) {
-            const NewtonStep st = newton_step(c, fast.root[k]);
-            polished[k] = st.better ? st.x1 : st.x0;
-        }
+        for (int k = 0; k < fast.count; ++k) polished[k] = newton_step(c, fast.root[k]).root();
         // Ascending, as the robust solver's roots (an insertion sort: std::sort on this 4-array
         // trips GCC 12's -Warray-bounds).
         for (int i = 1; i < fast.count; ++i)
