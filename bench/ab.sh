@@ -1,0 +1,56 @@
+#!/bin/bash
+# The controller benchmark of two revisions side by side: bench_controller built from each with
+# the project's Release flags (C++17, -O3 -DNDEBUG, the core as PIC), run alternately ROUNDS times
+# each (this VM drifts by 5-10 % between quiet and busy phases: alternating spreads that over
+# both); prints each row's best, in ns per call. A revision may be "work" (the working tree).
+# Rows are matched by name; a row one revision lacks shows "-".
+#
+# Usage: bench/ab.sh REV_A REV_B [ROUNDS]     e.g. bench/ab.sh fcaaf63 HEAD 3
+set -euo pipefail
+[ $# -ge 2 ] || { sed -n '2,9p' "$0"; exit 2; }
+repo=$(cd "$(dirname "$0")/.." && pwd)
+rounds=${3:-3}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+build() {  # build REV DIR
+    local rev=$1 d=$2
+    mkdir -p "$d/src" "$d/obj"
+    if [ "$rev" = work ]; then
+        cp -r "$repo/fmu_src/core" "$repo/bench" "$d/src/"
+    else
+        git -C "$repo" archive "$rev" fmu_src/core bench | tar -x -C "$d/src"
+        mv "$d/src/fmu_src/core" "$d/src/core"
+    fi
+    local flags=(-std=c++17 -O3 -DNDEBUG -I"$d/src/core" -isystem /usr/include/eigen3)
+    for f in "$d"/src/core/*.cpp; do g++ "${flags[@]}" -fPIC -c "$f" -o "$d/obj/$(basename "$f" .cpp).o" & done
+    wait
+    ar rcs "$d/libcore.a" "$d"/obj/*.o
+    g++ "${flags[@]}" -fPIE -DIPMSM_SOURCE_DIR="\"$repo\"" "$d/src/bench/bench_controller.cpp" "$d/libcore.a" \
+        -o "$d/bench_controller"
+}
+
+echo "building $1 and $2 ..." >&2
+build "$1" "$tmp/a"
+build "$2" "$tmp/b"
+for ((k = 1; k <= rounds; ++k)); do
+    echo "round $k of $rounds ..." >&2
+    "$tmp/a/bench_controller" | sed 's/^/a|/' >> "$tmp/out"
+    "$tmp/b/bench_controller" | sed 's/^/b|/' >> "$tmp/out"
+done
+# Rows are "name  value ns  note".
+awk -v A="$1" -v B="$2" '
+    match($0, / +[0-9.]+ ns/) {
+        v = substr($0, 1, 1); name = substr($0, 3, RSTART - 3); x = substr($0, RSTART, RLENGTH) + 0
+        if (!(name in seen)) { seen[name] = 1; order[++n] = name }
+        key = v SUBSEP name
+        if (!(key in best) || x < best[key]) best[key] = x
+    }
+    END {
+        printf "%-72s %10s %10s\n", "ns per call, best of each", A, B
+        for (i = 1; i <= n; ++i) {
+            a = ("a" SUBSEP order[i]) in best ? sprintf("%.1f", best["a" SUBSEP order[i]]) : "-"
+            b = ("b" SUBSEP order[i]) in best ? sprintf("%.1f", best["b" SUBSEP order[i]]) : "-"
+            printf "%-72s %10s %10s\n", order[i], a, b
+        }
+    }' "$tmp/out"
