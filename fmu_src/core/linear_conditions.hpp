@@ -96,29 +96,34 @@ struct VoltageLimitQuartic {
         c[3] = -2.0 * psi * T_red * (R * R + w * w * m.L_d * m.L_q) * inv_a4;
         c[4] = T_red * T_red * (R * R + w * w * m.L_d * m.L_d) * inv_a4;
     }
-    // On the torque curve, i_d from i_q: T' = i_q (psi_m + dL i_d).
-    double i_d_at(double i_q) const { return (T_red / i_q - m.psi_m) * inv_dL; }
     bool point(const RealRoots& r, Point& out) const {
+        double inv[4];
+        fast::with_inverses(r, inv);
+        return point(r, inv, out);
+    }
+    // With the roots' reciprocals (+inf in the unused slots), from the fast path.
+    bool point(const RealRoots& r, const double (&inv)[4], Point& out) const {
         // Every intersection is on the ellipse; the current along the torque curve has its minimum
         // at the MTPA point (outside the ellipse here), so the best is the intersection with the
         // least current. (For the usual geometry that is the root with the largest i_q.)
-        // Key: the current squared; DBL_MAX for i_q <= 0 (also the unused slots, whose 0 makes i_d
-        // infinite), by max with +-DBL_MAX signed like -i_q.
+        // Key: the current squared; DBL_MAX for i_q <= 0 (also the unused slots, whose infinite
+        // reciprocal makes i_d infinite), by max with +-DBL_MAX signed like -i_q.
         double best = DBL_MAX;
         for (unsigned k = 0; k < 4; ++k) {
             const double i_q = r.root[k];
-            const double i_d = i_d_at(i_q);
+            const double i_d = (T_red * inv[k] - m.psi_m) * inv_dL;
             const double I2 = std::min(i_d * i_d + i_q * i_q, DBL_MAX);
             best = std::min(best, tagged(std::max(I2, std::copysign(DBL_MAX, -i_q)), k));
         }
         if (!(best < 0.5 * DBL_MAX)) return false;
-        const double x0 = r.root[slot_of(best)];
+        const unsigned slot = slot_of(best);
+        const double x0 = r.root[slot];
         // One Newton step, taken if it is small: a genuine correction of a root that the fast path
         // gives to ~1e-10 or better (at a double root p and p' are rounding noise and the step
         // arbitrary). The size test needs no second evaluation of the quartic, and i_d follows to
         // first order, T'/x = (T'/x0) (1 - dx/x0) + O(dx^2): no division after the step. Both
         // shorten the chain that every field-weakening command waits for.
-        const double inv_x0 = 1.0 / x0;
+        const double inv_x0 = inv[slot];
         const QuarticValue v = quartic_value(c, x0);
         const double dx = -v.f / v.df;
         const double x = x0 + select(std::fabs(dx) <= kNewtonStepMax * std::fabs(x0), dx, 0.0);
@@ -142,19 +147,23 @@ struct AngleMap {
     }
 };
 
-// MTPV: on the ellipse, v = V (cos th, sin th) and i = M^-1 (v - (0, omega psi_m)) is affine in
-// (cos th, sin th); T'(th) is then a quadratic form whose stationary points are the roots of a
-// quartic in t = tan(th / 2). We use u = tan((th - pi) / 2) = -1 / t instead: the MTPV point (v
-// mostly along -d) lies near u = 0 and the leading coefficient is the derivative at th = 0, far
-// from it, so the fast path is well conditioned. cos th = 1 - 2h, sin th = -2uh, h = 1 / (1 + u^2).
+// MTPV: on the ellipse, v = V_s (cos th, sin th) with V_s = V_max signed like omega, and
+// i = M^-1 (v - (0, omega psi_m)) is affine in (cos th, sin th); T'(th) is then a quadratic form
+// whose stationary points are the roots of a quartic in t = tan(th / 2). We use
+// u = tan((th - pi) / 2) = -1 / t instead: the MTPV point (v mostly along -d for omega > 0, along
+// +d for omega < 0, so th near pi either way) lies near u = 0, and the leading coefficient is the
+// derivative at th = 0, far from it, so the fast path is well conditioned (and LimitPolish's
+// lossless seed is close: with V_max unsigned, omega < 0 put the point near |u| = 6 on the default
+// motor, where two Halley steps left 4e-9 instead of rounding).
+// cos th = 1 - 2h, sin th = -2uh, h = 1 / (1 + u^2).
 struct MtpvQuartic : AngleMap {
     MtpvQuartic(const LinearMachine& m, double omega, double V_max) : m(m) {
-        const double R = m.R_s, w = omega, psi = m.psi_m, dL = m.L_d - m.L_q;
+        const double R = m.R_s, w = omega, psi = m.psi_m, dL = m.L_d - m.L_q, V = std::copysign(V_max, omega);
         const double det = R * R + w * w * m.L_d * m.L_q;
         valid = det > 0;
         const double inv_det = 1.0 / det;
-        ad = -w * w * m.L_q * psi * inv_det, bd = R * V_max * inv_det, gd = w * m.L_q * V_max * inv_det;
-        aq = -R * w * psi * inv_det, bq = -w * m.L_d * V_max * inv_det, gq = R * V_max * inv_det;
+        ad = -w * w * m.L_q * psi * inv_det, bd = R * V * inv_det, gd = w * m.L_q * V * inv_det;
+        aq = -R * w * psi * inv_det, bq = -w * m.L_d * V * inv_det, gq = R * V * inv_det;
         const double a = dL * bd * bq, b = dL * gd * gq, k = dL * (bd * gq + gd * bq);
         const double d = psi * bq + dL * (ad * bq + bd * aq);
         const double e = psi * gq + dL * (ad * gq + gd * aq);

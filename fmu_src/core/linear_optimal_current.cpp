@@ -256,45 +256,39 @@ Limit max_torque_from(const LinearMachine& m, const OperatingLimits& lim, Point 
 // polished on the limit's own quartic (MTPV or the intersection, in its u) by Halley's method,
 // in place of a second Ferrari solution. A fixed number of steps, without a data-dependent exit
 // (whose mispredictions cost more than the step): from the lossless seed, within 3 % in torque,
-// two steps leave at most 4e-9 (relative, 1.7e5 random field-weakening operating points); the
-// third is then exact to rounding and its size confirms convergence. The steps are taken one at a
-// time by advance(), so that the command's Ferrari solution can interleave them. finish() confirms
-// the result with the checks of the Ferrari path: the current limit (MTPV) or its KKT sign
-// (intersection), and the torque within kEstimateMargin of the estimate (the same root, not a
-// far one); false sends the caller to the all-Ferrari sequential path.
-constexpr int kHalleySteps = 3;
-constexpr double kHalleyTol = 1e-8;  // the last step, relative to 1 + |u|
+// two steps leave at most 1.4e-16 (the size of a third step, relative to 1 + |u|, on 1.7e5 random
+// field-weakening operating points of the default motor): rounding. finish() confirms that without
+// a third step or a division: the Newton correction f / f' at the result must be below kHalleyTol
+// (|f| <= kHalleyTol |f'| (1 + |u|)); and the checks of the Ferrari path: the current limit (MTPV)
+// or its KKT sign (intersection), and the torque within kEstimateMargin of the estimate (the same
+// root, not a far one). false sends the caller to the all-Ferrari sequential path. The steps are
+// taken one at a time by advance(), so that the command's Ferrari solution can interleave them.
+constexpr int kHalleySteps = 2;
+constexpr double kHalleyTol = 1e-10;  // the remaining Newton correction, relative to 1 + |u|
 
 struct LimitPolish {
     double c[5];
-    double u, step = 0.0;
+    double u;      // the limit's angle variable (MtpvQuartic, IntersectionQuartic)
     AngleMap map;  // the limit's point from u
     bool mtpv, valid;
-    LimitPolish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e) : mtpv(e.mtpv) {
+    // Seeded by the lossless estimate's point.
+    LimitPolish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e) : LimitPolish(m, lim, e.mtpv) {
         if (mtpv) {
-            const MtpvQuartic Q(m, lim.omega, lim.V_max);
-            std::copy(Q.c, Q.c + 5, c);
-            map = Q, valid = Q.valid;
-            // The lossless point's voltage angle: v = omega (-L_q i_q, L_d i_d + psi_m) with
-            // |v| = V_max, u = tan((th - pi) / 2) = -v_q / (V_max - v_d).
-            const double v_d = -lim.omega * m.L_q * e.p.i_q, v_q = lim.omega * (m.L_d * e.p.i_d + m.psi_m);
-            u = -v_q / (lim.V_max - v_d);
+            // The lossless point's voltage, v = omega (-L_q i_q, L_d i_d + psi_m), |v| = V_max.
+            u = voltage_angle(lim, -lim.omega * m.L_q * e.p.i_q, lim.omega * (m.L_d * e.p.i_d + m.psi_m));
         } else {
-            const IntersectionQuartic Q(m, lim.omega, lim.V_max, lim.I_max);
-            std::copy(Q.c, Q.c + 5, c);
-            map = Q, valid = true;
             u = -(lim.I_max + e.p.i_d) / e.p.i_q;  // the lossless point's angle on the circle
         }
     }
     void advance() {  // one Halley step
         const QuarticValue v = quartic_value(c, u);
         const double d2 = (12.0 * c[0] * u + 6.0 * c[1]) * u + 2.0 * c[2];
-        step = 2.0 * v.f * v.df / (2.0 * v.df * v.df - v.f * d2);
-        u -= step;
+        u -= 2.0 * v.f * v.df / (2.0 * v.df * v.df - v.f * d2);
     }
     bool finish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, Limit& top) const {
         constexpr double T_base = INFINITY;  // not estimated here (the fast path predicts with its square)
-        if (!(valid && e.T_red > 0 && std::fabs(step) <= kHalleyTol * (1.0 + std::fabs(u)))) return false;
+        const QuarticValue v = quartic_value(c, u);
+        if (!(valid && e.T_red > 0 && std::fabs(v.f) <= kHalleyTol * std::fabs(v.df) * (1.0 + std::fabs(u)))) return false;
         const Point p = map.at(u);
         if (mtpv) {
             if (!mtpv_limit_at(m, lim, p, T_base, top)) return false;
@@ -302,6 +296,39 @@ struct LimitPolish {
             if (!(u < 0 && current_limit_binds(m, lim.omega, p) && intersection_limit_at(m, p, T_base, top))) return false;
         }
         return std::abs(top.T_red - e.T_red) <= kEstimateMargin * e.T_red;
+    }
+    // The other limit, polished from this one's point. Near the speed where the MTPV point leaves
+    // the current circle the lossless estimate can choose the wrong one (2 % of random
+    // field-weakening points on the default motor); the two points are close there.
+    LimitPolish other(const LinearMachine& m, const OperatingLimits& lim) const {
+        const Point p = map.at(u);
+        LimitPolish o(m, lim, !mtpv);
+        if (o.mtpv) {  // p is on the voltage ellipse (with R_s)
+            o.u = voltage_angle(lim, m.R_s * p.i_d - lim.omega * m.L_q * p.i_q,
+                                m.R_s * p.i_q + lim.omega * (m.L_d * p.i_d + m.psi_m));
+        } else {  // p is at the MTPV point, outside the current circle: its angle
+            o.u = -(std::hypot(p.i_d, p.i_q) + p.i_d) / p.i_q;
+        }
+        for (int k = 0; k < kHalleySteps; ++k) o.advance();
+        return o;
+    }
+
+private:
+    LimitPolish(const LinearMachine& m, const OperatingLimits& lim, bool mtpv) : mtpv(mtpv) {
+        if (mtpv) {
+            const MtpvQuartic Q(m, lim.omega, lim.V_max);
+            std::copy(Q.c, Q.c + 5, c);
+            map = Q, valid = Q.valid;
+        } else {
+            const IntersectionQuartic Q(m, lim.omega, lim.V_max, lim.I_max);
+            std::copy(Q.c, Q.c + 5, c);
+            map = Q, valid = true;
+        }
+    }
+    // MtpvQuartic's u of a voltage v = V_s (cos th, sin th) on the ellipse (V_s = V_max signed like
+    // omega): u = tan((th - pi) / 2) = -v_q / (V_s - v_d).
+    static double voltage_angle(const OperatingLimits& lim, double v_d, double v_q) {
+        return -v_q / (std::copysign(lim.V_max, lim.omega) - v_d);
     }
 };
 
@@ -318,8 +345,8 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
     const LimitEstimate estimate = lossless_limit_estimate(m, lim);
     LimitPolish limit(m, lim, estimate);
     int steps = 0;
-    auto limit_step = [&] {
-        limit.advance();
+    auto limit_step = [&] {  // called three times by the Ferrari stages: a step in the first two
+        if (steps < kHalleySteps) limit.advance();
         ++steps;
     };
     bool command_ok;
@@ -333,11 +360,13 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
     } else {
         const VoltageLimitQuartic cq(m, lim.omega, lim.V_max, T_red);
         region = Region::voltage_limit;
-        command_ok = cq.point(fast::depressed_quartic_roots(cq.c[2], cq.c[3], cq.c[4], limit_step), p) &&
+        double inv[4];
+        const RealRoots roots = fast::depressed_quartic_roots(cq.c[2], cq.c[3], cq.c[4], limit_step, inv);
+        command_ok = cq.point(roots, inv, p) &&
                      voltage_limit_is_optimal(m, lim.omega, p);
     }
     while (steps < kHalleySteps) limit_step();  // clamped without a quartic, or a solver's early exit
-    if (!limit.finish(m, lim, estimate, top)) return false;
+    if (!limit.finish(m, lim, estimate, top) && !limit.other(m, lim).finish(m, lim, estimate, top)) return false;
     if (T_red >= top.T_red) {  // clamped
         p = top.point;
         region = top.region;

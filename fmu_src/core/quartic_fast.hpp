@@ -78,13 +78,32 @@ inline double quad_root_pair(double b, double c, double& r1, double& r2) {
     return disc;
 }
 
+// Both reciprocals of the roots x1, x2 of x^2 + b x + c, given 1/c: 1/x1 = x2 / c.
+inline void inv_pair(double x1, double x2, double inv_c, double* inv) {
+    inv[0] = x2 * inv_c;
+    inv[1] = x1 * inv_c;
+}
+
+// The reciprocals of roots by division (the rare paths), +inf in the unused slots; returns r.
+inline RealRoots with_inverses(const RealRoots& r, double* inv) {
+    if (inv)
+        for (int k = 0; k < 4; ++k) inv[k] = k < r.count ? 1.0 / r.root[k] : INFINITY;
+    return r;
+}
+
 // Ferrari's roots of x^4 + p x^2 + q x + r, unsorted and not polished; `interleaved` is called
-// three times, between the stages (pass [] {} when there is nothing to interleave).
+// three times, between the stages (pass [] {} when there is nothing to interleave). With `inv`,
+// also their reciprocals (+inf in the unused slots, as 1/0), without a division per root: the
+// roots come in pairs from x^2 + b x + c with c_+ c_- = r, so 1/x1 = x2 / c = x2 c_other / r, and
+// 1/r is known from the start, off the dependency chain.
 template <class Interleaved>
-inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleaved&& interleaved) {
+inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleaved&& interleaved,
+                                         double* inv = nullptr) {
     constexpr double kThird = 1.0 / 3.0;
     RealRoots o;
+    if (inv) std::fill(inv, inv + 4, INFINITY);
     if (!(std::isfinite(p) && std::isfinite(q) && std::isfinite(r))) return o;  // count 0
+    const double inv_r = 1.0 / r;
     // Resolvent cubic m^3 + a2 m^2 + a1 m + a0 = 0 (a2 = p); depressed by m = z - p/3: z^3 + P z + Q = 0.
     const double a1 = 0.25 * p * p - r, a0 = -0.125 * q * q;
     const double a2_3 = p * kThird;
@@ -101,7 +120,10 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
         // z = (A^3 + B^3) / (A^2 - AB + B^2) = -Q / (A^2 + B^2 + P/3), a sum of positive terms.
         const double w = 0.5 * Q + std::copysign(std::sqrt(D), Q);
         const double ir = inv_cbrt(std::fabs(w)), A = -w * ir * ir, B = P * kThird * std::copysign(ir, w);
-        const double z = select(P > 0.0, -Q / (A * A + B * B + P * kThird), A + B);
+        // A branch, not a select: the sign of P is the same on every call for most quartics (MTPA:
+        // P = -r > 0; the voltage ellipse: P < 0 in nearly all cases), and the division is then
+        // off the chain where it is not needed.
+        const double z = P > 0.0 ? -Q / (A * A + B * B + P * kThird) : A + B;
         m = z - a2_3;
         cancelled = std::fabs(z) + std::fabs(a2_3);
     } else {  // three real roots (P <= 0): the largest, in trigonometric form
@@ -120,7 +142,7 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
         if (df > 0.0 && std::isfinite(dm)) m -= dm;
     }
     interleaved();
-    if (!std::isfinite(m) || !std::isfinite(D)) return solve_quartic(1.0, 0.0, p, q, r);  // extreme scales
+    if (!std::isfinite(m) || !std::isfinite(D)) return with_inverses(solve_quartic(1.0, 0.0, p, q, r), inv);  // extreme scales
     double* y = o.root;
     int n = 0;
     if (m > 0.0 && q != 0.0) {
@@ -141,8 +163,14 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
         const double c_big = plus_big ? k + l : k - l;
         const double c_small = c_big != 0.0 ? r / c_big : 0.0;
         const double c_plus = plus_big ? c_big : c_small, c_minus = plus_big ? c_small : c_big;
-        if (quad_root_pair(-s, c_plus, y[n], y[n + 1]) >= 0.0) n += 2;
-        if (quad_root_pair(s, c_minus, y[n], y[n + 1]) >= 0.0) n += 2;
+        if (quad_root_pair(-s, c_plus, y[n], y[n + 1]) >= 0.0) {
+            if (inv) inv_pair(y[n], y[n + 1], c_minus * inv_r, inv + n);
+            n += 2;
+        }
+        if (quad_root_pair(s, c_minus, y[n], y[n + 1]) >= 0.0) {
+            if (inv) inv_pair(y[n], y[n + 1], c_plus * inv_r, inv + n);
+            n += 2;
+        }
     } else {
         interleaved();
         // Biquadratic (q = 0, or the resolvent root rounded to <= 0): y^2 = w, w^2 + p w + r = 0.
@@ -150,7 +178,8 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
         if (quad_root_pair(p, r, w1, w2) >= 0.0) {
             for (double w : {w1, w2}) {
                 if (w < 0.0) continue;
-                const double v = std::sqrt(w);
+                const double v = std::sqrt(w);  // 1/v = v / w, 1/w1 = w2 / r
+                if (inv) inv_pair(v, -v, (w == w1 ? w2 : w1) * inv_r, inv + n);
                 y[n++] = v;
                 y[n++] = -v;
             }
@@ -158,9 +187,15 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
     }
     bool finite = true;
     for (int k = 0; k < 4; ++k) finite &= std::isfinite(y[k]);
-    if (!finite) return solve_quartic(1.0, 0.0, p, q, r);
+    if (!finite) return with_inverses(solve_quartic(1.0, 0.0, p, q, r), inv);
     o.count = n;
+    if (inv && !(std::fabs(inv_r) < INFINITY && inv_r != 0.0)) with_inverses(o, inv);  // r = 0, or extreme
     return o;
+}
+
+// Without reciprocals.
+inline RealRoots depressed_quartic_roots(double p, double q, double r) {
+    return depressed_quartic_roots(p, q, r, [] {});
 }
 
 }  // namespace ipmsm::fast
