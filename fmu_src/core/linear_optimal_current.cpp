@@ -256,17 +256,18 @@ Limit max_torque_from(const LinearMachine& m, const OperatingLimits& lim, Point 
 
 // T_max in field weakening as MATH.md allows it with R_s: the lossless (R_s = 0) closed form,
 // polished on the limit's own quartic (MTPV or the intersection, in its u) by Halley's method,
-// in place of a second Ferrari solution. A fixed number of steps, without a data-dependent exit
-// (whose mispredictions cost more than the step): from the lossless seed, within 3 % in torque,
-// two steps leave at most 1.4e-16 (the size of a third step, relative to 1 + |u|, on 1.7e5 random
-// field-weakening operating points of the default motor): rounding. finish() confirms that without
-// a third step or a division: the Newton correction f / f' at the result must be below kHalleyTol
-// (|f| <= kHalleyTol |f'| (1 + |u|)); and the checks of the Ferrari path: the current limit (MTPV)
-// or its KKT sign (intersection), and the torque within kEstimateMargin of the estimate (the same
-// root, not a far one). false sends the caller to the all-Ferrari sequential path. The steps are
-// taken one at a time by advance(), so that the command's Ferrari solution can interleave them.
-constexpr int kHalleySteps = 2;
-constexpr double kHalleyTol = 1e-10;  // the remaining Newton correction, relative to 1 + |u|
+// in place of a second Ferrari solution. Two steps, taken one at a time by advance() so that the
+// command's Ferrari solution can interleave them: from the lossless seed (within 3 % in torque
+// on the default motor) they leave at most 1.4e-16 (the size of a third step, relative to 1 + |u|,
+// on 1.7e5 random field-weakening operating points): rounding. finish() confirms that without a
+// division: the Newton correction f / f' at the result must be below kHalleyTol
+// (|f| <= kHalleyTol |f'| (1 + |u|)); where R_s is large against omega L the seed is further off
+// and up to kHalleyExtraSteps more steps are taken (never on the default motor; on a quarter of
+// the unit tests' random small machines). Then the checks of the Ferrari path: the current limit
+// (MTPV) or its KKT sign (intersection), and the torque within kEstimateMargin of the estimate
+// (the same root, not a far one). false sends the caller to the all-Ferrari sequential path.
+constexpr int kHalleySteps = 2, kHalleyExtraSteps = 2;
+constexpr double kHalleyTol = 1e-12;  // the remaining Newton correction, relative to 1 + |u|
 
 struct LimitPolish {
     double c[5];
@@ -287,10 +288,19 @@ struct LimitPolish {
         const double d2 = (12.0 * c[0] * u + 6.0 * c[1]) * u + 2.0 * c[2];
         u -= 2.0 * v.f * v.df / (2.0 * v.df * v.df - v.f * d2);
     }
-    bool finish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, Limit& top) const {
-        constexpr double T_base = INFINITY;  // not estimated here (the fast path predicts with its square)
+    // The Newton correction f / f' at u is below kHalleyTol (relative to 1 + |u|), without a division.
+    bool converged() const {
         const QuarticValue v = quartic_value(c, u);
-        if (!(valid && e.T_red > 0 && std::fabs(v.f) <= kHalleyTol * std::fabs(v.df) * (1.0 + std::fabs(u)))) return false;
+        return std::fabs(v.f) <= kHalleyTol * std::fabs(v.df) * (1.0 + std::fabs(u));
+    }
+    bool finish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, Limit& top) {
+        constexpr double T_base = INFINITY;  // not estimated here (the fast path predicts with its square)
+        bool ok = converged();
+        for (int k = 0; k < kHalleyExtraSteps && !ok; ++k) {  // a seed further off (R_s large against omega L)
+            advance();
+            ok = converged();
+        }
+        if (!(valid && e.T_red > 0 && ok)) return false;
         const Point p = map.at(u);
         if (mtpv) {
             if (!mtpv_limit_at(m, lim, p, T_base, top)) return false;

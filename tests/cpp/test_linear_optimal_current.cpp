@@ -156,10 +156,45 @@ TEST(LinearOptimalCurrent, TorqueLimitByHalleyMatchesFerrari) {
         ++compared;
         const double T_max = 1.5 * kPolePairs * top.T_red;
         worst = std::max(worst, std::abs(cmd.torque_max - T_max) / T_max);
-        ASSERT_NEAR(cmd.torque_max, T_max, 1e-9 * T_max) << n;
+        ASSERT_NEAR(cmd.torque_max, T_max, 1e-11 * T_max) << n;
     }
     std::cout << "[ measured ] " << compared << " cases; worst relative difference of T_max " << worst << "\n";
     EXPECT_GT(compared, 90000);
+}
+
+// Near the speed where the MTPV point enters the current circle, the lossless estimate (the
+// R_s = 0 machine's limit) can name the other limit than the machine with R_s has: there the
+// fast path polishes the other limit from the first one's point. Speeds swept finely across that
+// band, both directions of rotation, both torque signs, clamped commands: T_max, its point and
+// its region as max_torque() has them by Ferrari.
+TEST(LinearOptimalCurrent, TorqueLimitWhereTheLosslessEstimateNamesTheOtherLimit) {
+    const LinearMachine m{0.05, 1.5e-4, 4.5e-4, 0.05};  // psi_m / L_d < I_max; a large R_s: a wide band
+    LinearMachine lossless = m;
+    lossless.R_s = 0.0;
+    const double V_max = 200.0, I_max = 400.0;
+    int disagree = 0, compared = 0;
+    for (int k = 0; k <= 20000; ++k) {
+        const double w = 1500.0 + 10500.0 * k / 20000.0;  // electrical rad/s
+        for (double sw : {-1.0, 1.0}) {
+            for (double sT : {-1.0, 1.0}) {
+                const OperatingLimits lim{sw * w, V_max, I_max};
+                const OperatingLimits mirrored{sT * sw * w, V_max, I_max};
+                const linear::Limit top = linear::max_torque(m, mirrored);
+                if (!top.feasible || top.region == Region::mtpa) continue;
+                disagree += linear::max_torque(lossless, mirrored).region != top.region;
+                ++compared;
+                const CurrentCommand cmd = linear::optimal_current(m, kPolePairs, sT * 1e6, lim);
+                const double T_max = 1.5 * kPolePairs * top.T_red;
+                ASSERT_NEAR(cmd.torque_max, T_max, 1e-11 * T_max) << w << " " << sw << " " << sT;
+                ASSERT_NEAR(cmd.i_d, top.point.i_d, 1e-9 * I_max) << w << " " << sw << " " << sT;
+                ASSERT_NEAR(cmd.i_q, sT * top.point.i_q, 1e-9 * I_max) << w << " " << sw << " " << sT;
+                ASSERT_EQ(cmd.region, top.region) << w << " " << sw << " " << sT;
+            }
+        }
+    }
+    std::cout << "[ measured ] " << compared << " clamped commands in field weakening; the lossless limit differs in "
+              << disagree << "\n";
+    EXPECT_GT(disagree, 100);  // the band is exercised
 }
 
 // A kept solver (MTPA at I_max cached, recomputed when the machine or I_max changes) gives the
