@@ -114,6 +114,14 @@ int main(int argc, char** argv) {
     for (const Op& o : rnd) (std::abs(o.w_m) < 1500 * M_PI / 30 ? low : high).push_back(o);
     row("  ... below 1500 r/min (MTPA region: 1 quartic)", ns_per_call(low, R, linear_call));
     row("  ... above 1500 r/min (field weakening: T_max by Halley + 1 quartic)", ns_per_call(high, R, linear_call));
+    // The same calls in an order that makes the branches predictable (speed in 20 rad/s bins, then
+    // torque): what mispredicted branches cost on random operating points.
+    std::vector<Op> high_sorted = high;
+    std::sort(high_sorted.begin(), high_sorted.end(), [](const Op& a, const Op& b) {
+        const int bin_a = static_cast<int>(std::abs(a.w_m) / 20), bin_b = static_cast<int>(std::abs(b.w_m) / 20);
+        return bin_a != bin_b ? bin_a < bin_b : std::abs(a.T) < std::abs(b.T);
+    });
+    row("  ... above 1500 r/min, sorted by speed, then torque", ns_per_call(high_sorted, R, linear_call));
     row("  ... random, a new solver per call (linear::optimal_current)", ns_per_call(rnd, R, linear_free_call));
 
     // One quartic, Ferrari vs Eigen's companion matrix: the Case i quartic of each operating point.
