@@ -15,7 +15,6 @@
 //    glue's per-step copy of the model), for the FMU's default settings and for cvode_method 2.
 //
 // Usage: bench_plant [rounds]. The FMUs are found next to this executable (../fmu/).
-#include <dlfcn.h>
 
 #include <algorithm>
 #include <chrono>
@@ -34,6 +33,7 @@
 
 #include "cvode_integrator.hpp"
 #include "fmi2Functions.h"
+#include "fmu_binary.hpp"
 #include "flux_map.hpp"
 #include "inverse_flux_map.hpp"
 
@@ -57,84 +57,45 @@ void quiet_logger(fmi2ComponentEnvironment, fmi2String, fmi2Status status, fmi2S
     std::fprintf(stderr, "FMU: %s\n", buf);
 }
 
-std::string attribute_after(const std::string& xml, std::size_t from, const char* attr) {
-    const std::string key = std::string(attr) + "=\"";
-    const std::size_t a = xml.find(key, from);
-    if (a == std::string::npos) return "";
-    const std::size_t b = xml.find('"', a + key.size());
-    return xml.substr(a + key.size(), b - a - key.size());
-}
-
-// One unzipped FMU's binary, dlopened.
+// One unzipped FMU: its model description and its binary's functions (fmu_binary.hpp).
 struct Fmu {
-    std::string dir, guid;
-    void* so = nullptr;
-    std::map<std::string, fmi2ValueReference> vr;
-    fmi2InstantiateTYPE* instantiate = nullptr;
-    fmi2FreeInstanceTYPE* free_instance = nullptr;
-    fmi2SetupExperimentTYPE* setup = nullptr;
-    fmi2EnterInitializationModeTYPE* enter_init = nullptr;
-    fmi2ExitInitializationModeTYPE* exit_init = nullptr;
-    fmi2GetRealTYPE* get_real = nullptr;
-    fmi2SetRealTYPE* set_real = nullptr;
-    fmi2SetIntegerTYPE* set_integer = nullptr;
-    fmi2DoStepTYPE* do_step = nullptr;
+    std::string dir;
+    fmu_binary::Description d;
+    fmu_binary::Functions fn;
     fmi2CallbackFunctions cb{quiet_logger, nullptr, nullptr, nullptr, nullptr};
 
-    explicit Fmu(const fs::path& d, const char* id) : dir(d.string()) {
-        std::ifstream f(d / "modelDescription.xml");
-        std::stringstream ss;
-        ss << f.rdbuf();
-        const std::string xml = ss.str();
-        guid = attribute_after(xml, 0, "guid");
-        for (std::size_t p = xml.find("<ScalarVariable"); p != std::string::npos; p = xml.find("<ScalarVariable", p + 1))
-            vr[attribute_after(xml, p, "name")] = static_cast<fmi2ValueReference>(std::stoul(attribute_after(xml, p, "valueReference")));
-        const std::string lib = (d / "binaries" / "linux64" / (std::string(id) + ".so")).string();
-        so = dlopen(lib.c_str(), RTLD_NOW | RTLD_LOCAL);
-        if (so == nullptr || guid.empty()) {
-            std::fprintf(stderr, "cannot load %s (%s): build the FMUs first\n", lib.c_str(), dlerror());
+    Fmu(const fs::path& unzipped, const char* id) : dir(unzipped.string()), d(fmu_binary::read_description(dir)) {
+        std::string why;
+        if (!fn.open(fmu_binary::library_path(dir, id), why)) {
+            std::fprintf(stderr, "%s: build the FMUs first\n", why.c_str());
             std::exit(2);
         }
-        load(instantiate, "fmi2Instantiate");
-        load(free_instance, "fmi2FreeInstance");
-        load(setup, "fmi2SetupExperiment");
-        load(enter_init, "fmi2EnterInitializationMode");
-        load(exit_init, "fmi2ExitInitializationMode");
-        load(get_real, "fmi2GetReal");
-        load(set_real, "fmi2SetReal");
-        load(set_integer, "fmi2SetInteger");
-        load(do_step, "fmi2DoStep");
-    }
-    template <class F>
-    void load(F*& f, const char* name) {
-        f = reinterpret_cast<F*>(dlsym(so, name));
-        if (f == nullptr) std::exit(2);
     }
     // Instantiate, set Real and Integer parameters, initialise.
     fmi2Component make(const char* name, const std::map<std::string, double>& reals,
                        const std::map<std::string, int>& ints = {}) {
         const std::string res = "file://" + dir + "/resources";
-        fmi2Component c = instantiate(name, fmi2CoSimulation, guid.c_str(), res.c_str(), &cb, fmi2False, fmi2False);
+        fmi2Component c = fn.fmi2Instantiate(name, fmi2CoSimulation, d.guid.c_str(), res.c_str(), &cb, fmi2False, fmi2False);
         if (c == nullptr) std::exit(3);
-        ok(setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
-        ok(enter_init(c));
+        ok(fn.fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
+        ok(fn.fmi2EnterInitializationMode(c));
         for (const auto& [n, v] : reals) set(c, n, v);
         for (const auto& [n, v] : ints) {
-            const fmi2ValueReference r = vr.at(n);
+            const fmi2ValueReference r = d.vr.at(n);
             const fmi2Integer x = v;
-            ok(set_integer(c, &r, 1, &x));
+            ok(fn.fmi2SetInteger(c, &r, 1, &x));
         }
-        ok(exit_init(c));
+        ok(fn.fmi2ExitInitializationMode(c));
         return c;
     }
     void set(fmi2Component c, const std::string& n, double v) {
-        const fmi2ValueReference r = vr.at(n);
-        ok(set_real(c, &r, 1, &v));
+        const fmi2ValueReference r = d.vr.at(n);
+        ok(fn.fmi2SetReal(c, &r, 1, &v));
     }
     double get(fmi2Component c, const std::string& n) {
-        const fmi2ValueReference r = vr.at(n);
+        const fmi2ValueReference r = d.vr.at(n);
         double v = 0;
-        ok(get_real(c, &r, 1, &v));
+        ok(fn.fmi2GetReal(c, &r, 1, &v));
         return v;
     }
     static void ok(fmi2Status s) {
@@ -182,16 +143,16 @@ Trace record(Fmu& ctrl_fmu, Fmu& plant_fmu, const char* name, const std::functio
             tr.u_d.push_back(u_d);
             tr.u_q.push_back(u_q);
         }
-        Fmu::ok(plant_fmu.do_step(plant, t, kH, fmi2True));
-        Fmu::ok(ctrl_fmu.do_step(ctrl, t, kH, fmi2True));
+        Fmu::ok(plant_fmu.fn.fmi2DoStep(plant, t, kH, fmi2True));
+        Fmu::ok(ctrl_fmu.fn.fmi2DoStep(ctrl, t, kH, fmi2True));
         u_d = ctrl_fmu.get(ctrl, "u_d_ref");
         u_q = ctrl_fmu.get(ctrl, "u_q_ref");
     }
     tr.T_e_end = plant_fmu.get(plant, "T_e");
     tr.i_d_end = plant_fmu.get(plant, "i_d");
     tr.i_q_end = plant_fmu.get(plant, "i_q");
-    plant_fmu.free_instance(plant);
-    ctrl_fmu.free_instance(ctrl);
+    plant_fmu.fn.fmi2FreeInstance(plant);
+    ctrl_fmu.fn.fmi2FreeInstance(ctrl);
     return tr;
 }
 
@@ -261,7 +222,7 @@ double fmu_replay(Fmu& plant_fmu, const Trace& tr, std::map<std::string, double>
                   const std::map<std::string, int>& ints, int rounds, double* do_step_only) {
     double best = 1e300, best_step = 1e300;
     const std::size_t n = tr.u_d.size();
-    const fmi2ValueReference in_vr[3] = {plant_fmu.vr.at("u_d"), plant_fmu.vr.at("u_q"), plant_fmu.vr.at("w_m")};
+    const fmi2ValueReference in_vr[3] = {plant_fmu.d.vr.at("u_d"), plant_fmu.d.vr.at("u_q"), plant_fmu.d.vr.at("w_m")};
     for (int round = 0; round < rounds; ++round) {
         // Starts at the recorded currents (so at the recorded fluxes, to the inverse map's accuracy).
         reals["i_d_start"] = tr.i0[0];
@@ -269,21 +230,21 @@ double fmu_replay(Fmu& plant_fmu, const Trace& tr, std::map<std::string, double>
         fmi2Component c = plant_fmu.make("bench", reals, ints);
         double step_us = 0;
         double in[3] = {tr.u_d[0], tr.u_q[0], kTopSpeed};
-        Fmu::ok(plant_fmu.set_real(c, in_vr, 3, in));
-        Fmu::ok(plant_fmu.do_step(c, 0.0, kH, fmi2True));  // creates the workspace: not timed
+        Fmu::ok(plant_fmu.fn.fmi2SetReal(c, in_vr, 3, in));
+        Fmu::ok(plant_fmu.fn.fmi2DoStep(c, 0.0, kH, fmi2True));  // creates the workspace: not timed
         const auto t0 = std::chrono::steady_clock::now();
         for (std::size_t k = 1; k < n; ++k) {
             in[0] = tr.u_d[k];
             in[1] = tr.u_q[k];
-            Fmu::ok(plant_fmu.set_real(c, in_vr, 3, in));
+            Fmu::ok(plant_fmu.fn.fmi2SetReal(c, in_vr, 3, in));
             const auto s0 = std::chrono::steady_clock::now();
-            Fmu::ok(plant_fmu.do_step(c, k * kH, kH, fmi2True));
+            Fmu::ok(plant_fmu.fn.fmi2DoStep(c, k * kH, kH, fmi2True));
             step_us += std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - s0).count();
         }
         const auto t1 = std::chrono::steady_clock::now();
         best = std::min(best, std::chrono::duration<double, std::micro>(t1 - t0).count() / (n - 1));
         best_step = std::min(best_step, step_us / (n - 1));
-        plant_fmu.free_instance(c);
+        plant_fmu.fn.fmi2FreeInstance(c);
     }
     *do_step_only = best_step;
     return best;

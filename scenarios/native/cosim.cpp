@@ -2,8 +2,6 @@
 // scenarios/master.py (backend "fmpy") makes the same FMI calls in the same order in Python.
 #include "cosim.h"
 
-#include <dlfcn.h>
-
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -18,6 +16,7 @@
 #include <vector>
 
 #include "fmi2Functions.h"
+#include "fmu_binary.hpp"
 
 #define IPMSM_COSIM_API extern "C" __attribute__((visibility("default")))
 
@@ -74,26 +73,13 @@ struct Unit {
     Master* master = nullptr;
     int index = 0;
     std::string model_identifier, instance_name;
-    void* library = nullptr;
     fmi2Component component = nullptr;
     fmi2CallbackFunctions callbacks{};
     bool initialised = false;  // fmi2ExitInitializationMode succeeded
     bool fatal = false;        // an fmi2Fatal: only fmi2FreeInstance is allowed
     std::vector<LogEntry> pending;  // logged during the current FMI call
 
-    fmi2InstantiateTYPE* instantiate = nullptr;
-    fmi2FreeInstanceTYPE* free_instance = nullptr;
-    fmi2SetupExperimentTYPE* setup_experiment = nullptr;
-    fmi2EnterInitializationModeTYPE* enter_initialization_mode = nullptr;
-    fmi2ExitInitializationModeTYPE* exit_initialization_mode = nullptr;
-    fmi2TerminateTYPE* terminate = nullptr;
-    fmi2SetRealTYPE* set_real = nullptr;
-    fmi2SetIntegerTYPE* set_integer = nullptr;
-    fmi2SetBooleanTYPE* set_boolean = nullptr;
-    fmi2SetStringTYPE* set_string = nullptr;
-    fmi2GetRealTYPE* get_real = nullptr;
-    fmi2GetIntegerTYPE* get_integer = nullptr;
-    fmi2DoStepTYPE* do_step = nullptr;
+    fmu_binary::Functions fmi;  // the FMU's binary, dlopened; closed with the instance
 
     const char* label() const { return index == 0 ? "controller" : "plant"; }
 };
@@ -204,13 +190,6 @@ void logger(fmi2ComponentEnvironment env, fmi2String /*instance*/, fmi2Status st
     }
 }
 
-template <class F>
-bool load_symbol(Master& m, Unit& u, F*& f, const char* name) {
-    f = reinterpret_cast<F*>(dlsym(u.library, name));
-    if (f == nullptr) return m.fail(u.model_identifier + ": the FMU's library has no " + name);
-    return true;
-}
-
 // file:// URI of a directory (percent-encoding all but the unreserved characters and '/').
 std::string file_uri(const std::string& path) {
     static const char* hex = "0123456789ABCDEF";
@@ -230,15 +209,14 @@ std::string file_uri(const std::string& path) {
 void release(Unit& u) {
     if (u.component != nullptr) {
         if (u.initialised && !u.fatal) {
-            u.terminate(u.component);
+            u.fmi.fmi2Terminate(u.component);
         }
-        u.free_instance(u.component);
+        u.fmi.fmi2FreeInstance(u.component);
         u.component = nullptr;
         u.master->flush(u);
     }
-    if (u.library != nullptr) {
-        dlclose(u.library);
-        u.library = nullptr;
+    if (u.fmi.is_open()) {
+        u.fmi.close();
     }
 }
 
@@ -322,7 +300,7 @@ IPMSM_COSIM_API int ipmsm_cosim_instantiate(ipmsm_cosim* handle, int unit, const
     return guarded(handle, [&](Master& m) {
         if (!m.unit_ok(unit, false)) return false;
         Unit& u = m.units[unit];
-        if (u.library != nullptr) return m.fail(std::string("the ") + u.label() + " is already instantiated");
+        if (u.fmi.is_open()) return m.fail(std::string("the ") + u.label() + " is already instantiated");
         if (unzip_dir == nullptr || model_identifier == nullptr || guid == nullptr || instance_name == nullptr)
             return m.fail("ipmsm_cosim_instantiate: NULL argument");
         u.model_identifier = model_identifier;
@@ -332,34 +310,16 @@ IPMSM_COSIM_API int ipmsm_cosim_instantiate(ipmsm_cosim* handle, int unit, const
             return m.fail(u.model_identifier + ": the unzipped FMU folder " + unzip_dir + " does not exist");
         const std::string dir = absolute;
         std::free(absolute);
-        const std::string path = dir + "/binaries/linux64/" + model_identifier + ".so";
-        dlerror();
-        u.library = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-        if (u.library == nullptr) {
-            const char* why = dlerror();
-            return m.fail(u.model_identifier + ": cannot load " + path + ": " + (why ? why : "dlopen failed"));
-        }
-        if (!load_symbol(m, u, u.instantiate, "fmi2Instantiate") ||
-            !load_symbol(m, u, u.free_instance, "fmi2FreeInstance") ||
-            !load_symbol(m, u, u.setup_experiment, "fmi2SetupExperiment") ||
-            !load_symbol(m, u, u.enter_initialization_mode, "fmi2EnterInitializationMode") ||
-            !load_symbol(m, u, u.exit_initialization_mode, "fmi2ExitInitializationMode") ||
-            !load_symbol(m, u, u.terminate, "fmi2Terminate") || !load_symbol(m, u, u.set_real, "fmi2SetReal") ||
-            !load_symbol(m, u, u.set_integer, "fmi2SetInteger") ||
-            !load_symbol(m, u, u.set_boolean, "fmi2SetBoolean") ||
-            !load_symbol(m, u, u.set_string, "fmi2SetString") || !load_symbol(m, u, u.get_real, "fmi2GetReal") ||
-            !load_symbol(m, u, u.get_integer, "fmi2GetInteger") || !load_symbol(m, u, u.do_step, "fmi2DoStep")) {
-            dlclose(u.library);
-            u.library = nullptr;
-            return false;
-        }
+        const std::string path = fmu_binary::library_path(dir, model_identifier);
+        std::string why;
+        if (!u.fmi.open(path, why)) return m.fail(u.model_identifier + ": " + why);
         u.callbacks.logger = logger;
         u.callbacks.allocateMemory = std::calloc;
         u.callbacks.freeMemory = std::free;
         u.callbacks.stepFinished = nullptr;
         u.callbacks.componentEnvironment = &u;
         const std::string resources = file_uri(dir + "/resources");
-        u.component = u.instantiate(instance_name, fmi2CoSimulation, guid, resources.c_str(), &u.callbacks,
+        u.component = u.fmi.fmi2Instantiate(instance_name, fmi2CoSimulation, guid, resources.c_str(), &u.callbacks,
                                     fmi2False, logging_on ? fmi2True : fmi2False);
         if (u.component == nullptr) {
             std::string text = u.model_identifier + " (" + u.label() + ", instance '" + u.instance_name +
@@ -371,8 +331,7 @@ IPMSM_COSIM_API int ipmsm_cosim_instantiate(ipmsm_cosim* handle, int unit, const
                 any = true;
             }
             m.flush(u, true);
-            dlclose(u.library);
-            u.library = nullptr;
+            u.fmi.close();
             return m.fail(std::move(text));
         }
         m.flush(u);
@@ -385,9 +344,9 @@ IPMSM_COSIM_API int ipmsm_cosim_enter_initialization(ipmsm_cosim* handle, int un
         if (!m.unit_ok(unit)) return false;
         Unit& u = m.units[unit];
         const std::string when = format(" (start time %.9g s)", start_time);
-        return m.check(u, u.setup_experiment(u.component, fmi2False, 0.0, start_time, fmi2False, 0.0),
+        return m.check(u, u.fmi.fmi2SetupExperiment(u.component, fmi2False, 0.0, start_time, fmi2False, 0.0),
                        "fmi2SetupExperiment", when) &&
-               m.check(u, u.enter_initialization_mode(u.component), "fmi2EnterInitializationMode", when);
+               m.check(u, u.fmi.fmi2EnterInitializationMode(u.component), "fmi2EnterInitializationMode", when);
     });
 }
 
@@ -395,27 +354,27 @@ IPMSM_COSIM_API int ipmsm_cosim_exit_initialization(ipmsm_cosim* handle, int uni
     return guarded(handle, [&](Master& m) {
         if (!m.unit_ok(unit)) return false;
         Unit& u = m.units[unit];
-        if (!m.check(u, u.exit_initialization_mode(u.component), "fmi2ExitInitializationMode", "")) return false;
+        if (!m.check(u, u.fmi.fmi2ExitInitializationMode(u.component), "fmi2ExitInitializationMode", "")) return false;
         u.initialised = true;
         return true;
     });
 }
 
-#define IPMSM_COSIM_ACCESS(NAME, FIELD, FMI, CTYPE, FMITYPE)                                                  \
+#define IPMSM_COSIM_ACCESS(NAME, FMI, CTYPE, FMITYPE)                                                        \
     IPMSM_COSIM_API int NAME(ipmsm_cosim* handle, int unit, size_t n, const unsigned* vr, CTYPE value) {     \
         return guarded(handle, [&](Master& m) {                                                              \
             if (!m.unit_ok(unit)) return false;                                                              \
             Unit& u = m.units[unit];                                                                         \
-            return m.check(u, u.FIELD(u.component, vr, n, reinterpret_cast<FMITYPE>(value)), FMI,           \
+            return m.check(u, u.fmi.FMI(u.component, vr, n, reinterpret_cast<FMITYPE>(value)), #FMI,        \
                            m.coupled ? m.at_time() : std::string());                                         \
         });                                                                                                  \
     }
-IPMSM_COSIM_ACCESS(ipmsm_cosim_set_real, set_real, "fmi2SetReal", const double*, const fmi2Real*)
-IPMSM_COSIM_ACCESS(ipmsm_cosim_set_integer, set_integer, "fmi2SetInteger", const int*, const fmi2Integer*)
-IPMSM_COSIM_ACCESS(ipmsm_cosim_set_boolean, set_boolean, "fmi2SetBoolean", const int*, const fmi2Boolean*)
-IPMSM_COSIM_ACCESS(ipmsm_cosim_set_string, set_string, "fmi2SetString", const char* const*, const fmi2String*)
-IPMSM_COSIM_ACCESS(ipmsm_cosim_get_real, get_real, "fmi2GetReal", double*, fmi2Real*)
-IPMSM_COSIM_ACCESS(ipmsm_cosim_get_integer, get_integer, "fmi2GetInteger", int*, fmi2Integer*)
+IPMSM_COSIM_ACCESS(ipmsm_cosim_set_real, fmi2SetReal, const double*, const fmi2Real*)
+IPMSM_COSIM_ACCESS(ipmsm_cosim_set_integer, fmi2SetInteger, const int*, const fmi2Integer*)
+IPMSM_COSIM_ACCESS(ipmsm_cosim_set_boolean, fmi2SetBoolean, const int*, const fmi2Boolean*)
+IPMSM_COSIM_ACCESS(ipmsm_cosim_set_string, fmi2SetString, const char* const*, const fmi2String*)
+IPMSM_COSIM_ACCESS(ipmsm_cosim_get_real, fmi2GetReal, double*, fmi2Real*)
+IPMSM_COSIM_ACCESS(ipmsm_cosim_get_integer, fmi2GetInteger, int*, fmi2Integer*)
 #undef IPMSM_COSIM_ACCESS
 
 IPMSM_COSIM_API int ipmsm_cosim_couple(ipmsm_cosim* handle, const unsigned* controller_vr, const unsigned* plant_vr,
@@ -438,9 +397,9 @@ IPMSM_COSIM_API int ipmsm_cosim_couple(ipmsm_cosim* handle, const unsigned* cont
         m.coupled = true;
         Unit &c = m.units[0], &p = m.units[1];
         const std::string when = m.at_time();
-        return m.check(p, p.get_real(p.component, m.read_real[1].data(), 2, m.real_buf[1].data()), "fmi2GetReal",
+        return m.check(p, p.fmi.fmi2GetReal(p.component, m.read_real[1].data(), 2, m.real_buf[1].data()), "fmi2GetReal",
                        when) &&
-               m.check(c, c.get_real(c.component, m.read_real[0].data(), 2, m.real_buf[0].data()), "fmi2GetReal",
+               m.check(c, c.fmi.fmi2GetReal(c.component, m.read_real[0].data(), 2, m.real_buf[0].data()), "fmi2GetReal",
                        when);
     });
 }
@@ -496,17 +455,17 @@ IPMSM_COSIM_API long long ipmsm_cosim_advance(ipmsm_cosim* handle, long long n_s
         const double p_slow[3] = {slow[1], slow[3], slow[4]};
         {
             const std::string when = m.at_time();
-            if (!m.check(c, c.set_real(c.component, m.c_slow, 4, c_slow), "fmi2SetReal (T_ref, w_m, u_dc, T_magnet)",
+            if (!m.check(c, c.fmi.fmi2SetReal(c.component, m.c_slow, 4, c_slow), "fmi2SetReal (T_ref, w_m, u_dc, T_magnet)",
                          when) ||
-                !m.check(p, p.set_real(p.component, m.p_slow, 3, p_slow), "fmi2SetReal (w_m, T_magnet, T_winding)",
+                !m.check(p, p.fmi.fmi2SetReal(p.component, m.p_slow, 3, p_slow), "fmi2SetReal (w_m, T_magnet, T_winding)",
                          when))
                 return false;
         }
         const fmi2Component cc = c.component, pc = p.component;
-        fmi2SetRealTYPE *c_set = c.set_real, *p_set = p.set_real;
-        fmi2DoStepTYPE *c_step = c.do_step, *p_step = p.do_step;
-        fmi2GetRealTYPE *c_get = c.get_real, *p_get = p.get_real;
-        fmi2GetIntegerTYPE *c_geti = c.get_integer, *p_geti = p.get_integer;
+        fmi2SetRealTYPE *c_set = c.fmi.fmi2SetReal, *p_set = p.fmi.fmi2SetReal;
+        fmi2DoStepTYPE *c_step = c.fmi.fmi2DoStep, *p_step = p.fmi.fmi2DoStep;
+        fmi2GetRealTYPE *c_get = c.fmi.fmi2GetReal, *p_get = p.fmi.fmi2GetReal;
+        fmi2GetIntegerTYPE *c_geti = c.fmi.fmi2GetInteger, *p_geti = p.fmi.fmi2GetInteger;
         double* c_real = m.real_buf[0].data();
         double* p_real = m.real_buf[1].data();
         fmi2Integer* c_int = m.int_buf[0].data();

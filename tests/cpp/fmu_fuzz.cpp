@@ -25,7 +25,6 @@
 // Usage: fmu_fuzz <unzipped fmu dir> [--sequences N] [--calls M] [--seed S] [--skip NAME]...
 //                 [--threads] [--verbose]
 // Exit status 0 if no violation. Reproduce one sequence with --seed <its seed> --sequences 1.
-#include <dlfcn.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -54,6 +53,7 @@
 #include <vector>
 
 #include "fmi2Functions.h"
+#include "fmu_binary.hpp"
 
 namespace {
 
@@ -124,54 +124,8 @@ ModelInfo read_model_description(const std::string& path) {
     return m;
 }
 
-// --- the FMU's functions ---
-struct Api {
-    void* so = nullptr;
-#define IPMSM_FN(name) name##TYPE* name = nullptr;
-    IPMSM_FN(fmi2GetTypesPlatform) IPMSM_FN(fmi2GetVersion) IPMSM_FN(fmi2SetDebugLogging) IPMSM_FN(fmi2Instantiate)
-    IPMSM_FN(fmi2FreeInstance) IPMSM_FN(fmi2SetupExperiment) IPMSM_FN(fmi2EnterInitializationMode)
-    IPMSM_FN(fmi2ExitInitializationMode) IPMSM_FN(fmi2Terminate) IPMSM_FN(fmi2Reset) IPMSM_FN(fmi2GetReal)
-    IPMSM_FN(fmi2GetInteger) IPMSM_FN(fmi2GetBoolean) IPMSM_FN(fmi2GetString) IPMSM_FN(fmi2SetReal)
-    IPMSM_FN(fmi2SetInteger) IPMSM_FN(fmi2SetBoolean) IPMSM_FN(fmi2SetString) IPMSM_FN(fmi2GetFMUstate)
-    IPMSM_FN(fmi2SetFMUstate) IPMSM_FN(fmi2FreeFMUstate) IPMSM_FN(fmi2SerializedFMUstateSize)
-    IPMSM_FN(fmi2SerializeFMUstate) IPMSM_FN(fmi2DeSerializeFMUstate) IPMSM_FN(fmi2GetDirectionalDerivative)
-    IPMSM_FN(fmi2SetRealInputDerivatives) IPMSM_FN(fmi2GetRealOutputDerivatives) IPMSM_FN(fmi2DoStep)
-    IPMSM_FN(fmi2CancelStep) IPMSM_FN(fmi2GetStatus) IPMSM_FN(fmi2GetRealStatus) IPMSM_FN(fmi2GetIntegerStatus)
-    IPMSM_FN(fmi2GetBooleanStatus) IPMSM_FN(fmi2GetStringStatus)
-#undef IPMSM_FN
-
-    explicit Api(const std::string& path) {
-        so = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-        if (so == nullptr) {
-            std::fprintf(stderr, "dlopen %s: %s\n", path.c_str(), dlerror());
-            std::exit(2);
-        }
-#define IPMSM_LOAD(name) load(name, #name);
-        IPMSM_LOAD(fmi2GetTypesPlatform) IPMSM_LOAD(fmi2GetVersion) IPMSM_LOAD(fmi2SetDebugLogging)
-        IPMSM_LOAD(fmi2Instantiate) IPMSM_LOAD(fmi2FreeInstance) IPMSM_LOAD(fmi2SetupExperiment)
-        IPMSM_LOAD(fmi2EnterInitializationMode) IPMSM_LOAD(fmi2ExitInitializationMode) IPMSM_LOAD(fmi2Terminate)
-        IPMSM_LOAD(fmi2Reset) IPMSM_LOAD(fmi2GetReal) IPMSM_LOAD(fmi2GetInteger) IPMSM_LOAD(fmi2GetBoolean)
-        IPMSM_LOAD(fmi2GetString) IPMSM_LOAD(fmi2SetReal) IPMSM_LOAD(fmi2SetInteger) IPMSM_LOAD(fmi2SetBoolean)
-        IPMSM_LOAD(fmi2SetString) IPMSM_LOAD(fmi2GetFMUstate) IPMSM_LOAD(fmi2SetFMUstate) IPMSM_LOAD(fmi2FreeFMUstate)
-        IPMSM_LOAD(fmi2SerializedFMUstateSize) IPMSM_LOAD(fmi2SerializeFMUstate) IPMSM_LOAD(fmi2DeSerializeFMUstate)
-        IPMSM_LOAD(fmi2GetDirectionalDerivative) IPMSM_LOAD(fmi2SetRealInputDerivatives)
-        IPMSM_LOAD(fmi2GetRealOutputDerivatives) IPMSM_LOAD(fmi2DoStep) IPMSM_LOAD(fmi2CancelStep)
-        IPMSM_LOAD(fmi2GetStatus) IPMSM_LOAD(fmi2GetRealStatus) IPMSM_LOAD(fmi2GetIntegerStatus)
-        IPMSM_LOAD(fmi2GetBooleanStatus) IPMSM_LOAD(fmi2GetStringStatus)
-#undef IPMSM_LOAD
-    }
-    ~Api() {
-        if (so != nullptr) dlclose(so);
-    }
-    template <class F>
-    void load(F*& f, const char* name) {
-        f = reinterpret_cast<F*>(dlsym(so, name));
-        if (f == nullptr) {
-            std::fprintf(stderr, "the FMU does not export %s\n", name);
-            std::exit(2);
-        }
-    }
-};
+// --- the FMU's functions (every FMI 2.0 co-simulation function, dlopened) ---
+using Api = fmu_binary::Functions;
 
 // --- logging: checked, counted, printed with --verbose ---
 std::atomic<long> log_messages{0}, log_violations{0};
@@ -1005,7 +959,8 @@ int main(int argc, char** argv) {
     }
     o.dir = resolved;
     const ModelInfo m = read_model_description(o.dir + "/modelDescription.xml");
-    const Api api(o.dir + "/binaries/linux64/" + m.id + ".so");
+    Api api;
+    api.open_or_exit(fmu_binary::library_path(o.dir, m.id));
     if (std::strcmp(api.fmi2GetVersion(), "2.0") != 0 || std::strcmp(api.fmi2GetTypesPlatform(), "default") != 0) {
         std::printf("VIOLATION: version or types platform\n");
         return 1;

@@ -9,8 +9,6 @@
 //      (cvode_max_steps = 1: fmi2Error with CVODE's message, then the instance is used again)
 //   5. two instances interleaved give bit-identical outputs
 // Usage: plant_fmu_harness <unzipped fmu dir> [steps]. Exit status 0 if every check passed.
-#include <dlfcn.h>
-
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -23,6 +21,7 @@
 #include <vector>
 
 #include "fmi2Functions.h"
+#include "fmu_binary.hpp"
 
 namespace {
 
@@ -46,45 +45,6 @@ void logger(fmi2ComponentEnvironment, fmi2String, fmi2Status status, fmi2String 
     if (status >= fmi2Warning) std::fprintf(stdout, "  [log %s] %s\n", category, buf);
 }
 
-struct Api {
-    void* so = nullptr;
-    fmi2InstantiateTYPE* instantiate;
-    fmi2FreeInstanceTYPE* free_instance;
-    fmi2SetupExperimentTYPE* setup;
-    fmi2EnterInitializationModeTYPE* enter_init;
-    fmi2ExitInitializationModeTYPE* exit_init;
-    fmi2TerminateTYPE* terminate;
-    fmi2ResetTYPE* reset;
-    fmi2GetRealTYPE* get_real;
-    fmi2SetRealTYPE* set_real;
-    fmi2SetIntegerTYPE* set_integer;
-    fmi2SetStringTYPE* set_string;
-    fmi2DoStepTYPE* do_step;
-    fmi2GetFMUstateTYPE* get_state;
-    fmi2SetFMUstateTYPE* set_state;
-    fmi2FreeFMUstateTYPE* free_state;
-    fmi2SerializedFMUstateSizeTYPE* state_size;
-    fmi2SerializeFMUstateTYPE* serialize;
-    fmi2DeSerializeFMUstateTYPE* deserialize;
-
-    template <class F>
-    void load(F*& f, const char* name) {
-        f = reinterpret_cast<F*>(dlsym(so, name));
-        if (f == nullptr) {
-            std::fprintf(stderr, "missing symbol %s\n", name);
-            std::exit(2);
-        }
-    }
-};
-
-std::string attribute_after(const std::string& xml, std::size_t from, const char* attr) {
-    const std::string key = std::string(attr) + "=\"";
-    const std::size_t a = xml.find(key, from);
-    if (a == std::string::npos) return "";
-    const std::size_t b = xml.find('"', a + key.size());
-    return xml.substr(a + key.size(), b - a - key.size());
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -94,43 +54,11 @@ int main(int argc, char** argv) {
     }
     const std::string dir = argv[1];
     const int steps = argc > 2 ? std::atoi(argv[2]) : 200;
-    std::ifstream f(dir + "/modelDescription.xml");
-    std::stringstream ss;
-    ss << f.rdbuf();
-    const std::string xml = ss.str();
-    const std::string guid = attribute_after(xml, 0, "guid");
-    std::map<std::string, fmi2ValueReference> vr;
-    for (std::size_t p = xml.find("<ScalarVariable"); p != std::string::npos; p = xml.find("<ScalarVariable", p + 1))
-        vr[attribute_after(xml, p, "name")] = static_cast<fmi2ValueReference>(std::stoul(attribute_after(xml, p, "valueReference")));
-    if (guid.empty() || vr.count("u_d") == 0) {
-        std::fprintf(stderr, "cannot read %s/modelDescription.xml\n", dir.c_str());
-        return 2;
-    }
-
-    Api api;
-    api.so = dlopen((dir + "/binaries/linux64/IpmsmPlant.so").c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (api.so == nullptr) {
-        std::fprintf(stderr, "dlopen: %s\n", dlerror());
-        return 2;
-    }
-    api.load(api.instantiate, "fmi2Instantiate");
-    api.load(api.free_instance, "fmi2FreeInstance");
-    api.load(api.setup, "fmi2SetupExperiment");
-    api.load(api.enter_init, "fmi2EnterInitializationMode");
-    api.load(api.exit_init, "fmi2ExitInitializationMode");
-    api.load(api.terminate, "fmi2Terminate");
-    api.load(api.reset, "fmi2Reset");
-    api.load(api.get_real, "fmi2GetReal");
-    api.load(api.set_real, "fmi2SetReal");
-    api.load(api.set_integer, "fmi2SetInteger");
-    api.load(api.set_string, "fmi2SetString");
-    api.load(api.do_step, "fmi2DoStep");
-    api.load(api.get_state, "fmi2GetFMUstate");
-    api.load(api.set_state, "fmi2SetFMUstate");
-    api.load(api.free_state, "fmi2FreeFMUstate");
-    api.load(api.state_size, "fmi2SerializedFMUstateSize");
-    api.load(api.serialize, "fmi2SerializeFMUstate");
-    api.load(api.deserialize, "fmi2DeSerializeFMUstate");
+    const fmu_binary::Description d = fmu_binary::read_description(dir);
+    const std::string& guid = d.guid;
+    const auto& vr = d.vr;
+    fmu_binary::Functions api;
+    api.open_or_exit(fmu_binary::library_path(dir, "IpmsmPlant"));
 
     const std::string resources = "file://" + dir + "/resources";
     fmi2CallbackFunctions cb{logger, nullptr, nullptr, nullptr, nullptr};
@@ -140,28 +68,28 @@ int main(int argc, char** argv) {
     for (const auto& n : outs) out_vr.push_back(vr.at(n));
 
     auto make = [&](const char* name) {
-        fmi2Component c = api.instantiate(name, fmi2CoSimulation, guid.c_str(), resources.c_str(), &cb, fmi2False, fmi2True);
+        fmi2Component c = api.fmi2Instantiate(name, fmi2CoSimulation, guid.c_str(), resources.c_str(), &cb, fmi2False, fmi2True);
         CHECK(c != nullptr);
         return c;
     };
     auto init = [&](fmi2Component c) {
-        CHECK(api.setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) == fmi2OK);
-        CHECK(api.enter_init(c) == fmi2OK);
-        CHECK(api.exit_init(c) == fmi2OK);
+        CHECK(api.fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) == fmi2OK);
+        CHECK(api.fmi2EnterInitializationMode(c) == fmi2OK);
+        CHECK(api.fmi2ExitInitializationMode(c) == fmi2OK);
     };
     // A voltage pattern: steps at 1000 r/min, then top speed, so the currents move.
     auto inputs = [&](fmi2Component c, int k) {
         const fmi2ValueReference v[3] = {vr.at("u_d"), vr.at("u_q"), vr.at("w_m")};
         const double w = k < steps / 2 ? 104.7 : 1256.6;
         const double val[3] = {k % 50 < 25 ? -10.0 : -30.0, (k % 50 < 25 ? 10.0 : -5.0) + 0.312 * w, w};
-        CHECK(api.set_real(c, v, 3, val) == fmi2OK);
+        CHECK(api.fmi2SetReal(c, v, 3, val) == fmi2OK);
     };
     auto run = [&](fmi2Component c, int from, int to, std::vector<double>* trace) {
         for (int k = from; k < to; ++k) {
             inputs(c, k);
-            CHECK(api.do_step(c, k * h, h, fmi2True) <= fmi2Warning);
+            CHECK(api.fmi2DoStep(c, k * h, h, fmi2True) <= fmi2Warning);
             std::vector<double> y(outs.size());
-            CHECK(api.get_real(c, out_vr.data(), out_vr.size(), y.data()) == fmi2OK);
+            CHECK(api.fmi2GetReal(c, out_vr.data(), out_vr.size(), y.data()) == fmi2OK);
             for (double x : y) CHECK(std::isfinite(x));
             if (trace) trace->insert(trace->end(), y.begin(), y.end());
         }
@@ -173,12 +101,12 @@ int main(int argc, char** argv) {
         init(c);
         std::vector<double> a, b;
         run(c, 0, steps, &a);
-        CHECK(api.reset(c) == fmi2OK);
+        CHECK(api.fmi2Reset(c) == fmi2OK);
         init(c);
         run(c, 0, steps, &b);
         CHECK(a == b);  // a fresh start after reset reproduces the first run exactly
-        CHECK(api.terminate(c) == fmi2OK);
-        api.free_instance(c);
+        CHECK(api.fmi2Terminate(c) == fmi2OK);
+        api.fmi2FreeInstance(c);
         std::printf("1. run, reset, run, terminate, free: done\n");
     }
     // 2. free without terminate
@@ -186,7 +114,7 @@ int main(int argc, char** argv) {
         fmi2Component c = make("plant2");
         init(c);
         run(c, 0, steps / 2, nullptr);
-        api.free_instance(c);
+        api.fmi2FreeInstance(c);
         std::printf("2. free without terminate: done\n");
     }
     // 3. FMU states
@@ -195,57 +123,57 @@ int main(int argc, char** argv) {
         init(c);
         run(c, 0, steps / 2, nullptr);
         fmi2FMUstate s = nullptr;
-        CHECK(api.get_state(c, &s) == fmi2OK);
+        CHECK(api.fmi2GetFMUstate(c, &s) == fmi2OK);
         std::vector<double> a, b, d;
         run(c, steps / 2, steps, &a);
-        CHECK(api.set_state(c, s) == fmi2OK);
+        CHECK(api.fmi2SetFMUstate(c, s) == fmi2OK);
         run(c, steps / 2, steps, &b);
         CHECK(a == b);
         std::size_t n = 0;
-        CHECK(api.state_size(c, s, &n) == fmi2OK);
+        CHECK(api.fmi2SerializedFMUstateSize(c, s, &n) == fmi2OK);
         std::vector<fmi2Byte> bytes(n);
-        CHECK(api.serialize(c, s, bytes.data(), n) == fmi2OK);
+        CHECK(api.fmi2SerializeFMUstate(c, s, bytes.data(), n) == fmi2OK);
         fmi2Component c2 = make("plant3b");  // a fresh instance, not initialised
         fmi2FMUstate s2 = nullptr;
-        CHECK(api.deserialize(c2, bytes.data(), n, &s2) == fmi2OK);
-        CHECK(api.set_state(c2, s2) == fmi2OK);
+        CHECK(api.fmi2DeSerializeFMUstate(c2, bytes.data(), n, &s2) == fmi2OK);
+        CHECK(api.fmi2SetFMUstate(c2, s2) == fmi2OK);
         run(c2, steps / 2, steps, &d);
         CHECK(a == d);
         fmi2FMUstate s3 = nullptr;
-        CHECK(api.get_state(c, &s3) == fmi2OK);  // left alive: freed with the instance
-        CHECK(api.free_state(c, &s) == fmi2OK);
-        api.free_instance(c);
-        api.free_instance(c2);  // s2 still alive
+        CHECK(api.fmi2GetFMUstate(c, &s3) == fmi2OK);  // left alive: freed with the instance
+        CHECK(api.fmi2FreeFMUstate(c, &s) == fmi2OK);
+        api.fmi2FreeInstance(c);
+        api.fmi2FreeInstance(c2);  // s2 still alive
         std::printf("3. FMU states and serialisation: done\n");
     }
     // 4. errors
     {
         fmi2Component c = make("plant4");
-        CHECK(api.setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) == fmi2OK);
-        CHECK(api.enter_init(c) == fmi2OK);
+        CHECK(api.fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) == fmi2OK);
+        CHECK(api.fmi2EnterInitializationMode(c) == fmi2OK);
         const fmi2ValueReference map_vr = vr.at("flux_map");
         const fmi2String missing = "/nonexistent/map.csv";
-        CHECK(api.set_string(c, &map_vr, 1, &missing) == fmi2OK);
-        CHECK(api.exit_init(c) == fmi2Error);
+        CHECK(api.fmi2SetString(c, &map_vr, 1, &missing) == fmi2OK);
+        CHECK(api.fmi2ExitInitializationMode(c) == fmi2Error);
         CHECK(last_log.find("nonexistent") != std::string::npos);
-        api.free_instance(c);
+        api.fmi2FreeInstance(c);
 
         c = make("plant5");
         init(c);
         const fmi2ValueReference u = vr.at("u_d");
         const double nan = std::nan("");
-        CHECK(api.set_real(c, &u, 1, &nan) == fmi2Error);
+        CHECK(api.fmi2SetReal(c, &u, 1, &nan) == fmi2Error);
         const fmi2ValueReference ms = vr.at("cvode_max_steps");
         const fmi2Integer one = 1, many = 20000;
-        CHECK(api.set_integer(c, &ms, 1, &one) == fmi2OK);
+        CHECK(api.fmi2SetInteger(c, &ms, 1, &one) == fmi2OK);
         const fmi2ValueReference uv[2] = {vr.at("u_q"), vr.at("w_m")};
         const double uval[2] = {150.0, 1256.6};
-        CHECK(api.set_real(c, uv, 2, uval) == fmi2OK);
-        CHECK(api.do_step(c, 0.0, h, fmi2True) == fmi2Error);
+        CHECK(api.fmi2SetReal(c, uv, 2, uval) == fmi2OK);
+        CHECK(api.fmi2DoStep(c, 0.0, h, fmi2True) == fmi2Error);
         CHECK(last_log.find("mxstep") != std::string::npos);
-        CHECK(api.set_integer(c, &ms, 1, &many) == fmi2OK);
-        CHECK(api.do_step(c, 0.0, h, fmi2True) == fmi2OK);
-        api.free_instance(c);
+        CHECK(api.fmi2SetInteger(c, &ms, 1, &many) == fmi2OK);
+        CHECK(api.fmi2DoStep(c, 0.0, h, fmi2True) == fmi2OK);
+        api.fmi2FreeInstance(c);
         std::printf("4. errors: done\n");
     }
     // 5. two instances interleaved
@@ -260,8 +188,8 @@ int main(int argc, char** argv) {
             run(b, k, k + 1, &tb);
         }
         CHECK(ta == tb);
-        api.free_instance(a);
-        api.free_instance(b);
+        api.fmi2FreeInstance(a);
+        api.fmi2FreeInstance(b);
         std::printf("5. two instances: done\n");
     }
     // No dlclose: the FMU links libstdc++ statically, whose emergency exception-handling pool
