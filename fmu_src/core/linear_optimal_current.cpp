@@ -15,8 +15,9 @@ namespace {
 constexpr double kLimitSlack = 1e-9;
 
 // T_max with R_s differs from the lossless estimate by less than this (the default motor at
-// 1500..12000 r/min: within 3.0 %): a polished T_max further off is taken as a wrong root, and a
-// command further above is clamped without solving its quartic.
+// 1500..12000 r/min: within 3.0 %): a polished T_max further off is not trusted (a plausibility
+// check; the KKT signs in LimitPolish::finish() are what rule out the other stationary points),
+// and a command further above is clamped without solving its quartic.
 constexpr double kEstimateMargin = 0.05;
 
 // Below this |L_d - L_q| / max(L_d, L_q) the machine is treated as non-salient (surface PM).
@@ -208,6 +209,17 @@ bool current_limit_binds(const LinearMachine& m, double omega, Point p) {
     return dT * dc > 0.0;
 }
 
+// At a point where the current circle meets the voltage ellipse: does moving along the circle
+// towards more torque leave the ellipse? (The voltage limit's KKT multiplier is positive.)
+// Ferrari's intersection takes the point of most torque and needs no such test; a polished one does.
+bool voltage_limit_binds(const LinearMachine& m, double omega, Point p) {
+    const double dL = m.L_d - m.L_q;
+    const double t_d = -p.i_q, t_q = p.i_d;  // tangent of the circle
+    const double dT = dL * p.i_q * t_d + (m.psi_m + dL * p.i_d) * t_q;
+    const VoltageGradient g = half_voltage_gradient(m, omega, p);
+    return dT * (g.d * t_d + g.q * t_q) > 0.0;
+}
+
 // The limit checks, shared by the sequential and the fast field-weakening paths.
 bool mtpv_limit_at(const LinearMachine& m, const OperatingLimits& lim, Point p, double T_base, Limit& out) {
     if (!(p.i_d * p.i_d + p.i_q * p.i_q <= lim.I_max * lim.I_max * (1.0 + kLimitSlack))) return false;
@@ -262,10 +274,13 @@ Limit max_torque_from(const LinearMachine& m, const OperatingLimits& lim, Point 
 // on 1.7e5 random field-weakening operating points): rounding. finish() confirms that without a
 // division: the Newton correction f / f' at the result must be below kHalleyTol
 // (|f| <= kHalleyTol |f'| (1 + |u|)); where R_s is large against omega L the seed is further off
-// and up to kHalleyExtraSteps more steps are taken (never on the default motor; on a quarter of
-// the unit tests' random small machines). Then the checks of the Ferrari path: the current limit
-// (MTPV) or its KKT sign (intersection), and the torque within kEstimateMargin of the estimate
-// (the same root, not a far one). false sends the caller to the all-Ferrari sequential path.
+// and up to kHalleyExtraSteps more steps are taken (never on the default motor; on about a third
+// of the unit tests' random small machines). Then the point must be the limit, not another root
+// of its quartic, which Ferrari's path rules out by comparing all roots: MTPV a maximum of the
+// torque along the ellipse (f' < 0: f is dT/dth times a positive factor) within the current
+// limit; the intersection a KKT point (both limits bind: current_limit_binds and
+// voltage_limit_binds); and the torque within kEstimateMargin of the estimate. false sends the
+// caller to the other limit (other()), then to the all-Ferrari sequential path.
 constexpr int kHalleySteps = 2, kHalleyExtraSteps = 2;
 constexpr double kHalleyTol = 1e-12;  // the remaining Newton correction, relative to 1 + |u|
 
@@ -289,23 +304,25 @@ struct LimitPolish {
         u -= 2.0 * v.f * v.df / (2.0 * v.df * v.df - v.f * d2);
     }
     // The Newton correction f / f' at u is below kHalleyTol (relative to 1 + |u|), without a division.
-    bool converged() const {
-        const QuarticValue v = quartic_value(c, u);
+    static bool converged(const QuarticValue& v, double u) {
         return std::fabs(v.f) <= kHalleyTol * std::fabs(v.df) * (1.0 + std::fabs(u));
     }
     bool finish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e, Limit& top) {
         constexpr double T_base = INFINITY;  // not estimated here (the fast path predicts with its square)
-        bool ok = converged();
-        for (int k = 0; k < kHalleyExtraSteps && !ok; ++k) {  // a seed further off (R_s large against omega L)
+        if (!(valid && e.T_red > 0)) return false;
+        QuarticValue v = quartic_value(c, u);
+        for (int k = 0; k < kHalleyExtraSteps && !converged(v, u); ++k) {  // a seed further off (R_s large against omega L)
             advance();
-            ok = converged();
+            v = quartic_value(c, u);
         }
-        if (!(valid && e.T_red > 0 && ok)) return false;
+        if (!converged(v, u)) return false;
         const Point p = map.at(u);
         if (mtpv) {
-            if (!mtpv_limit_at(m, lim, p, T_base, top)) return false;
+            if (!(v.df < 0.0 && mtpv_limit_at(m, lim, p, T_base, top))) return false;
         } else {
-            if (!(u < 0 && current_limit_binds(m, lim.omega, p) && intersection_limit_at(m, p, T_base, top))) return false;
+            if (!(u < 0 && current_limit_binds(m, lim.omega, p) && voltage_limit_binds(m, lim.omega, p) &&
+                  intersection_limit_at(m, p, T_base, top)))
+                return false;
         }
         return std::abs(top.T_red - e.T_red) <= kEstimateMargin * e.T_red;
     }
@@ -344,10 +361,10 @@ private:
     }
 };
 
-// Field weakening with a torque command: T_max by LimitPolish, the command by one Ferrari
-// solution (MTPA or Case ii, predicted by the base-torque estimate) and the checks of the
-// sequential path; a failed prediction or check returns false and the caller takes the
-// sequential path. T_max's Halley steps run between the stages of the command's Ferrari
+// Field weakening with a torque command: T_max by LimitPolish (the predicted limit, else the
+// other one), the command by one Ferrari solution (MTPA or Case ii, predicted by the base-torque
+// estimate) and the checks of the sequential path; a failed prediction or check returns false and
+// the caller takes the sequential path. T_max's Halley steps run between the stages of the command's Ferrari
 // solution. A command more than kEstimateMargin above the lossless T_max is clamped without
 // solving its quartic; one just above T_max finds no valid Case ii point and is clamped too.
 bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, double T_red, double v1,
@@ -378,7 +395,8 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
                      voltage_limit_is_optimal(m, lim.omega, p);
     }
     while (steps < kHalleySteps) limit_step();  // clamped without a quartic, or a solver's early exit
-    if (!limit.finish(m, lim, estimate, top) && !limit.other(m, lim).finish(m, lim, estimate, top)) return false;
+    if (!limit.finish(m, lim, estimate, top) && !(estimate.T_red > 0 && limit.other(m, lim).finish(m, lim, estimate, top)))
+        return false;
     if (T_red >= top.T_red) {  // clamped
         p = top.point;
         region = top.region;

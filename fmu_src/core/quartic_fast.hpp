@@ -5,6 +5,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -177,8 +178,9 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
         if (quad_root_pair(p, r, w1, w2) >= 0.0) {
             for (double w : {w1, w2}) {
                 if (w < 0.0) continue;
-                const double v = std::sqrt(w);  // 1/v = v / w, 1/w1 = w2 / r
-                if (inv) inv_pair(v, -v, (w == w1 ? w2 : w1) * inv_r, inv + n);
+                // +-v are the roots of y^2 - w: the pair's constant is -w, 1/(-w) = -w_other / r.
+                const double v = std::sqrt(w);
+                if (inv) inv_pair(v, -v, -(w == w1 ? w2 : w1) * inv_r, inv + n);
                 y[n++] = v;
                 y[n++] = -v;
             }
@@ -188,7 +190,12 @@ inline RealRoots depressed_quartic_roots(double p, double q, double r, Interleav
     for (int k = 0; k < 4; ++k) finite &= std::isfinite(y[k]);
     if (!finite) return with_inverses(solve_quartic(1.0, 0.0, p, q, r), inv);
     o.count = n;
-    if (inv && !(std::fabs(inv_r) < INFINITY && inv_r != 0.0)) with_inverses(o, inv);  // r = 0, or extreme
+    if (inv) {
+        // r = 0, subnormal or huge, or a pair constant so small that c_other / r overflowed: divide.
+        bool inv_finite = std::fabs(inv_r) < INFINITY && std::fabs(inv_r) >= DBL_MIN;
+        for (int k = 0; k < n; ++k) inv_finite &= std::isfinite(inv[k]);
+        if (!inv_finite) with_inverses(o, inv);
+    }
     return o;
 }
 

@@ -197,6 +197,62 @@ TEST(LinearOptimalCurrent, TorqueLimitWhereTheLosslessEstimateNamesTheOtherLimit
     EXPECT_GT(disagree, 100);  // the band is exercised
 }
 
+// A reluctance machine (psi_m = 0: Case ii's quartic is biquadratic) in field weakening, both
+// torque signs and directions: the command gives the torque asked for within both limits.
+TEST(LinearOptimalCurrent, ReluctanceMachineInFieldWeakening) {
+    const LinearMachine m{0.0, 2e-4, 6e-4, 0.012};
+    const double V_max = 195.0, I_max = 500.0;
+    int voltage_limited = 0;
+    for (double w : {-6000.0, -3000.0, 3000.0, 6000.0}) {
+        for (double T : {-40.0, -7.0, 7.0, 40.0}) {
+            const CurrentCommand c = linear::optimal_current(m, kPolePairs, T, {w, V_max, I_max});
+            voltage_limited += c.region == Region::voltage_limit;
+            ASSERT_LE(std::hypot(c.i_d, c.i_q), I_max * (1 + 1e-9)) << w << " " << T;
+            ASSERT_LE(std::sqrt(linear::voltage_sq(m, w, c.i_d, c.i_q)), V_max * (1 + 1e-9)) << w << " " << T;
+            const double T_cmd = std::copysign(std::min(std::abs(T), c.torque_max), T);
+            ASSERT_NEAR(c.torque, T_cmd, 1e-9 * c.torque_max) << w << " " << T;
+            ASSERT_NEAR(1.5 * kPolePairs * linear::reduced_torque(m, c.i_d, c.i_q), T_cmd, 1e-9 * c.torque_max) << w << " " << T;
+        }
+    }
+    EXPECT_GT(voltage_limited, 4);
+}
+
+// Large R_s against omega L while braking (the mirrored speed negative): the lossless estimate
+// can be far off, and a polished root that is another stationary point or intersection of the
+// limit quartics (a torque minimum on the ellipse, an intersection where the voltage limit does
+// not bind) must not be taken for T_max. Two cases found by a review, then random machines with
+// R_s up to three times omega L_d: T_max as max_torque() has it by Ferrari.
+TEST(LinearOptimalCurrent, TorqueLimitWithLargeResistanceAgainstOmegaL) {
+    struct Known {
+        LinearMachine m;
+        double omega, V_max, I_max, T_ref;
+    };
+    const Known known[] = {{{0.7876, 0.005147, 0.023552, 28.44}, -2048.76, 485.63, 205.74, 528.9},
+                           {{0.08383, 0.008555, 0.021822, 1.26}, -72.2, 10.28, 13.25, 1e3}};
+    for (const Known& k : known) {
+        const linear::Limit top = linear::max_torque(k.m, {k.omega, k.V_max, k.I_max});
+        const CurrentCommand c = linear::optimal_current(k.m, kPolePairs, k.T_ref, {k.omega, k.V_max, k.I_max});
+        ASSERT_NEAR(c.torque_max, 1.5 * kPolePairs * top.T_red, 1e-9 * c.torque_max) << k.m.R_s;
+    }
+    std::mt19937_64 rng(20261124);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int compared = 0;
+    for (int n = 0; n < 100000; ++n) {
+        Case c = random_case(rng);
+        const double w = (u(rng) < 0.5 ? -1 : 1) * (300 + 6000 * u(rng));
+        c.lim.omega = w;
+        c.m.R_s = 3.0 * u(rng) * std::abs(w) * c.m.L_d;
+        const double s = c.T_ref < 0 ? -1 : 1;
+        const linear::Limit top = linear::max_torque(c.m, {s * w, c.lim.V_max, c.lim.I_max});
+        if (!top.feasible || top.T_red <= 0) continue;
+        ++compared;
+        const CurrentCommand cmd = linear::optimal_current(c.m, kPolePairs, c.T_ref, c.lim);
+        const double T_max = 1.5 * kPolePairs * top.T_red;
+        ASSERT_NEAR(cmd.torque_max, T_max, 1e-9 * T_max) << n;
+    }
+    EXPECT_GT(compared, 50000);
+}
+
 // A kept solver (MTPA at I_max cached, recomputed when the machine or I_max changes) gives the
 // same commands, bit for bit, as a fresh solver per call, whatever the sequence of machines and
 // current limits.
