@@ -27,6 +27,20 @@ bool non_salient(const LinearMachine& m) {
     return std::abs(m.L_d - m.L_q) <= kNonSalient * std::max(std::abs(m.L_d), std::abs(m.L_q));
 }
 
+// Below this |L_d - L_q| / max(L_d, L_q) Case ii is solved by Newton's method from the non-salient
+// point instead of its quartic in i_q: as L_d - L_q -> 0 the torque curve becomes the line
+// i_q = T'/psi_m, the quartic's two roots of interest merge into a double root there (its
+// accuracy falls to sqrt(eps)) and i_d = (T'/i_q - psi_m) / (L_d - L_q) divides their error by
+// L_d - L_q: at 1e-3 the quartic's point broke V_max by 400 %, at 1e-2 by 3e-11.
+constexpr double kNearlyNonSalient = 0.02;
+// Newton on the torque curve and the voltage ellipse: at most this many steps, to this relative step.
+constexpr int kCaseIiNewtonSteps = 20;
+constexpr double kCaseIiNewtonTol = 1e-14;
+
+bool nearly_non_salient(const LinearMachine& m) {
+    return std::abs(m.L_d - m.L_q) <= kNearlyNonSalient * std::max(std::abs(m.L_d), std::abs(m.L_q));
+}
+
 // The larger i_d on the voltage ellipse for a given i_q (used for non-salient machines).
 bool i_d_on_ellipse(const LinearMachine& m, double omega, double V_max, double i_q, double& i_d) {
     const double a = m.R_s * m.R_s + omega * omega * m.L_d * m.L_d;
@@ -89,15 +103,39 @@ Point mtpa_at_current(const LinearMachine& m, double I) {
     return {i_d, std::sqrt(std::max(0.0, I * I - i_d * i_d))};
 }
 
-bool voltage_limit(const LinearMachine& m, double omega, double V_max, double T_red, Point& out) {
-    if (non_salient(m)) {
-        if (!(m.psi_m > 0)) return false;
-        const double i_q = T_red / m.psi_m;
-        double i_d;
-        if (!i_d_on_ellipse(m, omega, V_max, i_q, i_d)) return false;
-        out = {i_d, i_q};
-        return true;
+namespace {
+
+// Case ii of a nearly non-salient machine: the non-salient point (i_q = T'/psi_m on the ellipse,
+// the larger i_d: the least current), exact for L_d = L_q, then Newton on T'(i) = T_red and
+// |v(i)|^2 = V_max^2. false if that line misses the ellipse (a command near T_max, where the
+// curve's bend matters) or Newton does not converge (the curve nearly tangent to the ellipse).
+bool voltage_limit_by_newton(const LinearMachine& m, double omega, double V_max, double T_red, Point& out) {
+    if (!(m.psi_m > 0)) return false;
+    Point p{0.0, T_red / m.psi_m};
+    if (!i_d_on_ellipse(m, omega, V_max, p.i_q, p.i_d)) return false;
+    const double dL = m.L_d - m.L_q;
+    bool converged = non_salient(m);  // then the point is exact
+    for (int k = 0; k < kCaseIiNewtonSteps && !converged; ++k) {
+        const double f_T = reduced_torque(m, p.i_d, p.i_q) - T_red;
+        const double f_V = voltage_sq(m, omega, p.i_d, p.i_q) - V_max * V_max;
+        const VoltageGradient g = half_voltage_gradient(m, omega, p);  // half of d|v|^2/di
+        const double a = dL * p.i_q, b = m.psi_m + dL * p.i_d, c = 2.0 * g.d, d = 2.0 * g.q;
+        const double det = a * d - b * c;
+        if (!(std::abs(det) > 0)) return false;
+        const double dd = (f_T * d - b * f_V) / det, dq = (a * f_V - c * f_T) / det;
+        p.i_d -= dd, p.i_q -= dq;
+        if (!(std::isfinite(p.i_d) && std::isfinite(p.i_q))) return false;
+        converged = std::hypot(dd, dq) <= kCaseIiNewtonTol * std::hypot(p.i_d, p.i_q);
     }
+    out = p;
+    return converged;
+}
+
+}  // namespace
+
+bool voltage_limit(const LinearMachine& m, double omega, double V_max, double T_red, Point& out) {
+    if (nearly_non_salient(m) && voltage_limit_by_newton(m, omega, V_max, T_red, out)) return true;
+    if (non_salient(m)) return false;  // the quartic degenerates
     const VoltageLimitQuartic Q(m, omega, V_max, T_red);
     return Q.point(roots_of(Q.c), out);
 }
@@ -369,7 +407,7 @@ private:
 // solving its quartic; one just above T_max finds no valid Case ii point and is clamped too.
 bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, double T_red, double v1,
                           Limit& top, Point& p, Region& region) {
-    if (non_salient(m)) return false;  // MTPA and Case ii are closed forms there
+    if (nearly_non_salient(m)) return false;  // Case ii by Newton (voltage_limit()): the sequential path
     const double T_base_sq = base_torque_sq_estimate(m, lim, v1);
     const LimitEstimate estimate = lossless_limit_estimate(m, lim);
     LimitPolish limit(m, lim, estimate);

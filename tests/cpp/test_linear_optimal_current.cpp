@@ -197,6 +197,41 @@ TEST(LinearOptimalCurrent, TorqueLimitWhereTheLosslessEstimateNamesTheOtherLimit
     EXPECT_GT(disagree, 100);  // the band is exercised
 }
 
+// Nearly non-salient machines (|L_d - L_q| / L from 1e-9 to 3e-2, both signs): Case ii's quartic in
+// i_q degenerates there (a double root), and Newton on the torque curve and the ellipse takes
+// over. Every command within both limits, giving its torque, and no feasible point sampled along
+// its torque curve (parametrised by i_d) needs less current.
+TEST(LinearOptimalCurrent, NearlyNonSalientMachines) {
+    std::mt19937_64 rng(20261125);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int by_region[5] = {0, 0, 0, 0, 0};
+    for (int n = 0; n < 3000; ++n) {
+        Case c = random_case(rng);
+        const double rel = std::pow(10.0, -9.0 + 7.5 * u(rng));
+        c.m.L_q = c.m.L_d * (1 + (u(rng) < 0.5 ? -1 : 1) * rel);
+        const CurrentCommand cmd = linear::optimal_current(c.m, kPolePairs, c.T_ref, c.lim);
+        if (!cmd.feasible) continue;
+        ++by_region[static_cast<int>(cmd.region)];
+        const double I = std::hypot(cmd.i_d, cmd.i_q);
+        ASSERT_LE(I, c.lim.I_max * (1 + 1e-9)) << n;
+        ASSERT_LE(std::sqrt(linear::voltage_sq(c.m, c.lim.omega, cmd.i_d, cmd.i_q)), c.lim.V_max * (1 + 1e-9)) << n;
+        const double T_cmd = std::copysign(std::min(std::abs(c.T_ref), cmd.torque_max), c.T_ref);
+        ASSERT_NEAR(cmd.torque, T_cmd, 1e-9 * std::max(1.0, cmd.torque_max)) << n;
+        ASSERT_NEAR(1.5 * kPolePairs * linear::reduced_torque(c.m, cmd.i_d, cmd.i_q), T_cmd, 1e-9 * std::max(1.0, cmd.torque_max)) << n;
+        if (n % 10 != 0 || std::abs(T_cmd) < 1e-9) continue;  // the sampling on every tenth case
+        const double Tr = T_cmd / (1.5 * kPolePairs), dL = c.m.L_d - c.m.L_q;
+        double I_best = INFINITY;
+        for (int k = 0; k <= 100000; ++k) {
+            const double i_d = c.lim.I_max * (2.0 * k / 100000 - 1), i_q = Tr / (c.m.psi_m + dL * i_d);
+            if (feasible(c, i_d, i_q)) I_best = std::min(I_best, std::hypot(i_d, i_q));
+        }
+        if (I_best < INFINITY) {
+            ASSERT_LE(I, I_best * (1 + 1e-9)) << "a sample on the torque curve needs less current, case " << n;
+        }
+    }
+    for (int r = 1; r <= 4; ++r) EXPECT_GT(by_region[r], 20) << "region " << r;
+}
+
 // A reluctance machine (psi_m = 0: Case ii's quartic is biquadratic) in field weakening, both
 // torque signs and directions: the command gives the torque asked for within both limits.
 TEST(LinearOptimalCurrent, ReluctanceMachineInFieldWeakening) {
