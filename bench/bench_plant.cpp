@@ -65,11 +65,7 @@ struct Fmu {
     fmi2CallbackFunctions cb{quiet_logger, nullptr, nullptr, nullptr, nullptr};
 
     Fmu(const fs::path& unzipped, const char* id) : dir(unzipped.string()), d(fmu_binary::read_description(dir)) {
-        std::string why;
-        if (!fn.open(fmu_binary::library_path(dir, id), why)) {
-            std::fprintf(stderr, "%s: build the FMUs first\n", why.c_str());
-            std::exit(2);
-        }
+        fn.open_or_exit(fmu_binary::library_path(dir, id), "build the FMUs first");
     }
     // Instantiate, set Real and Integer parameters, initialise.
     fmi2Component make(const char* name, const std::map<std::string, double>& reals,

@@ -27,7 +27,8 @@ using fast::select;
 
 // After newton_step: the point of x1 if `take`, else of x0. The rules that use it compute both
 // points first (p0, p1), so that their divisions overlap the step's second evaluation of the quartic.
-// (A shared helper taking at() as a lambda was tried: GCC did not inline it, 5 % slower.)
+// (A shared helper taking at() as a lambda was tried: GCC did not inline it, 5 % slower; the limit
+// quartics share AngleMap::polished_at(), MTPA's own at() stays in its rule.)
 inline Point choose(bool take, Point p1, Point p0) {
     return {select(take, p1.i_d, p0.i_d), select(take, p1.i_q, p0.i_q)};
 }
@@ -145,6 +146,13 @@ struct AngleMap {
         const double h = 1.0 / (1.0 + u * u), cs = 1.0 - 2.0 * h, sn = -2.0 * u * h;
         return {ad + bd * cs + gd * sn, aq + bq * cs + gq * sn};
     }
+    // The point of root estimate u of the limit's quartic c after newton_step; the step is taken
+    // only if it lowered |c| and ends below u1_below (a root's side condition).
+    Point polished_at(const double (&c)[5], double u, double u1_below = INFINITY) const {
+        const NewtonStep st = newton_step(c, u);
+        const Point p0 = at(st.x0), p1 = at(st.x1);
+        return choose(st.better && st.x1 < u1_below, p1, p0);
+    }
 };
 
 // MTPV: on the ellipse, v = V_s (cos th, sin th) with V_s = V_max signed like omega, and
@@ -180,13 +188,7 @@ struct MtpvQuartic : AngleMap {
         }
         const unsigned k = slot_of(best);
         const double best_u = k < 4 ? r.root[k] : INFINITY;
-        if (best_u == INFINITY) {
-            out = Point{ad + bd, aq + bq};
-        } else {
-            const NewtonStep st = newton_step(c, best_u);
-            const Point p0 = at(st.x0), p1 = at(st.x1);
-            out = choose(st.better, p1, p0);
-        }
+        out = best_u == INFINITY ? Point{ad + bd, aq + bq} : polished_at(c, best_u);
         return std::fabs(best) < DBL_MAX;
     }
     const LinearMachine& m;
@@ -217,10 +219,7 @@ struct IntersectionQuartic : AngleMap {
             best = std::max(best, tagged(std::min(T, std::copysign(DBL_MAX, -r.root[j])), j));
         }
         if (!(best > -0.5 * DBL_MAX)) return false;
-        const double best_u = r.root[slot_of(best)];
-        const NewtonStep st = newton_step(c, best_u);
-        const Point p0 = at(st.x0), p1 = at(st.x1);
-        out = choose(st.better && st.x1 < 0, p1, p0);
+        out = polished_at(c, r.root[slot_of(best)], 0.0);  // i_q > 0 <=> u < 0
         return true;
     }
     const LinearMachine& m;

@@ -23,9 +23,12 @@ constexpr double kEstimateMargin = 0.05;
 // Below this |L_d - L_q| / max(L_d, L_q) the machine is treated as non-salient (surface PM).
 constexpr double kNonSalient = 1e-9;
 
-bool non_salient(const LinearMachine& m) {
-    return std::abs(m.L_d - m.L_q) <= kNonSalient * std::max(std::abs(m.L_d), std::abs(m.L_q));
+// |L_d - L_q| <= ratio max(L_d, L_q).
+bool saliency_at_most(const LinearMachine& m, double ratio) {
+    return std::abs(m.L_d - m.L_q) <= ratio * std::max(std::abs(m.L_d), std::abs(m.L_q));
 }
+
+bool non_salient(const LinearMachine& m) { return saliency_at_most(m, kNonSalient); }
 
 // Below this |L_d - L_q| / max(L_d, L_q) Case ii is solved by Newton's method from the non-salient
 // point instead of its quartic in i_q: as L_d - L_q -> 0 the torque curve becomes the line
@@ -37,9 +40,7 @@ constexpr double kNearlyNonSalient = 0.02;
 constexpr int kCaseIiNewtonSteps = 20;
 constexpr double kCaseIiNewtonTol = 1e-14;
 
-bool nearly_non_salient(const LinearMachine& m) {
-    return std::abs(m.L_d - m.L_q) <= kNearlyNonSalient * std::max(std::abs(m.L_d), std::abs(m.L_q));
-}
+bool nearly_non_salient(const LinearMachine& m) { return saliency_at_most(m, kNearlyNonSalient); }
 
 // The larger i_d on the voltage ellipse for a given i_q (used for non-salient machines).
 bool i_d_on_ellipse(const LinearMachine& m, double omega, double V_max, double i_q, double& i_d) {
@@ -53,15 +54,33 @@ bool i_d_on_ellipse(const LinearMachine& m, double omega, double V_max, double i
     return true;
 }
 
-// Half the gradient of |v|^2 with respect to (i_d, i_q) at a current.
-struct VoltageGradient {
+// A gradient with respect to (i_d, i_q).
+struct Gradient {
     double d, q;
+    double along(double t_d, double t_q) const { return d * t_d + q * t_q; }
 };
 
-VoltageGradient half_voltage_gradient(const LinearMachine& m, double omega, Point p) {
+// Half the gradient of |v|^2 at a current.
+Gradient half_voltage_gradient(const LinearMachine& m, double omega, Point p) {
     const double v_d = m.R_s * p.i_d - omega * m.L_q * p.i_q;
     const double v_q = m.R_s * p.i_q + omega * (m.L_d * p.i_d + m.psi_m);
     return {v_d * m.R_s + v_q * omega * m.L_d, -v_d * omega * m.L_q + v_q * m.R_s};
+}
+
+// The gradient of T' = psi_m i_q + (L_d - L_q) i_d i_q.
+Gradient torque_gradient(const LinearMachine& m, Point p) {
+    const double dL = m.L_d - m.L_q;
+    return {dL * p.i_q, m.psi_m + dL * p.i_d};
+}
+
+// Half the gradient of |i|^2.
+Gradient half_current_gradient(Point p) { return {p.i_d, p.i_q}; }
+
+// The KKT sign tests of the limits: moving along the curve whose normal is `curve` (the tangent
+// (-curve.q, curve.d)), the product of the rates of change of a and b.
+double rates_along(Gradient curve, Gradient a, Gradient b) {
+    const double t_d = -curve.q, t_q = curve.d;
+    return a.along(t_d, t_q) * b.along(t_d, t_q);
 }
 
 // V_max^2 with the slack, so that a point computed on the voltage limit counts as within it.
@@ -95,12 +114,20 @@ Point mtpa(const LinearMachine& m, double T_red) {
     return p;
 }
 
-Point mtpa_at_current(const LinearMachine& m, double I) {
+namespace {
+
+// i_d of MTPA at a current magnitude, from its square I2 (closed form, cancellation-free).
+double mtpa_i_d_at_current_sq(const LinearMachine& m, double I2) {
     const double dL = m.L_d - m.L_q;
-    const double s = std::sqrt(m.psi_m * m.psi_m + 8.0 * dL * dL * I * I);
-    const double denom = m.psi_m + s;
-    const double i_d = denom > 0 ? 2.0 * dL * I * I / denom : 0.0;
-    return {i_d, std::sqrt(std::max(0.0, I * I - i_d * i_d))};
+    const double denom = m.psi_m + std::sqrt(m.psi_m * m.psi_m + 8.0 * dL * dL * I2);
+    return denom > 0 ? 2.0 * dL * I2 / denom : 0.0;
+}
+
+}  // namespace
+
+Point mtpa_at_current(const LinearMachine& m, double I) {
+    const double I2 = I * I, i_d = mtpa_i_d_at_current_sq(m, I2);
+    return {i_d, std::sqrt(std::max(0.0, I2 - i_d * i_d))};
 }
 
 namespace {
@@ -113,13 +140,12 @@ bool voltage_limit_by_newton(const LinearMachine& m, double omega, double V_max,
     if (!(m.psi_m > 0)) return false;
     Point p{0.0, T_red / m.psi_m};
     if (!i_d_on_ellipse(m, omega, V_max, p.i_q, p.i_d)) return false;
-    const double dL = m.L_d - m.L_q;
     bool converged = non_salient(m);  // then the point is exact
     for (int k = 0; k < kCaseIiNewtonSteps && !converged; ++k) {
         const double f_T = reduced_torque(m, p.i_d, p.i_q) - T_red;
         const double f_V = voltage_sq(m, omega, p.i_d, p.i_q) - V_max * V_max;
-        const VoltageGradient g = half_voltage_gradient(m, omega, p);  // half of d|v|^2/di
-        const double a = dL * p.i_q, b = m.psi_m + dL * p.i_d, c = 2.0 * g.d, d = 2.0 * g.q;
+        const Gradient t = torque_gradient(m, p), g = half_voltage_gradient(m, omega, p);
+        const double a = t.d, b = t.q, c = 2.0 * g.d, d = 2.0 * g.q;
         const double det = a * d - b * c;
         if (!(std::abs(det) > 0)) return false;
         const double dd = (f_T * d - b * f_V) / det, dq = (a * f_V - c * f_T) / det;
@@ -141,12 +167,8 @@ bool voltage_limit(const LinearMachine& m, double omega, double V_max, double T_
 }
 
 bool voltage_limit_is_optimal(const LinearMachine& m, double omega, Point p) {
-    const double dL = m.L_d - m.L_q;
-    // Tangent of the torque curve t = (-dT'/di_q, dT'/di_d); rates of |i|^2 and |v|^2 along it.
-    const double t_d = -(m.psi_m + dL * p.i_d), t_q = dL * p.i_q;
-    const VoltageGradient g = half_voltage_gradient(m, omega, p);
-    const double dc = p.i_d * t_d + p.i_q * t_q, dg = g.d * t_d + g.q * t_q;
-    return dc * dg <= 0.0;
+    // Along the torque curve, |i|^2 and |v|^2 change in opposite directions (or not at all).
+    return rates_along(torque_gradient(m, p), half_current_gradient(p), half_voltage_gradient(m, omega, p)) <= 0.0;
 }
 
 bool zero_torque(const LinearMachine& m, double omega, double V_max, Point& out) {
@@ -227,11 +249,10 @@ double base_torque_sq_estimate(const LinearMachine& m, const OperatingLimits& li
     // Above the corner speed the back-EMF alone exceeds V_max. (A branch: a select here, which
     // puts the division on every call's path to the MTPA / Case ii decision, was 10 ns slower.)
     if (!(V2 > v0_sq)) return 0.0;
-    // mtpa_at_current() at I_b, from I_b^2.
+    // MTPA at I_b, from I_b^2.
     const double I2 = lim.I_max * lim.I_max * (V2 - v0_sq) / (v1_sq - v0_sq);
-    const double dL = m.L_d - m.L_q;
-    const double i_d = 2.0 * dL * I2 / (m.psi_m + std::sqrt(m.psi_m * m.psi_m + 8.0 * dL * dL * I2));
-    const double k = m.psi_m + dL * i_d;  // T' = i_q k
+    const double i_d = mtpa_i_d_at_current_sq(m, I2);
+    const double k = m.psi_m + (m.L_d - m.L_q) * i_d;  // T' = i_q k
     return std::max(0.0, I2 - i_d * i_d) * k * k;
 }
 
@@ -239,23 +260,14 @@ double base_torque_sq_estimate(const LinearMachine& m, const OperatingLimits& li
 // towards more torque leave the circle? Then the current limit binds there (KKT), and T_max is
 // at this point rather than at an MTPV point inside the circle.
 bool current_limit_binds(const LinearMachine& m, double omega, Point p) {
-    const double dL = m.L_d - m.L_q;
-    const VoltageGradient g = half_voltage_gradient(m, omega, p);
-    const double t_d = -g.q, t_q = g.d;  // tangent of the ellipse
-    const double dT = dL * p.i_q * t_d + (m.psi_m + dL * p.i_d) * t_q;
-    const double dc = p.i_d * t_d + p.i_q * t_q;
-    return dT * dc > 0.0;
+    return rates_along(half_voltage_gradient(m, omega, p), torque_gradient(m, p), half_current_gradient(p)) > 0.0;
 }
 
 // At a point where the current circle meets the voltage ellipse: does moving along the circle
 // towards more torque leave the ellipse? (The voltage limit's KKT multiplier is positive.)
 // Ferrari's intersection takes the point of most torque and needs no such test; a polished one does.
 bool voltage_limit_binds(const LinearMachine& m, double omega, Point p) {
-    const double dL = m.L_d - m.L_q;
-    const double t_d = -p.i_q, t_q = p.i_d;  // tangent of the circle
-    const double dT = dL * p.i_q * t_d + (m.psi_m + dL * p.i_d) * t_q;
-    const VoltageGradient g = half_voltage_gradient(m, omega, p);
-    return dT * (g.d * t_d + g.q * t_q) > 0.0;
+    return rates_along(half_current_gradient(p), torque_gradient(m, p), half_voltage_gradient(m, omega, p)) > 0.0;
 }
 
 // The limit checks, shared by the sequential and the fast field-weakening paths.
@@ -327,6 +339,7 @@ struct LimitPolish {
     double u;      // the limit's angle variable (MtpvQuartic, IntersectionQuartic)
     AngleMap map;  // the limit's point from u
     bool mtpv, valid;
+    int steps = 0;  // Halley steps taken
     // Seeded by the lossless estimate's point.
     LimitPolish(const LinearMachine& m, const OperatingLimits& lim, const LimitEstimate& e) : LimitPolish(m, lim, e.mtpv) {
         if (mtpv) {
@@ -340,6 +353,7 @@ struct LimitPolish {
         const QuarticValue v = quartic_value(c, u);
         const double d2 = (12.0 * c[0] * u + 6.0 * c[1]) * u + 2.0 * c[2];
         u -= 2.0 * v.f * v.df / (2.0 * v.df * v.df - v.f * d2);
+        ++steps;
     }
     // The Newton correction f / f' at u is below kHalleyTol (relative to 1 + |u|), without a division.
     static bool converged(const QuarticValue& v, double u) {
@@ -376,7 +390,7 @@ struct LimitPolish {
         } else {  // p is at the MTPV point, outside the current circle: its angle
             o.u = -(std::hypot(p.i_d, p.i_q) + p.i_d) / p.i_q;
         }
-        for (int k = 0; k < kHalleySteps; ++k) o.advance();
+        while (o.steps < kHalleySteps) o.advance();
         return o;
     }
 
@@ -411,10 +425,8 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
     const double T_base_sq = base_torque_sq_estimate(m, lim, v1);
     const LimitEstimate estimate = lossless_limit_estimate(m, lim);
     LimitPolish limit(m, lim, estimate);
-    int steps = 0;
     auto limit_step = [&] {  // called three times by the Ferrari stages: a step in the first two
-        if (steps < kHalleySteps) limit.advance();
-        ++steps;
+        if (limit.steps < kHalleySteps) limit.advance();
     };
     bool command_ok;
     if (T_red > (1.0 + kEstimateMargin) * estimate.T_red) {
@@ -432,7 +444,7 @@ bool field_weakening_fast(const LinearMachine& m, const OperatingLimits& lim, do
         command_ok = cq.point(roots, inv, p) &&
                      voltage_limit_is_optimal(m, lim.omega, p);
     }
-    while (steps < kHalleySteps) limit_step();  // clamped without a quartic, or a solver's early exit
+    while (limit.steps < kHalleySteps) limit.advance();  // clamped without a quartic, or a solver's early exit
     if (!limit.finish(m, lim, estimate, top) && !(estimate.T_red > 0 && limit.other(m, lim).finish(m, lim, estimate, top)))
         return false;
     if (T_red >= top.T_red) {  // clamped

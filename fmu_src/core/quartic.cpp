@@ -625,7 +625,7 @@ inline void sort_up_to_4(double* y, int n) {
 }  // namespace
 
 RealRoots solve_depressed_quartic(double p, double q, double r) {
-    RealRoots out = fast::depressed_quartic_roots(p, q, r, [] {});
+    RealRoots out = fast::depressed_quartic_roots(p, q, r);
     // Every root polished, over all four slots (no data-dependent branches; unused slots are 0).
     const double c[5] = {1.0, 0.0, p, q, r};
     for (int k = 0; k < 4; ++k) out.root[k] = k < out.count ? newton_step(c, out.root[k]).root() : 0.0;
@@ -635,13 +635,13 @@ RealRoots solve_depressed_quartic(double p, double q, double r) {
 
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e) {
     // Already monic and depressed (the controller's MTPA and voltage-limit quartics): as is.
-    if (a == 1.0 && b == 0.0) return fast::depressed_quartic_roots(c, d, e, [] {});
+    if (a == 1.0 && b == 0.0) return fast::depressed_quartic_roots(c, d, e);
     // Monic, then depressed by x = y + sh about the centroid sh of the roots.
     const double inv_a = 1.0 / a, B = b * inv_a, C = c * inv_a, D = d * inv_a, E = e * inv_a;
     const double sh = -0.25 * B;
     if (!(std::fabs(sh) <= kCentredMaxShift) || !std::isfinite(C + D + E)) return solve_quartic(a, b, c, d, e);
     const TaylorShift z = taylor_shift(B, C, D, E, sh);
-    RealRoots out = fast::depressed_quartic_roots(z.P, z.Q, z.R, [] {});
+    RealRoots out = fast::depressed_quartic_roots(z.P, z.Q, z.R);
     for (int k = 0; k < out.count; ++k) out.root[k] += sh;
     return out;
 }

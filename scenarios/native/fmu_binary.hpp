@@ -100,11 +100,11 @@ public:
 #undef FMU_BINARY_RESOLVE
         return true;
     }
-    // The same for tools: exits with status 2 and the reason on failure.
-    void open_or_exit(const std::string& library) {
+    // The same for tools: exits with status 2 and the reason (and a hint, if given) on failure.
+    void open_or_exit(const std::string& library, const char* hint = nullptr) {
         std::string why;
         if (!open(library, why)) {
-            std::fprintf(stderr, "%s\n", why.c_str());
+            std::fprintf(stderr, "%s%s%s\n", why.c_str(), hint ? ": " : "", hint ? hint : "");
             std::exit(2);
         }
     }
