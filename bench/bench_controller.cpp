@@ -17,11 +17,11 @@
 
 #include <unsupported/Eigen/Polynomials>
 
-#include "linear_optimal_current.hpp"
-#include "map_newton.hpp"
-#include "quartic.hpp"
-#include "saturated_optimal_current.hpp"
-#include "torque_table.hpp"
+#include "control/linear_optimal_current.hpp"
+#include "control/map_newton.hpp"
+#include "numerics/quartic.hpp"
+#include "control/saturated_optimal_current.hpp"
+#include "control/torque_table.hpp"
 
 using namespace ipmsm;
 using Clock = std::chrono::steady_clock;
@@ -85,7 +85,7 @@ void row(const char* name, double ns, const char* note = "") { std::printf("%-58
 }  // namespace
 
 int main(int argc, char** argv) {
-    const std::string path = argc > 1 ? argv[1] : std::string(IPMSM_SOURCE_DIR) + "/plant/resources/ev_ipmsm_default.csv";
+    const std::string path = argc > 1 ? argv[1] : std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
     auto map = std::make_shared<const FluxMap>(read_flux_map(path));
     const int N = 200000, R = 5;
     const auto rnd = random_ops(N, 7);

@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "flux_map.hpp"
-#include "inverse_flux_map.hpp"
+#include "machine/flux_map.hpp"
+#include "machine/inverse_flux_map.hpp"
 
 using namespace ipmsm;
 

@@ -34,8 +34,8 @@
 #include "cvode_integrator.hpp"
 #include "fmi2Functions.h"
 #include "fmu_binary.hpp"
-#include "flux_map.hpp"
-#include "inverse_flux_map.hpp"
+#include "machine/flux_map.hpp"
+#include "machine/inverse_flux_map.hpp"
 
 using namespace ipmsm;
 namespace fs = std::filesystem;
@@ -254,7 +254,7 @@ int main(int argc, char** argv) {
     Fmu ctrl(fmu_dir / "IpmsmController", "IpmsmController");
     Fmu plant(fmu_dir / "IpmsmPlant", "IpmsmPlant");
 
-    const std::string map_path = std::string(IPMSM_SOURCE_DIR) + "/plant/resources/ev_ipmsm_default.csv";
+    const std::string map_path = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
     const FluxMap map(read_flux_map(map_path));
     const InverseFluxMap inv(map);
 

@@ -7,7 +7,7 @@
 // (random coefficients; four real roots; two real roots + complex pair; the controller's
 // Case ii shape a4 y^4 + a2 y^2 + a1 y + a0). A checksum of all roots is printed so that the
 // calls cannot be optimised away.
-#include "quartic.hpp"
+#include "numerics/quartic.hpp"
 
 #include <unsupported/Eigen/Polynomials>
 

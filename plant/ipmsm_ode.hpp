@@ -19,7 +19,7 @@
 
 #include <cmath>
 
-#include "inverse_flux_map.hpp"
+#include "machine/inverse_flux_map.hpp"
 
 namespace ipmsm {
 

@@ -5,8 +5,8 @@
 #include <limits>
 #include <sstream>
 
-#include "machine.hpp"
-#include "magnet_flux.hpp"
+#include "machine/machine.hpp"
+#include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
 

@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "cvode_integrator.hpp"
-#include "flux_map.hpp"
-#include "inverse_flux_map.hpp"
+#include "machine/flux_map.hpp"
+#include "machine/inverse_flux_map.hpp"
 #include "ipmsm_ode.hpp"
 #include "model.hpp"
 #include "variable.hpp"
@@ -53,7 +53,7 @@ public:
     double R_s_T = 0.0;            // Ohm, R_s at T_winding
     int cvode_steps = 0;           // internal steps in the last step
     int cvode_rhs_evals = 0;       // right-hand-side evaluations in the last step
-    // --- parameters (defaults: the default motor, plant/resources/ev_ipmsm_default.csv)
+    // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     std::string flux_map;          // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;
     double R_s = 0.012;            // Ohm at T_winding_ref

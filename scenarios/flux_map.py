@@ -45,8 +45,8 @@ class FluxMap:
         return default
 
 
-#: the default motor's flux map (plant/motor/ makes it); its metadata is the motor's data sheet
-DEFAULT_MAP = Path(__file__).resolve().parents[1] / "plant" / "resources" / "ev_ipmsm_default.csv"
+#: the default motor's flux map (tools/default_motor/ makes it); its metadata is the motor's data sheet
+DEFAULT_MAP = Path(__file__).resolve().parents[1] / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
 
 
 @dataclass(frozen=True)

@@ -3,8 +3,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "machine.hpp"
-#include "magnet_flux.hpp"
+#include "machine/machine.hpp"
+#include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
 

@@ -7,10 +7,10 @@
 #include <string>
 #include <vector>
 
-#include "current_regulator.hpp"
+#include "control/current_regulator.hpp"
 #include "model.hpp"
-#include "saturated_optimal_current.hpp"
-#include "torque_table.hpp"
+#include "control/saturated_optimal_current.hpp"
+#include "control/torque_table.hpp"
 #include "variable.hpp"
 
 namespace ipmsm {
@@ -48,7 +48,7 @@ public:
     bool voltage_saturated = false;
     double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
-    // --- parameters (defaults: the default motor, plant/resources/ev_ipmsm_default.csv)
+    // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
     int recursion = 2;  // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
     std::string flux_map;  // "" = resources/ev_ipmsm_default.csv

@@ -17,9 +17,9 @@
 
 #include <unistd.h>
 
-#include "bicubic_spline.hpp"
-#include "flux_map.hpp"
-#include "inverse_flux_map.hpp"
+#include "numerics/bicubic_spline.hpp"
+#include "machine/flux_map.hpp"
+#include "machine/inverse_flux_map.hpp"
 
 using namespace ipmsm;
 

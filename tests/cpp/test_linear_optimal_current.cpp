@@ -8,7 +8,7 @@
 #include <iostream>
 #include <random>
 
-#include "linear_optimal_current.hpp"
+#include "control/linear_optimal_current.hpp"
 
 using namespace ipmsm;
 

@@ -18,8 +18,8 @@
 #include <unistd.h>
 
 #include "cvode_integrator.hpp"
-#include "flux_map.hpp"
-#include "inverse_flux_map.hpp"
+#include "machine/flux_map.hpp"
+#include "machine/inverse_flux_map.hpp"
 #include "ipmsm_ode.hpp"
 #include "plant_model.hpp"
 
@@ -27,7 +27,7 @@ using namespace ipmsm;
 
 namespace {
 
-const std::string kResources = std::string(IPMSM_SOURCE_DIR) + "/plant/resources";
+const std::string kResources = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources";
 const std::string kDefaultMap = kResources + "/ev_ipmsm_default.csv";
 
 std::string temp_file(const std::string& name, const std::string& text) {

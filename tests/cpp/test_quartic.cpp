@@ -10,7 +10,7 @@
 //       number (kForwardFactor below);
 //   (c) no NaN/Inf ever, roots ascending, also on adversarial inputs.
 // solve_cubic and solve_quadratic get direct unit tests. Each class prints what was measured.
-#include "quartic.hpp"
+#include "numerics/quartic.hpp"
 
 #include <gtest/gtest.h>
 #include <unsupported/Eigen/Polynomials>

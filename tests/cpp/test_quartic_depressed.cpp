@@ -7,8 +7,8 @@
 #include <iostream>
 #include <random>
 
-#include "quartic.hpp"
-#include "quartic_fast.hpp"
+#include "numerics/quartic.hpp"
+#include "numerics/quartic_fast.hpp"
 
 using namespace ipmsm;
 

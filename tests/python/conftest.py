@@ -36,7 +36,7 @@ def plant_fmu() -> Path:
 
 @pytest.fixture(scope="session")
 def default_map_path() -> Path:
-    return ROOT / "plant" / "resources" / "ev_ipmsm_default.csv"
+    return ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
 
 
 @pytest.fixture(scope="session")

@@ -1,4 +1,4 @@
-"""The default motor's flux map (plant/resources/ev_ipmsm_default.csv): format, physics, targets.
+"""The default motor's flux map (fmu_src/resources/ev_ipmsm_default.csv): format, physics, targets.
 
 Reads the CSV with its own small reader (not the project's), so that it checks the file itself.
 """
@@ -14,7 +14,7 @@ import pytest
 from scipy.interpolate import RectBivariateSpline
 
 ROOT = Path(__file__).resolve().parents[2]
-CSV = ROOT / "plant" / "resources" / "ev_ipmsm_default.csv"
+CSV = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
 RPM = 30 / math.pi
 
 REQUIRED_KEYS = [
@@ -195,7 +195,7 @@ def test_iron_loss_at_top_speed(drive):
 
 def test_regenerated_map_matches_shipped():
     sys.path.insert(0, str(ROOT))
-    from plant.motor.make_default_map import csv_text
+    from tools.default_motor.make_default_map import csv_text
 
     c_new, meta_new, h_new, rows_new = read_map(csv_text())
     c_old, meta_old, h_old, rows_old = read_map(CSV.read_text())
@@ -210,7 +210,7 @@ def test_model_is_reciprocal_and_convex():
     """The model itself: incremental inductances from the Hessian match finite differences of
     psi(i), and the Hessian is positive definite over the whole map (unique, invertible map)."""
     sys.path.insert(0, str(ROOT))
-    from plant.motor import saturation as sat
+    from tools.default_motor import saturation as sat
 
     rng = np.random.default_rng(1)
     i_d, i_q = rng.uniform(-700, 300, 200), rng.uniform(-700, 700, 200)

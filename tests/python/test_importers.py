@@ -1,6 +1,6 @@
 """The coupled drive in three FMI 2.0 masters (issue 5): this project's fmpy master, libcosim
 (PyPI libcosimpy, scenarios/osp/OspSystemStructure.xml) and fmpy's container FMU. Scenario and
-coupling: scenarios/drive_step.py (torque step during a speed ramp, 50 ms at 100 us, Jacobi).
+coupling: tests/python/drive_step.py (torque step during a speed ramp, 50 ms at 100 us, Jacobi).
 
 Measured (pytest -s prints the figures):
 - container FMU vs fmpy: bit-identical.
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenarios import drive_step as ds
+import drive_step as ds
 
 TOLERANCE = 1e-9  # relative to each column's largest magnitude
 

@@ -228,13 +228,13 @@ def test_two_masters_are_independent(runs, controller_fmu, plant_fmu, library):
 def test_native_c_api_valgrind_clean(library, controller_fmu, plant_fmu, tmp_path):
     """scenarios/native/cosim_check (three masters, two interleaved; a drive-like profile with
     probes and a trace; a refused input; a failing step; failed instantiations) under valgrind:
-    no errors, no leaks (but the FMUs' static libstdc++ pool, see scenarios/native/valgrind.supp)."""
+    no errors, no leaks (but the FMUs' static libstdc++ pool, see tests/valgrind/static_libstdcxx_pool.supp)."""
     valgrind = shutil.which("valgrind")
     assert valgrind, "valgrind is not installed"
     exe = library.parent.parent / "bin" / "cosim_check"
     assert exe.is_file(), f"{exe} is missing: build the cosim_check target"
     dirs = [extract(str(f), unzipdir=str(tmp_path / f.stem)) for f in (controller_fmu, plant_fmu)]
-    supp = ROOT / "scenarios" / "native" / "valgrind.supp"
+    supp = ROOT / "tests" / "valgrind" / "static_libstdcxx_pool.supp"
     r = subprocess.run([valgrind, "--error-exitcode=99", "--leak-check=full", "--keep-debuginfo=yes",
                         f"--suppressions={supp}", "--errors-for-leak-kinds=definite,indirect,possible",
                         "--show-leak-kinds=definite,indirect,possible", str(exe), *dirs, "0.02"],

@@ -1,4 +1,4 @@
-#include "torque_table.hpp"
+#include "control/torque_table.hpp"
 
 #include <algorithm>
 #include <cmath>

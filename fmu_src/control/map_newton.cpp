@@ -1,4 +1,4 @@
-#include "map_newton.hpp"
+#include "control/map_newton.hpp"
 
 #include <cmath>
 #include <type_traits>

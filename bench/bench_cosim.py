@@ -1,9 +1,9 @@
 """Benchmark of the drive-cycle master: IpmsmController + IpmsmPlant coupled at 100 us, advanced
 in 10 ms chunks (as the vehicle side calls it) on a drive-like profile, for both backends.
 
-    python -m scenarios.bench_cosim --seconds 60            # native 60 s, fmpy 10 s
-    python -m scenarios.bench_cosim --seconds 1800          # measures a WLTC-length run
-    python -m scenarios.bench_cosim --seconds 60 --fmpy-seconds 60 --json out.json
+    python -m bench.bench_cosim --seconds 60            # native 60 s, fmpy 10 s
+    python -m bench.bench_cosim --seconds 1800          # measures a WLTC-length run
+    python -m bench.bench_cosim --seconds 60 --fmpy-seconds 60 --json out.json
 
 The profile (scaled to the run's length): speed 0 -> 12 000 r/min over the first 40 %, held
 over 20 %, back to 0 over the last 40 %; torque cycling every 10 s through steps and ramps
@@ -22,7 +22,7 @@ import os
 import time
 from pathlib import Path
 
-from .master import DriveCosim, default_library
+from scenarios.master import DriveCosim, default_library
 
 ROOT = Path(__file__).resolve().parents[1]
 H = 1e-4
@@ -88,7 +88,7 @@ def run(backend: str, seconds: float, controller_fmu: Path, plant_fmu: Path, lib
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m scenarios.bench_cosim", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m bench.bench_cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds, native backend")
     ap.add_argument("--fmpy-seconds", type=float, default=None,

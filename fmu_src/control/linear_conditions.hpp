@@ -12,9 +12,9 @@
 #include <cstdint>
 #include <cstring>
 
-#include "linear_optimal_current.hpp"
-#include "quartic.hpp"
-#include "quartic_fast.hpp"
+#include "control/linear_optimal_current.hpp"
+#include "numerics/quartic.hpp"
+#include "numerics/quartic_fast.hpp"
 
 namespace ipmsm::linear::conditions {
 

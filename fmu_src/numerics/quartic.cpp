@@ -39,8 +39,8 @@
 // 7. Unscale (exact), roots ascending, a double root twice.
 //
 // No heap allocation, no exceptions, no iteration apart from the single Newton step per root.
-#include "quartic.hpp"
-#include "quartic_fast.hpp"
+#include "numerics/quartic.hpp"
+#include "numerics/quartic_fast.hpp"
 
 #include <algorithm>
 #include <cfloat>

@@ -10,8 +10,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "machine.hpp"
-#include "saturated_optimal_current.hpp"
+#include "machine/machine.hpp"
+#include "control/saturated_optimal_current.hpp"
 
 namespace ipmsm {
 

@@ -1,5 +1,5 @@
 // The inverse flux map: Newton inversion of the forward spline on a psi grid, then a spline.
-#include "inverse_flux_map.hpp"
+#include "machine/inverse_flux_map.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -42,7 +42,7 @@ T_STEP = 200.0        # N.m
 RPM_START, RPM_END = 2000.0, 8000.0
 U_DC = 355.0          # V
 
-OSP_DIR = Path(__file__).resolve().parent / "osp"
+OSP_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "osp"
 
 # (from FMU, variable, to FMU, variable); plant -> controller first (see the module docstring)
 CONNECTIONS = [
@@ -111,7 +111,7 @@ def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str =
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from .fmu import get_values, set_values
+    from scenarios.fmu import get_values, set_values
 
     fmus, variables, dirs = {}, {}, []
     try:
@@ -279,7 +279,7 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from .fmu import get_values, set_values
+    from scenarios.fmu import get_values, set_values
 
     with tempfile.TemporaryDirectory(prefix="ipmsm-container-") as tmp:
         container = build_container(controller_fmu, plant_fmu, tmp)

@@ -14,10 +14,10 @@
 
 #include <memory>
 
-#include "flux_map.hpp"
-#include "linear_optimal_current.hpp"
-#include "machine.hpp"
-#include "magnet_flux.hpp"
+#include "machine/flux_map.hpp"
+#include "control/linear_optimal_current.hpp"
+#include "machine/machine.hpp"
+#include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
 

@@ -13,7 +13,7 @@
 #include <emmintrin.h>
 #endif
 
-#include "quartic.hpp"
+#include "numerics/quartic.hpp"
 
 namespace ipmsm::fast {
 

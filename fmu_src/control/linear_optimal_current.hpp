@@ -9,7 +9,7 @@
 
 #include <cmath>
 
-#include "machine.hpp"
+#include "machine/machine.hpp"
 
 namespace ipmsm::linear {
 

@@ -19,8 +19,8 @@
 
 #include <vector>
 
-#include "bicubic_spline.hpp"
-#include "flux_map.hpp"
+#include "numerics/bicubic_spline.hpp"
+#include "machine/flux_map.hpp"
 
 namespace ipmsm {
 

@@ -1,5 +1,5 @@
 // C2 bicubic spline: construction (see bicubic_spline.hpp for the method and its choices).
-#include "bicubic_spline.hpp"
+#include "numerics/bicubic_spline.hpp"
 
 #include <cmath>
 #include <cstddef>

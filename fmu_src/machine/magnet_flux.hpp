@@ -3,7 +3,7 @@
 // psi_d by the change of psi_m, which keeps the inductances (and reciprocity) of the map.
 #pragma once
 
-#include "flux_map.hpp"
+#include "machine/flux_map.hpp"
 
 namespace ipmsm {
 

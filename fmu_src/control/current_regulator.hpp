@@ -14,7 +14,7 @@
 // is corrected by what the limit took away (anti-windup).
 #pragma once
 
-#include "magnet_flux.hpp"
+#include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
 

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "bicubic_spline.hpp"
+#include "numerics/bicubic_spline.hpp"
 
 namespace ipmsm {
 

@@ -1,4 +1,4 @@
-#include "current_regulator.hpp"
+#include "control/current_regulator.hpp"
 
 #include <cmath>
 

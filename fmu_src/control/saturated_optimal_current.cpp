@@ -1,9 +1,9 @@
-#include "saturated_optimal_current.hpp"
+#include "control/saturated_optimal_current.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "map_newton.hpp"
+#include "control/map_newton.hpp"
 
 namespace ipmsm {
 namespace {

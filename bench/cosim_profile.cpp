@@ -1,4 +1,4 @@
-// Where the time of a coupled step goes: the drive-like profile of scenarios/bench_cosim.py run
+// Where the time of a coupled step goes: the drive-like profile of bench/bench_cosim.py run
 //   A  through the FMUs with libipmsm_cosim (the native master, 10 ms chunks, the default 14 probes)
 //   A0 the same without probes (coupling values only)
 //   B  the two models called directly, no FMI (ControllerModel, PlantModel linked in: the same
@@ -36,7 +36,7 @@ struct Inputs {
     double T_ref, w_m, u_dc, T_magnet, T_winding;
 };
 
-// As scenarios/bench_cosim.py: profile(t, duration).
+// As bench/bench_cosim.py: profile(t, duration).
 double torque_pattern(double t) {
     const double x = std::fmod(t, 10.0);
     if (x < 2.0) return 150.0;
@@ -245,7 +245,7 @@ int main(int argc, char** argv) {
     const Result b = best([&] { return run_models(pdir + "/resources", seconds, false, tps); });
     const Result c = best([&] { return run_models(pdir + "/resources", seconds, true, tps); });
     const double us = 1e6 / steps;
-    std::printf("%s profile of scenarios/bench_cosim.py, %.0f s simulated (%.0f coupled steps), best of %d, "
+    std::printf("%s profile of bench/bench_cosim.py, %.0f s simulated (%.0f coupled steps), best of %d, "
                 "CPU time of this thread (us per coupled step):\n", g_stress ? "stress" : "drive", seconds, steps, repeats);
     std::printf("  A  FMUs through libipmsm_cosim, 14 probes      %6.3f   (wall %6.3f)\n", a.cpu * us, a.wall * us);
     std::printf("  A0 FMUs through libipmsm_cosim, 2 probes       %6.3f   (wall %6.3f)\n", a0.cpu * us, a0.wall * us);

@@ -9,7 +9,7 @@
 //   current & voltage limit: c = I^2,   g = V^2
 #pragma once
 
-#include "magnet_flux.hpp"
+#include "machine/magnet_flux.hpp"
 
 namespace ipmsm::map_newton {
 

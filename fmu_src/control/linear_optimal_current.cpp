@@ -1,11 +1,11 @@
-#include "linear_optimal_current.hpp"
+#include "control/linear_optimal_current.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "linear_conditions.hpp"
-#include "quartic.hpp"
-#include "quartic_fast.hpp"
+#include "control/linear_conditions.hpp"
+#include "numerics/quartic.hpp"
+#include "numerics/quartic_fast.hpp"
 
 namespace ipmsm::linear {
 using namespace conditions;  // the quartic of each condition

@@ -1,6 +1,6 @@
 """Check the default motor's targets on its flux map, by brute force; plot envelope and efficiency.
 
-    python -m plant.motor.check_targets [--csv FILE] [--out-dir DIR] [--no-plots]
+    python -m tools.default_motor.check_targets [--csv FILE] [--out-dir DIR] [--no-plots]
 
 Works only from the CSV (flux linkages and '# key: value' metadata), not from the model that
 generated it: the map is interpolated by bicubic splines, and for every speed the optimal

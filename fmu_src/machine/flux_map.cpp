@@ -1,5 +1,5 @@
 // Flux maps: the contract's CSV reader, the linear machine's map, and the spline interpolant.
-#include "flux_map.hpp"
+#include "machine/flux_map.hpp"
 
 #include <algorithm>
 #include <cctype>

@@ -1,1 +1,0 @@
-"""Python side of the IpmsmPlant: the default motor (see plant/motor/)."""
