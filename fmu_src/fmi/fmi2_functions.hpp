@@ -317,10 +317,10 @@ struct Fmi2 {
             if (state == nullptr) throw Error("FMUstate is NULL");
             if (*state != nullptr) {  // reuse a state returned earlier
                 Snapshot<M>& s = snapshot(in, *state);
-                s = Snapshot<M>{in.model, in.phase, in.time, {}};
+                s = Snapshot<M>{in.model, in.phase, in.start_time, in.time, {}};
                 return fmi2OK;
             }
-            auto s = std::unique_ptr<Snapshot<M>>(new Snapshot<M>{in.model, in.phase, in.time, {}});
+            auto s = std::unique_ptr<Snapshot<M>>(new Snapshot<M>{in.model, in.phase, in.start_time, in.time, {}});
             in.snapshots.insert(s.get());
             *state = s.release();
             return fmi2OK;
@@ -335,6 +335,7 @@ struct Fmi2 {
             swap(in.model, copy);
             in.phase = s.phase;
             in.initial.reset();
+            in.start_time = s.start_time;
             in.time = s.time;
             return fmi2OK;
         });

@@ -22,7 +22,7 @@ namespace fmi {
 namespace glue {
 
 inline constexpr char kStateMagic[8] = {'I', 'P', 'M', 'S', 'M', 'F', 'S', 'T'};
-inline constexpr std::uint32_t kStateFormat = 1;
+inline constexpr std::uint32_t kStateFormat = 2;
 
 // The variables of a model, each as its type's index then its value.
 template <class M>
@@ -76,6 +76,7 @@ std::vector<char> serialise(Snapshot<M>& s) {
     w.put_string(M::model_identifier);
     w.put_string(M::guid);
     w.put<std::uint8_t>(static_cast<std::uint8_t>(s.phase));
+    w.put<double>(s.start_time);
     w.put<double>(s.time);
     write_variables(w, s.model);
     const std::vector<char> block = save_state_fields(s.model);
@@ -109,8 +110,8 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
         phase_value > static_cast<std::uint8_t>(Phase::terminated))
         throw Error(std::string(what) + " has an invalid instance state (" + std::to_string(phase_value) + ")");
     const auto phase = static_cast<Phase>(phase_value);
-    const double time = r.get<double>();
-    if (!std::isfinite(time)) throw Error(std::string(what) + " has a non-finite time");
+    const double start_time = r.get<double>(), time = r.get<double>();
+    if (!std::isfinite(start_time) || !std::isfinite(time)) throw Error(std::string(what) + " has a non-finite time");
 
     M m = in.model;
     read_variables(r, m, what);
@@ -139,7 +140,7 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
     const std::string block = r.get_string();
     load_state_fields(m, block.data(), block.size());
     if (!r.at_end()) throw Error(std::string(what) + " has trailing bytes");
-    return std::unique_ptr<Snapshot<M>>(new Snapshot<M>{std::move(m), phase, time, {}});
+    return std::unique_ptr<Snapshot<M>>(new Snapshot<M>{std::move(m), phase, start_time, time, {}});
 }
 
 }  // namespace glue

@@ -66,6 +66,7 @@ template <class M>
 struct Snapshot {
     M model;
     Phase phase;
+    double start_time;
     double time;
     std::vector<char> bytes;  // the serialised form, made on the first request
 };
