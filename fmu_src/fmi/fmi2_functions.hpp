@@ -82,13 +82,14 @@ void check_settable(const Variable<M>& v, Phase p) {
 }
 
 // Whether a step from t continues the last one, which ended at `expected` (the experiment
-// started at `start`). A master that adds up its steps passes exactly `expected` (t + h is the
-// same IEEE operation on both sides); one that counts them (t_k = start + k h, numpy.linspace,
-// fmpy) differs from it by the roundings of five additions and products of numbers no larger
-// than |t| + |start|: at most 2.5 eps (|t| + |start|), eps = 2^-52. A tolerance of 4 eps
-// (|t| + |start|) accepts every such master and refuses any real gap or overlap: at
-// t = 1.7e9 s it is 1.5 us, far below a communication step (the old 1e-9 relative was 1.7 s).
-inline bool follows(double t, double expected, double start) {
+// started at `start`). Masters that add up their steps, or pass h_k = t_{k+1} - t_k (fmpy,
+// libcosim), give exactly `expected`: t + h is the same IEEE operation on both sides, and the
+// difference of two close times is exact. Masters that count them (t_k = start + k h,
+// numpy.linspace) differ from it by the roundings of five additions and products of numbers no
+// larger than |t| + |start|: at most 2.5 eps (|t| + |start|), eps = 2^-52. A tolerance of
+// 4 eps (|t| + |start|) accepts all of them and refuses any real gap or overlap: at t = 1.7e9 s
+// it is 1.5 us, far below a communication step.
+inline bool follows_last_step(double t, double expected, double start) {
     const double scale = std::abs(expected) + std::abs(start);
     return std::abs(t - expected) <= 4.0 * std::numeric_limits<double>::epsilon() * scale;
 }
@@ -423,7 +424,7 @@ struct Fmi2 {
             if (!std::isfinite(t)) throw Error("currentCommunicationPoint = " + number_text(t) + " is not finite");
             if (!(h > 0.0) || !std::isfinite(h))
                 throw Error("communicationStepSize = " + number_text(h) + " must be a finite number > 0");
-            if (!follows(t, in.time, in.start_time))
+            if (!follows_last_step(t, in.time, in.start_time))
                 throw Error("currentCommunicationPoint = " + number_text(t) + " but the previous step ended at " +
                             number_text(in.time) + " (a step continues where the last one ended)");
             in.undoable([&] { in.model.do_step(t, h); },

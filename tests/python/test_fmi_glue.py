@@ -411,7 +411,7 @@ def test_a_communication_point_that_does_not_follow_the_last_is_refused(toys, st
 @pytest.mark.parametrize("h", [1e-5, 1e-4, 1.0 / 3.0])
 def test_masters_that_count_their_steps_are_accepted(toys, start, h):
     """The tolerance is as tight as rounding allows but no tighter: masters that compute
-    t_k = start + k h (fmpy, numpy.linspace) rather than adding up h are never refused."""
+    t_k = start + k h (numpy.linspace) rather than adding up h are never refused."""
     a = toys()
     a.fmu.setupExperiment(startTime=start)
     a.set(tau=1e6)  # no "longer than tau" warning
