@@ -41,7 +41,7 @@ public:
     void state_fields(Field&& field) {
         CvodeState s = integrator_.state();
         field(s.t), field(s.psi), field(s.h_next);
-        integrator_.set_state(s);
+        integrator_.set_state(s);  // what was read in; the same state when the fields were written
         field(outside_warned_);
     }
 
