@@ -27,25 +27,49 @@ inline std::string attribute_after(const std::string& xml, std::size_t from, con
     return xml.substr(a + key.size(), b - a - key.size());
 }
 
-// What a master needs of a model description: the GUID and each variable's value reference.
+// What a master needs of a model description: the GUID, the co-simulation model identifier,
+// each variable's value reference and type ("Real", "Integer", "Boolean", "String",
+// "Enumeration").
 struct Description {
-    std::string guid;
+    std::string guid, model_identifier;
     std::map<std::string, fmi2ValueReference> vr;
+    std::map<std::string, std::string> type;
 };
 
-// <dir>/modelDescription.xml; exits with status 2 and a message if it cannot be read.
-inline Description read_description(const std::string& dir) {
+// Reads <dir>/modelDescription.xml into d; false, with why, if it cannot be read.
+inline bool parse_description(const std::string& dir, Description& d, std::string& why) {
     std::ifstream f(dir + "/modelDescription.xml");
     std::stringstream ss;
     ss << f.rdbuf();
     const std::string xml = ss.str();
-    Description d;
+    d = Description{};
     d.guid = attribute_after(xml, 0, "guid");
-    for (std::size_t p = xml.find("<ScalarVariable"); p != std::string::npos; p = xml.find("<ScalarVariable", p + 1))
-        d.vr[attribute_after(xml, p, "name")] =
-            static_cast<fmi2ValueReference>(std::stoul(attribute_after(xml, p, "valueReference")));
+    d.model_identifier = attribute_after(xml, xml.find("<CoSimulation"), "modelIdentifier");
+    for (std::size_t p = xml.find("<ScalarVariable"); p != std::string::npos; p = xml.find("<ScalarVariable", p + 1)) {
+        const std::string name = attribute_after(xml, p, "name");
+        const std::string vr = attribute_after(xml, p, "valueReference");
+        if (name.empty() || vr.empty() || vr.find_first_not_of("0123456789") != std::string::npos) continue;
+        d.vr[name] = static_cast<fmi2ValueReference>(std::stoul(vr));
+        // the type is the first child element (a raw '<' cannot occur in an attribute value)
+        const std::size_t child = xml.find('<', p + 1);
+        if (child != std::string::npos) {
+            const std::size_t end = xml.find_first_of(" \t\r\n/>", child + 1);
+            d.type[name] = xml.substr(child + 1, end - child - 1);
+        }
+    }
     if (d.guid.empty() || d.vr.empty()) {
-        std::fprintf(stderr, "cannot read %s/modelDescription.xml\n", dir.c_str());
+        why = "cannot read " + dir + "/modelDescription.xml";
+        return false;
+    }
+    return true;
+}
+
+// The same for tools: exits with status 2 and a message if it cannot be read.
+inline Description read_description(const std::string& dir) {
+    Description d;
+    std::string why;
+    if (!parse_description(dir, d, why)) {
+        std::fprintf(stderr, "%s\n", why.c_str());
         std::exit(2);
     }
     return d;

@@ -157,7 +157,7 @@ def bad_inputs(backend, controller_fmu, plant_fmu, library):
         good = cosim.advance(20, 50.0, W0)
         cases = [(dict(T_ref=math.nan), "IpmsmController", "T_ref"),
                  (dict(u_dc=0.0), "IpmsmController", "u_dc"),
-                 (dict(w_m=math.inf), "IpmsmController", "w_m"),
+                 (dict(w_m=math.inf), "IpmsmPlant", "w_m"),  # the plant's inputs are set first
                  (dict(T_winding=-1.0), "IpmsmPlant", "T_winding")]
         for bad, fmu, name in cases:
             x = dict(T_ref=50.0, w_m=W0, u_dc=355.0)
