@@ -115,61 +115,61 @@ void hold(ipmsm::coupling::CoupledModels& drive, const ipmsm_cosim_inputs& in) {
     drive.hold("T_winding", in.T_winding);
 }
 
-// The models coupled by coupled_models.hpp (the same description), each do_step timed (rdtsc);
-// with glue_extras, wrapped in what the glue does per step besides the call.
+// What the glue does per step besides the model's call (C), timed.
+struct GlueExtras {
+    bool on = false;
+    unsigned long long copies = 0, text = 0, checks = 0;  // rdtsc ticks
+    size_t text_bytes = 0;
+    bool finite = true;
+};
+
+// unit.do_step = model.do_step timed into t_step (rdtsc); with glue.on, wrapped as the glue
+// wraps it: a backup copy of the model and the step's text before, the finite check after.
+template <class Model, class AllFinite>
+void time_do_step(ipmsm::coupling::ModelUnit& unit, Model& model, Model& backup, unsigned long long& t_step,
+                  GlueExtras& glue, AllFinite all_finite) {
+    unit.do_step = [&model, &backup, &t_step, &glue, all_finite](double t, double h) {
+        if (glue.on) {
+            const unsigned long long a = __rdtsc();
+            backup = model;
+            const unsigned long long b = __rdtsc();
+            const std::string what = "the step from t = " + fmi::number_text(t) + " by h = " + fmi::number_text(h);
+            glue.text_bytes += what.size();
+            glue.copies += b - a;
+            glue.text += __rdtsc() - b;
+        }
+        const unsigned long long b = __rdtsc();
+        model.do_step(t, h);
+        const unsigned long long e = __rdtsc();
+        t_step += e - b;
+        if (glue.on) {
+            glue.finite &= all_finite(model);
+            glue.checks += __rdtsc() - e;
+        }
+    };
+}
+
+// The models coupled by coupled_models.hpp (the same description), each do_step timed.
 Result run_models(const std::string& resources, double seconds, bool glue_extras, double ticks_per_s) {
     fmi::Context ctx;
     ctx.instance_name = "direct";
     ctx.resource_dir = resources;
     ipmsm::ControllerModel c(ctx), c_backup(ctx);
     ipmsm::PlantModel p(ctx), p_backup(ctx);
-    unsigned long long t_plant = 0, t_ctrl = 0, t_copy = 0, t_text = 0, t_check = 0;
-    size_t text_bytes = 0;
-    bool finite = true;
-    auto step_text = [&](double t) {
-        const unsigned long long a = __rdtsc();
-        const std::string what = "the step from t = " + fmi::number_text(t) + " by h = " + fmi::number_text(kH);
-        text_bytes += what.size();
-        t_text += __rdtsc() - a;
-    };
+    unsigned long long t_plant = 0, t_ctrl = 0;
+    GlueExtras glue;
+    glue.on = glue_extras;
     ipmsm::coupling::ModelUnit plant = ipmsm::coupling::model_unit(p), controller = ipmsm::coupling::model_unit(c);
-    plant.do_step = [&](double t, double h) {
-        if (glue_extras) {
-            const unsigned long long a = __rdtsc();
-            p_backup = p;
-            t_copy += __rdtsc() - a;
-            step_text(t);
-        }
-        const unsigned long long b = __rdtsc();
-        p.do_step(t, h);
-        const unsigned long long e = __rdtsc();
-        t_plant += e - b;
-        if (glue_extras) {
-            finite &= std::isfinite(p.i_d) && std::isfinite(p.i_q) && std::isfinite(p.psi_d) &&
-                      std::isfinite(p.psi_q) && std::isfinite(p.T_e) && std::isfinite(p.T_shaft) &&
-                      std::isfinite(p.P_elec) && std::isfinite(p.P_mech) && std::isfinite(p.P_cu) &&
-                      std::isfinite(p.P_fe) && std::isfinite(p.psi_m_T) && std::isfinite(p.R_s_T);
-            t_check += __rdtsc() - e;
-        }
-    };
-    controller.do_step = [&](double t, double h) {
-        if (glue_extras) {
-            const unsigned long long a = __rdtsc();
-            c_backup = c;
-            t_copy += __rdtsc() - a;
-            step_text(t);
-        }
-        const unsigned long long b = __rdtsc();
-        c.do_step(t, h);
-        const unsigned long long e = __rdtsc();
-        t_ctrl += e - b;
-        if (glue_extras) {
-            finite &= std::isfinite(c.i_d_ref) && std::isfinite(c.i_q_ref) && std::isfinite(c.u_d_ref) &&
-                      std::isfinite(c.u_q_ref) && std::isfinite(c.T_cmd) && std::isfinite(c.T_max) &&
-                      std::isfinite(c.T_est);
-            t_check += __rdtsc() - e;
-        }
-    };
+    time_do_step(plant, p, p_backup, t_plant, glue, [](const ipmsm::PlantModel& m) {
+        return std::isfinite(m.i_d) && std::isfinite(m.i_q) && std::isfinite(m.psi_d) && std::isfinite(m.psi_q) &&
+               std::isfinite(m.T_e) && std::isfinite(m.T_shaft) && std::isfinite(m.P_elec) &&
+               std::isfinite(m.P_mech) && std::isfinite(m.P_cu) && std::isfinite(m.P_fe) &&
+               std::isfinite(m.psi_m_T) && std::isfinite(m.R_s_T);
+    });
+    time_do_step(controller, c, c_backup, t_ctrl, glue, [](const ipmsm::ControllerModel& m) {
+        return std::isfinite(m.i_d_ref) && std::isfinite(m.i_q_ref) && std::isfinite(m.u_d_ref) &&
+               std::isfinite(m.u_q_ref) && std::isfinite(m.T_cmd) && std::isfinite(m.T_max) && std::isfinite(m.T_est);
+    });
     const ipmsm::coupling::Coupling coupling = ipmsm::coupling::parse(ipmsm::coupling::kDriveCouplingText);
     std::vector<ipmsm::coupling::ModelUnit> models(coupling.units.size());
     models[static_cast<size_t>(coupling.unit_index("plant"))] = plant;
@@ -196,11 +196,11 @@ Result run_models(const std::string& resources, double seconds, bool glue_extras
     r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
     r.plant = t_plant / ticks_per_s;
     r.controller = t_ctrl / ticks_per_s;
-    r.copies = t_copy / ticks_per_s;
-    r.text = t_text / ticks_per_s;
-    r.checks = t_check / ticks_per_s;
+    r.copies = glue.copies / ticks_per_s;
+    r.text = glue.text / ticks_per_s;
+    r.checks = glue.checks / ticks_per_s;
     r.last_i_d = p.i_d;
-    if (!finite || (glue_extras && text_bytes == 0)) r.check = std::nan("");
+    if (!glue.finite || (glue_extras && glue.text_bytes == 0)) r.check = std::nan("");
     return r;
 }
 
