@@ -68,18 +68,29 @@ double cpu_now() {
 }
 
 struct Result {
-    double cpu = 0, wall = 0;           // s
+    double cpu = 0, wall = 0;                                            // s
     double plant = 0, controller = 0, copies = 0, text = 0, checks = 0;  // s (B, C: rdtsc-timed parts)
-    double check = 0;                   // sum of T_e over all steps, and the last i_d (bit-compare)
+    double check = 0;  // sum of T_e over all steps, and the last i_d (bit-compare)
     double last_i_d = 0;
 };
 
 Result run_fmus(const cosim_tools::Units& units, double seconds, bool probes) {
     // T_e first (the bit-compare), i_d second; then the rest of scenarios/master.py's Sample
-    std::vector<const char*> names = {"plant.T_e",  "plant.i_d",  "plant.T_shaft",    "plant.P_elec",
-                                      "plant.P_mech", "plant.P_cu", "plant.P_fe",       "plant.i_q",
-                                      "|i|",        "|i|^2",      "controller.T_cmd", "controller.T_max",
-                                      "controller.region", "controller.iterations", "controller.u_ratio"};
+    std::vector<const char*> names = {"plant.T_e",
+                                      "plant.i_d",
+                                      "plant.T_shaft",
+                                      "plant.P_elec",
+                                      "plant.P_mech",
+                                      "plant.P_cu",
+                                      "plant.P_fe",
+                                      "plant.i_q",
+                                      "|i|",
+                                      "|i|^2",
+                                      "controller.T_cmd",
+                                      "controller.T_max",
+                                      "controller.region",
+                                      "controller.iterations",
+                                      "controller.u_ratio"};
     if (!probes) names.resize(2);  // without probes: T_e and i_d only, for the check
     std::string why;
     ipmsm_cosim* m = cosim_tools::start_drive(units, kH, profile(0.0, seconds), names, why);
@@ -162,9 +173,8 @@ Result run_models(const std::string& resources, double seconds, bool glue_extras
     ipmsm::coupling::ModelUnit plant = ipmsm::coupling::model_unit(p), controller = ipmsm::coupling::model_unit(c);
     time_do_step(plant, p, p_backup, t_plant, glue, [](const ipmsm::PlantModel& m) {
         return std::isfinite(m.i_d) && std::isfinite(m.i_q) && std::isfinite(m.psi_d) && std::isfinite(m.psi_q) &&
-               std::isfinite(m.T_e) && std::isfinite(m.T_shaft) && std::isfinite(m.P_elec) &&
-               std::isfinite(m.P_mech) && std::isfinite(m.P_cu) && std::isfinite(m.P_fe) &&
-               std::isfinite(m.psi_m_T) && std::isfinite(m.R_s_T);
+               std::isfinite(m.T_e) && std::isfinite(m.T_shaft) && std::isfinite(m.P_elec) && std::isfinite(m.P_mech) &&
+               std::isfinite(m.P_cu) && std::isfinite(m.P_fe) && std::isfinite(m.psi_m_T) && std::isfinite(m.R_s_T);
     });
     time_do_step(controller, c, c_backup, t_ctrl, glue, [](const ipmsm::ControllerModel& m) {
         return std::isfinite(m.i_d_ref) && std::isfinite(m.i_q_ref) && std::isfinite(m.u_d_ref) &&
@@ -207,8 +217,7 @@ Result run_models(const std::string& resources, double seconds, bool glue_extras
 double calibrate_tsc() {
     const auto w0 = std::chrono::steady_clock::now();
     const unsigned long long t0 = __rdtsc();
-    while (std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count() < 0.2) {
-    }
+    while (std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count() < 0.2) {}
     const unsigned long long t1 = __rdtsc();
     return (t1 - t0) / std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
 }
@@ -241,8 +250,10 @@ int main(int argc, char** argv) {
     const Result b = best([&] { return run_models(pdir + "/resources", seconds, false, tps); });
     const Result c = best([&] { return run_models(pdir + "/resources", seconds, true, tps); });
     const double us = 1e6 / steps;
-    std::printf("%s profile of bench/bench_cosim.py, %.0f s simulated (%.0f coupled steps), best of %d, "
-                "CPU time of this thread (us per coupled step):\n", g_stress ? "stress" : "drive", seconds, steps, repeats);
+    std::printf(
+        "%s profile of bench/bench_cosim.py, %.0f s simulated (%.0f coupled steps), best of %d, "
+        "CPU time of this thread (us per coupled step):\n",
+        g_stress ? "stress" : "drive", seconds, steps, repeats);
     std::printf("  A  FMUs through libipmsm_cosim, 15 probes      %6.3f   (wall %6.3f)\n", a.cpu * us, a.wall * us);
     std::printf("  A0 FMUs through libipmsm_cosim, 2 probes       %6.3f   (wall %6.3f)\n", a0.cpu * us, a0.wall * us);
     std::printf("  B  models called directly, no FMI              %6.3f   (wall %6.3f)\n", b.cpu * us, b.wall * us);
@@ -261,11 +272,11 @@ int main(int argc, char** argv) {
     std::printf("  A - A0: 13 more probes (one more fmi2GetReal per unit, one fmi2GetInteger): %6.3f\n",
                 (a.cpu - a0.cpu) * us);
     // The FMU run and the direct run must be the same computation.
-    const bool same = a.last_i_d == b.last_i_d && a.last_i_d == c.last_i_d &&
-                      a.check == b.check && b.check == c.check;
-    std::printf("  A, B, C the same computation: %s (last i_d %.17g / %.17g / %.17g; sum of chunk means of T_e "
-                "%.17g / %.17g / %.17g)\n", same ? "yes" : "NO", a.last_i_d, b.last_i_d, c.last_i_d, a.check, b.check,
-                c.check);
+    const bool same = a.last_i_d == b.last_i_d && a.last_i_d == c.last_i_d && a.check == b.check && b.check == c.check;
+    std::printf(
+        "  A, B, C the same computation: %s (last i_d %.17g / %.17g / %.17g; sum of chunk means of T_e "
+        "%.17g / %.17g / %.17g)\n",
+        same ? "yes" : "NO", a.last_i_d, b.last_i_d, c.last_i_d, a.check, b.check, c.check);
     std::printf("  WLTC 1800 s at A: %.1f s CPU\n", a.cpu / steps * 18e6);
     return same ? 0 : 1;
 }

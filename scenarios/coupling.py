@@ -70,85 +70,95 @@ class Coupling:
 
     @classmethod
     def parse(cls, text: str) -> Coupling:
-        units: list[Unit] = []
-        step = 0.0
-        connections: list[Connection] = []
-        inputs: list[ExternalInput] = []
-        fed: set[str] = set()  # inputs already fed: each input has one source
-        for line_no, raw in enumerate(text.splitlines(), 1):
-            def fail(why: str):
-                raise CouplingError(f"coupling description, line {line_no} ({raw.strip()}): {why}")
-
-            def port(s: str) -> Port:
-                t = s.strip()
-                if "." not in t:
-                    fail(f"'{t}' is not ROLE.VARIABLE")
-                role, variable = t.split(".", 1)
-                if role not in (u.role for u in units):
-                    fail(f"no unit '{role}' (declare it with a unit line first)")
-                if not _NAME.match(variable):
-                    fail(f"'{variable}' is not a variable name")
-                return Port(role, variable)
-
-            def feed(p: Port) -> None:
-                if p.text in fed:
-                    fail(f"{p.text} is fed twice")
-                fed.add(p.text)
-
-            line = raw.split("#", 1)[0].strip()
-            if not line:
-                continue
-            words = line.split()
-            if words[0] == "unit":
-                if len(words) != 3:
-                    fail("expected: unit ROLE MODEL_IDENTIFIER")
-                if not (_NAME.match(words[1]) and _NAME.match(words[2])):
-                    fail("a role and a model identifier are names")
-                if words[1] in (u.role for u in units):
-                    fail(f"unit '{words[1]}' declared twice")
-                units.append(Unit(words[1], words[2]))
-            elif words[0] == "step":
-                if len(words) != 2:
-                    fail("expected: step SECONDS")
-                try:
-                    step = float(words[1])
-                except ValueError:
-                    step = math.nan
-                if not (math.isfinite(step) and step > 0):
-                    fail("the step must be a number > 0")
-            else:
-                if "->" not in line:
-                    fail("expected: unit, step, ROLE.OUTPUT -> ROLE.INPUT or NAME -> ROLE.INPUT, ...")
-                source, _, rest = line.partition("->")
-                source = source.strip()
-                targets = [port(item) for item in rest.split(",")] if rest.strip() else []
-                if not targets:
-                    fail("no input after '->'")
-                if "." in source:
-                    if len(targets) != 1:
-                        fail("a connection feeds one input")
-                    src = port(source)
-                    if src.unit == targets[0].unit:
-                        fail("a connection joins two units")
-                    feed(targets[0])
-                    connections.append(Connection(src, targets[0]))
-                else:
-                    if not _NAME.match(source):
-                        fail(f"'{source}' is not an input name")
-                    if source in (e.name for e in inputs):
-                        fail(f"external input '{source}' declared twice")
-                    for p in targets:
-                        feed(p)
-                    inputs.append(ExternalInput(source, tuple(targets)))
-        if not units:
+        r = _Reader()
+        for r.line_no, r.raw in enumerate(text.splitlines(), 1):
+            r.line(r.raw.split("#", 1)[0].strip())
+        if not r.units:
             raise CouplingError("coupling description: no units")
-        if step == 0.0:
+        if r.step == 0.0:
             raise CouplingError("coupling description: no step")
-        return cls(tuple(units), step, tuple(connections), tuple(inputs), text)
+        return cls(tuple(r.units), r.step, tuple(r.connections), tuple(r.inputs), text)
 
     @classmethod
     def read(cls, path: str | Path = COUPLING_FILE) -> Coupling:
         return cls.parse(Path(path).read_text())
+
+
+class _Reader:
+    """Coupling.parse, line by line (the rules of coupling.hpp)."""
+
+    def __init__(self):
+        self.units: list[Unit] = []
+        self.step = 0.0
+        self.connections: list[Connection] = []
+        self.inputs: list[ExternalInput] = []
+        self.fed: set[str] = set()  # inputs already fed: each input has one source
+        self.line_no, self.raw = 0, ""
+
+    def fail(self, why: str):
+        raise CouplingError(f"coupling description, line {self.line_no} ({self.raw.strip()}): {why}")
+
+    def port(self, s: str) -> Port:
+        t = s.strip()
+        if "." not in t:
+            self.fail(f"'{t}' is not ROLE.VARIABLE")
+        role, variable = t.split(".", 1)
+        if role not in (u.role for u in self.units):
+            self.fail(f"no unit '{role}' (declare it with a unit line first)")
+        if not _NAME.match(variable):
+            self.fail(f"'{variable}' is not a variable name")
+        return Port(role, variable)
+
+    def feed(self, p: Port) -> None:
+        if p.text in self.fed:
+            self.fail(f"{p.text} is fed twice")
+        self.fed.add(p.text)
+
+    def line(self, line: str) -> None:
+        if not line:
+            return
+        words = line.split()
+        if words[0] == "unit":
+            if len(words) != 3:
+                self.fail("expected: unit ROLE MODEL_IDENTIFIER")
+            if not (_NAME.match(words[1]) and _NAME.match(words[2])):
+                self.fail("a role and a model identifier are names")
+            if words[1] in (u.role for u in self.units):
+                self.fail(f"unit '{words[1]}' declared twice")
+            self.units.append(Unit(words[1], words[2]))
+        elif words[0] == "step":
+            if len(words) != 2:
+                self.fail("expected: step SECONDS")
+            try:
+                self.step = float(words[1])
+            except ValueError:
+                self.step = math.nan
+            if not (math.isfinite(self.step) and self.step > 0):
+                self.fail("the step must be a number > 0")
+        else:
+            if "->" not in line:
+                self.fail("expected: unit, step, ROLE.OUTPUT -> ROLE.INPUT or NAME -> ROLE.INPUT, ...")
+            source, _, rest = line.partition("->")
+            source = source.strip()
+            targets = [self.port(item) for item in rest.split(",")] if rest.strip() else []
+            if not targets:
+                self.fail("no input after '->'")
+            if "." in source:
+                if len(targets) != 1:
+                    self.fail("a connection feeds one input")
+                src = self.port(source)
+                if src.unit == targets[0].unit:
+                    self.fail("a connection joins two units")
+                self.feed(targets[0])
+                self.connections.append(Connection(src, targets[0]))
+            else:
+                if not _NAME.match(source):
+                    self.fail(f"'{source}' is not an input name")
+                if source in (e.name for e in self.inputs):
+                    self.fail(f"external input '{source}' declared twice")
+                for p in targets:
+                    self.feed(p)
+                self.inputs.append(ExternalInput(source, tuple(targets)))
 
 
 #: the drive: IpmsmController + IpmsmPlant

@@ -40,11 +40,11 @@ import math
 import os
 import shutil
 from collections import deque
+from collections.abc import Callable, Mapping, Sequence
 from ctypes import POINTER, Structure, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass, fields
 from enum import IntEnum
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -156,7 +156,7 @@ def default_library(controller_fmu: str | Path | None = None) -> Path:
 
 
 def _when(k: int, h: float) -> str:
-    return " at t = %.9g s (step k = %d)" % (k * h, k)
+    return f" at t = {k * h:.9g} s (step k = {k})"
 
 
 class _Unit:
@@ -339,7 +339,7 @@ class _FmpyBackend:
 
     def __init__(self, coupling: Coupling, h: float, log: Callable,
                  step_times: Callable[[int], tuple[float, float]] | None = None):
-        from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
+        from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
         self.coupling = coupling
         self.h = h
         self._log = log
@@ -376,7 +376,8 @@ class _FmpyBackend:
     def _failure(self, u: _Unit, what: str) -> str:
         messages = [m for s, _, m in u.pending if s >= Status.fmi2Warning]
         self._flush(u, quoted=True)
-        return f"{u.describe()}: {what}" + ((": " + "; ".join(messages)) if messages else " (the FMU logged no message)")
+        quoted = (": " + "; ".join(messages)) if messages else " (the FMU logged no message)"
+        return f"{u.describe()}: {what}{quoted}"
 
     def _check(self, f: _FmpyUnit, status: int, function: str, when: str = "") -> None:
         if status <= Status.fmi2Warning:
@@ -722,7 +723,8 @@ class DriveCosim:
             paths = {"controller": controller_fmu, "plant": plant_fmu}
             params = {"controller": controller_params or {}, "plant": plant_params or {}}
             if set(paths) != set(coupling.roles):
-                raise CosimError(f"the coupling's units are {coupling.roles}: DriveCosim couples a controller and a plant")
+                raise CosimError(f"the coupling's units are {coupling.roles}: DriveCosim couples a controller "
+                                 "and a plant")
             for unit in coupling.units:
                 self._units[unit.role] = _Unit(unit.role, unit.model_identifier, paths[unit.role],
                                                instance_prefix + unit.role)

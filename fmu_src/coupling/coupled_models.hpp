@@ -53,7 +53,8 @@ public:
                                         std::to_string(units_.size()) + " models given");
         auto find = [&](const Port& p) {
             double* x = units_[static_cast<size_t>(coupling.unit_index(p.unit))].real(p.variable);
-            if (x == nullptr) throw std::invalid_argument("coupling: the " + p.unit + " has no Real '" + p.variable + "'");
+            if (x == nullptr)
+                throw std::invalid_argument("coupling: the " + p.unit + " has no Real '" + p.variable + "'");
             return x;
         };
         for (const ExternalInput& e : coupling.inputs)

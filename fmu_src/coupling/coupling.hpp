@@ -102,7 +102,8 @@ inline Coupling parse(const std::string& text) {
         if (first == "unit") {
             Unit u;
             std::string extra;
-            if (!(words >> u.role >> u.model_identifier) || (words >> extra)) fail("expected: unit ROLE MODEL_IDENTIFIER");
+            if (!(words >> u.role >> u.model_identifier) || (words >> extra))
+                fail("expected: unit ROLE MODEL_IDENTIFIER");
             if (!is_name(u.role) || !is_name(u.model_identifier)) fail("a role and a model identifier are names");
             if (c.unit_index(u.role) >= 0) fail("unit '" + u.role + "' declared twice");
             c.units.push_back(u);
@@ -114,7 +115,8 @@ inline Coupling parse(const std::string& text) {
             if (*end != '\0' || !std::isfinite(c.step) || c.step <= 0.0) fail("the step must be a number > 0");
         } else {
             const std::size_t arrow = line.find("->");
-            if (arrow == std::string::npos) fail("expected: unit, step, ROLE.OUTPUT -> ROLE.INPUT or NAME -> ROLE.INPUT, ...");
+            if (arrow == std::string::npos)
+                fail("expected: unit, step, ROLE.OUTPUT -> ROLE.INPUT or NAME -> ROLE.INPUT, ...");
             const std::string source = trim(line.substr(0, arrow));
             std::vector<Port> targets;
             std::istringstream list(line.substr(arrow + 2));

@@ -78,8 +78,8 @@ struct Unit {
     fmu_binary::Description md;
     fmi2Component component = nullptr;
     fmi2CallbackFunctions callbacks{};
-    bool initialised = false;  // fmi2ExitInitializationMode succeeded
-    bool fatal = false;        // an fmi2Fatal: only fmi2FreeInstance is allowed
+    bool initialised = false;       // fmi2ExitInitializationMode succeeded
+    bool fatal = false;             // an fmi2Fatal: only fmi2FreeInstance is allowed
     std::vector<LogEntry> pending;  // logged during the current FMI call
 
     fmu_binary::Functions fmi;  // the FMU's binary, dlopened; closed with the instance
@@ -126,11 +126,11 @@ struct Probe {
 // The fields of ipmsm_cosim_inputs by name: a description's external input binds to one.
 struct InputField {
     const char* name;
-    double ipmsm_cosim_inputs::* field;
+    double ipmsm_cosim_inputs::*field;
 };
 constexpr InputField kInputFields[] = {
-    {"T_ref", &ipmsm_cosim_inputs::T_ref},       {"w_m", &ipmsm_cosim_inputs::w_m},
-    {"u_dc", &ipmsm_cosim_inputs::u_dc},         {"T_magnet", &ipmsm_cosim_inputs::T_magnet},
+    {"T_ref", &ipmsm_cosim_inputs::T_ref},         {"w_m", &ipmsm_cosim_inputs::w_m},
+    {"u_dc", &ipmsm_cosim_inputs::u_dc},           {"T_magnet", &ipmsm_cosim_inputs::T_magnet},
     {"T_winding", &ipmsm_cosim_inputs::T_winding},
 };
 
@@ -220,9 +220,7 @@ struct Master {
         return fail(failure(u, function + when + " returned " + status_name(s)));
     }
 
-    std::string at_time() const {
-        return format(" at t = %.9g s (step k = %lld)", static_cast<double>(k) * h, k);
-    }
+    std::string at_time() const { return format(" at t = %.9g s (step k = %lld)", static_cast<double>(k) * h, k); }
 
     // The unit of that role; nullptr (and the error set) if there is none or it cannot be used.
     Unit* unit(const char* role, bool need_instance = true) {
@@ -279,7 +277,8 @@ struct Master {
                         coupling.unit_index(c.from.unit) != static_cast<int>(from))
                         continue;
                     fmi2ValueReference in_vr, out_vr;
-                    if (!units[to].real_vr(c.to.variable, in_vr, why) || !units[from].real_vr(c.from.variable, out_vr, why))
+                    if (!units[to].real_vr(c.to.variable, in_vr, why) ||
+                        !units[from].real_vr(c.from.variable, out_vr, why))
                         return fail("coupling: " + why);
                     f.names += (f.vr.empty() ? "" : ", ") + c.to.variable;
                     f.vr.push_back(in_vr);
@@ -306,9 +305,10 @@ struct Master {
         for (Unit& u : units) {
             if (u.external_vr.empty()) continue;
             for (size_t j = 0; j < u.external_vr.size(); ++j) u.external_value[j] = in.*u.external_field[j];
-            if (!check(u, u.fmi.fmi2SetReal(u.component, u.external_vr.data(), u.external_vr.size(),
-                                            u.external_value.data()),
-                       "fmi2SetReal (" + u.external_names + ")", when))
+            if (!check(
+                    u,
+                    u.fmi.fmi2SetReal(u.component, u.external_vr.data(), u.external_vr.size(), u.external_value.data()),
+                    "fmi2SetReal (" + u.external_names + ")", when))
                 return false;
         }
         return true;
@@ -329,8 +329,7 @@ void logger(fmi2ComponentEnvironment env, fmi2String /*instance*/, fmi2Status st
         }
         if (u->pending.size() < 1000)
             u->pending.push_back({static_cast<int>(status), category != nullptr ? category : "", std::move(text)});
-    } catch (...) {
-    }
+    } catch (...) {}
 }
 
 // file:// URI of a directory (percent-encoding all but the unreserved characters and '/').
@@ -400,8 +399,7 @@ IPMSM_COSIM_API void ipmsm_cosim_free(ipmsm_cosim* m) {
     if (m == nullptr) return;
     try {
         for (auto u = m->units.rbegin(); u != m->units.rend(); ++u) release(*u);
-    } catch (...) {
-    }
+    } catch (...) {}
     delete m;
 }
 
@@ -428,7 +426,8 @@ IPMSM_COSIM_API int ipmsm_cosim_instantiate(ipmsm_cosim* handle, const char* rol
         if (u.md.model_identifier != u.model_identifier)
             return m.fail("the " + u.role + " must be " + u.model_identifier + ", " + dir + " holds '" +
                           u.md.model_identifier + "'");
-        if (!u.fmi.open(fmu_binary::library_path(dir, u.model_identifier), why)) return m.fail(u.model_identifier + ": " + why);
+        if (!u.fmi.open(fmu_binary::library_path(dir, u.model_identifier), why))
+            return m.fail(u.model_identifier + ": " + why);
         u.callbacks.logger = logger;
         u.callbacks.allocateMemory = std::calloc;
         u.callbacks.freeMemory = std::free;
@@ -461,14 +460,14 @@ IPMSM_COSIM_API int ipmsm_cosim_enter_initialization(ipmsm_cosim* handle) {
     });
 }
 
-#define IPMSM_COSIM_ACCESS(NAME, FMI, CTYPE, FMITYPE)                                                             \
+#define IPMSM_COSIM_ACCESS(NAME, FMI, CTYPE, FMITYPE)                                                            \
     IPMSM_COSIM_API int NAME(ipmsm_cosim* handle, const char* role, size_t n, const unsigned* vr, CTYPE value) { \
-        return guarded(handle, [&](Master& m) {                                                                   \
-            Unit* u = m.unit(role);                                                                               \
-            if (u == nullptr) return false;                                                                       \
+        return guarded(handle, [&](Master& m) {                                                                  \
+            Unit* u = m.unit(role);                                                                              \
+            if (u == nullptr) return false;                                                                      \
             return m.check(*u, u->fmi.FMI(u->component, vr, n, reinterpret_cast<FMITYPE>(value)), #FMI,          \
-                           m.coupled ? m.at_time() : std::string());                                              \
-        });                                                                                                       \
+                           m.coupled ? m.at_time() : std::string());                                             \
+        });                                                                                                      \
     }
 IPMSM_COSIM_ACCESS(ipmsm_cosim_set_real, fmi2SetReal, const double*, const fmi2Real*)
 IPMSM_COSIM_ACCESS(ipmsm_cosim_set_integer, fmi2SetInteger, const int*, const fmi2Integer*)
@@ -548,18 +547,21 @@ IPMSM_COSIM_API int ipmsm_cosim_probes(ipmsm_cosim* handle, size_t n, const char
             }
             const size_t dot = name.find('.');
             const int i = dot == std::string::npos ? -1 : m.coupling.unit_index(name.substr(0, dot));
-            if (i < 0) return m.fail("probe '" + name + "': not ROLE.VARIABLE of a unit of the coupling, '|i|' or '|i|^2'");
+            if (i < 0)
+                return m.fail("probe '" + name + "': not ROLE.VARIABLE of a unit of the coupling, '|i|' or '|i|^2'");
             Unit& u = m.units[static_cast<size_t>(i)];
             const std::string var = name.substr(dot + 1);
             const auto it = u.md.vr.find(var);
-            if (it == u.md.vr.end()) return m.fail("probe '" + name + "': " + u.model_identifier + " has no variable '" + var + "'");
+            if (it == u.md.vr.end())
+                return m.fail("probe '" + name + "': " + u.model_identifier + " has no variable '" + var + "'");
             const std::string& type = u.md.type.at(var);
             if (type == "Real") {
                 probes.push_back({Probe::real, static_cast<size_t>(i), slot(u.read_real, it->second), 0});
             } else if (type == "Integer" || type == "Enumeration") {
                 probes.push_back({Probe::integer, static_cast<size_t>(i), slot(u.read_int, it->second), 0});
             } else {
-                return m.fail("probe '" + name + "' is a " + type + ": only Real and Integer variables can be averaged");
+                return m.fail("probe '" + name + "' is a " + type +
+                              ": only Real and Integer variables can be averaged");
             }
         }
         for (Unit& u : m.units) {
@@ -587,11 +589,14 @@ IPMSM_COSIM_API long long ipmsm_cosim_advance(ipmsm_cosim* handle, long long n_s
         const size_t np = m.probes.size();
         if (np > 0 && (mean == nullptr || end == nullptr)) return m.fail("ipmsm_cosim_advance: NULL mean/end");
         if (trace != nullptr) {
-            if (decimation < 1) return m.fail(format("ipmsm_cosim_advance: decimation = %lld, must be >= 1", decimation));
+            if (decimation < 1)
+                return m.fail(format("ipmsm_cosim_advance: decimation = %lld, must be >= 1", decimation));
             const long long want_rows = n_steps / decimation;
             if (trace_rows < want_rows)
-                return m.fail(format("ipmsm_cosim_advance: the trace has %lld rows, %lld steps / decimation %lld "
-                                     "need %lld", trace_rows, n_steps, decimation, want_rows));
+                return m.fail(
+                    format("ipmsm_cosim_advance: the trace has %lld rows, %lld steps / decimation %lld "
+                           "need %lld",
+                           trace_rows, n_steps, decimation, want_rows));
         }
         // The external inputs, once (refused values: k unchanged, the master stays usable).
         if (!m.set_external(*inputs, m.at_time())) return false;
@@ -612,19 +617,19 @@ IPMSM_COSIM_API long long ipmsm_cosim_advance(ipmsm_cosim* handle, long long n_s
             // The exchange: each connected input gets its output's value after the previous step.
             for (const Feed& f : m.feeds) {
                 Unit& to = m.units[f.to];
-                if ((s = to.fmi.fmi2SetReal(to.component, f.vr.data(), f.vr.size(), m.units[f.from].real.data() + f.offset)) >
-                    fmi2Warning)
+                if ((s = to.fmi.fmi2SetReal(to.component, f.vr.data(), f.vr.size(),
+                                            m.units[f.from].real.data() + f.offset)) > fmi2Warning)
                     return stop(to, s, "fmi2SetReal (" + f.names + ")");
             }
             for (Unit& u : m.units)
                 if ((s = u.fmi.fmi2DoStep(u.component, t, h, fmi2True)) > fmi2Warning) return stop(u, s, "fmi2DoStep");
             ++m.k;
             for (Unit& u : m.units) {
-                if ((s = u.fmi.fmi2GetReal(u.component, u.read_real.data(), u.read_real.size(), u.real.data())) > fmi2Warning)
+                if ((s = u.fmi.fmi2GetReal(u.component, u.read_real.data(), u.read_real.size(), u.real.data())) >
+                    fmi2Warning)
                     return stop(u, s, "fmi2GetReal");
-                if (!u.read_int.empty() &&
-                    (s = u.fmi.fmi2GetInteger(u.component, u.read_int.data(), u.read_int.size(), u.integer.data())) >
-                        fmi2Warning)
+                if (!u.read_int.empty() && (s = u.fmi.fmi2GetInteger(u.component, u.read_int.data(), u.read_int.size(),
+                                                                     u.integer.data())) > fmi2Warning)
                     return stop(u, s, "fmi2GetInteger");
             }
             for (Unit& u : m.units)

@@ -40,8 +40,8 @@ typedef struct ipmsm_cosim_inputs {
  * thread that called the master): the unit's role and instance name, the fmi2Status, category
  * and message as logged (the message printf-formatted). NULL: messages with status >=
  * fmi2Warning go to stderr. */
-typedef void (*ipmsm_cosim_log_fn)(void* user, const char* role, const char* instance, int status,
-                                   const char* category, const char* message);
+typedef void (*ipmsm_cosim_log_fn)(void* user, const char* role, const char* instance, int status, const char* category,
+                                   const char* message);
 
 typedef struct ipmsm_cosim ipmsm_cosim;
 

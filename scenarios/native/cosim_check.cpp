@@ -19,12 +19,12 @@
 namespace {
 
 int failures = 0;
-#define CHECK(cond)                                                                  \
-    do {                                                                             \
-        if (!(cond)) {                                                               \
+#define CHECK(cond)                                                                 \
+    do {                                                                            \
+        if (!(cond)) {                                                              \
             std::fprintf(stderr, "CHECK failed at line %d: %s\n", __LINE__, #cond); \
-            ++failures;                                                              \
-        }                                                                            \
+            ++failures;                                                             \
+        }                                                                           \
     } while (0)
 
 using cosim_tools::Description;
@@ -37,10 +37,20 @@ void log_fn(void*, const char* role, const char* instance, int status, const cha
 }
 
 // What every master here reports (the names resolve through the model descriptions).
-const std::vector<const char*> kProbes = {"plant.T_shaft", "plant.T_e", "plant.P_elec", "plant.P_mech",
-                                          "plant.P_cu",    "plant.P_fe", "plant.i_d",   "plant.i_q",
-                                          "|i|",           "|i|^2",      "controller.T_cmd", "controller.T_max",
-                                          "controller.region", "controller.iterations"};
+const std::vector<const char*> kProbes = {"plant.T_shaft",
+                                          "plant.T_e",
+                                          "plant.P_elec",
+                                          "plant.P_mech",
+                                          "plant.P_cu",
+                                          "plant.P_fe",
+                                          "plant.i_d",
+                                          "plant.i_q",
+                                          "|i|",
+                                          "|i|^2",
+                                          "controller.T_cmd",
+                                          "controller.T_max",
+                                          "controller.region",
+                                          "controller.iterations"};
 constexpr size_t kP_elec = 2;
 
 ipmsm_cosim* make(const std::string& cdir, const std::string& pdir, const Description& pd, const char* suffix,
@@ -130,7 +140,8 @@ int main(int argc, char** argv) {
     ipmsm_cosim* c = make(cdir, pdir, pd, "_c", 1000.0, 1);
     const ipmsm_cosim_inputs strong{200.0, 1000.0, 355.0, 353.15, 373.15};
     long long r = 0;
-    for (int i = 0; i < 50 && r >= 0; ++i) r = ipmsm_cosim_advance(c, 10, &strong, mean.data(), end.data(), nullptr, 0, 0);
+    for (int i = 0; i < 50 && r >= 0; ++i)
+        r = ipmsm_cosim_advance(c, 10, &strong, mean.data(), end.data(), nullptr, 0, 0);
     CHECK(r == -1);
     std::printf("failed step: %s\n", ipmsm_cosim_error(c));
     CHECK(std::strstr(ipmsm_cosim_error(c), "IpmsmPlant") != nullptr);
@@ -168,7 +179,8 @@ int main(int argc, char** argv) {
         const ipmsm_cosim_inputs start{0.0, 0.0, 355.0, 293.15, 293.15};
         CHECK(ipmsm_cosim_initialize(f, &start) == -1);
         std::printf("unresolved: %s\n", ipmsm_cosim_error(f));
-        CHECK(std::strstr(ipmsm_cosim_error(f), "u_x") != nullptr || std::strstr(ipmsm_cosim_error(f), "speed") != nullptr);
+        CHECK(std::strstr(ipmsm_cosim_error(f), "u_x") != nullptr ||
+              std::strstr(ipmsm_cosim_error(f), "speed") != nullptr);
         ipmsm_cosim_free(f);
     }
 

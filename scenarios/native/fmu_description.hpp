@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "coupling/drive_coupling_text.hpp"
 #include "cosim.h"
+#include "coupling/drive_coupling_text.hpp"
 #include "fmu_binary.hpp"
 
 namespace cosim_tools {

@@ -26,7 +26,6 @@ column's largest magnitude.
 from __future__ import annotations
 
 import math
-import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -134,13 +133,12 @@ def osp_config(controller_fmu: str | Path, plant_fmu: str | Path, out_dir: str |
 
 
 def run_libcosim(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarray:
+    from fmpy import read_model_description
     from libcosimpy.CosimEnums import CosimExecutionState
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimManipulator import CosimManipulator
     from libcosimpy.CosimObserver import CosimObserver
-
-    from fmpy import read_model_description
 
     log_output_level(CosimLogLevel.ERROR)
     variables = {key: {v.name: v for v in read_model_description(str(p)).modelVariables}

@@ -18,7 +18,7 @@ RECORDED = ("T_cmd", "region", "T_e", "i_d", "i_q", "T_shaft")
 
 
 def run(controller_fmu, plant_fmu, rpm, torque, t_end):
-    """Rows (t_{k+1}, T_ref over the step, then RECORDED after the step)."""
+    """Rows (t_{k+1}, then RECORDED after the step from t_k)."""
     w_m = rpm * 2 * math.pi / 60
     n = int(round(t_end / H))
     trace = np.zeros((n, 1 + len(SAMPLE_FIELDS)))
@@ -36,7 +36,7 @@ def run(controller_fmu, plant_fmu, rpm, torque, t_end):
             cosim.advance(m, T_ref=T, w_m=w_m, trace=trace[row:])
             row += m
     columns = [1 + SAMPLE_FIELDS.index(name) for name in RECORDED]
-    return np.column_stack([trace[:, 0], T_ref, trace[:, columns]])
+    return np.column_stack([trace[:, 0], trace[:, columns]])
 
 
 STEPS = [(5e-3, 150.0), (25e-3, -100.0)]  # the first 5 ms: start-up at zero torque
@@ -57,7 +57,7 @@ CASES = {1000: (1, 1), 6000: (2, 2), 11000: (4, 4)}
 @pytest.mark.parametrize("rpm", list(CASES))
 def test_torque_steps_settle(controller_fmu, plant_fmu, rpm):
     r = run(controller_fmu, plant_fmu, rpm, torque, 45e-3)
-    t, T_ref, T_cmd, region, T_e, i_d, i_q = r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4], r[:, 5], r[:, 6]
+    t, T_cmd, region, T_e, i_d, i_q = r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4], r[:, 5]
     assert np.all(np.isfinite(r))
     bounds = [s for s, _ in STEPS] + [t[-1] + H]
     for (start, T), end, expected_region in zip(STEPS, bounds[1:], CASES[rpm]):

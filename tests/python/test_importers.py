@@ -15,8 +15,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import drive_step as ds
 from scenarios.coupling import DRIVE
+
+import drive_step as ds
 
 TOLERANCE = 1e-9  # relative to each column's largest magnitude
 

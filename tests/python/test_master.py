@@ -14,13 +14,13 @@ import subprocess
 
 import numpy as np
 import pytest
-
 from fmpy import extract
 
-from conftest import ROOT
-from scenarios.fmu import Fmu
 from scenarios.coupling import DRIVE, Coupling, CouplingError
+from scenarios.fmu import Fmu
 from scenarios.master import SAMPLE_FIELDS, CosimError, DriveCosim, default_library
+
+from conftest import ROOT
 
 H = 1e-4
 BACKENDS = ("native", "fmpy")
