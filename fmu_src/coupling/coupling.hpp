@@ -137,10 +137,8 @@ inline Coupling parse(const std::string& text) {
             }
         }
     }
-    line_no = 0;
-    raw.clear();
-    if (c.units.empty()) fail("no units");
-    if (c.step == 0.0) fail("no step");
+    if (c.units.empty()) throw std::invalid_argument("coupling description: no units");
+    if (c.step == 0.0) throw std::invalid_argument("coupling description: no step");
     return c;
 }
 

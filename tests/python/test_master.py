@@ -291,3 +291,25 @@ def test_a_description_the_fmus_do_not_fit_is_refused(controller_fmu, plant_fmu,
     for backend in BACKENDS:
         with pytest.raises(CosimError, match="IpmsmPlant has no variable 'u_x'"):
             DriveCosim(controller_fmu, plant_fmu, backend=backend, library=library, coupling=wrong)
+
+
+@pytest.mark.parametrize("text", [
+    "unit plant IpmsmPlant\nstep 1e-4\nplant.i_d => controller.i_d\n",
+    "unit plant IpmsmPlant\nstep 1e-4\nplant.i_d -> controller.i_d\n",
+    "unit p P\nunit c C\nstep 1e-4\nw -> p.w\nw2 -> p.w\n",
+    "unit p P\nunit p P\n",
+    "unit p P\n",
+])
+def test_cpp_and_python_read_descriptions_alike(library, text):
+    """coupling.hpp (in the native master) and scenarios/coupling.py refuse a bad description
+    with the same words."""
+    from scenarios.master import _NativeBackend
+    lib = _NativeBackend._load(library)
+    with pytest.raises(CouplingError) as e:
+        Coupling.parse(text)
+    m = lib.ipmsm_cosim_new(text.encode(), 1e-4, _NativeBackend._LOG_FN(0), None)
+    try:
+        assert lib.ipmsm_cosim_instantiate(m, b"p", b"/nonexistent", b"x", 0) == -1
+        assert lib.ipmsm_cosim_error(m).decode() == str(e.value)
+    finally:
+        lib.ipmsm_cosim_free(m)
