@@ -98,11 +98,16 @@ struct Unit {
 
     std::string describe() const { return model_identifier + " (" + role + ", instance '" + instance_name + "')"; }
 
+    std::string type_of(const std::string& name) const {
+        const auto it = md.type.find(name);
+        return it != md.type.end() ? it->second : "";
+    }
+
     // The value reference of a Real variable; false, with why, if there is none.
     bool real_vr(const std::string& name, fmi2ValueReference& vr, std::string& why) const {
         const auto it = md.vr.find(name);
         if (it == md.vr.end()) return why = model_identifier + " has no variable '" + name + "'", false;
-        if (md.type.at(name) != "Real") return why = model_identifier + "." + name + " is not a Real", false;
+        if (type_of(name) != "Real") return why = model_identifier + "." + name + " is not a Real", false;
         vr = it->second;
         return true;
     }
@@ -554,7 +559,7 @@ IPMSM_COSIM_API int ipmsm_cosim_probes(ipmsm_cosim* handle, size_t n, const char
             const auto it = u.md.vr.find(var);
             if (it == u.md.vr.end())
                 return m.fail("probe '" + name + "': " + u.model_identifier + " has no variable '" + var + "'");
-            const std::string& type = u.md.type.at(var);
+            const std::string type = u.type_of(var);
             if (type == "Real") {
                 probes.push_back({Probe::real, static_cast<size_t>(i), slot(u.read_real, it->second), 0});
             } else if (type == "Integer" || type == "Enumeration") {
