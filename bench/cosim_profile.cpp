@@ -75,23 +75,10 @@ struct Result {
 };
 
 Result run_fmus(const cosim_tools::Units& units, double seconds, bool probes) {
-    // T_e first (the bit-compare), i_d second; then the rest of scenarios/master.py's Sample
-    std::vector<const char*> names = {"plant.T_e",
-                                      "plant.i_d",
-                                      "plant.T_shaft",
-                                      "plant.P_elec",
-                                      "plant.P_mech",
-                                      "plant.P_cu",
-                                      "plant.P_fe",
-                                      "plant.i_q",
-                                      "|i|",
-                                      "|i|^2",
-                                      "controller.T_cmd",
-                                      "controller.T_max",
-                                      "controller.region",
-                                      "controller.iterations",
-                                      "controller.u_ratio"};
-    if (!probes) names.resize(2);  // without probes: T_e and i_d only, for the check
+    // all the drive's outputs, or T_e and i_d only (the bit-compare)
+    const std::vector<const char*> names =
+        probes ? cosim_tools::kDriveOutputs : std::vector<const char*>{"plant.T_e", "plant.i_d"};
+    const size_t T_e = cosim_tools::index_of(names, "plant.T_e"), i_d = cosim_tools::index_of(names, "plant.i_d");
     std::string why;
     ipmsm_cosim* m = cosim_tools::start_drive(units, kH, profile(0.0, seconds), names, why);
     if (m == nullptr) {
@@ -109,11 +96,11 @@ Result run_fmus(const cosim_tools::Units& units, double seconds, bool probes) {
             std::fprintf(stderr, "%s\n", ipmsm_cosim_error(m));
             std::exit(1);
         }
-        r.check += mean[0];  // the chunk's mean T_e
+        r.check += mean[T_e];  // the chunk's mean
     }
     r.cpu = cpu_now() - c0;
     r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
-    r.last_i_d = end[1];
+    r.last_i_d = end[i_d];
     ipmsm_cosim_free(m);
     return r;
 }

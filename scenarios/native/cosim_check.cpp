@@ -37,21 +37,8 @@ void log_fn(void*, const char* role, const char* instance, int status, const cha
 }
 
 // What every master here reports (the names resolve through the model descriptions).
-const std::vector<const char*> kProbes = {"plant.T_shaft",
-                                          "plant.T_e",
-                                          "plant.P_elec",
-                                          "plant.P_mech",
-                                          "plant.P_cu",
-                                          "plant.P_fe",
-                                          "plant.i_d",
-                                          "plant.i_q",
-                                          "|i|",
-                                          "|i|^2",
-                                          "controller.T_cmd",
-                                          "controller.T_max",
-                                          "controller.region",
-                                          "controller.iterations"};
-constexpr size_t kP_elec = 2;
+const std::vector<const char*>& kProbes = cosim_tools::kDriveOutputs;
+const size_t kP_elec = cosim_tools::index_of(kProbes, "plant.P_elec");
 
 ipmsm_cosim* make(const std::string& cdir, const std::string& pdir, const Description& pd, const char* suffix,
                   double w_m, int plant_max_steps = 0) {

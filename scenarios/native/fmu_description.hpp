@@ -15,6 +15,21 @@ namespace cosim_tools {
 using fmu_binary::Description;
 using fmu_binary::read_description;
 
+// The drive's outputs as scenarios/master.py's Sample reports them (its SAMPLE_SOURCES, in order).
+// clang-format off
+inline const std::vector<const char*> kDriveOutputs = {
+    "plant.T_shaft", "plant.T_e", "plant.P_elec", "plant.P_mech", "plant.P_cu", "plant.P_fe",
+    "plant.i_d", "plant.i_q", "|i|", "|i|^2", "controller.T_cmd", "controller.T_max",
+    "controller.region", "controller.iterations", "controller.u_ratio"};
+// clang-format on
+
+// Position of `name` in `names` (names.size() if absent).
+inline size_t index_of(const std::vector<const char*>& names, const std::string& name) {
+    size_t i = 0;
+    while (i < names.size() && name != names[i]) ++i;
+    return i;
+}
+
 // Where the units come from, and their instance names.
 struct Units {
     std::string controller_dir, plant_dir;  // unzipped FMUs
