@@ -53,14 +53,17 @@ if [ ! -f "$IPMSM_WIN64_SUNDIALS_DIR/.complete" ]; then
   fi
   _say "cross-building SUNDIALS $_version (static, CVODE only)"
   rm -rf "$_deps/sundials-build" "$IPMSM_WIN64_SUNDIALS_DIR"
+  _log=$_deps/sundials-build.log
+  trap 'echo "[setup win64] the SUNDIALS cross build failed: see $_log" >&2' ERR
   cmake -S "$_src/sundials-$_upstream" -B "$_deps/sundials-build" -G Ninja \
     -DCMAKE_TOOLCHAIN_FILE="$_root/cmake/mingw-w64-x86_64.cmake" -DCMAKE_BUILD_TYPE=Release \
     -DCMAKE_INSTALL_PREFIX="$IPMSM_WIN64_SUNDIALS_DIR" \
     -DBUILD_STATIC_LIBS=ON -DBUILD_SHARED_LIBS=OFF \
     -DBUILD_ARKODE=OFF -DBUILD_CVODES=OFF -DBUILD_IDA=OFF -DBUILD_IDAS=OFF -DBUILD_KINSOL=OFF \
     -DBUILD_CVODE=ON -DBUILD_FORTRAN_MODULE_INTERFACE=OFF \
-    -DEXAMPLES_ENABLE_C=OFF -DEXAMPLES_ENABLE_CXX=OFF -DEXAMPLES_INSTALL=OFF >/dev/null
-  cmake --build "$_deps/sundials-build" --parallel "$(nproc)" >/dev/null
-  cmake --install "$_deps/sundials-build" >/dev/null
+    -DEXAMPLES_ENABLE_C=OFF -DEXAMPLES_ENABLE_CXX=OFF -DEXAMPLES_INSTALL=OFF >"$_log" 2>&1
+  cmake --build "$_deps/sundials-build" --parallel "$(nproc)" >>"$_log" 2>&1
+  cmake --install "$_deps/sundials-build" >>"$_log" 2>&1
+  trap - ERR
   touch "$IPMSM_WIN64_SUNDIALS_DIR/.complete"
 fi

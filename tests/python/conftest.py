@@ -10,6 +10,10 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 SHARED = ROOT.parent / "shared"
 BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", ROOT / "build" / "fmu"))
+# The FMUs under test carry binaries/win64 (issue 17): unless the set-up was told IPMSM_WIN64=OFF,
+# or they come from the sanitizer build (build-asan/, Linux only).
+WIN64_BUILT = (os.environ.get("IPMSM_WIN64", "ON").upper() != "OFF"
+               and not os.environ.get("IPMSM_UNDER_SANITIZER"))
 
 
 def same(a, b) -> bool:

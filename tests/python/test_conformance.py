@@ -12,7 +12,8 @@ different things:
   exporting exactly the same 34 functions and importing only Windows' own DLLs (KERNEL32 and the
   C runtime: msvcrt, or the UCRT's ucrtbase/api-ms-win-crt-*), so it loads on a bare Windows. So
   VDMCheck2 and fmpy's validator above check the two-platform FMUs. tests/python/test_win64.py
-  runs the DLLs under wine. Skipped with IPMSM_WIN64=OFF (the set-up's switch).
+  runs the DLLs under wine. Skipped with IPMSM_WIN64=OFF (the set-up's switch) and on the
+  sanitizer build (Linux only).
 - The model description against the binary: every variable's value reference, type, causality,
   variability and start value as the code has them (the XML is generated from the same C++
   table; this checks the XML that ships against the code that ships), outputs readable in
@@ -36,14 +37,13 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from conftest import BUILD_FMU, ROOT, SHARED, fmu_path
+from conftest import BUILD_FMU, ROOT, SHARED, WIN64_BUILT, fmu_path
 import fmi2_raw as raw
 
 REAL_FMUS = ["IpmsmController", "IpmsmPlant"]
 ALL_FMUS = REAL_FMUS + ["ToyLag"]  # ToyLag: the glue's test FMU, built by the same add_fmu()
 GLIBC_BASELINE = (2, 28)  # RHEL 8 (Ubuntu 20.04 has 2.31)
 ALLOWED_LIBRARIES = {"libc.so.6", "libm.so.6", "libgcc_s.so.1", "ld-linux-x86-64.so.2"}
-WIN64 = os.environ.get("IPMSM_WIN64", "ON").upper() != "OFF"
 WINDOWS_SYSTEM_DLLS = re.compile(r"(kernel32|msvcrt|ucrtbase|api-ms-win-crt-[a-z0-9-]+)\.dll", re.IGNORECASE)
 VDMCHECK2 = Path(os.environ.get("IPMSM_VDMCHECK2_JAR", ROOT / "build-tools" / "vdmcheck2-1.1.3" / "vdmcheck2.jar"))
 
@@ -192,8 +192,8 @@ def test_platform_and_version_strings(name, unzipped):
 # --- the Windows binary ---
 
 def _win64_dll(name, unzipped) -> Path:
-    if not WIN64:
-        pytest.skip("IPMSM_WIN64=OFF: no win64 binary built")
+    if not WIN64_BUILT:
+        pytest.skip("no win64 binary built (IPMSM_WIN64=OFF, or the sanitizer build)")
     fmu = unzipped(name)
     dll = fmu.dir / "binaries" / "win64" / f"{fmu.id}.dll"
     assert dll.is_file(), f"{dll.name} is missing from {fmu.fmu.name} (IPMSM_WIN64=OFF skips this test)"
@@ -208,8 +208,8 @@ def _pe_headers(dll: Path) -> str:
 
 @pytest.mark.parametrize("name", ALL_FMUS)
 def test_carries_linux64_and_win64(name):
-    if not WIN64:
-        pytest.skip("IPMSM_WIN64=OFF: no win64 binary built")
+    if not WIN64_BUILT:
+        pytest.skip("no win64 binary built (IPMSM_WIN64=OFF, or the sanitizer build)")
     from fmpy import supported_platforms
     assert {"linux64", "win64"} <= set(supported_platforms(str(fmu_path(name))))
 

@@ -13,7 +13,7 @@ build/win64, passed on GoogleTest's own summary).
 wine's exit status is not trusted alone (a run right after wineboot can exit oddly after
 finishing): every check reads the harness's own output, which ends with "done".
 
-Skipped when the build has no win64 half (IPMSM_WIN64=OFF, the set-up's switch).
+Skipped when the build has no win64 half (IPMSM_WIN64=OFF, the set-up's switch; build-asan/).
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 from fmpy import extract, read_model_description
 
-from conftest import ROOT, fmu_path
+from conftest import ROOT, WIN64_BUILT, fmu_path
 
 BUILD = ROOT / "build"
 WIN64_BUILD = BUILD / "win64"
@@ -39,8 +39,8 @@ ODD_DIR = "wine fmu é ü"  # a space and non-ASCII characters, as in many Windo
 RTOL = 1e-12
 RPM = math.pi / 30
 
-if os.environ.get("IPMSM_WIN64", "ON").upper() == "OFF":
-    pytest.skip("IPMSM_WIN64=OFF: no win64 binaries built", allow_module_level=True)
+if not WIN64_BUILT:
+    pytest.skip("no win64 binaries built (IPMSM_WIN64=OFF, or the sanitizer build)", allow_module_level=True)
 
 
 def _wine() -> str:
