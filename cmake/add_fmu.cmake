@@ -106,6 +106,13 @@ function(add_fmu)
     # still leave libwinpthread-1.dll); no import library: nothing links against an FMU.
     target_link_options(${name} PRIVATE -static "LINKER:--gc-sections" "LINKER:--no-undefined")
     set_target_properties(${name} PROPERTIES IMPORT_PREFIX "" IMPORT_SUFFIX ".dll.a")
+    # The generator and <NAME>_fmu exist as in the Linux build (for CMake code that names them),
+    # but only the DLL is built: the Linux build writes modelDescription.xml and packs the FMU.
+    add_executable(${name}_modelDescription EXCLUDE_FROM_ALL ${FMU_SOURCES})
+    target_link_libraries(${name}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
+    target_compile_definitions(${name}_modelDescription PRIVATE
+      IPMSM_FMI2_GENERATOR IPMSM_FMU_VERSION="${PROJECT_VERSION}")
+    add_custom_target(${name}_fmu ALL DEPENDS ${name})
     return()
   endif()
 
