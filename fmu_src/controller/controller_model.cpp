@@ -164,7 +164,13 @@ void ControllerModel::do_step(double /*t*/, double h) {
     const SolverMemory memory = solver_->memory;
     const RegulatorState regulator = regulator_.state;
     const CurrentCommand cmd = current_command(c);
-    const VoltageCommand u = regulator_.step(cmd.i_d, cmd.i_q, i_d, i_q, c.omega, u_dc, h, flux);
+    VoltageCommand u;
+    try {
+        u = regulator_.step(cmd.i_d, cmd.i_q, i_d, i_q, c.omega, u_dc, h, flux);
+    } catch (const RegulatorError& e) {
+        solver_->memory = memory;
+        throw fmi::Error(e.what());
+    }
     if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q))) {
         solver_->memory = memory;
         regulator_.state = regulator;
@@ -177,6 +183,13 @@ void ControllerModel::do_step(double /*t*/, double h) {
         context_->log_warning(os.str());
     }
     warned_unreachable_ = !cmd.feasible;
+    if (regulator_.first_lowered_bandwidth(h) && context_->log_warning) {
+        std::ostringstream os;
+        os << "current_bandwidth = " << regulator_.bandwidth() << " rad/s is more than the communication step h = "
+           << h << " s can carry (a quarter of its sampling rate, (pi/2) / h = " << regulator_.bandwidth_at(h)
+           << " rad/s): the current loop runs at " << regulator_.bandwidth_at(h) << " rad/s";
+        context_->log_warning(os.str());
+    }
     u_d_ref = u.u_d;
     u_q_ref = u.u_q;
     voltage_saturated = u.limited;
