@@ -87,3 +87,97 @@ def test_coupled_drive_at_any_step(controller_fmu, plant_fmu, h, rpm, T_ref):
 @pytest.mark.parametrize("h", [1e-5, 2e-4, 7e-4], ids=["10us", "200us", "700us"])
 def test_coupled_drive_at_more_steps(controller_fmu, plant_fmu, h, rpm, T_ref):
     _check(controller_fmu, plant_fmu, h, rpm, T_ref)
+
+
+# --- the design against its closed form ---------------------------------------------------------
+
+L_D, L_Q, PSI_M = 2.0e-4, 6.0e-4, 0.078  # H, H, Wb: a linear machine (no saturation, no R_s)
+ALPHA_C = 2 * math.pi * 500              # rad/s, the controller's default current_bandwidth
+ALPHA_H_MAX = math.pi / 2                # the regulator's largest alpha_c h (current_regulator.hpp)
+
+
+@pytest.fixture(scope="module")
+def linear_map(tmp_path_factory):
+    from scenarios.flux_map import linear_flux_map, write_flux_map
+    path = tmp_path_factory.mktemp("step_size") / "linear.csv"
+    write_flux_map(path, linear_flux_map(L_D, L_Q, PSI_M, 900.0, 7, pole_pairs=4), "linear test machine")
+    return path
+
+
+@pytest.mark.parametrize("h,rpm", [(1e-4, 3000), (4e-4, 3000), (1e-3, 1000), (1e-3, 9000)],
+                         ids=["100us-3000rpm", "400us-3000rpm", "1ms-1000rpm", "1ms-9000rpm"])
+def test_flux_follows_the_designed_first_order_response(controller_fmu, plant_fmu, linear_map, h, rpm):
+    """A linear machine without resistance is exactly the regulator's model (flux integrated
+    under a dq voltage held over the step, the frame turning by omega h = 3.8 rad at 9000 r/min
+    and 1 ms): after a torque step at t_k0 the flux error at the samples t_k0+1+n is
+    lambda^n times the reference's step, lambda = exp(-alpha h) (alpha = the bandwidth, lowered to
+    (pi/2)/h at 1 ms), whatever the speed."""
+    w_m = rpm * 2 * math.pi / 60
+    alpha = min(ALPHA_C, ALPHA_H_MAX / h)
+    lam = math.exp(-alpha * h)
+    k0 = int(math.ceil(30.0 / (alpha * h)))  # the start-up's transient down to e^-30 first
+    n_steps = k0 + 12
+    common = dict(flux_map=str(linear_map), R_s=0.0, w_m=w_m)
+    psi, refs, saturated = [], [], []
+    with Fmu(controller_fmu, **common, recursion=0, T_magnet=293.15) as c, \
+            Fmu(plant_fmu, **common, T_magnet=293.15, T_winding=293.15, rtol=1e-10, atol=1e-12) as p:
+        u_d, u_q = c.get("u_d_ref", "u_q_ref")
+        for k in range(n_steps):
+            t = k * h
+            i_d, i_q = p.get("i_d", "i_q")
+            c.set(T_ref=60.0 if k >= k0 else 20.0, w_m=w_m, i_d=i_d, i_q=i_q)
+            p.set(u_d=u_d, u_q=u_q, w_m=w_m)
+            psi.append(complex(*p.get("psi_d", "psi_q")))  # at t_k
+            p.step(t, h)
+            c.step(t, h)
+            u_d, u_q = c.get("u_d_ref", "u_q_ref")
+            i_d_ref, i_q_ref = c.get("i_d_ref", "i_q_ref")
+            refs.append(complex(L_D * i_d_ref + PSI_M, L_Q * i_q_ref))
+            saturated.append(c.get("voltage_saturated"))
+    assert not any(saturated[k0:]), "the test needs the regulator within the inverter's range after the step"
+    r_old, r_new = refs[k0 - 1], refs[k0]
+    step = r_old - r_new
+    # Start-up (a flying start at T_ref = 20 N.m, from zero current) has settled before the step.
+    assert abs(psi[k0] - r_old) < 1e-6 * abs(step), abs(psi[k0] - r_old) / abs(step)
+    worst = 0.0
+    for n in range(n_steps - k0 - 1):
+        e = psi[k0 + 1 + n] - r_new
+        worst = max(worst, abs(e - lam**n * step) / abs(step))
+    print(f"\nh = {h * 1e3:g} ms, {rpm} r/min (omega h = {4 * w_m * h:.2f} rad): lambda = {lam:.4f}, flux error vs "
+          f"lambda^n: {worst:.2e} of the step")
+    assert worst < 1e-6
+
+
+# --- where the design stops ----------------------------------------------------------------------
+
+def test_a_step_too_long_for_the_speed_is_refused_clearly(controller_fmu, capsys):
+    """At 12 000 r/min (omega = 5027 rad/s) a 1.2 ms step turns the frame by 6.0 rad, beyond
+    0.9 of a turn: fmi2Error with a message naming the step and the speed; the instance stays
+    usable, its outputs untouched (a 1 ms step, 5.0 rad, is then served)."""
+    from fmpy.fmi1 import FMICallException
+    w_m = 12000 * 2 * math.pi / 60
+    with Fmu(controller_fmu, logging=True, w_m=w_m) as c:
+        c.set(T_ref=50.0, w_m=w_m)
+        c.step(0.0, 1e-4)
+        before = c.get("u_d_ref", "u_q_ref", "i_d_ref", "i_q_ref", "T_cmd")
+        with pytest.raises(FMICallException):
+            c.step(1e-4, 1.2e-3)
+        log = capsys.readouterr().out
+        assert "h = 0.0012 s is too long" in log and "5026.5" in log and "use a step below" in log, log
+        assert c.get("u_d_ref", "u_q_ref", "i_d_ref", "i_q_ref", "T_cmd") == before
+        c.step(1e-4, 1e-3)
+        assert all(math.isfinite(x) for x in c.get("u_d_ref", "u_q_ref"))
+
+
+def test_a_lowered_bandwidth_is_logged_once(controller_fmu, capsys):
+    """Steps above (pi/2) / alpha_c = 0.5 ms lower the bandwidth: one warning per instance."""
+    with Fmu(controller_fmu, logging=True) as c:
+        for k in range(5):
+            c.step(k * 1e-3, 1e-3)
+    lines = [line for line in capsys.readouterr().out.splitlines() if "current_bandwidth" in line]
+    assert len(lines) == 1, lines
+    assert "h = 0.001 s" in lines[0] and "1570.8" in lines[0], lines[0]
+    with Fmu(controller_fmu, logging=True) as c:
+        for k in range(5):
+            c.step(k * 4e-4, 4e-4)
+    assert "current_bandwidth" not in capsys.readouterr().out
