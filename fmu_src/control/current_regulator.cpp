@@ -1,7 +1,6 @@
 #include "control/current_regulator.hpp"
 
 #include <cmath>
-#include <sstream>
 
 namespace ipmsm {
 namespace {
@@ -26,15 +25,28 @@ double CurrentRegulator::bandwidth_at(double h) const { return std::min(alpha_c_
 VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega,
                                       double u_dc, double h, const MagnetFlux& flux) {
     const double theta = omega * h;  // electrical rotation within the sample, rad
-    if (!(std::abs(theta) < kMaxRotationPerSample)) {
-        std::ostringstream os;
-        os << "the communication step h = " << h << " s is too long for the current loop at omega = " << omega
-           << " rad/s (electrical): the rotor turns by " << std::abs(theta) << " rad within one step, and at "
-           << kMaxRotationPerSample << " rad or more a dq voltage held over the step averages out and cannot steer "
-           << "the flux; use a step below " << kMaxRotationPerSample / std::abs(omega) << " s at this speed";
-        throw RegulatorError(os.str());
-    }
     RegulatorState& s = state;
+    const double u_lim = u_dc / std::sqrt(3.0);  // the inverter's linear range (SVPWM)
+    auto limit = [u_lim](double& u_d, double& u_q) {  // to u_lim, keeping the angle
+        const double mag = std::hypot(u_d, u_q);
+        if (!(mag > u_lim)) return false;
+        u_d *= u_lim / mag;
+        u_q *= u_lim / mag;
+        return true;
+    };
+    const FluxPoint fr = flux.eval(i_d_ref, i_q_ref);
+    const double r_d = fr.psi_d - flux.shift(), r_q = fr.psi_q;  // at the reference magnet temperature
+    if (!(std::abs(theta) < kMaxRotationPerSample)) {
+        // Open loop: the reference's steady-state voltage; the integrator held.
+        double u_d = R_s_ * i_d_ref - omega * fr.psi_q, u_q = R_s_ * i_q_ref + omega * fr.psi_d;
+        const bool limited = limit(u_d, u_q);
+        s.psi_ref_d = r_d;
+        s.psi_ref_q = r_q;
+        s.primed = true;
+        s.u_d_prev = u_d;
+        s.u_q_prev = u_q;
+        return {u_d, u_q, limited, true};
+    }
     const Rotation back{std::cos(theta), -std::sin(theta)};             // Phi = exp(-j omega h)
     const Rotation half_back{std::cos(theta / 2), -std::sin(theta / 2)};  // in Gamma = h g
     const Rotation half_ahead{half_back.c, -half_back.s};               // in g^-1
@@ -70,9 +82,7 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
 
     // 2. Flux error, and the reference's own change (taken at the reference magnet temperature,
     //    so that a change of T_magnet, which shifts both fluxes alike, is not a reference step).
-    const FluxPoint fr = flux.eval(i_d_ref, i_q_ref);
     const double e_d = fr.psi_d - z_d, e_q = fr.psi_q - z_q;
-    const double r_d = fr.psi_d - flux.shift(), r_q = fr.psi_q;
     const double lambda = std::exp(-bandwidth_at(h) * h);  // both closed-loop poles
     const double c = (1.0 - lambda) / h;                    // -> alpha_c as h -> 0
     if (s.primed) {
@@ -93,11 +103,8 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
     const double u_d = ff_d + gw_d, u_q = ff_q + gw_q;
 
     // 4. The inverter's linear range (SVPWM): |u| <= u_dc / sqrt 3, keeping the angle.
-    const double u_lim = u_dc / std::sqrt(3.0);
-    const double mag = std::hypot(u_d, u_q);
-    const bool limited = mag > u_lim;
-    const double scale = limited ? u_lim / mag : 1.0;
-    const double u_d_out = u_d * scale, u_q_out = u_q * scale;
+    double u_d_out = u_d, u_q_out = u_q;
+    const bool limited = limit(u_d_out, u_q_out);
 
     // 5. Integrator, corrected by what the limit took away, seen at the integrator's input
     //    (w realised = g (u_out - feedforward)): anti-windup by back-calculation.
@@ -114,7 +121,7 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
     s.primed = true;
     s.u_d_prev = u_d_out;
     s.u_q_prev = u_q_out;
-    return {u_d_out, u_q_out, limited};
+    return {u_d_out, u_q_out, limited, false};
 }
 
 }  // namespace ipmsm

@@ -35,24 +35,21 @@
 // IEEE TIA 52(2), 2016, and motulator's discrete-time complex-vector controllers.
 //
 // Where the design stops: alpha_c above a quarter of the sampling rate, (pi / 2) / h, is lowered
-// to it (lambda = e^(-pi/2) = 0.21), reported once through first_lowered_bandwidth(); and a
-// sample in which the rotor turns by |omega h| >= kMaxRotationPerSample is refused (as omega h
-// -> 2 pi the held voltage averages out over the turn, g -> 0, and no voltage in reach steers
-// the flux): step() throws RegulatorError saying so.
+// to it (lambda = e^(-pi/2) = 0.21), reported once through first_lowered_bandwidth(). In a
+// sample in which the rotor turns by |omega h| >= kMaxRotationPerSample the loop cannot be
+// closed (as omega h -> 2 pi the held voltage averages out over the turn, g -> 0, and no voltage
+// in reach steers the flux): the regulator then commands the reference's steady-state voltage
+// R_s i_ref + j omega psi(i_ref), holds its integrator, and says so (VoltageCommand::open_loop,
+// first_open_loop()). The current commands stay valid: masters that use the controller only
+// for them (at a vehicle step of 10 ms, say) are served.
 //
 // The voltage is limited to the inverter's linear range u_dc / sqrt 3 (SVPWM) keeping its angle,
 // and the integrator is corrected by what the limit took away (anti-windup).
 #pragma once
 
-#include <stdexcept>
-
 #include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
-
-struct RegulatorError : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
 
 // 0.9 of a full electrical turn per sample: |g^-1| = 9.3 there (the regulator needs 9.3 times
 // the voltage of a short sample for the same flux change), 1 ms covers 12 000 r/min with 4 pole
@@ -76,6 +73,7 @@ struct RegulatorState {
 struct VoltageCommand {
     double u_d, u_q;  // V
     bool limited;     // the inverter's linear range limited it
+    bool open_loop;   // |omega h| >= kMaxRotationPerSample: the reference's steady-state voltage
 };
 
 class CurrentRegulator {
@@ -83,7 +81,6 @@ public:
     // bandwidth: closed-loop current bandwidth alpha_c, rad/s.
     CurrentRegulator(double bandwidth, double R_s) : alpha_c_(bandwidth), R_s_(R_s) {}
 
-    // Throws RegulatorError (state unchanged) if |omega| h >= kMaxRotationPerSample.
     VoltageCommand step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega,
                         double u_dc, double h, const MagnetFlux& flux);
 
@@ -92,10 +89,9 @@ public:
     // bandwidth_at(h) < alpha_c: the sample time h cannot carry the bandwidth asked for.
     bool bandwidth_lowered(double h) const { return bandwidth_at(h) < alpha_c_; }
     // bandwidth_lowered(h), the first time only (to be logged once per instance).
-    bool first_lowered_bandwidth(double h) {
-        if (reported_lowered_ || !bandwidth_lowered(h)) return false;
-        return reported_lowered_ = true;
-    }
+    bool first_lowered_bandwidth(double h) { return first(bandwidth_lowered(h), reported_lowered_); }
+    // A step's VoltageCommand::open_loop, the first time only.
+    bool first_open_loop(const VoltageCommand& u) { return first(u.open_loop, reported_open_loop_); }
     double bandwidth() const { return alpha_c_; }
 
     RegulatorState state;
@@ -104,6 +100,11 @@ private:
     double alpha_c_;
     double R_s_;
     bool reported_lowered_ = false;
+    bool reported_open_loop_ = false;
+    static bool first(bool happens, bool& reported) {
+        if (reported || !happens) return false;
+        return reported = true;
+    }
 };
 
 }  // namespace ipmsm

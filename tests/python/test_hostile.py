@@ -360,10 +360,7 @@ def test_torque_far_beyond_reach_is_clamped(make, rpm, T_ref):
     a.init()
     w = rpm * math.pi / 30
     a.set(T_ref=T_ref, w_m=w)
-    # A step in which the dq frame turns by 0.9 of a turn or more is refused by the current loop
-    # (test_step_size.py): 1e6 r/min is served at 1 us.
-    h = 1e-4 if abs(rpm) < 1e5 else 1e-6
-    assert a.step(h=h) in (OK, WARNING), a.log.text()
+    assert a.step() in (OK, WARNING), a.log.text()
     out = dict(zip(a.names("output"), a.outputs()))
     assert all(math.isfinite(x) for x in out.values()), out
     assert out["T_cmd"] == pytest.approx(out["T_max"], rel=1e-12) and np.sign(out["T_max"]) in (np.sign(T_ref), 0)

@@ -150,23 +150,28 @@ def test_flux_follows_the_designed_first_order_response(controller_fmu, plant_fm
 
 # --- where the design stops ----------------------------------------------------------------------
 
-def test_a_step_too_long_for_the_speed_is_refused_clearly(controller_fmu, capsys):
+def test_a_step_too_long_for_the_speed_opens_the_loop_and_says_so(controller_fmu, capsys):
     """At 12 000 r/min (omega = 5027 rad/s) a 1.2 ms step turns the frame by 6.0 rad, beyond
-    0.9 of a turn: fmi2Error with a message naming the step and the speed; the instance stays
-    usable, its outputs untouched (a 1 ms step, 5.0 rad, is then served)."""
-    from fmpy.fmi1 import FMICallException
+    0.9 of a turn: the current loop cannot be closed. The step is served (the current commands
+    are valid), the voltage is the commands' steady-state voltage, and one warning names the
+    step, the speed and the longest step that works; a 1 ms step (5.0 rad) closes the loop again."""
     w_m = 12000 * 2 * math.pi / 60
     with Fmu(controller_fmu, logging=True, w_m=w_m) as c:
         c.set(T_ref=50.0, w_m=w_m)
         c.step(0.0, 1e-4)
-        before = c.get("u_d_ref", "u_q_ref", "i_d_ref", "i_q_ref", "T_cmd")
-        with pytest.raises(FMICallException):
-            c.step(1e-4, 1.2e-3)
+        commands = c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max")
+        capsys.readouterr()
+        for k in range(3):
+            c.step(1e-4 + k * 1.2e-3, 1.2e-3)
+            assert c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max") == commands
         log = capsys.readouterr().out
-        assert "h = 0.0012 s is too long" in log and "5026.5" in log and "use a step below" in log, log
-        assert c.get("u_d_ref", "u_q_ref", "i_d_ref", "i_q_ref", "T_cmd") == before
-        c.step(1e-4, 1e-3)
-        assert all(math.isfinite(x) for x in c.get("u_d_ref", "u_q_ref"))
+        lines = [line for line in log.splitlines() if "too long for the current loop" in line]
+        assert len(lines) == 1, log
+        assert "h = 0.0012 s" in lines[0] and "1256.6" in lines[0] and "use a step below 0.001125" in lines[0], lines[0]
+        u_d, u_q = c.get("u_d_ref", "u_q_ref")
+        assert math.hypot(u_d, u_q) <= 355.0 / math.sqrt(3) * (1 + 1e-12)
+        c.step(1e-4 + 3.6e-3, 1e-3)
+        assert "too long" not in capsys.readouterr().out
 
 
 def test_a_lowered_bandwidth_is_logged_once(controller_fmu, capsys):
