@@ -81,20 +81,26 @@ struct PlantOutputs {
     double P_cu, P_fe;       // W
 };
 
+// At flux linkages psi whose currents i are known (from the inverse map, or exactly).
 inline PlantOutputs plant_outputs(const DqFluxOde& ode, int pole_pairs, double w_m, const IronLossModel& fe,
-                                  double psi_d, double psi_q) {
-    const InverseFluxPoint c = ode.currents(psi_d, psi_q);
+                                  double psi_d, double psi_q, double i_d, double i_q) {
     PlantOutputs o;
-    o.i_d = c.i_d;
-    o.i_q = c.i_q;
-    o.T_e = 1.5 * pole_pairs * (psi_d * c.i_q - psi_q * c.i_d);
-    o.P_elec = 1.5 * (ode.u_d * c.i_d + ode.u_q * c.i_q);
-    o.P_cu = 1.5 * ode.R * (c.i_d * c.i_d + c.i_q * c.i_q);
+    o.i_d = i_d;
+    o.i_q = i_q;
+    o.T_e = 1.5 * pole_pairs * (psi_d * i_q - psi_q * i_d);
+    o.P_elec = 1.5 * (ode.u_d * i_d + ode.u_q * i_q);
+    o.P_cu = 1.5 * ode.R * (i_d * i_d + i_q * i_q);
     o.P_fe = fe.power(pole_pairs, w_m, psi_d, psi_q);
     const double drag = w_m != 0.0 ? o.P_fe / w_m : 0.0;  // iron-loss drag torque, sign of w_m
     o.T_shaft = o.T_e - drag;
     o.P_mech = o.T_shaft * w_m;
     return o;
+}
+
+inline PlantOutputs plant_outputs(const DqFluxOde& ode, int pole_pairs, double w_m, const IronLossModel& fe,
+                                  double psi_d, double psi_q) {
+    const InverseFluxPoint c = ode.currents(psi_d, psi_q);
+    return plant_outputs(ode, pole_pairs, w_m, fe, psi_d, psi_q, c.i_d, c.i_q);
 }
 
 }  // namespace ipmsm

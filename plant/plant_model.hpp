@@ -3,9 +3,11 @@
 //
 // States psi_d, psi_q; currents from the inverse flux map (built once at initialisation);
 // d psi_d/dt = u_d - R i_d + omega psi_q, d psi_q/dt = u_q - R i_q - omega psi_d with the inputs
-// held over each communication step (ipmsm_ode.hpp). CVODE (Adams, functional iteration) is
-// re-initialised at every communication point, so the model's whole state is plain data and
-// copies, FMU-state rollback and serialisation are exact (cvode_integrator.hpp).
+// held over each communication step (ipmsm_ode.hpp). Each step is linearised at its start and
+// CVODE (Adams, functional iteration) integrates what the exact linear flow misses, from
+// tau = 0 to h (relative time); it is re-initialised at every communication point, so the
+// model's whole state is plain data and copies, FMU-state rollback and serialisation are exact
+// (cvode_integrator.hpp).
 #pragma once
 
 #include <memory>
@@ -77,6 +79,7 @@ public:
 private:
     DqFluxOde ode() const;        // the right-hand side for the present inputs (throws if invalid)
     void update_outputs(const DqFluxOde& ode);
+    void update_outputs(const DqFluxOde& ode, double i_d, double i_q);  // at currents known exactly
     CvodeSettings settings() const;
 
     std::shared_ptr<const fmi::Context> context_;

@@ -1,4 +1,5 @@
-// The inverse flux map: Newton inversion of the forward spline on a psi grid, then a spline.
+// The inverse flux map: a table of the inverse (Newton on a psi grid, then a spline) as the
+// start of an exact Newton inversion at every evaluation.
 #include "machine/inverse_flux_map.hpp"
 
 #include <algorithm>
@@ -80,7 +81,15 @@ bool InverseFluxMap::invert(const FluxMap& map, double psi_d, double psi_q, doub
     return ok;
 }
 
-InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options) {
+InverseFluxPoint InverseFluxMap::search(double psi_d, double psi_q, double i_d, double i_q) const {
+    constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+    if (!invert(forward_, psi_d, psi_q, i_d, i_q, flux_tol_)) return InverseFluxPoint{kNaN, kNaN, kNaN, kNaN, kNaN, kNaN};
+    const FluxPoint p = forward_.eval(i_d, i_q);
+    const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
+    return InverseFluxPoint{i_d, i_q, p.L_qq / det, -p.L_dq / det, -p.L_qd / det, p.L_dd / det};
+}
+
+InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options) : forward_(map) {
     const FluxMapTable& t = map.table();
     const int nd = static_cast<int>(t.i_d.size()), nq = static_cast<int>(t.i_q.size());
 
@@ -136,7 +145,10 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
     pq.back() = qmax;
 
     const double tol = 1e-14 * std::max({std::abs(dmin), std::abs(dmax), std::abs(qmin), std::abs(qmax), wd, wq});
+    flux_tol_ = tol;
+    step_tol_ = 1e-9 * std::max(map.i_d_max() - map.i_d_min(), map.i_q_max() - map.i_q_min());
     std::vector<double> cd(static_cast<std::size_t>(md) * mq), cq(cd.size());
+    std::vector<char> inverted(cd.size(), 0);
 
     // Start guesses: the previous node of the row (continuation), else the node below, else
     // the current-grid node whose flux linkages are nearest.
@@ -172,14 +184,10 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
                 ok = invert(map, pd[j], pq[k], id, iq, tol);
             }
             if (!ok) {
-                char b[256];
-                std::snprintf(b, sizeof b,
-                              "InverseFluxMap: cannot invert the flux map at psi_d = %.6g Wb, "
-                              "psi_q = %.6g Wb (Newton stalled near i_d = %.4g A, i_q = %.4g A): "
-                              "the map is not invertible there",
-                              pd[j], pq[k], id, iq);
-                throw FluxMapError(b);
+                ++unreachable_nodes_;
+                continue;
             }
+            inverted[idx] = 1;
             const FluxPoint p = map.eval(id, iq);
             max_residual_ = std::max(max_residual_, max_abs(p.psi_d - pd[j], p.psi_q - pq[k]));
             const double out = std::max({gd0 - id, id - gd1, gq0 - iq, iq - gq1});
@@ -190,7 +198,49 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
             cd[idx] = id;
             cq[idx] = iq;
         }
+    if (unreachable_nodes_ == md * mq)
+        throw FluxMapError("InverseFluxMap: no node of the psi grid could be inverted: the map is not invertible");
+    // Unreachable nodes: first-order continuation of the inverse from an inverted (or already
+    // filled) neighbour, i = i_n + (d psi / d i)^-1 (psi - psi_n), sweeping outwards.
+    std::vector<std::size_t> front;
+    for (std::size_t i = 0; i < inverted.size(); ++i)
+        if (inverted[i]) front.push_back(i);
+    while (!front.empty()) {
+        std::vector<std::size_t> next;
+        for (std::size_t from : front) {
+            const int j = static_cast<int>(from % md), k = static_cast<int>(from / md);
+            const int nb[4][2] = {{j - 1, k}, {j + 1, k}, {j, k - 1}, {j, k + 1}};
+            for (const auto& n : nb) {
+                if (n[0] < 0 || n[0] >= md || n[1] < 0 || n[1] >= mq) continue;
+                const std::size_t to = static_cast<std::size_t>(n[1]) * md + n[0];
+                if (inverted[to]) continue;
+                const FluxPoint p = map.eval(cd[from], cq[from]);
+                const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
+                const double rd = pd[n[0]] - p.psi_d, rq = pq[n[1]] - p.psi_q;
+                cd[to] = cd[from] + (p.L_qq * rd - p.L_dq * rq) / det;
+                cq[to] = cq[from] + (-p.L_qd * rd + p.L_dd * rq) / det;
+                if (!std::isfinite(cd[to]) || !std::isfinite(cq[to])) {
+                    cd[to] = cd[from];
+                    cq[to] = cq[from];
+                }
+                inverted[to] = 1;
+                next.push_back(to);
+            }
+        }
+        front.swap(next);
+    }
     spline_ = BicubicSpline2D(pd, pq, {cd.data(), cq.data()});
+
+    // The honest error: at each current-grid cell's centre, whose fluxes are the map's there.
+    for (int k = 0; k + 1 < nq; ++k)
+        for (int j = 0; j + 1 < nd; ++j) {
+            const double id = 0.5 * (t.i_d[j] + t.i_d[j + 1]), iq = 0.5 * (t.i_q[k] + t.i_q[k + 1]);
+            const FluxPoint p = map.eval(id, iq);
+            const InverseFluxPoint e = eval(p.psi_d, p.psi_q), g = table(p.psi_d, p.psi_q);
+            const double err = max_abs(e.i_d - id, e.i_q - iq), gerr = max_abs(g.i_d - id, g.i_q - iq);
+            max_error_ = std::isfinite(err) ? std::max(max_error_, err) : std::numeric_limits<double>::infinity();
+            max_table_error_ = std::isfinite(gerr) ? std::max(max_table_error_, gerr) : std::numeric_limits<double>::infinity();
+        }
 }
 
 }  // namespace ipmsm

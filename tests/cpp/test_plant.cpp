@@ -116,7 +116,7 @@ TEST(PlantOde, LinearMapMatchesClosedForm) {
         for (int k = 0; k < 80; ++k) {
             ode.u_d = k < 30 ? -30.0 : 10.0;
             ode.u_q = (k < 30 ? 40.0 : -20.0) + 0.3 * ode.omega / 4;
-            integ.advance(ode, (k + 1) * h);
+            integ.advance(ode, h);
             psi = linear_step(lin, ode.omega, ode.u_d, ode.u_q, psi, h);
             const InverseFluxPoint c = inv.eval(integ.state().psi[0], integ.state().psi[1]);
             const double id = (psi(0) - lin.psi_m) / lin.L_d, iq = psi(1) / lin.L_q;
@@ -160,7 +160,7 @@ protected:
         for (int k = from; k < to; ++k) {
             ode_.u_d = (k / 7) % 2 == 0 ? -60.0 : -75.0;
             ode_.u_q = (k / 7) % 2 == 0 ? 395.0 : 380.0;
-            integ.advance(ode_, (k + 1) * 1e-4);
+            integ.advance(ode_, 1e-4);
         }
     }
     FluxMap map_;
@@ -204,6 +204,7 @@ TEST_F(IntegratorFixture, CopiesAndRestoredStatesAreBitIdentical) {
 TEST_F(IntegratorFixture, FailureThrowsCvodeMessageAndKeepsState) {
     CvodeSettings s;
     s.max_steps = 1;
+    s.rtol = s.atol = 1e-13;  // more than one step even for the small remainder CVODE integrates
     CvodeIntegrator integ(s);
     integ.reset(0.0, map_.psi_m(), 0.0);
     const CvodeState before = integ.state();
@@ -218,7 +219,7 @@ TEST_F(IntegratorFixture, FailureThrowsCvodeMessageAndKeepsState) {
     }
     EXPECT_TRUE(same_bits(integ.state().psi[0], before.psi[0]));
     EXPECT_EQ(integ.state().t, before.t);
-    s.max_steps = 10000;
+    s = CvodeSettings{};
     integ.set_settings(s);
     EXPECT_NO_THROW(integ.advance(ode_, 1e-4));
     EXPECT_EQ(integ.state().t, 1e-4);
@@ -227,7 +228,7 @@ TEST_F(IntegratorFixture, FailureThrowsCvodeMessageAndKeepsState) {
     CvodeState bad = integ.state();
     bad.psi[0] = std::nan("");
     integ.set_state(bad);
-    EXPECT_THROW(integ.advance(ode_, 2e-4), CvodeError);
+    EXPECT_THROW(integ.advance(ode_, 1e-4), CvodeError);
 }
 
 TEST_F(IntegratorFixture, TinyIntervalsAndMethodsAgree) {
@@ -235,7 +236,7 @@ TEST_F(IntegratorFixture, TinyIntervalsAndMethodsAgree) {
     a.reset(1.0, map_.psi_m(), 0.0);
     ode_.u_d = -60;
     ode_.u_q = 395;
-    EXPECT_NO_THROW(a.advance(ode_, std::nextafter(1.0, 2.0)));  // below CVODE's resolution
+    EXPECT_NO_THROW(a.advance(ode_, std::nextafter(1.0, 2.0) - 1.0));  // a step of one ulp of t
     EXPECT_EQ(a.state().t, std::nextafter(1.0, 2.0));
 
     CvodeSettings bdf;
@@ -338,6 +339,8 @@ TEST(PlantModel, StepFailureLeavesTheModelUnchanged) {
     m.do_step(0.0, 1e-4);
     const std::vector<double> before = outputs(m);
     m.cvode_max_steps = 1;
+    m.rtol = 1e-14;  // more than one step even for the small remainder CVODE integrates
+    m.atol = 1e-15;
     m.u_q = 500.0;
     try {
         m.do_step(1e-4, 1e-4);
@@ -347,6 +350,7 @@ TEST(PlantModel, StepFailureLeavesTheModelUnchanged) {
     }
     EXPECT_EQ(outputs(m), before);
     m.cvode_max_steps = 20000;
+    m.rtol = m.atol = 1e-6;
     EXPECT_NO_THROW(m.do_step(1e-4, 1e-4));
 }
 
