@@ -66,7 +66,7 @@ const std::vector<V>& PlantModel::variables() {
         {"i_d_start", &M::i_d_start, Causality::parameter, Variability::fixed, "A", "", "Initial d-axis current (the initial fluxes are the map's at the initial currents)", -1e5, 1e5},
         {"i_q_start", &M::i_q_start, Causality::parameter, Variability::fixed, "A", "", "Initial q-axis current", -1e5, 1e5},
         {"rtol", &M::rtol, Causality::parameter, Variability::tunable, "1", "", "CVODE relative tolerance", 1e-14, 0.1},
-        {"atol", &M::atol, Causality::parameter, Variability::tunable, "Wb", "", "CVODE absolute tolerance on the flux linkages", 1e-15, 1.0},
+        {"atol", &M::atol, Causality::parameter, Variability::tunable, "Wb", "", "CVODE absolute tolerance on the flux linkages (the local error per internal step, Wb)", 1e-15, 1.0},
         {"cvode_method", &M::cvode_method, Causality::parameter, Variability::fixed, "", "", "1 Adams-Moulton with functional iteration (non-stiff; default), 2 BDF with Newton and the analytic Jacobian (stiff maps)", 1, 2},
         {"cvode_max_order", &M::cvode_max_order, Causality::parameter, Variability::fixed, "", "", "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
         {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "", "Internal steps allowed per communication step before CVODE fails", 1, 100000000},

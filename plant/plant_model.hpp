@@ -69,7 +69,7 @@ public:
     double fe_psi_ref = 0.0780669432093;  // Wb
     double i_d_start = 0.0, i_q_start = 0.0;  // A
     double rtol = 1e-6;
-    double atol = 1e-6;            // Wb
+    double atol = 1e-8;            // Wb (what CVODE's error control sees: cvode_integrator.hpp)
     int cvode_method = 1;          // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
     int cvode_max_order = 0;       // 0: the method's maximum
     int cvode_max_steps = 20000;   // per communication step
