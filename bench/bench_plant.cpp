@@ -14,7 +14,9 @@
 // 3. The same replay through the FMU's fmi2SetReal + fmi2DoStep (the whole FMI call, with the
 //    glue's per-step copy of the model), for the FMU's default settings and for cvode_method 2.
 //
-// Usage: bench_plant [rounds]. The FMUs are found next to this executable (../fmu/).
+// Usage: bench_plant [rounds] [flux_map.csv]. The FMUs are found next to this executable
+// (../fmu/). A flux map (e.g. a strongly saturating one from tools/saturating_map.py, same pole
+// pairs and R_s as the default motor) replaces the default one in both FMUs and the replay.
 
 #include <algorithm>
 #include <chrono>
@@ -63,6 +65,7 @@ struct Fmu {
     fmu_binary::Description d;
     fmu_binary::Functions fn;
     fmi2CallbackFunctions cb{quiet_logger, nullptr, nullptr, nullptr, nullptr};
+    std::string flux_map;  // "" = the FMU's default map
 
     Fmu(const fs::path& unzipped, const char* id) : dir(unzipped.string()), d(fmu_binary::read_description(dir)) {
         fn.open_or_exit(fmu_binary::library_path(dir, id), "build the FMUs first");
@@ -75,6 +78,11 @@ struct Fmu {
         if (c == nullptr) std::exit(3);
         ok(fn.fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
         ok(fn.fmi2EnterInitializationMode(c));
+        if (!flux_map.empty()) {
+            const fmi2ValueReference r = d.vr.at("flux_map");
+            const fmi2String v = flux_map.c_str();
+            ok(fn.fmi2SetString(c, &r, 1, &v));
+        }
         for (const auto& [n, v] : reals) set(c, n, v);
         for (const auto& [n, v] : ints) {
             const fmi2ValueReference r = d.vr.at(n);
@@ -254,7 +262,10 @@ int main(int argc, char** argv) {
     Fmu ctrl(fmu_dir / "IpmsmController", "IpmsmController");
     Fmu plant(fmu_dir / "IpmsmPlant", "IpmsmPlant");
 
-    const std::string map_path = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    const std::string map_path =
+        argc > 2 ? std::string(argv[2]) : std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    if (argc > 2) ctrl.flux_map = plant.flux_map = map_path;
+    std::printf("flux map %s\n", map_path.c_str());
     const FluxMap map(read_flux_map(map_path));
     const InverseFluxMap inv(map);
 

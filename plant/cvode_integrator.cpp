@@ -20,6 +20,9 @@ namespace ipmsm {
 
 namespace {
 
+// Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
+constexpr double kStiffLimit = 2.0;
+
 std::string number(double x) {
     char b[32];
     std::snprintf(b, sizeof b, "%.17g", x);
@@ -76,6 +79,7 @@ struct CvodeIntegrator::Workspace {
             psi[1] = psi0[1] + P[2] * f0[0] + P[3] * f0[1] + E[2] * z[0] + E[3] * z[1];
         }
     } lin;
+    bool linearised = false;  // this call's formulation (built_for.linearised unless too stiff)
     std::string bad_flux;     // where the currents could not be found (for the error message)
     std::string error;        // CVODE's error messages of the current call
     std::string warning;      // CVODE's warnings of the current call
@@ -109,7 +113,7 @@ struct CvodeIntegrator::Workspace {
         auto* w = static_cast<Workspace*>(data);
         const double* p = N_VGetArrayPointer(y);
         double* d = N_VGetArrayPointer(ydot);
-        if (!w->built_for.linearised) {
+        if (!w->linearised) {
             w->ode.rhs(p, d);
             return w->finite_or_retry(p, d);
         }
@@ -129,7 +133,7 @@ struct CvodeIntegrator::Workspace {
     static int jac(realtype tau, N_Vector y, N_Vector, SUNMatrix J, void* data, N_Vector, N_Vector, N_Vector) {
         auto* w = static_cast<Workspace*>(data);
         double j[4];
-        if (!w->built_for.linearised) {
+        if (!w->linearised) {
             w->ode.jacobian(N_VGetArrayPointer(y), j);
         } else {
             // d z' / d z = exp(-tau A) (-R) (G(psi) - G0) exp(tau A)
@@ -227,13 +231,13 @@ void CvodeIntegrator::reset(double t, double psi_d, double psi_q) {
     warnings_.clear();
 }
 
-double CvodeIntegrator::initial_step(const DqFluxOde& ode, double span) const {
+double CvodeIntegrator::initial_step(const DqFluxOde& ode, double span, bool linearised) const {
     switch (settings_.init_step) {
         case CvodeInitStep::estimate: return 0.0;
         case CvodeInitStep::curvature:
             // linearised: z(0) = z'(0) = z''(0) = 0 (N and its gradient vanish at psi0), so the
             // order-1 start has no curvature to resolve: try the whole step.
-            if (settings_.linearised) return span;
+            if (linearised) return span;
             break;
         case CvodeInitStep::previous_last:
         case CvodeInitStep::previous_next: return std::min(state_.h_next, span);
@@ -264,8 +268,6 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
         throw CvodeError("CvodeIntegrator::advance: the step h = " + number(h) + " s is not positive and finite");
     if (!(settings_.rtol > 0) || !(settings_.atol > 0))
         throw CvodeError("CvodeIntegrator: rtol and atol must be > 0");
-    const bool linearised = settings_.linearised;
-
     Workspace& w = workspace();
     w.ode = ode;
     w.error.clear();
@@ -275,7 +277,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
     void* mem = w.h.mem;
     const bool new_tolerances = w.rtol != settings_.rtol || w.atol != settings_.atol;
     // History kept (direct formulation only): CVODE's clock continues from where it stopped.
-    const bool resume = !linearised && !settings_.reinit_each_step && w.live && !new_tolerances &&
+    const bool resume = !settings_.linearised && !settings_.reinit_each_step && w.live && !new_tolerances &&
                         w.live_psi[0] == state_.psi[0] && w.live_psi[1] == state_.psi[1] &&
                         h > 64 * std::numeric_limits<double>::epsilon() * w.live_tau;
     const double tau0 = resume ? w.live_tau : 0.0, tau_end = tau0 + h;
@@ -288,7 +290,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
             CVodeGetNumNonlinSolvIters(mem, &nni0);
             CVodeGetNumNonlinSolvConvFails(mem, &ncf0);
         } else {
-            if (linearised) {
+            w.linearised = false;
+            if (settings_.linearised) {
                 // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
                 Workspace::Linearisation& L = w.lin;
                 double A[4];
@@ -306,6 +309,12 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
                 L.G0[2] = c.G_qd;
                 L.G0[3] = c.G_qq;
                 L.flow = LinearFlow(A);
+                // z = exp(-tau A) (...) grows like a decaying mode decays: where the electrical
+                // time constant is shorter than the step (a stiff map), z would be badly scaled,
+                // and CVODE integrates psi itself (cvode_method 2, BDF, is meant for those).
+                w.linearised = L.flow.max_decay() * h <= kStiffLimit;
+            }
+            if (w.linearised) {
                 y[0] = y[1] = 0.0;
             } else {
                 y[0] = state_.psi[0];
@@ -313,7 +322,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
             }
             w.live = false;
             w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
-            w.check(CVodeSetInitStep(mem, initial_step(ode, h)), "CVodeSetInitStep");
+            w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
         }
         if (new_tolerances) {
             w.rtol = w.atol = 0;  // unknown until the call succeeds
@@ -355,7 +364,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
     st.nonlinear_failures -= ncf0;
 
     double psi_end[2] = {y[0], y[1]};
-    if (linearised) {
+    if (w.linearised) {
         double E_inv[4];
         w.lin.psi_at(h, y, psi_end, E_inv);
         if (!std::isfinite(psi_end[0]) || !std::isfinite(psi_end[1]))

@@ -10,7 +10,9 @@
 // an equivalent ODE whose right-hand side is small and slowly varying: the dq frame's rotation
 // (omega tau up to several radians per step) no longer limits CVODE's step, a step's error is
 // what the tolerances allow on z, and a linear machine is integrated exactly. linearised =
-// false integrates d psi / dt = f(psi) itself (kept for the benchmark's comparison).
+// false integrates d psi / dt = f(psi) itself (kept for the benchmark's comparison), as does a
+// call whose step is longer than twice the machine's fastest electrical time constant (a stiff
+// map: z would grow like the decaying mode decays, exp(-tau A) being large).
 //
 // Time is relative: CVODE runs from tau = 0 to the step h of each call, so the result does not
 // depend on the absolute time (a master starting at t = 1.7e9 s gets what one starting at 0
@@ -145,7 +147,7 @@ public:
 private:
     struct Workspace;
     Workspace& workspace();
-    double initial_step(const DqFluxOde& ode, double span) const;
+    double initial_step(const DqFluxOde& ode, double span, bool linearised) const;
 
     CvodeSettings settings_;
     CvodeState state_;

@@ -36,6 +36,9 @@ public:
         norm_ = std::fmax(std::fabs(A[0]) + std::fabs(A[1]), std::fabs(A[2]) + std::fabs(A[3]));
     }
 
+    // The fastest decay rate, -min Re(eigenvalue of A), 1/s (negative if every mode grows).
+    double max_decay() const { return -(s_ - (q_ > 0 ? std::sqrt(q_) : 0.0)); }
+
     // exp(tau A) and exp(-tau A), row-major.
     void exp(double tau, double* E, double* E_inv) const {
         double C, S;

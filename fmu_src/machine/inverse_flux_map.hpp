@@ -14,9 +14,11 @@
 // continuation reaches (a strongly cross-saturated map's continuation can lose monotonicity far
 // out) get a first-order continuation of the inverse from their nearest inverted neighbour
 // (unreachable_nodes()). Newton then converges from the table's guess in 1-3 steps inside the
-// image (2-3 forward evaluations per eval()); where it does not (far outside, steep
-// saturation), a damped Newton search takes over, and where that fails too the currents are
-// NaN: no current gives those flux linkages on the map or its continuation.
+// image (2-3 forward evaluations per eval()). Where it does not, or converges to currents beyond
+// the grid (where the continuation may fold, giving the same fluxes more than one preimage), a
+// damped Newton search from the table's guess and from the grid node with the nearest fluxes
+// takes over and keeps the preimage nearest the grid; where no search converges the currents
+// are NaN: no current gives those flux linkages on the map or its continuation.
 //
 // The error is measured, not assumed: at construction, eval() and the table alone are checked
 // against the currents at the centre of every current-grid cell (known exactly: their fluxes
@@ -45,7 +47,7 @@ struct InverseFluxPoint {
 struct InverseFluxMapOptions {
     // psi grid nodes per axis; 0: automatic: psi spacing at most half the smallest flux step
     // between adjacent current-grid nodes along that axis, at least three psi cells per current
-    // cell, at most 300 cells (each cell holds 32 doubles).
+    // cell, at most 150 cells (each cell holds 32 doubles).
     int n_psi_d = 0, n_psi_q = 0;
     // Extra width of the psi box on each side, as a fraction of its width.
     double margin = 0.0;
@@ -53,8 +55,10 @@ struct InverseFluxMapOptions {
 
 class InverseFluxMap {
 public:
-    // Keeps a copy of the map (eval() inverts it). Throws FluxMapError if the map's image has
-    // no extent or if no node of the table could be inverted.
+    // Keeps a copy of the map (eval() inverts it). Throws FluxMapError, saying where, if the map
+    // folds on its grid (the incremental inductance matrix has a determinant <= 0 at a node or a
+    // cell's or edge's midpoint: the currents would not be a function of the fluxes), if its
+    // image has no extent, or if no node of the table could be inverted.
     explicit InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options = {});
 
     // The currents at (psi_d, psi_q), exact to rounding; NaN where no current reaches them.
@@ -98,12 +102,16 @@ public:
 
 private:
     static constexpr int kNewtonSteps = 8;  // from the table's guess, before the damped search
-    InverseFluxPoint search(double psi_d, double psi_q, double i_d, double i_q) const;
+    // The slow path: fast = the fast Newton's converged currents, nullptr if it did not converge.
+    InverseFluxPoint search(double psi_d, double psi_q, const double* fast) const;
+    void nearest_node(double psi_d, double psi_q, double& i_d, double& i_q) const;
+    double outside_grid(double i_d, double i_q) const;  // A, max norm; 0 inside
 
     FluxMap forward_;
     BicubicSpline2D spline_;
     double step_tol_ = 0;  // A: a Newton correction this small leaves rounding-level error
     double flux_tol_ = 0;  // Wb: the damped search's residual
+    double psi_width_[2] = {1, 1};  // Wb: the image's extent, to compare flux distances
     int outside_nodes_ = 0, unreachable_nodes_ = 0;
     double max_outside_ = 0;
     double max_residual_ = 0;
@@ -131,9 +139,15 @@ inline InverseFluxPoint InverseFluxMap::eval(double psi_d, double psi_q) const {
         const double dd = G_dd * rd + G_dq * rq, dq = G_qd * rd + G_qq * rq;
         i_d += dd;
         i_q += dq;
-        if (std::abs(dd) <= step_tol_ && std::abs(dq) <= step_tol_) return InverseFluxPoint{i_d, i_q, G_dd, G_dq, G_qd, G_qq};
+        if (std::abs(dd) <= step_tol_ && std::abs(dq) <= step_tol_) {
+            if (i_d >= forward_.i_d_min() && i_d <= forward_.i_d_max() && i_q >= forward_.i_q_min() &&
+                i_q <= forward_.i_q_max())
+                return InverseFluxPoint{i_d, i_q, G_dd, G_dq, G_qd, G_qq};
+            const double fast[2] = {i_d, i_q};  // beyond the grid: is there a preimage nearer to it?
+            return search(psi_d, psi_q, fast);
+        }
     }
-    return search(psi_d, psi_q, s[0].f, s[1].f);
+    return search(psi_d, psi_q, nullptr);
 }
 
 }  // namespace ipmsm
