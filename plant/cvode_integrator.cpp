@@ -295,8 +295,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
                 // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
                 Workspace::Linearisation& L = w.lin;
                 double A[4];
-                ode.rhs_and_jacobian(state_.psi, L.f0, A);
-                const InverseFluxPoint c = ode.currents(state_.psi[0], state_.psi[1]);
+                InverseFluxPoint c;
+                ode.rhs_and_jacobian(state_.psi, L.f0, A, &c);
                 if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
                     throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
                                      " Wb, psi_q = " + number(state_.psi[1]) + " Wb");

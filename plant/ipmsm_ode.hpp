@@ -45,8 +45,10 @@ struct DqFluxOde {
         double f[2];
         rhs_and_jacobian(psi, f, J);
     }
-    void rhs_and_jacobian(const double* psi, double* dpsi, double* J) const {
+    // ... and the currents there (optional), from the same inverse-map evaluation.
+    void rhs_and_jacobian(const double* psi, double* dpsi, double* J, InverseFluxPoint* at = nullptr) const {
         const InverseFluxPoint c = currents(psi[0], psi[1]);
+        if (at != nullptr) *at = c;
         dpsi[0] = u_d - R * c.i_d + omega * psi[1];
         dpsi[1] = u_q - R * c.i_q - omega * psi[0];
         J[0] = -R * c.G_dd;
