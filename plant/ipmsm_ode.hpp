@@ -1,6 +1,6 @@
 // The saturated IPMSM's electrical equations in rotor (dq) coordinates, free of FMI and of the
-// integrator. States are the flux linkages; the currents come from the inverse flux map, built
-// once from the flux map, so nothing is inverted during integration:
+// integrator. States are the flux linkages; the currents are the flux map's exact inverse at them
+// (machine/inverse_flux_map.hpp: Newton on the map from a table built once):
 //
 //     d psi_d / dt = u_d - R i_d + omega psi_q
 //     d psi_q / dt = u_q - R i_q - omega psi_d,     i = i_map(psi_d - delta_psi_m, psi_q)

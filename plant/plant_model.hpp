@@ -1,7 +1,7 @@
 // IpmsmPlant: the saturated IPMSM's electrical dynamics on a flux map, integrated by CVODE.
 // The model of the IpmsmPlant FMU; free of FMI types (the glue in ../fmu_src/fmi maps it).
 //
-// States psi_d, psi_q; currents from the inverse flux map (built once at initialisation);
+// States psi_d, psi_q; currents the map's exact inverse (its table built at initialisation);
 // d psi_d/dt = u_d - R i_d + omega psi_q, d psi_q/dt = u_q - R i_q - omega psi_d with the inputs
 // held over each communication step (ipmsm_ode.hpp). Each step is linearised at its start and
 // CVODE (Adams, functional iteration) integrates what the exact linear flow misses, from
