@@ -225,6 +225,12 @@ void PlantModel::do_step(double t, double h) {
     integrator_.set_state(start);
     try {
         integrator_.advance(o, h);
+        const CvodeState& end = integrator_.state();
+        const InverseFluxPoint c = o.currents(end.psi[0], end.psi[1]);
+        if (!std::isfinite(c.i_d) || !std::isfinite(c.i_q))
+            throw CvodeError("no current on the flux map or its linear continuation gives the flux linkages psi_d = " +
+                             num(end.psi[0]) + " Wb, psi_q = " + num(end.psi[1]) + " Wb reached at the end of the step");
+        update_outputs(o, c.i_d, c.i_q);
     } catch (const std::exception& e) {
         integrator_.set_state(saved);
         std::ostringstream os;
@@ -236,7 +242,6 @@ void PlantModel::do_step(double t, double h) {
     const CvodeStats& st = integrator_.stats();
     cvode_steps = static_cast<int>(st.steps);
     cvode_rhs_evals = static_cast<int>(st.rhs_evals);
-    update_outputs(o);
 
     const fmi::Context& ctx = *context_;
     if (!integrator_.warnings().empty() && ctx.log_warning)
