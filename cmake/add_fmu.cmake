@@ -103,8 +103,9 @@ function(add_fmu)
       C_VISIBILITY_PRESET hidden CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)
     target_compile_options(${name} PRIVATE -ffunction-sections -fdata-sections)
     # -static: libstdc++, libgcc and winpthread inside (-static-libgcc -static-libstdc++ alone
-    # still leave libwinpthread-1.dll); no import library: nothing links against an FMU.
-    target_link_options(${name} PRIVATE -static "LINKER:--gc-sections" "LINKER:--no-undefined")
+    # still leave libwinpthread-1.dll); --strip-debug: the mingw runtime's DWARF (half the DLL).
+    target_link_options(${name} PRIVATE -static "LINKER:--gc-sections" "LINKER:--no-undefined"
+      "LINKER:--strip-debug")
     set_target_properties(${name} PROPERTIES IMPORT_PREFIX "" IMPORT_SUFFIX ".dll.a")
     # The generator and <NAME>_fmu exist as in the Linux build (for CMake code that names them),
     # but only the DLL is built: the Linux build writes modelDescription.xml and packs the FMU.
