@@ -23,8 +23,10 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from .paths import SHARED_DIR
+
 #: `<repo>/../shared/data/ocv_nmc_cell_and_96s.csv`: SOC 0..1 step 0.05, two published cell fits
-OCV_CSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ocv_nmc_cell_and_96s.csv"
+OCV_CSV = SHARED_DIR / "data" / "ocv_nmc_cell_and_96s.csv"
 
 #: fit name -> column of the cell OCV (V)
 OCV_FITS = {

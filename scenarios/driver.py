@@ -32,8 +32,7 @@ import numpy as np
 from .battery import Battery, BatteryParams
 from .cycles import STANDARD_CYCLES, Cycle, load_cycle
 from .inverter import InverterParams, inverter_loss
-from .vehicle import (Vehicle, VehicleParams, motor_speed, road_load, shaft_torque,
-                      wheel_force)
+from .vehicle import Vehicle, VehicleParams, motor_speed, road_load, shaft_torque, wheel_force
 
 #: auxiliary (low-voltage) load on the DC link, W: FASTSim's `auxKw` = 0.25 in its EV files
 #: (NREL FASTSim vehicle database, e.g. 2021_Cupra_Born.csv) and the issue's default; dynamometer

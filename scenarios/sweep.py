@@ -71,7 +71,6 @@ def plot_sweep(rows, spec: SweepSpec, controller_fmu: Path, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
     from fmpy import extract
     fmap = read_flux_map(Path(extract(str(controller_fmu))) / "resources" / "ev_ipmsm_default.csv")
     motor = MotorData.of(fmap)

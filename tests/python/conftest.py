@@ -1,15 +1,18 @@
+"""Fixtures of the system tests. The code under test comes from the installed package
+(`pip install -e .`, scripts/setup.sh); the helpers beside the tests (fmi2_raw, brute_force,
+drive_step) import as top-level modules because pytest puts this folder on sys.path."""
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-SHARED = ROOT.parent / "shared"
-BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", ROOT / "build" / "fmu"))
+from scenarios import paths
+from scenarios.flux_map import DEFAULT_MAP
+
+ROOT = paths.ROOT
+SHARED = paths.SHARED_DIR
+BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", paths.BUILD_DIR / "fmu"))
 
 
 def same(a, b) -> bool:
@@ -36,13 +39,9 @@ def plant_fmu() -> Path:
 
 @pytest.fixture(scope="session")
 def default_map_path() -> Path:
-    return ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
+    return DEFAULT_MAP
 
 
 @pytest.fixture(scope="session")
 def measured_map_path() -> Path:
     return SHARED / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
-
-
-def pytest_configure(config):
-    config.addinivalue_line("markers", "slow: long runs (full drive cycles, big sweeps); run with -m slow")

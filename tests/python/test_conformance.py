@@ -31,8 +31,8 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from conftest import BUILD_FMU, ROOT, SHARED, fmu_path
 import fmi2_raw as raw
+from conftest import ROOT, SHARED, fmu_path
 
 REAL_FMUS = ["IpmsmController", "IpmsmPlant"]
 ALL_FMUS = REAL_FMUS + ["ToyLag"]  # ToyLag: the glue's test FMU, built by the same add_fmu()

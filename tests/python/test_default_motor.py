@@ -6,15 +6,14 @@ from __future__ import annotations
 
 import csv
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.interpolate import RectBivariateSpline
 
-ROOT = Path(__file__).resolve().parents[2]
-CSV = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
+from scenarios.flux_map import DEFAULT_MAP
+
+CSV = DEFAULT_MAP
 RPM = 30 / math.pi
 
 REQUIRED_KEYS = [
@@ -194,7 +193,6 @@ def test_iron_loss_at_top_speed(drive):
 
 
 def test_regenerated_map_matches_shipped():
-    sys.path.insert(0, str(ROOT))
     from tools.default_motor.make_default_map import csv_text
 
     c_new, meta_new, h_new, rows_new = read_map(csv_text())
@@ -209,7 +207,6 @@ def test_regenerated_map_matches_shipped():
 def test_model_is_reciprocal_and_convex():
     """The model itself: incremental inductances from the Hessian match finite differences of
     psi(i), and the Hessian is positive definite over the whole map (unique, invertible map)."""
-    sys.path.insert(0, str(ROOT))
     from tools.default_motor import saturation as sat
 
     rng = np.random.default_rng(1)

@@ -20,10 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from scenarios.flux_map import linear_flux_map, write_flux_map
+
 import fmi2_raw as raw
 from conftest import BUILD_FMU, fmu_path, same
 from fmi2_raw import ERROR, OK, WARNING
-from scenarios.flux_map import linear_flux_map, write_flux_map
 
 FMUS = ["IpmsmController", "IpmsmPlant"]
 # inputs of a normal operating point

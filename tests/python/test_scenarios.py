@@ -2,8 +2,6 @@
 the default run, the full cycles behind the `slow` marker (./test.sh -m slow)."""
 from __future__ import annotations
 
-import math
-
 import pytest
 
 from scenarios.cycles import load_cycle, segment

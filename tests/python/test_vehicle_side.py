@@ -8,13 +8,21 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from scenarios.battery import Battery, BatteryParams, OCV_CSV
-from scenarios.cycles import load_cycle, segment, cycle_stats, read_cycle_csv
+from scenarios.battery import OCV_CSV, Battery, BatteryParams
+from scenarios.cycles import cycle_stats, load_cycle, read_cycle_csv, segment
 from scenarios.driver import Driver, DriverParams, blend, simulate_ideal
-from scenarios.inverter import InverterParams, inverter_loss, dc_power
-from scenarios.vehicle import (VehicleParams, Vehicle, coastdown_speed, coastdown_time,
-                               longitudinal_step, motor_speed, road_load, shaft_torque,
-                               wheel_force)
+from scenarios.inverter import InverterParams, dc_power, inverter_loss
+from scenarios.vehicle import (
+    Vehicle,
+    VehicleParams,
+    coastdown_speed,
+    coastdown_time,
+    longitudinal_step,
+    motor_speed,
+    road_load,
+    shaft_torque,
+    wheel_force,
+)
 
 KMH = 1 / 3.6
 VP = VehicleParams()

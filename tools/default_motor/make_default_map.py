@@ -23,7 +23,6 @@ from scenarios.flux_map import DEFAULT_MAP
 from . import iron_loss, saturation
 
 
-
 @dataclass(frozen=True)
 class MotorData:
     """The default motor: everything the map file carries besides the flux linkages."""
