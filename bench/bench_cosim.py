@@ -75,10 +75,10 @@ def run(backend: str, seconds: float, controller_fmu: Path, plant_fmu: Path, lib
         for j in range(n_chunks):
             T_ref, w_m, u_dc, T_mag, T_win = profile(j * CHUNK * H, seconds, kind)
             r = cosim.advance(CHUNK, T_ref, w_m, u_dc, T_mag, T_win)
-            energy += r["mean"]["P_elec"] * CHUNK * H
+            energy += r.mean.P_elec * CHUNK * H
             if progress and j % 1000 == 999:
                 el = time.perf_counter() - wall0
-                print(f"  {backend}: {r['t']:.0f} s simulated, {el:.1f} s wall", flush=True)
+                print(f"  {backend}: {r.t:.0f} s simulated, {el:.1f} s wall", flush=True)
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
         steps = cosim.k
     return {"backend": backend, "profile": kind, "simulated_s": steps * H, "steps": steps, "wall_s": wall, "cpu_s": cpu,

@@ -5,7 +5,7 @@ holds the slow inputs over each call of `advance`.
     from scenarios.master import DriveCosim
     with DriveCosim("build/fmu/IpmsmController.fmu", "build/fmu/IpmsmPlant.fmu", w_m=100.0) as cosim:
         r = cosim.advance(100, T_ref=120.0, w_m=100.0, u_dc=355.0, T_magnet=353.15, T_winding=373.15)
-        r["mean"]["T_shaft"], r["end"]["i_q"], r["t"], r["k"]
+        r.mean.T_shaft, r.end.i_q, r.t, r.k      # an AdvanceResult; mean and end are Samples
 
 One interface, two backends that make the same FMI calls in the same order (so their results
 are bit-identical, tests/python/test_master.py checks it):
@@ -43,9 +43,10 @@ import math
 import os
 import shutil
 from collections import deque
+from dataclasses import dataclass, fields
 from ctypes import POINTER, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 from pathlib import Path
-from typing import Callable, Iterable, Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from fmpy import extract, read_model_description
@@ -58,11 +59,54 @@ _LABEL = ("controller", "plant")
 REAL, INTEGER, CURRENT_ABS, CURRENT_SQ = 0, 1, 2, 3  # probe kinds, as in cosim.h
 _STATUS = ("fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending")
 
-# What advance() reports unless told otherwise. Unqualified names are the plant's outputs if it
-# has one of that name, else the controller's; "controller.X" / "plant.X" pick one; "|i|" and
-# "|i|^2" are sqrt(i_d^2 + i_q^2) and i_d^2 + i_q^2 of the plant's currents.
-DEFAULT_OUTPUTS = ("T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q", "|i|", "|i|^2",
-                   "T_cmd", "T_max", "region", "iterations")
+
+
+@dataclass(frozen=True)
+class Sample:
+    """The drive's outputs at one instant, or their means over the steps of one `advance`.
+    SI units, named as in the contract (INTERFACE.md): the plant's T_shaft, T_e, P_elec, P_mech,
+    P_cu, P_fe, i_d, i_q; i_abs = sqrt(i_d^2 + i_q^2) and i_abs_sq = i_d^2 + i_q^2 of the plant's
+    currents (the mean of i_abs_sq is what the inverter's conduction loss needs); the
+    controller's T_cmd, T_max, region, iterations, u_ratio (Integers as floats: a mean of region
+    is the time share weighted region, rarely useful)."""
+    T_shaft: float
+    T_e: float
+    P_elec: float
+    P_mech: float
+    P_cu: float
+    P_fe: float
+    i_d: float
+    i_q: float
+    i_abs: float
+    i_abs_sq: float
+    T_cmd: float
+    T_max: float
+    region: float
+    iterations: float
+    u_ratio: float
+
+
+@dataclass(frozen=True)
+class AdvanceResult:
+    """What one `DriveCosim.advance` returns: per output, the mean over its steps of the value
+    after each step, and the value after the last step; the time t = k h and step index k
+    after it; the number of trace rows written."""
+    mean: Sample
+    end: Sample
+    t: float
+    k: int
+    rows: int
+
+
+# Where each field of Sample comes from: "controller.X" / "plant.X" a variable of that FMU;
+# "|i|" and "|i|^2" of the plant's currents (computed by the master).
+SAMPLE_SOURCES = {
+    "T_shaft": "plant.T_shaft", "T_e": "plant.T_e", "P_elec": "plant.P_elec", "P_mech": "plant.P_mech",
+    "P_cu": "plant.P_cu", "P_fe": "plant.P_fe", "i_d": "plant.i_d", "i_q": "plant.i_q", "i_abs": "|i|",
+    "i_abs_sq": "|i|^2", "T_cmd": "controller.T_cmd", "T_max": "controller.T_max", "region": "controller.region",
+    "iterations": "controller.iterations", "u_ratio": "controller.u_ratio",
+}
+SAMPLE_FIELDS = tuple(f.name for f in fields(Sample))
 
 # The coupling variables (FMI names): controller inputs T_ref, w_m, u_dc, T_magnet, i_d, i_q and
 # outputs u_d_ref, u_q_ref; plant inputs u_d, u_q, w_m, T_magnet, T_winding and outputs i_d, i_q.
@@ -554,14 +598,14 @@ class DriveCosim:
 
     controller_params, plant_params: {name: value} of parameters (Real, Integer, Boolean or
     String by the model description), set in initialisation mode. w_m, u_dc, T_magnet, T_winding,
-    T_ref: the inputs at t = 0 (the controller's flying start uses them). outputs: what advance()
-    reports (see DEFAULT_OUTPUTS). log: optional callable(unit_name, status, category, message)
+    T_ref: the inputs at t = 0 (the controller's flying start uses them). advance() reports the
+    fields of Sample (sources: SAMPLE_SOURCES). log: optional callable(unit_name, status, category, message)
     for every message the FMUs log (also sent to the logging module, "scenarios.master").
     """
 
     def __init__(self, controller_fmu: str | Path, plant_fmu: str | Path,
                  controller_params: Mapping | None = None, plant_params: Mapping | None = None,
-                 h: float = 1e-4, backend: str = "native", outputs: Iterable[str] = DEFAULT_OUTPUTS,
+                 h: float = 1e-4, backend: str = "native",
                  w_m: float = 0.0, u_dc: float = 355.0, T_magnet: float = 293.15, T_winding: float = 293.15,
                  T_ref: float = 0.0, logging_on: bool = False, log: Callable | None = None,
                  library: str | Path | None = None, instance_prefix: str = ""):
@@ -588,8 +632,7 @@ class DriveCosim:
                                          self._log)
             else:
                 self._b = _FmpyBackend(self.h, self._log)
-            self._probes = [self._probe(name) for name in outputs]
-            self.outputs = tuple(outputs)
+            self._probes = [self._probe(SAMPLE_SOURCES[name]) for name in SAMPLE_FIELDS]
             b = self._b
             b.instantiate(c, logging_on)
             b.instantiate(p, logging_on)
@@ -679,17 +722,16 @@ class DriveCosim:
 
     @property
     def trace_columns(self) -> tuple[str, ...]:
-        return ("t",) + self.outputs
+        return ("t",) + SAMPLE_FIELDS
 
     def advance(self, n_steps: int, T_ref: float, w_m: float, u_dc: float | None = None,
                 T_magnet: float | None = None, T_winding: float | None = None,
-                trace: np.ndarray | None = None, decimation: int = 1) -> dict:
+                trace: np.ndarray | None = None, decimation: int = 1) -> AdvanceResult:
         """n_steps coupled steps of h with T_ref, w_m, u_dc, T_magnet, T_winding held (None: as in
-        the previous call, or as at construction). Returns {"mean": {output: mean over the
-        steps}, "end": {output: value after the last step}, "t": time after, "k": step index
-        after, "rows": trace rows written}. trace: a C-contiguous float64 array of at least
-        n_steps // decimation rows and 1 + len(outputs) columns (trace_columns); row r gets t
-        and the outputs after step (r + 1) * decimation."""
+        the previous call, or as at construction). Returns an AdvanceResult (means and end
+        values as Samples). trace: a C-contiguous float64 array of at least n_steps // decimation
+        rows and len(trace_columns) columns; row r gets t and the Sample after step
+        (r + 1) * decimation."""
         if self._closed:
             raise CosimError("advance: the master is closed")
         if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
@@ -704,16 +746,14 @@ class DriveCosim:
                 raise ValueError(f"decimation = {decimation}: must be >= 1")
             if not (isinstance(trace, np.ndarray) and trace.dtype == np.float64 and trace.ndim == 2
                     and trace.flags.c_contiguous and trace.flags.writeable
-                    and trace.shape[1] == 1 + len(self.outputs)):
+                    and trace.shape[1] == len(self.trace_columns)):
                 raise ValueError(f"trace: a writeable C-contiguous float64 array of shape (>= {n_steps // decimation}, "
-                                 f"{1 + len(self.outputs)}) is needed")
+                                 f"{len(self.trace_columns)}) is needed")
             if trace.shape[0] < n_steps // decimation:
                 raise ValueError(f"trace has {trace.shape[0]} rows, {n_steps // decimation} are needed")
         mean, end, rows = self._b.advance(int(n_steps), new, trace, decimation)
         self._slow = new
-        names = self.outputs
-        return {"mean": dict(zip(names, mean)), "end": dict(zip(names, end)), "t": self._b.k * self.h,
-                "k": self._b.k, "rows": rows}
+        return AdvanceResult(mean=Sample(*mean), end=Sample(*end), t=self._b.k * self.h, k=self._b.k, rows=rows)
 
     def close(self) -> None:
         if self._closed:

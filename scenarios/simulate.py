@@ -104,8 +104,6 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
     motor = MotorData.of(read_flux_map(DEFAULT_MAP))  # the FMUs' defaults: the reference's R_s, k_u
     veh, drv, bat = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver), Battery(spec.battery, spec.soc0)
     every = max(1, int(round(spec.trace_dt / dt)))
-    outputs = ("T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q", "|i|", "|i|^2", "T_cmd", "T_max", "region",
-               "controller.u_ratio")
 
     acc = dict(E_elec=0.0, E_mech=0.0, E_cu=0.0, E_fe=0.0, E_inv=0.0, E_cu_opt=0.0, T_err2=0.0, T_err_max=0.0, n_T=0, T_cmd2=0.0, t_over=0.0,
                I_excess2=0.0, n_I=0, t_sat=0.0, speed_err2=0.0)
@@ -115,7 +113,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
     wall0 = time.perf_counter()
     ref = Fmu(controller_fmu, instance_name="reference", method=1, recursion=2) if spec.reference else None
     try:
-        with DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend, outputs=outputs,
+        with DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend,
                         w_m=motor_speed(veh.v, vp), u_dc=bat.u * cond.u_dc_scale, T_magnet=cond.T_magnet,
                         T_winding=cond.T_winding) as cosim:
             for k in range(n):
@@ -126,37 +124,37 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
                 b = blend(F_dem, v, T_max_known, bat.max_charge_power(dt) + spec.P_aux, vp, spec.blend)
                 r = cosim.advance(n_inner, T_ref=b.T_ref, w_m=w_m, u_dc=u_dc, T_magnet=cond.T_magnet,
                                   T_winding=cond.T_winding)
-                m, e = r["mean"], r["end"]
-                T_max_known = abs(e["T_max"])
+                m, e = r.mean, r.end
+                T_max_known = abs(e.T_max)
                 # Voltage use, sampled at the vehicle step: above the planned V_max = k_u u_dc / sqrt 3
                 # (the optimum's reserve for the regulator), and at the inverter's limit u_dc / sqrt 3.
-                if e["controller.u_ratio"] > motor.k_u * (1.0 + 1e-3):
+                if e.u_ratio > motor.k_u * (1.0 + 1e-3):
                     acc["t_over"] += dt
-                if e["controller.u_ratio"] >= 1.0 - 1e-9:
+                if e.u_ratio >= 1.0 - 1e-9:
                     acc["t_sat"] += dt
-                F_w = wheel_force(m["T_shaft"], vp)
+                F_w = wheel_force(m.T_shaft, vp)
                 drv.applied(F_w - b.F_brake)
                 veh.step(F_w, b.F_brake, dt)
-                loss = inverter_loss(m["|i|"], m["|i|^2"], u_dc, P_ac_mean=m["P_elec"], p=spec.inverter)
-                P_dc = m["P_elec"] + loss.P
+                loss = inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.inverter)
+                P_dc = m.P_elec + loss.P
                 bat.step(P_dc + spec.P_aux, dt)
 
-                acc["E_elec"] += m["P_elec"] * dt
-                acc["E_mech"] += m["P_mech"] * dt
-                acc["E_cu"] += m["P_cu"] * dt
-                acc["E_fe"] += m["P_fe"] * dt
+                acc["E_elec"] += m.P_elec * dt
+                acc["E_mech"] += m.P_mech * dt
+                acc["E_cu"] += m.P_cu * dt
+                acc["E_fe"] += m.P_fe * dt
                 acc["E_inv"] += loss.P * dt
                 # Torque error: delivered (mean T_e) against the command within reach.
-                T_err = m["T_e"] - m["T_cmd"]
+                T_err = m.T_e - m.T_cmd
                 acc["T_err2"] += T_err * T_err
-                acc["T_cmd2"] += m["T_cmd"] * m["T_cmd"]
+                acc["T_cmd2"] += m.T_cmd * m.T_cmd
                 acc["T_err_max"] = max(acc["T_err_max"], abs(T_err))
                 acc["n_T"] += 1
                 acc["speed_err2"] += (veh.v - v_ref[k + 1]) ** 2
-                I = math.sqrt(max(m["|i|^2"], 0.0))
+                I = math.sqrt(max(m.i_abs_sq, 0.0))
                 I_opt = float("nan")
                 if ref is not None:
-                    ref.set(T_ref=m["T_e"], w_m=w_m, u_dc=u_dc, T_magnet=cond.T_magnet)
+                    ref.set(T_ref=m.T_e, w_m=w_m, u_dc=u_dc, T_magnet=cond.T_magnet)
                     ref.step(k * dt, dt)
                     I_opt = math.hypot(*ref.get("i_d_ref", "i_q_ref"))
                     acc["E_cu_opt"] += 1.5 * motor.R_s_at(cond.T_winding) * I_opt * I_opt * dt
@@ -164,9 +162,9 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
                         acc["I_excess2"] += (I - I_opt) ** 2
                         acc["n_I"] += 1
                 if (k + 1) % every == 0:
-                    rows.append((t_ref[k + 1], v_ref[k + 1], veh.v, w_m, b.T_ref, e["T_cmd"], e["T_max"], m["T_e"],
-                                 m["T_shaft"], e["i_d"], e["i_q"], I, I_opt, u_dc, m["P_elec"], P_dc, b.F_brake,
-                                 bat.soc, int(e["region"])))
+                    rows.append((t_ref[k + 1], v_ref[k + 1], veh.v, w_m, b.T_ref, e.T_cmd, e.T_max, m.T_e,
+                                 m.T_shaft, e.i_d, e.i_q, I, I_opt, u_dc, m.P_elec, P_dc, b.F_brake,
+                                 bat.soc, int(e.region)))
                 if bar:
                     bar.update()
     finally:

@@ -4,6 +4,7 @@ loop of test_coupled.py; means are the means of the recorded trace; time is k h;
 raises CosimError naming the FMU (and leaves the master usable), a failing step stops it; two
 masters in one process are independent; the C API is valgrind-clean.
 """
+import dataclasses
 import math
 import shutil
 import subprocess
@@ -15,7 +16,7 @@ from fmpy import extract
 
 from conftest import ROOT
 from scenarios.fmu import Fmu
-from scenarios.master import DEFAULT_OUTPUTS, CosimError, DriveCosim, default_library
+from scenarios.master import SAMPLE_FIELDS, CosimError, DriveCosim, default_library
 
 H = 1e-4
 BACKENDS = ("native", "fmpy")
@@ -41,15 +42,15 @@ CHUNKS = [37, 100, 63, 50, 50, 1, 99, 100, 20, 80, 7, 93]  # 700 steps, odd size
 
 
 def run(backend, controller_fmu, plant_fmu, library, decimation=1, chunks=CHUNKS, **kw):
-    n_out = len(DEFAULT_OUTPUTS)
+    n_out = len(SAMPLE_FIELDS)
     trace = np.full((sum(chunks) // decimation + len(chunks), 1 + n_out), np.nan)
     results, row = [], 0
     with DriveCosim(controller_fmu, plant_fmu, backend=backend, w_m=W0, T_magnet=333.15, T_winding=353.15,
                     library=library, **kw) as cosim:
         for j, n in enumerate(chunks):
             r = cosim.advance(n, **profile(j), trace=trace[row:], decimation=decimation)
-            assert r["rows"] == n // decimation
-            row += r["rows"]
+            assert r.rows == n // decimation
+            row += r.rows
             results.append(r)
         assert cosim.k == sum(chunks)
     return results, trace[:row]
@@ -62,13 +63,13 @@ def runs(controller_fmu, plant_fmu, library):
 
 def test_backends_bit_identical(runs):
     (rn, tn), (rf, tf) = runs["native"], runs["fmpy"]
-    assert tn.shape == (sum(CHUNKS), 1 + len(DEFAULT_OUTPUTS))
+    assert tn.shape == (sum(CHUNKS), 1 + len(SAMPLE_FIELDS))
     assert np.all(np.isfinite(tn))
     assert np.array_equal(tn, tf)  # every output at every step, bit for bit
     for a, b in zip(rn, rf):
         assert a == b  # means, end values, t, k: exactly equal
     # the scenario did something: torque followed the steps, the speed ramp reached field weakening
-    T_e, region = tn[:, 1 + DEFAULT_OUTPUTS.index("T_e")], tn[:, 1 + DEFAULT_OUTPUTS.index("region")]
+    T_e, region = tn[:, 1 + SAMPLE_FIELDS.index("T_e")], tn[:, 1 + SAMPLE_FIELDS.index("region")]
     assert T_e.max() > 140 and T_e.min() < -90
     assert {1, 2} <= set(region.astype(int))
 
@@ -78,16 +79,17 @@ def test_means_are_means_of_the_trace(runs):
     start = 0
     for r, n in zip(results, CHUNKS):
         block = trace[start:start + n, 1:]
-        for j, name in enumerate(DEFAULT_OUTPUTS):
+        for j, name in enumerate(SAMPLE_FIELDS):
             # summed in step order, then divided by n: the sequential sum, bit for bit
-            assert r["mean"][name] == np.cumsum(block[:, j])[-1] / n, name
-            assert r["mean"][name] == pytest.approx(block[:, j].mean(), rel=1e-12, abs=1e-9)
-            assert r["end"][name] == block[-1, j]
+            mean, end = getattr(r.mean, name), getattr(r.end, name)
+            assert mean == np.cumsum(block[:, j])[-1] / n, name
+            assert mean == pytest.approx(block[:, j].mean(), rel=1e-12, abs=1e-9)
+            assert end == block[-1, j]
         start += n
-    i_d, i_q = trace[:, 1 + DEFAULT_OUTPUTS.index("i_d")], trace[:, 1 + DEFAULT_OUTPUTS.index("i_q")]
-    assert np.array_equal(trace[:, 1 + DEFAULT_OUTPUTS.index("|i|")], np.sqrt(i_d * i_d + i_q * i_q))
-    assert np.array_equal(trace[:, 1 + DEFAULT_OUTPUTS.index("|i|^2")], i_d * i_d + i_q * i_q)
-    T_cmd = trace[:, 1 + DEFAULT_OUTPUTS.index("T_cmd")]
+    i_d, i_q = trace[:, 1 + SAMPLE_FIELDS.index("i_d")], trace[:, 1 + SAMPLE_FIELDS.index("i_q")]
+    assert np.array_equal(trace[:, 1 + SAMPLE_FIELDS.index("i_abs")], np.sqrt(i_d * i_d + i_q * i_q))
+    assert np.array_equal(trace[:, 1 + SAMPLE_FIELDS.index("i_abs_sq")], i_d * i_d + i_q * i_q)
+    T_cmd = trace[:, 1 + SAMPLE_FIELDS.index("T_cmd")]
     assert np.all(np.abs(T_cmd) <= 250.0)
 
 
@@ -108,7 +110,7 @@ def test_same_as_the_plain_fmpy_loop(runs, controller_fmu, plant_fmu):
     """The loop of test_coupled.py (scenarios.fmu, every input set every step) gives the same
     numbers: the master couples as documented."""
     _, trace = runs["native"]
-    i_T_e, i_id = 1 + DEFAULT_OUTPUTS.index("T_e"), 1 + DEFAULT_OUTPUTS.index("i_d")
+    i_T_e, i_id = 1 + SAMPLE_FIELDS.index("T_e"), 1 + SAMPLE_FIELDS.index("i_d")
     rows = []
     with Fmu(plant_fmu, w_m=W0, T_magnet=333.15, T_winding=353.15) as p:
         i_d, i_q = p.get("i_d", "i_q")  # the controller starts from the measured current
@@ -137,15 +139,15 @@ def test_same_as_the_plain_fmpy_loop(runs, controller_fmu, plant_fmu):
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_time_is_k_times_h(backend, controller_fmu, plant_fmu, library):
     h = 1e-4
-    trace = np.zeros((10, 1 + len(DEFAULT_OUTPUTS)))
+    trace = np.zeros((10, 1 + len(SAMPLE_FIELDS)))
     with DriveCosim(controller_fmu, plant_fmu, backend=backend, h=h, library=library) as cosim:
         assert cosim.k == 0 and cosim.t == 0.0
         for _ in range(1000):
             r = cosim.advance(1, 0.0, 0.0)
         # 1000 * 1e-4 summed would be 0.09999999999999859; k h is 0.1
-        assert r["k"] == cosim.k == 1000 and r["t"] == cosim.t == 1000 * h == 0.1
+        assert r.k == cosim.k == 1000 and r.t == cosim.t == 1000 * h == 0.1
         r = cosim.advance(10, 5.0, 0.0, trace=trace)
-        assert r["k"] == 1010 and r["t"] == 1010 * h
+        assert r.k == 1010 and r.t == 1010 * h
         assert list(trace[:, 0]) == [(1000 + j) * h for j in range(1, 11)]
 
 
@@ -169,10 +171,10 @@ def bad_inputs(backend, controller_fmu, plant_fmu, library):
             assert cosim.k == 20  # nothing happened
         # the refused values were not kept: the next good call continues where it was
         again = cosim.advance(20, 50.0, W0, u_dc=355.0, T_winding=293.15)
-        assert again["k"] == 40 and math.isfinite(again["mean"]["T_e"])
+        assert again.k == 40 and math.isfinite(again.mean.T_e)
         with pytest.raises(ValueError):
             cosim.advance(0, 50.0, W0)
-    assert np.isfinite(good["mean"]["T_e"])
+    assert np.isfinite(good.mean.T_e)
     return errors
 
 
@@ -221,8 +223,8 @@ def test_two_masters_are_independent(runs, controller_fmu, plant_fmu, library):
             rb = b.advance(n + 3, -80.0, W0 + 100.0)
             ra = a.advance(n, **profile(j))
             rc = c.advance(5, 20.0, W0)
-            assert {**ra, "rows": None} == {**alone[j], "rows": None}  # (alone: with a trace)
-            assert rb["mean"]["T_e"] != ra["mean"]["T_e"] and rc["k"] == 5 * (j + 1)
+            assert dataclasses.replace(ra, rows=0) == dataclasses.replace(alone[j], rows=0)  # (alone: with a trace)
+            assert rb.mean.T_e != ra.mean.T_e and rc.k == 5 * (j + 1)
 
 
 def test_native_c_api_valgrind_clean(library, controller_fmu, plant_fmu, tmp_path):
