@@ -35,8 +35,7 @@ from .inverter import InverterParams, inverter_loss
 from .vehicle import Vehicle, VehicleParams, motor_speed, road_load, shaft_torque, wheel_force
 
 #: auxiliary (low-voltage) load on the DC link, W: FASTSim's `auxKw` = 0.25 in its EV files
-#: (NREL FASTSim vehicle database, e.g. 2021_Cupra_Born.csv) and the issue's default; dynamometer
-#: tests run with HVAC off
+#: (NREL FASTSim vehicle database, e.g. 2021_Cupra_Born.csv); dynamometer tests run with HVAC off
 P_AUX_DEFAULT = 250.0
 
 
@@ -57,7 +56,9 @@ class Driver:
     wheels really got, brakes included) stops the integrator winding up when the demand is
     not met (clamping: the step's integration is undone if it pushed further into the limit)."""
 
-    def __init__(self, vp: VehicleParams = VehicleParams(), dp: DriverParams = DriverParams()):
+    def __init__(self, vp: VehicleParams | None = None, dp: DriverParams | None = None):
+        vp = vp if vp is not None else VehicleParams()
+        dp = dp if dp is not None else DriverParams()
         self.vp, self.dp = vp, dp
         self.kp = vp.m_eff * dp.bandwidth
         self.ki = self.kp * dp.bandwidth * dp.zero_ratio
@@ -117,11 +118,14 @@ class Blend:
 
 
 def blend(F_demand: float, v: float, T_max: float, P_regen_max: float,
-          vp: VehicleParams = VehicleParams(), bp: BlendParams = BlendParams()) -> Blend:
+          vp: VehicleParams | None = None, bp: BlendParams | None = None) -> Blend:
     """Split a wheel-force demand (N) at speed v (m/s) into T_ref and friction braking.
     T_max: the motor's reach now (N m, magnitude; the controller's T_max output). P_regen_max:
     the electric power (W, >= 0) the DC side can take back; the torque limit P_regen_max / w_m
-    ignores the drive's losses, which only make the power returned smaller (conservative)."""
+    ignores the drive's losses, which only make the power returned smaller (conservative).
+    vp, bp: None for the defaults."""
+    vp = vp if vp is not None else VehicleParams()
+    bp = bp if bp is not None else BlendParams()
     T_max = abs(T_max)
     if F_demand >= 0.0:
         T = min(shaft_torque(F_demand, vp), T_max)
@@ -155,7 +159,7 @@ class IdealMotor:
     load, where cycles spend their time; at high torque the reluctance torque makes the real
     current smaller, in field weakening the d current makes it larger)."""
 
-    efficiency: float = 0.92      # motor alone, both directions (the issue's suggestion)
+    efficiency: float = 0.92      # motor alone, both directions (assumed: a cycle average of the class)
     T_peak: float = 285.4         # N m
     P_peak: float = 113.4e3       # W
     k_T: float = 1.5 * 4 * 0.07807  # N m / A (pole pairs 4, psi_m 78.07 mWb)
@@ -183,8 +187,9 @@ class IdealDriveSpec:
     dt: float = 0.01              # s, vehicle step
 
 
-def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec = IdealDriveSpec(), trace: bool = False) -> dict:
+def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool = False) -> dict:
     """Drive `cycle` with the ideal motor; energies in Wh, the battery's at its terminals."""
+    spec = spec if spec is not None else IdealDriveSpec()
     vp, dt = spec.vehicle, spec.dt
     veh = Vehicle(vp)
     drv = Driver(vp, spec.driver)
