@@ -1,6 +1,9 @@
 """Fixtures of the system tests. The code under test comes from the installed package
 (`pip install -e .`, scripts/setup.sh); the helpers beside the tests (fmi2_raw, brute_force,
-drive_step) import as top-level modules because pytest puts this folder on sys.path."""
+drive_step) import as top-level modules because pytest puts this folder on sys.path.
+
+The tests' one FMU wrapper is fmi2_raw.Instance (every FMI 2.0 function, the raw status, a
+log); `unzipped` and `fmu_instances` below hand out FMUs and instances of it."""
 import os
 from pathlib import Path
 
@@ -9,6 +12,8 @@ import pytest
 
 from scenarios import paths
 from scenarios.flux_map import DEFAULT_MAP
+
+import fmi2_raw as raw
 
 ROOT = paths.ROOT
 SHARED = paths.SHARED_DIR
@@ -45,3 +50,32 @@ def default_map_path() -> Path:
 @pytest.fixture(scope="session")
 def measured_map_path() -> Path:
     return SHARED / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
+
+
+@pytest.fixture(scope="session")
+def unzipped(tmp_path_factory):
+    """unzipped(name) -> fmi2_raw.Unzipped of $IPMSM_FMU_DIR/<name>.fmu, extracted once a session."""
+    cache = {}
+
+    def get(name: str) -> raw.Unzipped:
+        if name not in cache:
+            cache[name] = raw.Unzipped(fmu_path(name), tmp_path_factory.mktemp(name))
+        return cache[name]
+
+    return get
+
+
+@pytest.fixture
+def fmu_instances(unzipped):
+    """fmu_instances(name, instance_name="instance", **Instance options) -> an fmi2_raw.Instance
+    of that FMU, freed after the test."""
+    made = []
+
+    def new(name: str, instance_name: str = "instance", **options) -> raw.Instance:
+        inst = raw.Instance(unzipped(name), instance_name, **options)
+        made.append(inst)
+        return inst
+
+    yield new
+    for inst in made:
+        inst.free()

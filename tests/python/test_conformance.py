@@ -41,18 +41,6 @@ ALLOWED_LIBRARIES = {"libc.so.6", "libm.so.6", "libgcc_s.so.1", "ld-linux-x86-64
 VDMCHECK2 = Path(os.environ.get("IPMSM_VDMCHECK2_JAR", ROOT / "build-tools" / "vdmcheck2-1.1.3" / "vdmcheck2.jar"))
 
 
-@pytest.fixture(scope="module")
-def unzipped(tmp_path_factory):
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            cache[name] = raw.Unzipped(fmu_path(name), tmp_path_factory.mktemp(name))
-        return cache[name]
-
-    return get
-
-
 def _library(name, unzipped) -> Path:
     return unzipped(name).library
 
