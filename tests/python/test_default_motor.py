@@ -155,7 +155,8 @@ class CoarseDrive:
     def iron_loss(self, n_rpm):
         f = self.p * n_rpm / 60
         b = np.hypot(self.psi_d, self.psi_q) / self.meta["fe_psi_ref_Wb"]
-        return self.meta["fe_k_h_W_per_Hz"] * f * b ** self.meta["fe_alpha"] + self.meta["fe_k_e_W_per_Hz2"] * f**2 * b**2
+        hysteresis = self.meta["fe_k_h_W_per_Hz"] * f * b ** self.meta["fe_alpha"]
+        return hysteresis + self.meta["fe_k_e_W_per_Hz2"] * f**2 * b**2
 
     def max_shaft_power(self, n_rpm):
         ok = self.feasible(n_rpm)

@@ -73,7 +73,9 @@ def test_steady_speed_force_balance():
 def test_coastdown_from_100_kmh_against_ode_and_closed_form():
     v0 = 100 * KMH
     # independent reference: scipy's ODE solution of m_eff dv/dt = -(A + B v + C v^2)
-    stop = lambda t, y: y[0]
+    def stop(t, y):
+        return y[0]
+
     stop.terminal = True
     sol = solve_ivp(lambda t, y: [-road_load(y[0], VP) / VP.m_eff], (0, 500), [v0], events=stop,
                     rtol=1e-11, atol=1e-12, dense_output=True, method="DOP853")
@@ -258,7 +260,7 @@ def _rc_reference(currents, dt, p: BatteryParams):
     step by step with the current held (rtol 1e-11)."""
     u, E = 0.0, 0.0
     for i in currents:
-        s = solve_ivp(lambda t, y: [(i - y[0] / p.R1) / p.C1, y[0] * i], (0, dt), [u, E],
+        s = solve_ivp(lambda t, y, i=i: [(i - y[0] / p.R1) / p.C1, y[0] * i], (0, dt), [u, E],
                       rtol=1e-11, atol=1e-9, method="DOP853")
         u, E = s.y[0, -1], s.y[1, -1]
     return u, E
@@ -336,7 +338,8 @@ def _brute_force_inverter(I, M, phi, u_dc, p: InverterParams, n=20000):
     return P_cond, P_sw, P_ac
 
 
-@pytest.mark.parametrize("I,M,phi", [(200.0, 0.9, 0.5), (400.0, 1.0, 0.2), (80.0, 0.3, 1.2), (300.0, 0.8, math.pi - 0.4)])
+@pytest.mark.parametrize("I,M,phi", [(200.0, 0.9, 0.5), (400.0, 1.0, 0.2), (80.0, 0.3, 1.2),
+                                     (300.0, 0.8, math.pi - 0.4)])
 def test_inverter_loss_formula_against_brute_force(I, M, phi):
     p = InverterParams()
     u_dc = 355.0
@@ -359,7 +362,8 @@ def test_inverter_efficiency_plausible():
     l3 = inverter_loss(30.0, 900.0, 355.0, P_ac_mean=3e3).P
     assert 0.95 < 3e3 / (3e3 + l3) < 0.98
     # regen: the loss comes out of the returned power
-    assert dc_power(-40e3, 200.0, 4e4, 355.0) == pytest.approx(-40e3 + inverter_loss(200, 4e4, 355.0, P_ac_mean=-40e3).P)
+    regen_loss = inverter_loss(200, 4e4, 355.0, P_ac_mean=-40e3).P
+    assert dc_power(-40e3, 200.0, 4e4, 355.0) == pytest.approx(-40e3 + regen_loss)
     # switching loss scales with f_sw and u_dc, conduction not
     a, b = inverter_loss(100, 1e4, 300.0, 5e3), inverter_loss(100, 1e4, 400.0, 10e3)
     assert b.P_sw == pytest.approx(a.P_sw * 2 * 400 / 300)
