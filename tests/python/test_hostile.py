@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from scenarios.constants import U_DC_NOMINAL_V
 from scenarios.flux_map import linear_flux_map, write_flux_map
 
 import fmi2_raw as raw
@@ -29,7 +30,7 @@ from fmi2_raw import ERROR, OK, WARNING
 FMUS = ["IpmsmController", "IpmsmPlant"]
 # inputs of a normal operating point
 NORMAL = {
-    "IpmsmController": dict(T_ref=100.0, w_m=300.0, u_dc=355.0, i_d=-50.0, i_q=150.0, T_magnet=330.0),
+    "IpmsmController": dict(T_ref=100.0, w_m=300.0, u_dc=U_DC_NOMINAL_V, i_d=-50.0, i_q=150.0, T_magnet=330.0),
     "IpmsmPlant": dict(u_d=-20.0, u_q=60.0, w_m=300.0, T_magnet=330.0, T_winding=350.0),
 }
 FUZZ_BIN = BUILD_FMU.parent / "bin" / "fmu_fuzz"

@@ -9,6 +9,7 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 
 from scenarios.battery import OCV_CSV, Battery, BatteryParams
+from scenarios.constants import U_DC_NOMINAL_V
 from scenarios.cycles import cycle_stats, load_cycle, read_cycle_csv, segment
 from scenarios.driver import Driver, DriverParams, blend, simulate_ideal
 from scenarios.inverter import InverterParams, dc_power, inverter_loss
@@ -342,7 +343,7 @@ def _brute_force_inverter(I, M, phi, u_dc, p: InverterParams, n=20000):
                                      (300.0, 0.8, math.pi - 0.4)])
 def test_inverter_loss_formula_against_brute_force(I, M, phi):
     p = InverterParams()
-    u_dc = 355.0
+    u_dc = U_DC_NOMINAL_V
     Pc, Ps, Pac = _brute_force_inverter(I, M, phi, u_dc, p)
     assert Pac == pytest.approx(0.75 * u_dc * M * I * math.cos(phi), rel=1e-6)
     loss = inverter_loss(I, I * I, u_dc, P_ac_mean=Pac)
@@ -354,21 +355,21 @@ def test_inverter_loss_formula_against_brute_force(I, M, phi):
 def test_inverter_efficiency_plausible():
     # mid load: 40 kW at 200 A peak, 355 V (~114 N m at the base speed): 97-98.5 %
     P = 40e3
-    loss = inverter_loss(200.0, 200.0 ** 2, 355.0, P_ac_mean=P)
+    loss = inverter_loss(200.0, 200.0 ** 2, U_DC_NOMINAL_V, P_ac_mean=P)
     assert 0.97 < P / (P + loss.P) < 0.985
     assert 0.3 < loss.P_sw / loss.P < 0.7        # conduction and switching of similar size at 10 kHz
     # near peak: 100 kW at 450 A: still above 98 %; light load 3 kW at 30 A: ~97 %
-    assert 100e3 / (100e3 + inverter_loss(450, 450 ** 2, 355.0, P_ac_mean=100e3).P) > 0.98
-    l3 = inverter_loss(30.0, 900.0, 355.0, P_ac_mean=3e3).P
+    assert 100e3 / (100e3 + inverter_loss(450, 450 ** 2, U_DC_NOMINAL_V, P_ac_mean=100e3).P) > 0.98
+    l3 = inverter_loss(30.0, 900.0, U_DC_NOMINAL_V, P_ac_mean=3e3).P
     assert 0.95 < 3e3 / (3e3 + l3) < 0.98
     # regen: the loss comes out of the returned power
-    regen_loss = inverter_loss(200, 4e4, 355.0, P_ac_mean=-40e3).P
-    assert dc_power(-40e3, 200.0, 4e4, 355.0) == pytest.approx(-40e3 + regen_loss)
+    regen_loss = inverter_loss(200, 4e4, U_DC_NOMINAL_V, P_ac_mean=-40e3).P
+    assert dc_power(-40e3, 200.0, 4e4, U_DC_NOMINAL_V) == pytest.approx(-40e3 + regen_loss)
     # switching loss scales with f_sw and u_dc, conduction not
     a, b = inverter_loss(100, 1e4, 300.0, 5e3), inverter_loss(100, 1e4, 400.0, 10e3)
     assert b.P_sw == pytest.approx(a.P_sw * 2 * 400 / 300)
     assert b.P_cond == pytest.approx(a.P_cond)
-    assert inverter_loss(0.0, 0.0, 355.0).P == 0.0
+    assert inverter_loss(0.0, 0.0, U_DC_NOMINAL_V).P == 0.0
     with pytest.raises(ValueError):
         inverter_loss(10.0, 100.0, 0.0)
 
