@@ -187,7 +187,36 @@ class IdealDriveSpec:
     dt: float = 0.01              # s, vehicle step
 
 
-def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool = False) -> dict:
+@dataclass(frozen=True)
+class IdealDriveSummary:
+    """What `simulate_ideal` returns: the energy flows of the cycle, Wh (the battery's at its
+    terminals; shaft_regen_Wh and wheel_regen_Wh <= 0), and the speed tracking."""
+
+    cycle: str
+    distance_km: float
+    duration_s: float
+    speed_rmse_kmh: float
+    speed_err_max_kmh: float
+    F_unmet_traction_max_N: float
+    wheel_traction_Wh: float
+    wheel_regen_Wh: float
+    friction_brake_Wh: float
+    shaft_motoring_Wh: float
+    shaft_regen_Wh: float
+    motor_loss_Wh: float
+    inverter_loss_Wh: float
+    aux_Wh: float
+    battery_internal_loss_Wh: float
+    regen_curtailed_Wh: float
+    energy_battery_Wh: float
+    Wh_per_km: float
+    Wh_per_km_no_aux: float
+    soc_end: float
+    #: with trace=True, a row per step: t, v_ref, v, T, w_m, F_brake, P_elec, P_inverter, u_dc, soc
+    trace: np.ndarray | None = None
+
+
+def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool = False) -> IdealDriveSummary:
     """Drive `cycle` with the ideal motor; energies in Wh, the battery's at its terminals."""
     spec = spec if spec is not None else IdealDriveSpec()
     vp, dt = spec.vehicle, spec.dt
@@ -229,7 +258,7 @@ def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool
             rows.append((t[k + 1], v_ref[k + 1], veh.v, T, w_m, b.F_brake, P_el, P_inv, bat.u, bat.soc))
     Wh = 1 / 3600.0
     km = veh.distance / 1000.0
-    out = dict(
+    return IdealDriveSummary(
         cycle=cycle.name, distance_km=km, duration_s=n * dt,
         speed_rmse_kmh=math.sqrt(err2 / n) * 3.6, speed_err_max_kmh=err_max * 3.6,
         F_unmet_traction_max_N=F_unmet_max,
@@ -244,10 +273,8 @@ def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool
         Wh_per_km=bat.E_terminal * Wh / km,
         Wh_per_km_no_aux=(bat.E_terminal - E["aux"]) * Wh / km,
         soc_end=bat.soc,
+        trace=np.array(rows) if trace else None,
     )
-    if trace:
-        out["trace"] = np.array(rows)
-    return out
 
 
 def main(argv=None) -> int:
@@ -271,7 +298,7 @@ def main(argv=None) -> int:
     for name in args.cycles:
         t0 = time.perf_counter()
         r = simulate_ideal(load_cycle(name), spec)
-        print(" ".join(f.format(r[c]) for c, f in cols), f"({time.perf_counter() - t0:.1f} s)")
+        print(" ".join(f.format(getattr(r, c)) for c, f in cols), f"({time.perf_counter() - t0:.1f} s)")
     return 0
 
 

@@ -201,13 +201,13 @@ def test_blend_traction_regen_and_friction():
 
 def test_ideal_drive_energy_balance_closes():
     r = simulate_ideal(segment(load_cycle("UDDS"), 0.0, 300.0))
-    lhs = r["energy_battery_Wh"]
-    rhs = r["shaft_motoring_Wh"] + r["shaft_regen_Wh"] + r["motor_loss_Wh"] + r["inverter_loss_Wh"] + r["aux_Wh"]
+    lhs = r.energy_battery_Wh
+    rhs = r.shaft_motoring_Wh + r.shaft_regen_Wh + r.motor_loss_Wh + r.inverter_loss_Wh + r.aux_Wh
     assert lhs == pytest.approx(rhs, rel=1e-9)
     # the wheels' work uses the step's mean speed (it is what changes the kinetic energy), the
     # shaft's the speed held over the step (what the drive sees): they differ by F a dt^2 / 2 a step
-    assert r["wheel_traction_Wh"] == pytest.approx(0.97 * r["shaft_motoring_Wh"], rel=1e-3)
-    assert r["speed_rmse_kmh"] < 1e-6
+    assert r.wheel_traction_Wh == pytest.approx(0.97 * r.shaft_motoring_Wh, rel=1e-3)
+    assert r.speed_rmse_kmh < 1e-6
 
 
 # -- battery ------------------------------------------------------------------------------
