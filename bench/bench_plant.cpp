@@ -3,8 +3,8 @@
 // Newton, tolerances, re-initialising at every communication point vs keeping CVODE's history,
 // initial step, order limit, and CVODE's defaults).
 //
-// 1. Record: the IpmsmController and IpmsmPlant FMUs (build/fmu/*, dlopened) in closed loop at
-//    12 000 r/min (Jacobi exchange, 100 us): the torque command goes 0 -> 80 N.m (about the
+// 1. Record: the IpmsmController and IpmsmPlant FMUs (build/fmu/*) in closed loop at 12 000 r/min
+//    (the native master, libipmsm_cosim, on the drive's coupling description, 100 us): the torque command goes 0 -> 80 N.m (about the
 //    maximum there) and then either stays ("steady": the regulator's small corrections each step)
 //    or alternates 80 / 40 N.m every 10 ms ("steps": current transients). The plant's voltages of
 //    every step are recorded.
@@ -34,6 +34,7 @@
 #include "cvode_integrator.hpp"
 #include "fmi2Functions.h"
 #include "fmu_binary.hpp"
+#include "fmu_description.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
 
@@ -71,7 +72,8 @@ struct Fmu {
     fmi2Component make(const char* name, const std::map<std::string, double>& reals,
                        const std::map<std::string, int>& ints = {}) {
         const std::string res = "file://" + dir + "/resources";
-        fmi2Component c = fn.fmi2Instantiate(name, fmi2CoSimulation, d.guid.c_str(), res.c_str(), &cb, fmi2False, fmi2False);
+        fmi2Component c =
+            fn.fmi2Instantiate(name, fmi2CoSimulation, d.guid.c_str(), res.c_str(), &cb, fmi2False, fmi2False);
         if (c == nullptr) std::exit(3);
         ok(fn.fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
         ok(fn.fmi2EnterInitializationMode(c));
@@ -109,46 +111,42 @@ struct Trace {
     double T_e_end = 0, i_d_end = 0, i_q_end = 0;
 };
 
-// The closed loop (controller + plant FMUs, Jacobi exchange) at top speed; records the plant's
-// voltages after 20 ms of settling.
-Trace record(Fmu& ctrl_fmu, Fmu& plant_fmu, const char* name, const std::function<double(int)>& torque, int n) {
-    fmi2Component ctrl = ctrl_fmu.make("controller", {});
-    fmi2Component plant = plant_fmu.make("plant", {});
+// The closed loop (both FMUs coupled by the native master on the drive's coupling description,
+// started at rest and then held at top speed); records the plant's voltages after 20 ms of
+// settling: the voltage applied over each step, read back from the plant's inputs.
+Trace record(const cosim_tools::Units& units, const char* name, const std::function<double(int)>& torque, int n) {
+    const std::vector<const char*> probes = {"plant.u_d", "plant.u_q", "plant.psi_d", "plant.psi_q",
+                                             "plant.i_d", "plant.i_q", "plant.T_e"};
+    enum { u_d, u_q, psi_d, psi_q, i_d, i_q, T_e };
+    std::string why;
+    ipmsm_cosim* m = cosim_tools::start_drive(units, kH, {0.0, 0.0, 355.0, 293.15, 293.15}, probes, why);
+    if (m == nullptr) {
+        std::fprintf(stderr, "%s\n", why.c_str());
+        std::exit(3);
+    }
+    std::vector<double> mean(probes.size()), end(probes.size());
+    auto advance = [&](long long steps, double T_ref) {
+        const ipmsm_cosim_inputs in{T_ref, kTopSpeed, 355.0, 293.15, 293.15};
+        if (ipmsm_cosim_advance(m, steps, &in, mean.data(), end.data(), nullptr, 0, 0) < 0) {
+            std::fprintf(stderr, "%s\n", ipmsm_cosim_error(m));
+            std::exit(3);
+        }
+    };
+    const int settle = 200;
+    advance(settle, torque(0));
     Trace tr;
     tr.name = name;
-    double u_d = 0, u_q = 0;  // the controller's previous output: applied over this step
-    const int settle = 200;
-    for (int k = 0; k < settle + n; ++k) {
-        const double t = k * kH;
-        const double T_ref = torque(std::max(0, k - settle));
-        const double i_d = plant_fmu.get(plant, "i_d"), i_q = plant_fmu.get(plant, "i_q");
-        plant_fmu.set(plant, "u_d", u_d);
-        plant_fmu.set(plant, "u_q", u_q);
-        plant_fmu.set(plant, "w_m", kTopSpeed);
-        ctrl_fmu.set(ctrl, "T_ref", T_ref);
-        ctrl_fmu.set(ctrl, "w_m", kTopSpeed);
-        ctrl_fmu.set(ctrl, "i_d", i_d);
-        ctrl_fmu.set(ctrl, "i_q", i_q);
-        if (k == settle) {
-            tr.psi0[0] = plant_fmu.get(plant, "psi_d");
-            tr.psi0[1] = plant_fmu.get(plant, "psi_q");
-            tr.i0[0] = i_d;
-            tr.i0[1] = i_q;
-        }
-        if (k >= settle) {
-            tr.u_d.push_back(u_d);
-            tr.u_q.push_back(u_q);
-        }
-        Fmu::ok(plant_fmu.fn.fmi2DoStep(plant, t, kH, fmi2True));
-        Fmu::ok(ctrl_fmu.fn.fmi2DoStep(ctrl, t, kH, fmi2True));
-        u_d = ctrl_fmu.get(ctrl, "u_d_ref");
-        u_q = ctrl_fmu.get(ctrl, "u_q_ref");
+    tr.psi0[0] = end[psi_d], tr.psi0[1] = end[psi_q];
+    tr.i0[0] = end[i_d], tr.i0[1] = end[i_q];
+    for (int k = 0; k < n; ++k) {
+        advance(1, torque(k));
+        tr.u_d.push_back(end[u_d]);
+        tr.u_q.push_back(end[u_q]);
     }
-    tr.T_e_end = plant_fmu.get(plant, "T_e");
-    tr.i_d_end = plant_fmu.get(plant, "i_d");
-    tr.i_q_end = plant_fmu.get(plant, "i_q");
-    plant_fmu.fn.fmi2FreeInstance(plant);
-    ctrl_fmu.fn.fmi2FreeInstance(ctrl);
+    tr.T_e_end = end[T_e];
+    tr.i_d_end = end[i_d];
+    tr.i_q_end = end[i_q];
+    ipmsm_cosim_free(m);
     return tr;
 }
 
@@ -251,7 +249,7 @@ double fmu_replay(Fmu& plant_fmu, const Trace& tr, std::map<std::string, double>
 int main(int argc, char** argv) {
     const int rounds = argc > 1 ? std::max(1, std::atoi(argv[1])) : 7;
     const fs::path fmu_dir = fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "fmu";
-    Fmu ctrl(fmu_dir / "IpmsmController", "IpmsmController");
+    const cosim_tools::Units units{(fmu_dir / "IpmsmController").string(), (fmu_dir / "IpmsmPlant").string()};
     Fmu plant(fmu_dir / "IpmsmPlant", "IpmsmPlant");
 
     const std::string map_path = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
@@ -262,11 +260,14 @@ int main(int argc, char** argv) {
     // Torque commands after 20 ms at the first value: 60 N.m held (the current regulator corrects
     // a little every step), 80 N.m held (about the maximum: the voltage is at its limit), a ramp
     // 20 -> 80 N.m over the 100 ms, and steps 80 / 40 N.m every 10 ms (current transients).
-    std::vector<Trace> traces = {
-        record(ctrl, plant, "60Nm", [](int) { return 60.0; }, n),
-        record(ctrl, plant, "80Nm", [](int) { return 80.0; }, n),
-        record(ctrl, plant, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
-        record(ctrl, plant, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
+    std::vector<Trace> traces = {record(
+                                     units, "60Nm", [](int) { return 60.0; }, n),
+                                 record(
+                                     units, "80Nm", [](int) { return 80.0; }, n),
+                                 record(
+                                     units, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
+                                 record(
+                                     units, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
     for (const Trace& tr : traces)
         std::printf("trace %-6s: 12000 r/min, %d steps of 100 us; at the end T_e = %.2f N.m, i = (%.1f, %.1f) A\n",
                     tr.name, n, tr.T_e_end, tr.i_d_end, tr.i_q_end);
@@ -297,18 +298,27 @@ int main(int argc, char** argv) {
         {"FMU choice: Adams, fixed point, reinit, h0 curvature, nlscoef 0.3, 1e-6", chosen},
         {"  h0: CVODE's estimate", with([](auto& s) { s.init_step = CvodeInitStep::estimate; })},
         {"  h0: last step of the previous call", with([](auto& s) { s.init_step = CvodeInitStep::previous_last; })},
-        {"  h0: next step planned in the previous call", with([](auto& s) { s.init_step = CvodeInitStep::previous_next; })},
+        {"  h0: next step planned in the previous call",
+         with([](auto& s) { s.init_step = CvodeInitStep::previous_next; })},
         {"  nlscoef 0.1 (CVODE's default)", with([](auto& s) { s.nonlin_conv_coef = 0; })},
         {"  nlscoef 0.5", with([](auto& s) { s.nonlin_conv_coef = 0.5; })},
         {"  max order 2", with([](auto& s) { s.max_order = 2; })},
         {"  history kept (no reinit)", with([](auto& s) { s.reinit_each_step = false; })},
-        {"  history kept (no reinit), rtol atol 1e-7", with([](auto& s) { s.reinit_each_step = false; s.rtol = s.atol = 1e-7; })},
+        {"  history kept (no reinit), rtol atol 1e-7", with([](auto& s) {
+             s.reinit_each_step = false;
+             s.rtol = s.atol = 1e-7;
+         })},
         {"  Newton, analytic Jacobian", with([](auto& s) { s.nonlinear = CvodeNonlinear::newton_analytic; })},
     };
     for (auto [r, a] : {std::pair{1e-4, 1e-4}, {1e-5, 1e-5}, {3e-6, 3e-6}, {1e-6, 1e-7}, {1e-7, 1e-7}, {1e-8, 1e-8}})
-        variants.push_back({tol_name(" ", r, a), with([r = r, a = a](auto& s) { s.rtol = r; s.atol = a; })});
-    variants.push_back({"BDF, Newton, analytic J, reinit, h0 curvature (FMU cvode_method 2)",
-                        with([](auto& s) { s.method = CvodeMethod::bdf; s.nonlinear = CvodeNonlinear::newton_analytic; })});
+        variants.push_back({tol_name(" ", r, a), with([r = r, a = a](auto& s) {
+                                s.rtol = r;
+                                s.atol = a;
+                            })});
+    variants.push_back({"BDF, Newton, analytic J, reinit, h0 curvature (FMU cvode_method 2)", with([](auto& s) {
+                            s.method = CvodeMethod::bdf;
+                            s.nonlinear = CvodeNonlinear::newton_analytic;
+                        })});
     variants.push_back({"  history kept (no reinit)", with([](auto& s) {
                             s.method = CvodeMethod::bdf;
                             s.nonlinear = CvodeNonlinear::newton_analytic;
@@ -324,7 +334,8 @@ int main(int argc, char** argv) {
                             s = CvodeSettings::cvode_defaults(1e-6, 1e-6);
                             s.reinit_each_step = true;
                         })});
-    variants.push_back({"CVODE defaults, rtol 1e-4 (CVODE's example value) atol 1e-8", CvodeSettings::cvode_defaults(1e-4, 1e-8)});
+    variants.push_back(
+        {"CVODE defaults, rtol 1e-4 (CVODE's example value) atol 1e-8", CvodeSettings::cvode_defaults(1e-4, 1e-8)});
 
     for (const Trace& tr : traces) {
         // Reference: Adams at rtol 1e-12, atol 1e-14 Wb, CVODE's own initial step.
@@ -345,11 +356,13 @@ int main(int argc, char** argv) {
                     (fmu_dir / "IpmsmPlant.fmu").c_str());
         double step_only = 0;
         double all = fmu_replay(plant, tr, {}, {}, rounds, &step_only);
-        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU defaults (Adams, rtol 1e-6, atol 1e-6)", all, step_only);
+        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU defaults (Adams, rtol 1e-6, atol 1e-6)", all,
+                    step_only);
         all = fmu_replay(plant, tr, {{"rtol", 3e-6}, {"atol", 3e-6}}, {}, rounds, &step_only);
         std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU rtol 3e-6, atol 3e-6", all, step_only);
         all = fmu_replay(plant, tr, {}, {{"cvode_method", 2}}, rounds, &step_only);
-        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU cvode_method 2 (BDF, Newton, analytic J)", all, step_only);
+        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU cvode_method 2 (BDF, Newton, analytic J)", all,
+                    step_only);
     }
     return 0;
 }

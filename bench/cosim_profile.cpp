@@ -1,9 +1,11 @@
 // Where the time of a coupled step goes: the drive-like profile of bench/bench_cosim.py run
-//   A  through the FMUs with libipmsm_cosim (the native master, 10 ms chunks, the default 14 probes)
-//   A0 the same without probes (coupling values only)
+//   A  through the FMUs with libipmsm_cosim (the native master, 10 ms chunks, the 15 outputs of
+//      scenarios/master.py's Sample)
+//   A0 the same with 2 probes (T_e, i_d: the bit-compare)
 //   B  the two models called directly, no FMI (ControllerModel, PlantModel linked in: the same
-//      sources as the FMUs), the same coupling: the models' own compute; the plant's and the
-//      controller's do_step timed separately (rdtsc)
+//      sources as the FMUs), coupled by fmu_src/coupling/coupled_models.hpp on the same coupling
+//      description: the models' own compute; the plant's and the controller's do_step timed
+//      separately (rdtsc)
 //   C  B plus what the glue's undoable() does per step besides the call: copy-assign each model
 //      to a backup, check the computed Reals are finite, and build the "the step from t = ..."
 //      text it passes (fmi2_glue.hpp do_step)
@@ -22,7 +24,8 @@
 #include <vector>
 
 #include "controller_model.hpp"
-#include "cosim.h"
+#include "coupling/coupled_models.hpp"
+#include "coupling/drive_coupling_text.hpp"
 #include "fmi2_support.hpp"
 #include "fmu_description.hpp"
 #include "plant_model.hpp"
@@ -31,10 +34,6 @@ namespace {
 
 constexpr double kH = 1e-4;
 constexpr long long kChunk = 100;
-
-struct Inputs {
-    double T_ref, w_m, u_dc, T_magnet, T_winding;
-};
 
 // As bench/bench_cosim.py: profile(t, duration).
 double torque_pattern(double t) {
@@ -54,7 +53,7 @@ double stress_torque(double t) {
     return -250.0 + 500.0 * x;
 }
 
-Inputs profile(double t, double duration) {
+ipmsm_cosim_inputs profile(double t, double duration) {
     const double x = t / duration, top = 12000.0 * 2.0 * M_PI / 60.0;
     double w_m = top * std::min({1.0, x / 0.4, (1.0 - x) / 0.4});
     w_m = std::max(w_m, 0.0);
@@ -69,129 +68,123 @@ double cpu_now() {
 }
 
 struct Result {
-    double cpu = 0, wall = 0;           // s
+    double cpu = 0, wall = 0;                                            // s
     double plant = 0, controller = 0, copies = 0, text = 0, checks = 0;  // s (B, C: rdtsc-timed parts)
-    double check = 0;                   // sum of T_e over all steps, and the last i_d (bit-compare)
+    double check = 0;  // sum of T_e over all steps, and the last i_d (bit-compare)
     double last_i_d = 0;
 };
 
-using cosim_tools::Description;
-
-Result run_fmus(const std::string& cdir, const std::string& pdir, const Description& cd, const Description& pd,
-                double seconds, bool probes) {
-    ipmsm_cosim* m = ipmsm_cosim_new(kH, nullptr, nullptr);
-    auto ok = [&](int rc) {
-        if (rc != 0) {
-            std::fprintf(stderr, "%s\n", ipmsm_cosim_error(m));
-            std::exit(1);
-        }
-    };
-    const Inputs in0 = profile(0.0, seconds);
-    ok(ipmsm_cosim_instantiate(m, 0, cdir.c_str(), "IpmsmController", cd.guid.c_str(), "controller", 0));
-    ok(ipmsm_cosim_instantiate(m, 1, pdir.c_str(), "IpmsmPlant", pd.guid.c_str(), "plant", 0));
-    ok(cosim_tools::start_coupled(m, cd, pd, {in0.T_ref, in0.w_m, in0.u_dc, in0.T_magnet, in0.T_winding}));
-    // T_e first (the bit-compare), i_d second; then the rest of the default list
-    std::vector<int> unit, kind;
-    std::vector<unsigned> vr;
-    for (const char* n : {"T_e", "i_d", "T_shaft", "P_elec", "P_mech", "P_cu", "P_fe", "i_q"})
-        unit.push_back(1), kind.push_back(IPMSM_COSIM_REAL), vr.push_back(pd.vr.at(n));
-    unit.push_back(1), kind.push_back(IPMSM_COSIM_CURRENT_ABS), vr.push_back(0);
-    unit.push_back(1), kind.push_back(IPMSM_COSIM_CURRENT_SQ), vr.push_back(0);
-    for (const char* n : {"T_cmd", "T_max"}) unit.push_back(0), kind.push_back(IPMSM_COSIM_REAL), vr.push_back(cd.vr.at(n));
-    for (const char* n : {"region", "iterations"})
-        unit.push_back(0), kind.push_back(IPMSM_COSIM_INTEGER), vr.push_back(cd.vr.at(n));
-    const size_t np = probes ? unit.size() : 2;  // without probes: T_e and i_d only, for the check
-    ok(ipmsm_cosim_probes(m, np, unit.data(), kind.data(), vr.data()));
-    std::vector<double> mean(np), end(np);
+Result run_fmus(const cosim_tools::Units& units, double seconds, bool probes) {
+    // all the drive's outputs, or T_e and i_d only (the bit-compare)
+    const std::vector<const char*> names =
+        probes ? cosim_tools::kDriveOutputs : std::vector<const char*>{"plant.T_e", "plant.i_d"};
+    const size_t T_e = cosim_tools::index_of(names, "plant.T_e"), i_d = cosim_tools::index_of(names, "plant.i_d");
+    std::string why;
+    ipmsm_cosim* m = cosim_tools::start_drive(units, kH, profile(0.0, seconds), names, why);
+    if (m == nullptr) {
+        std::fprintf(stderr, "%s\n", why.c_str());
+        std::exit(1);
+    }
+    std::vector<double> mean(names.size()), end(names.size());
     const long long chunks = std::llround(seconds / (kChunk * kH));
     Result r;
     const double c0 = cpu_now();
     const auto w0 = std::chrono::steady_clock::now();
     for (long long c = 0; c < chunks; ++c) {
-        const Inputs in = profile(c * kChunk * kH, seconds);
-        const double slow[5] = {in.T_ref, in.w_m, in.u_dc, in.T_magnet, in.T_winding};
-        if (ipmsm_cosim_advance(m, kChunk, slow, mean.data(), end.data(), nullptr, 0, 0) < 0) ok(-1);
-        r.check += mean[0];  // the chunk's mean T_e
+        const ipmsm_cosim_inputs in = profile(c * kChunk * kH, seconds);
+        if (ipmsm_cosim_advance(m, kChunk, &in, mean.data(), end.data(), nullptr, 0, 0) < 0) {
+            std::fprintf(stderr, "%s\n", ipmsm_cosim_error(m));
+            std::exit(1);
+        }
+        r.check += mean[T_e];  // the chunk's mean
     }
     r.cpu = cpu_now() - c0;
     r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
-    r.last_i_d = end[1];
+    r.last_i_d = end[i_d];
     ipmsm_cosim_free(m);
     return r;
 }
 
+void hold(ipmsm::coupling::CoupledModels& drive, const ipmsm_cosim_inputs& in) {
+    drive.hold("T_ref", in.T_ref);
+    drive.hold("w_m", in.w_m);
+    drive.hold("u_dc", in.u_dc);
+    drive.hold("T_magnet", in.T_magnet);
+    drive.hold("T_winding", in.T_winding);
+}
+
+// What the glue does per step besides the model's call (C), timed.
+struct GlueExtras {
+    bool on = false;
+    unsigned long long copies = 0, text = 0, checks = 0;  // rdtsc ticks
+    size_t text_bytes = 0;
+    bool finite = true;
+};
+
+// unit.do_step = model.do_step timed into t_step (rdtsc); with glue.on, wrapped as the glue
+// wraps it: a backup copy of the model and the step's text before, the finite check after.
+template <class Model, class AllFinite>
+void time_do_step(ipmsm::coupling::ModelUnit& unit, Model& model, Model& backup, unsigned long long& t_step,
+                  GlueExtras& glue, AllFinite all_finite) {
+    unit.do_step = [&model, &backup, &t_step, &glue, all_finite](double t, double h) {
+        if (glue.on) {
+            const unsigned long long a = __rdtsc();
+            backup = model;
+            const unsigned long long b = __rdtsc();
+            const std::string what = "the step from t = " + fmi::number_text(t) + " by h = " + fmi::number_text(h);
+            glue.text_bytes += what.size();
+            glue.copies += b - a;
+            glue.text += __rdtsc() - b;
+        }
+        const unsigned long long b = __rdtsc();
+        model.do_step(t, h);
+        const unsigned long long e = __rdtsc();
+        t_step += e - b;
+        if (glue.on) {
+            glue.finite &= all_finite(model);
+            glue.checks += __rdtsc() - e;
+        }
+    };
+}
+
+// The models coupled by coupled_models.hpp (the same description), each do_step timed.
 Result run_models(const std::string& resources, double seconds, bool glue_extras, double ticks_per_s) {
     fmi::Context ctx;
     ctx.instance_name = "direct";
     ctx.resource_dir = resources;
     ipmsm::ControllerModel c(ctx), c_backup(ctx);
     ipmsm::PlantModel p(ctx), p_backup(ctx);
-    const Inputs in0 = profile(0.0, seconds);
-    p.w_m = in0.w_m, p.T_magnet = in0.T_magnet, p.T_winding = in0.T_winding;
-    p.exit_initialization();
-    c.T_ref = in0.T_ref, c.w_m = in0.w_m, c.u_dc = in0.u_dc, c.T_magnet = in0.T_magnet, c.i_d = p.i_d, c.i_q = p.i_q;
-    c.exit_initialization();
+    unsigned long long t_plant = 0, t_ctrl = 0;
+    GlueExtras glue;
+    glue.on = glue_extras;
+    ipmsm::coupling::ModelUnit plant = ipmsm::coupling::model_unit(p), controller = ipmsm::coupling::model_unit(c);
+    time_do_step(plant, p, p_backup, t_plant, glue, [](const ipmsm::PlantModel& m) {
+        return std::isfinite(m.i_d) && std::isfinite(m.i_q) && std::isfinite(m.psi_d) && std::isfinite(m.psi_q) &&
+               std::isfinite(m.T_e) && std::isfinite(m.T_shaft) && std::isfinite(m.P_elec) && std::isfinite(m.P_mech) &&
+               std::isfinite(m.P_cu) && std::isfinite(m.P_fe) && std::isfinite(m.psi_m_T) && std::isfinite(m.R_s_T);
+    });
+    time_do_step(controller, c, c_backup, t_ctrl, glue, [](const ipmsm::ControllerModel& m) {
+        return std::isfinite(m.i_d_ref) && std::isfinite(m.i_q_ref) && std::isfinite(m.u_d_ref) &&
+               std::isfinite(m.u_q_ref) && std::isfinite(m.T_cmd) && std::isfinite(m.T_max) && std::isfinite(m.T_est);
+    });
+    const ipmsm::coupling::Coupling coupling = ipmsm::coupling::parse(ipmsm::coupling::kDriveCouplingText);
+    std::vector<ipmsm::coupling::ModelUnit> models(coupling.units.size());
+    models[static_cast<size_t>(coupling.unit_index("plant"))] = plant;
+    models[static_cast<size_t>(coupling.unit_index("controller"))] = controller;
+    ipmsm::coupling::CoupledModels drive(coupling, models, kH);
+    hold(drive, profile(0.0, seconds));
+    drive.initialise();
     c_backup = c;
     p_backup = p;
-    double u_d = c.u_d_ref, u_q = c.u_q_ref, i_d = p.i_d, i_q = p.i_q;
     const long long chunks = std::llround(seconds / (kChunk * kH));
     Result r;
-    unsigned long long t_plant = 0, t_ctrl = 0, t_copy = 0, t_text = 0, t_check = 0;
-    long long k = 0;
-    size_t text_bytes = 0;
-    bool finite = true;
     const double c0 = cpu_now();
     const auto w0 = std::chrono::steady_clock::now();
     for (long long ch = 0; ch < chunks; ++ch) {
-        const Inputs in = profile(ch * kChunk * kH, seconds);
-        c.T_ref = in.T_ref, c.w_m = in.w_m, c.u_dc = in.u_dc, c.T_magnet = in.T_magnet;
-        p.w_m = in.w_m, p.T_magnet = in.T_magnet, p.T_winding = in.T_winding;
+        hold(drive, profile(ch * kChunk * kH, seconds));
         double sum = 0.0;
         for (long long s = 0; s < kChunk; ++s) {
-            const double t = static_cast<double>(k) * kH;
-            p.u_d = u_d, p.u_q = u_q;
-            c.i_d = i_d, c.i_q = i_q;
-            const unsigned long long a = __rdtsc();
-            unsigned long long a2 = a;
-            if (glue_extras) {
-                p_backup = p;
-                a2 = __rdtsc();
-                const std::string what = "the step from t = " + fmi::number_text(t) + " by h = " + fmi::number_text(kH);
-                text_bytes += what.size();
-            }
-            const unsigned long long b = __rdtsc();
-            p.do_step(t, kH);
-            const unsigned long long cc = __rdtsc();
-            if (glue_extras) {
-                finite &= std::isfinite(p.i_d) && std::isfinite(p.i_q) && std::isfinite(p.psi_d) &&
-                          std::isfinite(p.psi_q) && std::isfinite(p.T_e) && std::isfinite(p.T_shaft) &&
-                          std::isfinite(p.P_elec) && std::isfinite(p.P_mech) && std::isfinite(p.P_cu) &&
-                          std::isfinite(p.P_fe) && std::isfinite(p.psi_m_T) && std::isfinite(p.R_s_T);
-            }
-            const unsigned long long c2 = __rdtsc();
-            if (glue_extras) c_backup = c;
-            const unsigned long long c3 = __rdtsc();
-            if (glue_extras) {
-                const std::string what = "the step from t = " + fmi::number_text(t) + " by h = " + fmi::number_text(kH);
-                text_bytes += what.size();
-            }
-            const unsigned long long d = __rdtsc();
-            c.do_step(t, kH);
-            const unsigned long long e = __rdtsc();
-            if (glue_extras) {
-                finite &= std::isfinite(c.i_d_ref) && std::isfinite(c.i_q_ref) && std::isfinite(c.u_d_ref) &&
-                          std::isfinite(c.u_q_ref) && std::isfinite(c.T_cmd) && std::isfinite(c.T_max) &&
-                          std::isfinite(c.T_est);
-            }
-            const unsigned long long f = __rdtsc();
-            t_copy += (a2 - a) + (c3 - c2);
-            t_text += (b - a2) + (d - c3);
-            t_check += (c2 - cc) + (f - e);
-            t_plant += cc - b;
-            t_ctrl += e - d;
-            ++k;
-            i_d = p.i_d, i_q = p.i_q;
-            u_d = c.u_d_ref, u_q = c.u_q_ref;
+            drive.step();
             sum += p.T_e;
         }
         r.check += sum / kChunk;
@@ -200,19 +193,18 @@ Result run_models(const std::string& resources, double seconds, bool glue_extras
     r.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
     r.plant = t_plant / ticks_per_s;
     r.controller = t_ctrl / ticks_per_s;
-    r.copies = t_copy / ticks_per_s;
-    r.text = t_text / ticks_per_s;
-    r.checks = t_check / ticks_per_s;
+    r.copies = glue.copies / ticks_per_s;
+    r.text = glue.text / ticks_per_s;
+    r.checks = glue.checks / ticks_per_s;
     r.last_i_d = p.i_d;
-    if (!finite || (glue_extras && text_bytes == 0)) r.check = std::nan("");
+    if (!glue.finite || (glue_extras && glue.text_bytes == 0)) r.check = std::nan("");
     return r;
 }
 
 double calibrate_tsc() {
     const auto w0 = std::chrono::steady_clock::now();
     const unsigned long long t0 = __rdtsc();
-    while (std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count() < 0.2) {
-    }
+    while (std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count() < 0.2) {}
     const unsigned long long t1 = __rdtsc();
     return (t1 - t0) / std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
 }
@@ -228,7 +220,7 @@ int main(int argc, char** argv) {
     const double seconds = argc > 3 ? std::atof(argv[3]) : 10.0;
     const int repeats = argc > 4 ? std::atoi(argv[4]) : 3;
     g_stress = argc > 5 && std::string(argv[5]) == "stress";
-    const auto cd = cosim_tools::read_description(cdir), pd = cosim_tools::read_description(pdir);
+    const cosim_tools::Units units{cdir, pdir};
     const double tps = calibrate_tsc();
     const double steps = std::llround(seconds / (kChunk * kH)) * static_cast<double>(kChunk);
     auto best = [&](auto f) {
@@ -240,14 +232,16 @@ int main(int argc, char** argv) {
         }
         return b;
     };
-    const Result a = best([&] { return run_fmus(cdir, pdir, cd, pd, seconds, true); });
-    const Result a0 = best([&] { return run_fmus(cdir, pdir, cd, pd, seconds, false); });
+    const Result a = best([&] { return run_fmus(units, seconds, true); });
+    const Result a0 = best([&] { return run_fmus(units, seconds, false); });
     const Result b = best([&] { return run_models(pdir + "/resources", seconds, false, tps); });
     const Result c = best([&] { return run_models(pdir + "/resources", seconds, true, tps); });
     const double us = 1e6 / steps;
-    std::printf("%s profile of bench/bench_cosim.py, %.0f s simulated (%.0f coupled steps), best of %d, "
-                "CPU time of this thread (us per coupled step):\n", g_stress ? "stress" : "drive", seconds, steps, repeats);
-    std::printf("  A  FMUs through libipmsm_cosim, 14 probes      %6.3f   (wall %6.3f)\n", a.cpu * us, a.wall * us);
+    std::printf(
+        "%s profile of bench/bench_cosim.py, %.0f s simulated (%.0f coupled steps), best of %d, "
+        "CPU time of this thread (us per coupled step):\n",
+        g_stress ? "stress" : "drive", seconds, steps, repeats);
+    std::printf("  A  FMUs through libipmsm_cosim, 15 probes      %6.3f   (wall %6.3f)\n", a.cpu * us, a.wall * us);
     std::printf("  A0 FMUs through libipmsm_cosim, 2 probes       %6.3f   (wall %6.3f)\n", a0.cpu * us, a0.wall * us);
     std::printf("  B  models called directly, no FMI              %6.3f   (wall %6.3f)\n", b.cpu * us, b.wall * us);
     std::printf("       plant do_step (CVODE + map)      %6.3f\n", b.plant * us);
@@ -262,14 +256,14 @@ int main(int argc, char** argv) {
     std::printf("       finite checks                    %6.3f\n", c.checks * us);
     std::printf("  A - C: the rest of the glue (set/get, validation, call boundary) + the master loop: %6.3f\n",
                 (a.cpu - c.cpu) * us);
-    std::printf("  A - A0: 12 more probes (one more fmi2GetReal per unit, one fmi2GetInteger): %6.3f\n",
+    std::printf("  A - A0: 13 more probes (one more fmi2GetReal per unit, one fmi2GetInteger): %6.3f\n",
                 (a.cpu - a0.cpu) * us);
     // The FMU run and the direct run must be the same computation.
-    const bool same = a.last_i_d == b.last_i_d && a.last_i_d == c.last_i_d &&
-                      a.check == b.check && b.check == c.check;
-    std::printf("  A, B, C the same computation: %s (last i_d %.17g / %.17g / %.17g; sum of chunk means of T_e "
-                "%.17g / %.17g / %.17g)\n", same ? "yes" : "NO", a.last_i_d, b.last_i_d, c.last_i_d, a.check, b.check,
-                c.check);
+    const bool same = a.last_i_d == b.last_i_d && a.last_i_d == c.last_i_d && a.check == b.check && b.check == c.check;
+    std::printf(
+        "  A, B, C the same computation: %s (last i_d %.17g / %.17g / %.17g; sum of chunk means of T_e "
+        "%.17g / %.17g / %.17g)\n",
+        same ? "yes" : "NO", a.last_i_d, b.last_i_d, c.last_i_d, a.check, b.check, c.check);
     std::printf("  WLTC 1800 s at A: %.1f s CPU\n", a.cpu / steps * 18e6);
     return same ? 0 : 1;
 }

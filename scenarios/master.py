@@ -1,6 +1,7 @@
-"""The co-simulation master for drive cycles: IpmsmController + IpmsmPlant, Jacobi-coupled at a
-fixed communication step h (default 100 us), driven by a slower caller (the vehicle side) that
-holds the slow inputs over each call of `advance`.
+"""The co-simulation master for drive cycles: the units of the drive's coupling description
+(fmu_src/coupling/ipmsm_drive.coupling: IpmsmController + IpmsmPlant, Jacobi-coupled at a fixed
+communication step h, default 100 us), driven by a slower caller (the vehicle side) that holds
+the external inputs over each call of `advance`.
 
     from scenarios.master import DriveCosim
     with DriveCosim("build/fmu/IpmsmController.fmu", "build/fmu/IpmsmPlant.fmu", w_m=100.0) as cosim:
@@ -8,32 +9,28 @@ holds the slow inputs over each call of `advance`.
         r.mean.T_shaft, r.end.i_q, r.t, r.k      # an AdvanceResult; mean and end are Samples
 
 One interface, two backends that make the same FMI calls in the same order (so their results
-are bit-identical, tests/python/test_master.py checks it):
-- "native": build/lib/libipmsm_cosim.so (scenarios/native/cosim.cpp) via ctypes; the 100 us
-  loop runs in C++. For drive cycles.
-- "fmpy": the same loop in Python on the FMUs' functions as loaded by fmpy's FMU2Slave (ctypes
-  arguments converted once). The reference, and the fallback when the library is not built.
+are bit-identical, tests/python/test_master.py checks it), both reading the coupling by name:
+- "native": build/lib/libipmsm_cosim.so (scenarios/native/cosim.cpp) via ctypes; the loop runs
+  in C++. For drive cycles.
+- "fmpy": the same loop in Python (`_FmpyBackend`) on the FMUs' functions as loaded by fmpy's
+  FMU2Slave. The reference, and the fallback when the library is not built.
 - "auto": native if the library exists, else fmpy.
 
-Each coupled step k (t_k = k h, k an integer: time is never an accumulated sum):
-    plant.u_d, u_q      <- controller.u_d_ref, u_q_ref of the previous step (after
-                           initialisation: the controller's flying-start voltage)
-    controller.i_d, i_q <- plant.i_d, i_q at t_k
-    plant.doStep(t_k, h); controller.doStep(t_k, h)
-    read the outputs at t_{k+1}: the coupling values, and the probes (`outputs`)
-`advance` sets the slow inputs once before its steps (controller: T_ref, w_m, u_dc, T_magnet;
-plant: w_m, T_magnet, T_winding) and returns, per output, the mean over its steps of the value
-after each step and the value after the last step.
-
-Initialisation: both instantiated (controller, then plant); the plant initialised first
-(parameters, then w_m, T_magnet, T_winding), then the controller with the plant's initial
-current as its measured current and w_m, u_dc, T_magnet, T_ref set before
-fmi2ExitInitializationMode (its flying start needs them).
+The calls (the description states the semantics):
+- set-up: fmi2Instantiate of every unit; fmi2SetupExperiment + fmi2EnterInitializationMode of
+  every unit; the parameters; then unit by unit in the description's order (the plant first):
+  one fmi2SetReal of its external inputs and of its connected inputs from the units already
+  initialised (the controller gets the plant's initial current: a flying start),
+  fmi2ExitInitializationMode, one fmi2GetReal of its connected outputs.
+- advance(n): one fmi2SetReal per unit of its external inputs; then n steps, each: one
+  fmi2SetReal per (receiving, sending) unit of the connected inputs (the values read after the
+  previous step), fmi2DoStep(k h, h) of every unit, k += 1, fmi2GetReal (connected outputs, then
+  the Sample's Reals) and fmi2GetInteger (the Sample's Integers) of every unit.
 
 Errors: any FMI call returning fmi2Error/fmi2Fatal raises CosimError naming the FMU, the
-function, the time and step, with the FMU's log message. A refused slow input (NaN, u_dc <= 0,
-out of range) changes nothing: fix it and call again. A failure while stepping stops the master
-(the two FMUs are then out of step): close it.
+function, the time and step, with the FMU's log message. A refused external input (NaN,
+u_dc <= 0, out of range) leaves k as it was: fix it and call again. A failure while stepping
+stops the master (the units are then out of step): close it.
 """
 from __future__ import annotations
 
@@ -43,25 +40,55 @@ import math
 import os
 import shutil
 from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from ctypes import POINTER, Structure, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
 from dataclasses import dataclass, fields
-from ctypes import POINTER, c_char_p, c_double, c_int, c_longlong, c_size_t, c_uint, c_void_p
+from enum import IntEnum
 from pathlib import Path
-from typing import Callable, Mapping, Sequence
 
 import numpy as np
 from fmpy import extract, read_model_description
 
+from .coupling import DRIVE, Coupling
+
 ROOT = Path(__file__).resolve().parents[1]
 LOG = logging.getLogger("scenarios.master")
 
-CONTROLLER, PLANT = 0, 1
-_LABEL = ("controller", "plant")
-REAL, INTEGER, CURRENT_ABS, CURRENT_SQ = 0, 1, 2, 3  # probe kinds, as in cosim.h
-_STATUS = ("fmi2OK", "fmi2Warning", "fmi2Discard", "fmi2Error", "fmi2Fatal", "fmi2Pending")
+
+class Status(IntEnum):
+    """fmi2Status (fmi2FunctionTypes.h)."""
+    fmi2OK = 0
+    fmi2Warning = 1
+    fmi2Discard = 2
+    fmi2Error = 3
+    fmi2Fatal = 4
+    fmi2Pending = 5
 
 
+def _status_name(status: int) -> str:
+    try:
+        return Status(status).name
+    except ValueError:
+        return "an unknown fmi2Status"
 
-@dataclass(frozen=True)
+
+@dataclass(slots=True)  # (not frozen: a frozen dataclass is ~7x slower to build, once per advance)
+class DriveInputs:
+    """The external inputs of the drive, held over an `advance` (the vehicle side's). Each feeds
+    the inputs the coupling description names for it (w_m -> controller.w_m, plant.w_m). The
+    fields, in this order, are those of ipmsm_cosim_inputs (scenarios/native/cosim.h)."""
+    T_ref: float      # N.m, torque command
+    w_m: float        # rad/s, mechanical speed
+    u_dc: float       # V, DC-link voltage
+    T_magnet: float   # K
+    T_winding: float  # K
+
+
+class _CInputs(Structure):
+    _fields_ = [(f.name, c_double) for f in fields(DriveInputs)]
+
+
+@dataclass(slots=True)
 class Sample:
     """The drive's outputs at one instant, or their means over the steps of one `advance`.
     SI units, named as in the contract (INTERFACE.md): the plant's T_shaft, T_e, P_elec, P_mech,
@@ -86,7 +113,7 @@ class Sample:
     u_ratio: float
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class AdvanceResult:
     """What one `DriveCosim.advance` returns: per output, the mean over its steps of the value
     after each step, and the value after the last step; the time t = k h and step index k
@@ -98,8 +125,8 @@ class AdvanceResult:
     rows: int
 
 
-# Where each field of Sample comes from: "controller.X" / "plant.X" a variable of that FMU;
-# "|i|" and "|i|^2" of the plant's currents (computed by the master).
+# Where each field of Sample comes from: "ROLE.VARIABLE", or "|i|" and "|i|^2" of the plant's
+# i_d, i_q (computed by the master; cosim.h).
 SAMPLE_SOURCES = {
     "T_shaft": "plant.T_shaft", "T_e": "plant.T_e", "P_elec": "plant.P_elec", "P_mech": "plant.P_mech",
     "P_cu": "plant.P_cu", "P_fe": "plant.P_fe", "i_d": "plant.i_d", "i_q": "plant.i_q", "i_abs": "|i|",
@@ -107,11 +134,7 @@ SAMPLE_SOURCES = {
     "iterations": "controller.iterations", "u_ratio": "controller.u_ratio",
 }
 SAMPLE_FIELDS = tuple(f.name for f in fields(Sample))
-
-# The coupling variables (FMI names): controller inputs T_ref, w_m, u_dc, T_magnet, i_d, i_q and
-# outputs u_d_ref, u_q_ref; plant inputs u_d, u_q, w_m, T_magnet, T_winding and outputs i_d, i_q.
-_C_COUPLING = ("T_ref", "w_m", "u_dc", "T_magnet", "i_d", "i_q", "u_d_ref", "u_q_ref")
-_P_COUPLING = ("u_d", "u_q", "w_m", "T_magnet", "T_winding", "i_d", "i_q")
+_CURRENT_PROBES = ("|i|", "|i|^2")
 
 
 class CosimError(RuntimeError):
@@ -133,17 +156,19 @@ def default_library(controller_fmu: str | Path | None = None) -> Path:
 
 
 def _when(k: int, h: float) -> str:
-    return " at t = %.9g s (step k = %d)" % (k * h, k)
+    return f" at t = {k * h:.9g} s (step k = {k})"
 
 
 class _Unit:
-    """What both backends know of one FMU: its model description and extracted folder."""
+    """One FMU of the coupling: its role, model description and extracted folder."""
 
-    def __init__(self, index: int, path: str | Path, instance_name: str):
-        self.index = index
+    def __init__(self, role: str, model_identifier: str, path: str | Path, instance_name: str):
+        self.role = role
         self.path = Path(path)
         self.md = read_model_description(str(self.path))
         self.identifier = self.md.coSimulation.modelIdentifier
+        if self.identifier != model_identifier:
+            raise CosimError(f"the {role} must be {model_identifier}, {self.path} is {self.identifier}")
         self.instance_name = instance_name
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.dir = extract(str(self.path))
@@ -155,8 +180,14 @@ class _Unit:
         except KeyError:
             raise CosimError(f"{self.identifier} has no variable {name!r}") from None
 
+    def real_vr(self, name: str) -> int:
+        v = self.variable(name)
+        if v.type != "Real":
+            raise CosimError(f"{self.identifier}.{name} is not a Real")
+        return v.valueReference
+
     def describe(self) -> str:
-        return f"{self.identifier} ({_LABEL[self.index]}, instance '{self.instance_name}')"
+        return f"{self.identifier} ({self.role}, instance '{self.instance_name}')"
 
     def remove_dir(self) -> None:
         if self.dir:
@@ -165,21 +196,22 @@ class _Unit:
 
 
 # --------------------------------------------------------------------------------------------
-# Backends: the same primitive operations; DriveCosim calls them in the same order for both.
+# Backends: the same operations, the same FMI calls in the same order.
 
 class _NativeBackend:
-    _LOG_FN = ctypes.CFUNCTYPE(None, c_void_p, c_int, c_char_p, c_int, c_char_p, c_char_p)
+    """libipmsm_cosim (scenarios/native/cosim.h) through ctypes."""
+    _LOG_FN = ctypes.CFUNCTYPE(None, c_void_p, c_char_p, c_char_p, c_int, c_char_p, c_char_p)
     _libs: dict[str, ctypes.CDLL] = {}
 
-    def __init__(self, library: Path, h: float, log: Callable):
+    def __init__(self, library: Path, coupling: Coupling, h: float, log: Callable):
         self.lib = self._load(Path(library))
-        self._log_cb = self._LOG_FN(lambda user, unit, inst, status, cat, msg:
-                                    log(unit, status, (cat or b"").decode(errors="replace"),
+        self._log_cb = self._LOG_FN(lambda user, role, inst, status, cat, msg:
+                                    log(role.decode(), status, (cat or b"").decode(errors="replace"),
                                         (msg or b"").decode(errors="replace")))
-        self.m = self.lib.ipmsm_cosim_new(h, self._log_cb, None)
+        self.m = self.lib.ipmsm_cosim_new(coupling.text.encode(), h, self._log_cb, None)
         if not self.m:
             raise CosimError(f"ipmsm_cosim_new refused h = {h!r}")
-        self.h = h
+        self._inputs = _CInputs()
 
     @classmethod
     def _load(cls, library: Path) -> ctypes.CDLL:
@@ -189,26 +221,24 @@ class _NativeBackend:
         if not library.exists():
             raise FileNotFoundError(f"{library} is missing: build it (cmake --build build) or use backend='fmpy'")
         lib = ctypes.CDLL(key)
-        P = c_void_p
-        u_p, d_p, i_p = POINTER(c_uint), POINTER(c_double), POINTER(c_int)
+        P, S = c_void_p, c_char_p
+        u_p, d_p, i_p, in_p = POINTER(c_uint), POINTER(c_double), POINTER(c_int), POINTER(_CInputs)
         sig = {
-            "ipmsm_cosim_new": (P, [c_double, cls._LOG_FN, P]),
+            "ipmsm_cosim_new": (P, [S, c_double, cls._LOG_FN, P]),
             "ipmsm_cosim_free": (None, [P]),
-            "ipmsm_cosim_error": (c_char_p, [P]),
-            "ipmsm_cosim_instantiate": (c_int, [P, c_int, c_char_p, c_char_p, c_char_p, c_char_p, c_int]),
-            "ipmsm_cosim_enter_initialization": (c_int, [P, c_int, c_double]),
-            "ipmsm_cosim_exit_initialization": (c_int, [P, c_int]),
-            "ipmsm_cosim_set_real": (c_int, [P, c_int, c_size_t, u_p, d_p]),
-            "ipmsm_cosim_set_integer": (c_int, [P, c_int, c_size_t, u_p, i_p]),
-            "ipmsm_cosim_set_boolean": (c_int, [P, c_int, c_size_t, u_p, i_p]),
-            "ipmsm_cosim_set_string": (c_int, [P, c_int, c_size_t, u_p, POINTER(c_char_p)]),
-            "ipmsm_cosim_get_real": (c_int, [P, c_int, c_size_t, u_p, d_p]),
-            "ipmsm_cosim_get_integer": (c_int, [P, c_int, c_size_t, u_p, i_p]),
-            "ipmsm_cosim_couple": (c_int, [P, u_p, u_p, c_longlong]),
-            "ipmsm_cosim_probes": (c_int, [P, c_size_t, i_p, i_p, u_p]),
-            "ipmsm_cosim_advance": (c_longlong, [P, c_longlong, d_p, d_p, d_p, P, c_longlong, c_longlong]),
+            "ipmsm_cosim_error": (S, [P]),
+            "ipmsm_cosim_instantiate": (c_int, [P, S, S, S, c_int]),
+            "ipmsm_cosim_enter_initialization": (c_int, [P]),
+            "ipmsm_cosim_set_real": (c_int, [P, S, c_size_t, u_p, d_p]),
+            "ipmsm_cosim_set_integer": (c_int, [P, S, c_size_t, u_p, i_p]),
+            "ipmsm_cosim_set_boolean": (c_int, [P, S, c_size_t, u_p, i_p]),
+            "ipmsm_cosim_set_string": (c_int, [P, S, c_size_t, u_p, POINTER(c_char_p)]),
+            "ipmsm_cosim_get_real": (c_int, [P, S, c_size_t, u_p, d_p]),
+            "ipmsm_cosim_get_integer": (c_int, [P, S, c_size_t, u_p, i_p]),
+            "ipmsm_cosim_initialize": (c_int, [P, in_p]),
+            "ipmsm_cosim_probes": (c_int, [P, c_size_t, POINTER(c_char_p)]),
+            "ipmsm_cosim_advance": (c_longlong, [P, c_longlong, in_p, d_p, d_p, P, c_longlong, c_longlong]),
             "ipmsm_cosim_step_index": (c_longlong, [P]),
-            "ipmsm_cosim_time": (c_double, [P]),
         }
         for name, (res, args) in sig.items():
             f = getattr(lib, name)
@@ -221,66 +251,59 @@ class _NativeBackend:
             raise CosimError(self.lib.ipmsm_cosim_error(self.m).decode(errors="replace"))
 
     def instantiate(self, u: _Unit, logging_on: bool) -> None:
-        self._check(self.lib.ipmsm_cosim_instantiate(self.m, u.index, str(u.dir).encode(), u.identifier.encode(),
-                                                     u.md.guid.encode(), u.instance_name.encode(), int(logging_on)))
+        self._check(self.lib.ipmsm_cosim_instantiate(self.m, u.role.encode(), str(u.dir).encode(),
+                                                     u.instance_name.encode(), int(logging_on)))
 
-    def enter_initialization(self, u: _Unit, start_time: float) -> None:
-        self._check(self.lib.ipmsm_cosim_enter_initialization(self.m, u.index, start_time))
-
-    def exit_initialization(self, u: _Unit) -> None:
-        self._check(self.lib.ipmsm_cosim_exit_initialization(self.m, u.index))
+    def enter_initialization(self) -> None:
+        self._check(self.lib.ipmsm_cosim_enter_initialization(self.m))
 
     def set(self, u: _Unit, kind: str, vrs: Sequence[int], values: Sequence) -> None:
         n = len(vrs)
         vr = (c_uint * n)(*vrs)
+        role = u.role.encode()
         if kind == "Real":
-            self._check(self.lib.ipmsm_cosim_set_real(self.m, u.index, n, vr, (c_double * n)(*values)))
+            self._check(self.lib.ipmsm_cosim_set_real(self.m, role, n, vr, (c_double * n)(*values)))
         elif kind == "Integer":
-            self._check(self.lib.ipmsm_cosim_set_integer(self.m, u.index, n, vr, (c_int * n)(*values)))
+            self._check(self.lib.ipmsm_cosim_set_integer(self.m, role, n, vr, (c_int * n)(*values)))
         elif kind == "Boolean":
-            self._check(self.lib.ipmsm_cosim_set_boolean(self.m, u.index, n, vr, (c_int * n)(*values)))
+            self._check(self.lib.ipmsm_cosim_set_boolean(self.m, role, n, vr, (c_int * n)(*values)))
         else:
-            self._check(self.lib.ipmsm_cosim_set_string(self.m, u.index, n, vr,
+            self._check(self.lib.ipmsm_cosim_set_string(self.m, role, n, vr,
                                                         (c_char_p * n)(*[v.encode() for v in values])))
 
-    def get_real(self, u: _Unit, vrs: Sequence[int]) -> list[float]:
-        n = len(vrs)
-        out = (c_double * n)()
-        self._check(self.lib.ipmsm_cosim_get_real(self.m, u.index, n, (c_uint * n)(*vrs), out))
-        return list(out)
+    def get(self, u: _Unit, kind: str, vr: int) -> float | int:
+        if kind == "Real":
+            out = c_double()
+            self._check(self.lib.ipmsm_cosim_get_real(self.m, u.role.encode(), 1, (c_uint * 1)(vr), ctypes.byref(out)))
+        else:
+            out = c_int()
+            self._check(self.lib.ipmsm_cosim_get_integer(self.m, u.role.encode(), 1, (c_uint * 1)(vr),
+                                                         ctypes.byref(out)))
+        return out.value
 
-    def get_integer(self, u: _Unit, vrs: Sequence[int]) -> list[int]:
-        n = len(vrs)
-        out = (c_int * n)()
-        self._check(self.lib.ipmsm_cosim_get_integer(self.m, u.index, n, (c_uint * n)(*vrs), out))
-        return list(out)
+    def initialize(self, start: DriveInputs) -> None:
+        c_start = _CInputs(**{f.name: getattr(start, f.name) for f in fields(DriveInputs)})
+        self._check(self.lib.ipmsm_cosim_initialize(self.m, ctypes.byref(c_start)))
 
-    def couple(self, c_vr: Sequence[int], p_vr: Sequence[int]) -> None:
-        self._check(self.lib.ipmsm_cosim_couple(self.m, (c_uint * 8)(*c_vr), (c_uint * 7)(*p_vr), 0))
-
-    def probes(self, probes: Sequence[tuple[int, int, int]]) -> None:
-        n = len(probes)
-        self.n_probes = n
-        self._check(self.lib.ipmsm_cosim_probes(self.m, n, (c_int * n)(*[p[0] for p in probes]),
-                                                (c_int * n)(*[p[1] for p in probes]),
-                                                (c_uint * n)(*[p[2] for p in probes])))
-        self._slow = (c_double * 5)()
+    def probes(self, names: Sequence[str]) -> None:
+        n = len(names)
+        self._check(self.lib.ipmsm_cosim_probes(self.m, n, (c_char_p * n)(*[s.encode() for s in names])))
+        self._n = n
         self._mean = (c_double * max(n, 1))()
         self._end = (c_double * max(n, 1))()
-        self._advance = self.lib.ipmsm_cosim_advance
 
-    def advance(self, n_steps: int, slow: Sequence[float], trace, decimation: int):
-        s = self._slow
-        s[0], s[1], s[2], s[3], s[4] = slow
+    def advance(self, n_steps: int, inputs: DriveInputs, trace, decimation: int):
+        x = self._inputs
+        x.T_ref, x.w_m, x.u_dc, x.T_magnet = inputs.T_ref, inputs.w_m, inputs.u_dc, inputs.T_magnet
+        x.T_winding = inputs.T_winding
         if trace is None:
-            rows = self._advance(self.m, n_steps, s, self._mean, self._end, None, 0, 0)
+            rows = self.lib.ipmsm_cosim_advance(self.m, n_steps, x, self._mean, self._end, None, 0, 0)
         else:
-            rows = self._advance(self.m, n_steps, s, self._mean, self._end, trace.ctypes.data, trace.shape[0],
-                                 decimation)
+            rows = self.lib.ipmsm_cosim_advance(self.m, n_steps, x, self._mean, self._end, trace.ctypes.data,
+                                                trace.shape[0], decimation)
         if rows < 0:
             raise CosimError(self.lib.ipmsm_cosim_error(self.m).decode(errors="replace"))
-        n = self.n_probes
-        return self._mean[:n], self._end[:n], rows
+        return self._mean[:self._n], self._end[:self._n], rows
 
     @property
     def k(self) -> int:
@@ -292,103 +315,124 @@ class _NativeBackend:
             self.m = None
 
 
-class _FmpyBackend:
-    """The same master in Python, on the FMUs' C functions as fmpy's FMU2Slave loads them."""
+class _FmpyUnit:
+    """What the fmpy loop holds of one unit: its FMU2Slave, FMI functions and read buffers."""
 
-    def __init__(self, h: float, log: Callable):
-        from fmpy.fmi2 import fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, defaultCallbacks
+    def __init__(self, u: _Unit):
+        self.u = u
+        self.fmu = None
+        self.initialised = False
+        self.fatal = False
+        self.external_vr: list[int] = []
+        self.external_names: list[str] = []    # the external inputs' names (DriveInputs fields)
+        self.external_targets: list[str] = []  # the variables they feed, for messages
+        self.read_real: list[int] = []  # connected outputs first (n_connected), then Real probes
+        self.read_int: list[int] = []
+        self.n_connected = 0
+        self.real = (c_double * 0)()
+        self.integer = (c_int * 0)()
+
+
+class _FmpyBackend:
+    """The master in Python, on the FMUs' C functions as fmpy's FMU2Slave loads them: the
+    reference for the native one, call for call."""
+
+    def __init__(self, coupling: Coupling, h: float, log: Callable,
+                 step_times: Callable[[int], tuple[float, float]] | None = None):
+        from fmpy.fmi2 import defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+        self.coupling = coupling
         self.h = h
         self._log = log
-        self.fmus: dict[int, object] = {}
-        self.units: dict[int, _Unit] = {}
-        self.initialised = {CONTROLLER: False, PLANT: False}
-        self.fatal = {CONTROLLER: False, PLANT: False}
-        self.stopped = False
+        self._step_times = step_times
+        self.units: list[_FmpyUnit] = []
         self.coupled = False
+        self.stopped = False
         self._k = 0
 
         def logger(env, instance, status, category, message):
-            u = self.units.get((env or 0) - 1)
-            if u is not None and len(u.pending) < 1000:
+            index = (env or 0) - 1
+            if 0 <= index < len(self.units) and len(self.units[index].u.pending) < 1000:
                 # the FMU doubles '%' for printf-style loggers: undo it as printf would
                 text = (message or b"").decode(errors="replace").replace("%%", "%")
-                u.pending.append((status, (category or b"").decode(errors="replace"), text))
+                self.units[index].u.pending.append((status, (category or b"").decode(errors="replace"), text))
 
-        self._callbacks = {}
-        for unit in (CONTROLLER, PLANT):
+        self._logger = fmi2CallbackLoggerTYPE(logger)
+        self._callbacks = []
+        for index in range(len(coupling.units)):
             cb = fmi2CallbackFunctions()
-            cb.logger = fmi2CallbackLoggerTYPE(logger)
+            cb.logger = self._logger
             cb.allocateMemory = defaultCallbacks.allocateMemory
             cb.freeMemory = defaultCallbacks.freeMemory
-            cb.componentEnvironment = unit + 1
-            self._callbacks[unit] = cb
+            cb.componentEnvironment = index + 1
+            self._callbacks.append(cb)
 
     # -- the status check, as the native master's
     def _flush(self, u: _Unit, quoted: bool = False) -> None:
         for status, category, message in u.pending:
-            if not (quoted and status >= 1):
-                self._log(u.index, status, category, message)
+            if not (quoted and status >= Status.fmi2Warning):
+                self._log(u.role, status, category, message)
         u.pending.clear()
 
-    def _check(self, u: _Unit, status: int, function: str, when: str = "") -> None:
-        if status <= 1:
-            if u.pending:
-                self._flush(u)
-            return
-        if status == 4:
-            self.fatal[u.index] = True
-        messages = [m for s, _, m in u.pending if s >= 1]
-        name = _STATUS[status] if 0 <= status < len(_STATUS) else "an unknown fmi2Status"
-        text = f"{u.describe()}: {function}{when} returned {name}"
-        text += (": " + "; ".join(messages)) if messages else " (the FMU logged no message)"
+    def _failure(self, u: _Unit, what: str) -> str:
+        messages = [m for s, _, m in u.pending if s >= Status.fmi2Warning]
         self._flush(u, quoted=True)
-        raise CosimError(text)
+        quoted = (": " + "; ".join(messages)) if messages else " (the FMU logged no message)"
+        return f"{u.describe()}: {what}{quoted}"
 
-    def _usable(self, u: _Unit) -> None:
-        if self.fatal[u.index]:
+    def _check(self, f: _FmpyUnit, status: int, function: str, when: str = "") -> None:
+        if status <= Status.fmi2Warning:
+            if f.u.pending:
+                self._flush(f.u)
+            return
+        if status == Status.fmi2Fatal:
+            f.fatal = True
+        raise CosimError(self._failure(f.u, f"{function}{when} returned {_status_name(status)}"))
+
+    def _unit(self, u: _Unit) -> _FmpyUnit:
+        f = self.units[self.coupling.unit_index(u.role)]
+        if f.fmu is None:
+            raise CosimError(f"the {u.role} is not instantiated")
+        if f.fatal:
             raise CosimError(f"{u.identifier} reported fmi2Fatal earlier: it can only be freed")
-
-    def instantiate(self, u: _Unit, logging_on: bool) -> None:
-        from fmpy.fmi2 import FMU2Slave
-        self.units[u.index] = u
-        fmu = FMU2Slave(guid=u.md.guid, unzipDirectory=u.dir, modelIdentifier=u.identifier,
-                        instanceName=u.instance_name)
-        try:
-            fmu.instantiate(callbacks=self._callbacks[u.index], loggingOn=logging_on)
-        except Exception:
-            messages = [m for s, _, m in u.pending if s >= 1]
-            self._flush(u, quoted=True)
-            fmu.freeLibrary()
-            raise CosimError(f"{u.describe()}: fmi2Instantiate returned NULL"
-                             + (": " + "; ".join(messages) if messages else "")) from None
-        self._flush(u)
-        self.fmus[u.index] = fmu
-        d = fmu.dll
-        fmu.raw = {name: getattr(d, name) for name in
-                   ("fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode",
-                    "fmi2Terminate", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean", "fmi2SetString",
-                    "fmi2GetReal", "fmi2GetInteger", "fmi2DoStep")}
-
-    def enter_initialization(self, u: _Unit, start_time: float) -> None:
-        self._usable(u)
-        fmu = self.fmus[u.index]
-        when = " (start time %.9g s)" % start_time
-        self._check(u, fmu.raw["fmi2SetupExperiment"](fmu.component, 0, 0.0, start_time, 0, 0.0),
-                    "fmi2SetupExperiment", when)
-        self._check(u, fmu.raw["fmi2EnterInitializationMode"](fmu.component), "fmi2EnterInitializationMode", when)
-
-    def exit_initialization(self, u: _Unit) -> None:
-        self._usable(u)
-        fmu = self.fmus[u.index]
-        self._check(u, fmu.raw["fmi2ExitInitializationMode"](fmu.component), "fmi2ExitInitializationMode")
-        self.initialised[u.index] = True
+        return f
 
     def _when(self) -> str:
         return _when(self._k, self.h) if self.coupled else ""
 
+    def instantiate(self, u: _Unit, logging_on: bool) -> None:
+        from fmpy.fmi2 import FMU2Slave
+        if not self.units:
+            self.units = [None] * len(self.coupling.units)
+        index = self.coupling.unit_index(u.role)
+        f = self.units[index] = _FmpyUnit(u)
+        fmu = FMU2Slave(guid=u.md.guid, unzipDirectory=u.dir, modelIdentifier=u.identifier,
+                        instanceName=u.instance_name)
+        try:
+            fmu.instantiate(callbacks=self._callbacks[index], loggingOn=logging_on)
+        except Exception:
+            text = self._failure(u, "fmi2Instantiate returned NULL")
+            fmu.freeLibrary()
+            raise CosimError(text) from None
+        self._flush(u)
+        f.fmu = fmu
+        f.component = fmu.component
+        d = fmu.dll
+        for name in ("fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode",
+                     "fmi2Terminate", "fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean", "fmi2SetString",
+                     "fmi2GetReal", "fmi2GetInteger", "fmi2DoStep"):
+            setattr(f, name, getattr(d, name))
+
+    def enter_initialization(self) -> None:
+        when = " (start time 0 s)"
+        for f in self.units:
+            if f is None:
+                raise CosimError("instantiate every unit first")
+            self._unit(f.u)
+            self._check(f, f.fmi2SetupExperiment(f.component, 0, 0.0, 0.0, 0, 0.0), "fmi2SetupExperiment", when)
+            self._check(f, f.fmi2EnterInitializationMode(f.component), "fmi2EnterInitializationMode", when)
+
     def set(self, u: _Unit, kind: str, vrs: Sequence[int], values: Sequence) -> None:
-        self._usable(u)
-        fmu = self.fmus[u.index]
+        f = self._unit(u)
         n = len(vrs)
         vr = (c_uint * n)(*vrs)
         if kind == "Real":
@@ -399,216 +443,265 @@ class _FmpyBackend:
             arr, fn = (c_int * n)(*values), "fmi2SetBoolean"
         else:
             arr, fn = (c_char_p * n)(*[v.encode() for v in values]), "fmi2SetString"
-        self._check(u, fmu.raw[fn](fmu.component, vr, n, arr), fn, self._when())
+        self._check(f, getattr(f, fn)(f.component, vr, n, arr), fn, self._when())
 
-    def get_real(self, u: _Unit, vrs: Sequence[int]) -> list[float]:
-        self._usable(u)
-        fmu = self.fmus[u.index]
-        n = len(vrs)
-        out = (c_double * n)()
-        self._check(u, fmu.raw["fmi2GetReal"](fmu.component, (c_uint * n)(*vrs), n, out), "fmi2GetReal", self._when())
-        return list(out)
+    def get(self, u: _Unit, kind: str, vr: int) -> float | int:
+        f = self._unit(u)
+        out = c_double() if kind == "Real" else c_int()
+        fn = "fmi2GetReal" if kind == "Real" else "fmi2GetInteger"
+        self._check(f, getattr(f, fn)(f.component, (c_uint * 1)(vr), 1, ctypes.byref(out)), fn, self._when())
+        return out.value
 
-    def get_integer(self, u: _Unit, vrs: Sequence[int]) -> list[int]:
-        self._usable(u)
-        fmu = self.fmus[u.index]
-        n = len(vrs)
-        out = (c_int * n)()
-        self._check(u, fmu.raw["fmi2GetInteger"](fmu.component, (c_uint * n)(*vrs), n, out), "fmi2GetInteger",
-                    self._when())
-        return list(out)
+    # -- the coupling, by name (as cosim.cpp's Master::resolve)
+    def _resolve(self) -> None:
+        c = self.coupling
+        for e in c.inputs:
+            if e.name not in DriveInputs.__dataclass_fields__:
+                raise CosimError(f"the coupling's external input '{e.name}' is not a field of ipmsm_cosim_inputs")
+            for p in e.targets:
+                f = self.units[c.unit_index(p.unit)]
+                f.external_vr.append(f.u.real_vr(p.variable))
+                f.external_names.append(e.name)
+                f.external_targets.append(p.variable)
+        # One feed per (receiving, sending) unit; the sender's connected outputs laid out in
+        # that order, so each feed's values are a slice of the sender's read buffer.
+        self._feeds = []  # (to, from, input vrs, offset in the sender's buffer, names)
+        for to, receiver in enumerate(self.units):
+            for src, sender in enumerate(self.units):
+                vrs, names, offset = [], [], len(sender.read_real)
+                for conn in c.connections:
+                    if c.unit_index(conn.target.unit) != to or c.unit_index(conn.source.unit) != src:
+                        continue
+                    vrs.append(receiver.u.real_vr(conn.target.variable))
+                    sender.read_real.append(sender.u.real_vr(conn.source.variable))
+                    names.append(conn.target.variable)
+                if vrs:
+                    self._feeds.append((to, src, vrs, offset, ", ".join(names)))
+        for f in self.units:
+            f.n_connected = len(f.read_real)
+            f.real = (c_double * f.n_connected)()
 
-    def couple(self, c_vr: Sequence[int], p_vr: Sequence[int]) -> None:
-        if not (self.initialised[CONTROLLER] and self.initialised[PLANT]):
-            raise CosimError("couple: initialise both units first")
-        self._c_slow = (c_uint * 4)(*c_vr[:4])
-        self._c_in_i = (c_uint * 2)(*c_vr[4:6])
-        self._p_in_u = (c_uint * 2)(*p_vr[:2])
-        self._p_slow = (c_uint * 3)(*p_vr[2:5])
-        self._c_out = list(c_vr[6:8])
-        self._p_out = list(p_vr[5:7])
+    def initialize(self, start: DriveInputs) -> None:
+        if any(f is None for f in self.units):
+            raise CosimError("instantiate every unit first")
+        if self.coupled:
+            raise CosimError("initialize: already initialised")
+        for f in self.units:
+            self._unit(f.u)
+        self._resolve()
+        for i, f in enumerate(self.units):
+            # its external inputs, then its connected inputs from the units before it
+            vrs = list(f.external_vr)
+            values = [getattr(start, name) for name in f.external_names]
+            names = list(f.external_targets)
+            for to, src, in_vrs, offset, feed_names in self._feeds:
+                if to == i and src < i:
+                    vrs += in_vrs
+                    values += self.units[src].real[offset:offset + len(in_vrs)]
+                    names.append(feed_names)
+            if vrs:
+                n = len(vrs)
+                self._check(f, f.fmi2SetReal(f.component, (c_uint * n)(*vrs), n, (c_double * n)(*values)),
+                            f"fmi2SetReal ({', '.join(names)})")
+            self._check(f, f.fmi2ExitInitializationMode(f.component), "fmi2ExitInitializationMode")
+            f.initialised = True
+            if f.n_connected:
+                self._check(f, f.fmi2GetReal(f.component, (c_uint * f.n_connected)(*f.read_real), f.n_connected,
+                                             f.real), "fmi2GetReal")
         self._k = 0
         self.coupled = True
-        self.stopped = False
-        self._probes([])
-        c, p = self.units[CONTROLLER], self.units[PLANT]
-        cf, pf = self.fmus[CONTROLLER], self.fmus[PLANT]
-        when = _when(self._k, self.h)
-        self._check(p, pf.raw["fmi2GetReal"](pf.component, self._p_rvr, 2, self._p_real), "fmi2GetReal", when)
-        self._check(c, cf.raw["fmi2GetReal"](cf.component, self._c_rvr, 2, self._c_real), "fmi2GetReal", when)
+        self.probes([])
 
-    def _probes(self, probes: Sequence[tuple[int, int, int]]) -> None:
-        # The read lists, as the native master builds them: Reals with the coupling outputs in
-        # front, then each new probe vr; Integers.
-        real = {CONTROLLER: list(self._c_out), PLANT: list(self._p_out)}
-        ints = {CONTROLLER: [], PLANT: []}
-        slots = []  # per probe: index into the per-step source list (see advance)
-        for unit, kind, vr in probes:
-            if kind in (REAL, INTEGER):
-                lst = real[unit] if kind == REAL else ints[unit]
-                if vr not in lst:
-                    lst.append(vr)
-                slots.append((unit, kind, lst.index(vr)))
+    def probes(self, names: Sequence[str]) -> None:
+        """The read lists (connected outputs in front, keeping their values), and per probe
+        where its value is in the per-step source list `reals + integers + [|i|, |i|^2]`."""
+        if not self.coupled:
+            raise CosimError("probes: initialise first")
+        c = self.coupling
+        for f in self.units:
+            del f.read_real[f.n_connected:]
+            f.read_int = []
+
+        def slot(lst: list, vr: int) -> int:  # a variable read twice is read once
+            if vr not in lst:
+                lst.append(vr)
+            return lst.index(vr)
+
+        where = []  # per probe: ("real" | "integer", unit, slot) or (name, unit, (slot_d, slot_q))
+        for name in names:
+            if name in _CURRENT_PROBES:
+                if "plant" not in c.roles:
+                    raise CosimError(f"probe {name}: the coupling has no plant")
+                p = c.unit_index("plant")
+                f = self.units[p]
+                where.append((name, p, (slot(f.read_real, f.u.real_vr("i_d")), slot(f.read_real, f.u.real_vr("i_q")))))
+                continue
+            role, _, var = name.partition(".")
+            if role not in c.roles or not var:
+                raise CosimError(f"probe '{name}': not ROLE.VARIABLE of a unit of the coupling, '|i|' or '|i|^2'")
+            i = c.unit_index(role)
+            f = self.units[i]
+            if var not in f.u.vars:
+                raise CosimError(f"probe '{name}': {f.u.identifier} has no variable '{var}'")
+            v = f.u.vars[var]
+            if v.type == "Real":
+                where.append(("real", i, slot(f.read_real, v.valueReference)))
+            elif v.type in ("Integer", "Enumeration"):
+                where.append(("integer", i, slot(f.read_int, v.valueReference)))
             else:
-                slots.append((PLANT, kind, 0))
-        old = (list(self._c_real[:2]), list(self._p_real[:2])) if hasattr(self, "_c_real") else None
-        self._c_rvr = (c_uint * len(real[CONTROLLER]))(*real[CONTROLLER])
-        self._p_rvr = (c_uint * len(real[PLANT]))(*real[PLANT])
-        self._c_ivr = (c_uint * len(ints[CONTROLLER]))(*ints[CONTROLLER])
-        self._p_ivr = (c_uint * len(ints[PLANT]))(*ints[PLANT])
-        self._c_real = (c_double * len(real[CONTROLLER]))()
-        self._p_real = (c_double * len(real[PLANT]))()
-        self._c_int = (c_int * max(1, len(ints[CONTROLLER])))()
-        self._p_int = (c_int * max(1, len(ints[PLANT])))()
-        if old is not None:
-            self._c_real[0], self._c_real[1] = old[0]
-            self._p_real[0], self._p_real[1] = old[1]
-        # The per-step source list is  p_real + c_real + p_int + c_int + [|i|, |i|^2]
-        n_pr, n_cr = len(real[PLANT]), len(real[CONTROLLER])
-        n_pi, n_ci = len(ints[PLANT]), len(ints[CONTROLLER])
+                raise CosimError(f"probe '{name}' is a {v.type}: only Real and Integer variables can be averaged")
+        for f in self.units:
+            old = f.real[:f.n_connected]
+            f.real = (c_double * len(f.read_real))(*old)
+            f.integer = (c_int * len(f.read_int))()
+        # The per-step source list: every unit's Reals, then every unit's Integers, then |i|, |i|^2.
+        real_at, int_at, n = [], [], 0
+        for f in self.units:
+            real_at.append(n)
+            n += len(f.read_real)
+        for f in self.units:
+            int_at.append(n)
+            n += len(f.read_int)
+        self._current = None
         index = []
-        for unit, kind, slot in slots:
-            if kind == REAL:
-                index.append(slot if unit == PLANT else n_pr + slot)
-            elif kind == INTEGER:
-                index.append(n_pr + n_cr + (slot if unit == PLANT else n_pi + slot))
+        for kind, i, s in where:
+            if kind == "real":
+                index.append(real_at[i] + s)
+            elif kind == "integer":
+                index.append(int_at[i] + s)
             else:
-                index.append(n_pr + n_cr + n_pi + n_ci + (0 if kind == CURRENT_ABS else 1))
+                self._current = (real_at[i] + s[0], real_at[i] + s[1])
+                index.append(n + _CURRENT_PROBES.index(kind))
         self._index = index
-        self.n_probes = len(probes)
+        self._n_probes = len(names)
+        # The calls of a step with their arguments, prepared once: a feed passes the slice of the
+        # sender's read buffer that holds its values.
+        feeds = []
+        for to, src, vrs, offset, feed_names in self._feeds:
+            r, sender = self.units[to], self.units[src]
+            sent = ctypes.cast(ctypes.addressof(sender.real) + offset * ctypes.sizeof(c_double), POINTER(c_double))
+            feeds.append((r.fmi2SetReal, (r.component, (c_uint * len(vrs))(*vrs), len(vrs), sent), r,
+                          f"fmi2SetReal ({feed_names})"))
+        steps = [(f.fmi2DoStep, f.component, f) for f in self.units]
+        reads = [(f.fmi2GetReal, (f.component, (c_uint * len(f.read_real))(*f.read_real), len(f.read_real), f.real), f)
+                 for f in self.units]
+        reads_int = [(f.fmi2GetInteger, (f.component, (c_uint * len(f.read_int))(*f.read_int), len(f.read_int),
+                                         f.integer), f) for f in self.units if f.read_int]
+        buffers = [f.real for f in self.units] + [f.integer for f in self.units]
+        self._calls = (feeds, steps, reads, reads_int, buffers)
 
-    def probes(self, probes: Sequence[tuple[int, int, int]]) -> None:
+    def advance(self, n_steps: int, inputs: DriveInputs, trace, decimation: int):
         if not self.coupled:
-            raise CosimError("probes: couple first")
-        self._probes(probes)
-
-    def advance(self, n_steps: int, slow: Sequence[float], trace, decimation: int):
-        if not self.coupled:
-            raise CosimError("advance: couple first")
+            raise CosimError("advance: initialise first")
         if self.stopped:
             raise CosimError("advance: the master stopped after a failed step" + _when(self._k, self.h)
                              + "; the units are out of step: close the master")
-        c, p = self.units[CONTROLLER], self.units[PLANT]
-        cf, pf = self.fmus[CONTROLLER], self.fmus[PLANT]
-        cc, pc = cf.component, pf.component
-        h = self.h
-        T_ref, w_m, u_dc, T_magnet, T_winding = slow
-        when = _when(self._k, h)
-        self._check(c, cf.raw["fmi2SetReal"](cc, self._c_slow, 4, (c_double * 4)(T_ref, w_m, u_dc, T_magnet)),
-                    "fmi2SetReal (T_ref, w_m, u_dc, T_magnet)", when)
-        self._check(p, pf.raw["fmi2SetReal"](pc, self._p_slow, 3, (c_double * 3)(w_m, T_magnet, T_winding)),
-                    "fmi2SetReal (w_m, T_magnet, T_winding)", when)
-        c_set, p_set = cf.raw["fmi2SetReal"], pf.raw["fmi2SetReal"]
-        c_step, p_step = cf.raw["fmi2DoStep"], pf.raw["fmi2DoStep"]
-        c_get, p_get = cf.raw["fmi2GetReal"], pf.raw["fmi2GetReal"]
-        c_geti, p_geti = cf.raw["fmi2GetInteger"], pf.raw["fmi2GetInteger"]
-        c_real, p_real, c_int_, p_int_ = self._c_real, self._p_real, self._c_int, self._p_int
-        c_rvr, p_rvr, c_ivr, p_ivr = self._c_rvr, self._p_rvr, self._c_ivr, self._p_ivr
-        c_nr, p_nr, c_ni, p_ni = len(c_rvr), len(p_rvr), len(c_ivr), len(p_ivr)
-        c_in_i, p_in_u = self._c_in_i, self._p_in_u
-        index = self._index
-        n_probes = len(index)
-        sums = [0.0] * n_probes
+        h, k = self.h, self._k
+        when = _when(k, h)
+        # The external inputs, once (refused values: k unchanged, the master stays usable).
+        for f in self.units:
+            if f.external_vr:
+                n = len(f.external_vr)
+                values = (c_double * n)(*[getattr(inputs, name) for name in f.external_names])
+                self._check(f, f.fmi2SetReal(f.component, (c_uint * n)(*f.external_vr), n, values),
+                            f"fmi2SetReal ({', '.join(f.external_targets)})", when)
+        feeds, steps, reads, reads_int, buffers = self._calls
+        pending = [f.u for f in self.units]
+        index, current = self._index, self._current
+        sums = [0.0] * self._n_probes
         values = sums
         sqrt = math.sqrt
+        warning = int(Status.fmi2Warning)
+        step_times = self._step_times
         rows = 0
         next_row = decimation if trace is not None else -1
-        k = self._k
         try:
             for step in range(1, n_steps + 1):
-                t = k * h
-                s = p_set(pc, p_in_u, 2, c_real)
-                if s > 1:
-                    self._fail(p, s, "fmi2SetReal (u_d, u_q)", k)
-                s = c_set(cc, c_in_i, 2, p_real)
-                if s > 1:
-                    self._fail(c, s, "fmi2SetReal (i_d, i_q)", k)
-                s = p_step(pc, t, h, 1)
-                if s > 1:
-                    self._fail(p, s, "fmi2DoStep", k)
-                s = c_step(cc, t, h, 1)
-                if s > 1:
-                    self._fail(c, s, "fmi2DoStep", k)
+                t, hk = (k * h, h) if step_times is None else step_times(k)
+                # The exchange: each connected input gets its output's value after the previous step.
+                for set_real, args, f, what in feeds:
+                    s = set_real(*args)
+                    if s > warning:
+                        self._fail(f, s, what, k)
+                for do_step, component, f in steps:
+                    s = do_step(component, t, hk, 1)
+                    if s > warning:
+                        self._fail(f, s, "fmi2DoStep", k)
                 k += 1
-                s = p_get(pc, p_rvr, p_nr, p_real)
-                if s > 1:
-                    self._fail(p, s, "fmi2GetReal", k)
-                s = c_get(cc, c_rvr, c_nr, c_real)
-                if s > 1:
-                    self._fail(c, s, "fmi2GetReal", k)
-                if p_ni:
-                    s = p_geti(pc, p_ivr, p_ni, p_int_)
-                    if s > 1:
-                        self._fail(p, s, "fmi2GetInteger", k)
-                if c_ni:
-                    s = c_geti(cc, c_ivr, c_ni, c_int_)
-                    if s > 1:
-                        self._fail(c, s, "fmi2GetInteger", k)
-                if p.pending:
-                    self._flush(p)
-                if c.pending:
-                    self._flush(c)
-                if n_probes:
-                    pr = p_real[:]
-                    i_d, i_q = pr[0], pr[1]
-                    sq = i_d * i_d + i_q * i_q
-                    src = pr + c_real[:] + [float(x) for x in p_int_[:p_ni]] + [float(x) for x in c_int_[:c_ni]] \
-                        + [sqrt(sq), sq]
+                for get_real, args, f in reads:
+                    s = get_real(*args)
+                    if s > warning:
+                        self._fail(f, s, "fmi2GetReal", k)
+                for get_integer, args, f in reads_int:
+                    s = get_integer(*args)
+                    if s > warning:
+                        self._fail(f, s, "fmi2GetInteger", k)
+                for u in pending:
+                    if u.pending:
+                        self._flush(u)
+                if index:
+                    src = []
+                    for b in buffers:
+                        src += b[:]
+                    if current is not None:
+                        i_d, i_q = src[current[0]], src[current[1]]
+                        sq = i_d * i_d + i_q * i_q
+                        src += (sqrt(sq), sq)
                     values = [src[i] for i in index]
                     sums = [a + b for a, b in zip(sums, values)]
-                    if step == next_row:
-                        trace[rows, 0] = k * h
-                        trace[rows, 1:] = values
-                        rows += 1
-                        next_row += decimation
-                elif step == next_row:
+                if step == next_row:
                     trace[rows, 0] = k * h
+                    trace[rows, 1:] = values
                     rows += 1
                     next_row += decimation
         finally:
             self._k = k
-        return [x / n_steps for x in sums], list(values), rows
+        return [x / n_steps for x in sums], [float(x) for x in values], rows
 
-    def _fail(self, u: _Unit, status: int, function: str, k: int) -> None:
+    def _fail(self, f: _FmpyUnit, status: int, function: str, k: int) -> None:
         self.stopped = True
         self._k = k
-        self._check(u, status, function, _when(k, self.h))
+        self._check(f, status, function, _when(k, self.h))
 
     @property
     def k(self) -> int:
         return self._k
 
     def close(self) -> None:
-        for index in (PLANT, CONTROLLER):
-            fmu = self.fmus.pop(index, None)
-            if fmu is None:
+        for f in reversed(self.units):
+            if f is None or f.fmu is None:
                 continue
-            u = self.units[index]
-            if self.initialised[index] and not self.fatal[index]:
-                fmu.raw["fmi2Terminate"](fmu.component)
-            fmu.fmi2FreeInstance(fmu.component)
-            fmu.freeLibrary()
-            self._flush(u)
+            if f.initialised and not f.fatal:
+                f.fmi2Terminate(f.component)
+            f.fmu.fmi2FreeInstance(f.component)
+            f.fmu.freeLibrary()
+            f.fmu = None
+            self._flush(f.u)
 
 
 # --------------------------------------------------------------------------------------------
 
 class DriveCosim:
-    """IpmsmController + IpmsmPlant at h (default 100 us), advanced by the caller in chunks.
+    """The drive's units (IpmsmController + IpmsmPlant) coupled at h (default: the description's
+    step, 100 us), advanced by the caller in chunks.
 
     controller_params, plant_params: {name: value} of parameters (Real, Integer, Boolean or
-    String by the model description), set in initialisation mode. w_m, u_dc, T_magnet, T_winding,
-    T_ref: the inputs at t = 0 (the controller's flying start uses them). advance() reports the
-    fields of Sample (sources: SAMPLE_SOURCES). log: optional callable(unit_name, status, category, message)
-    for every message the FMUs log (also sent to the logging module, "scenarios.master").
+    String by the model description), set in Initialization Mode. T_ref, w_m, u_dc, T_magnet,
+    T_winding: the external inputs at t = 0 (the controller's flying start uses them).
+    advance() reports the fields of Sample (sources: SAMPLE_SOURCES). log: optional
+    callable(role, status, category, message) for every message the FMUs log (also sent to the
+    logging module, "scenarios.master"). step_times (fmpy only): k -> (t_k, h_k) passed to
+    fmi2DoStep instead of (k h, h), to reproduce another master's clock.
     """
 
     def __init__(self, controller_fmu: str | Path, plant_fmu: str | Path,
                  controller_params: Mapping | None = None, plant_params: Mapping | None = None,
-                 h: float = 1e-4, backend: str = "native",
+                 h: float | None = None, backend: str = "native",
                  w_m: float = 0.0, u_dc: float = 355.0, T_magnet: float = 293.15, T_winding: float = 293.15,
                  T_ref: float = 0.0, logging_on: bool = False, log: Callable | None = None,
-                 library: str | Path | None = None, instance_prefix: str = ""):
+                 library: str | Path | None = None, instance_prefix: str = "", coupling: Coupling = DRIVE,
+                 step_times: Callable[[int], tuple[float, float]] | None = None):
+        h = coupling.step if h is None else h
         if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
             raise ValueError(f"h = {h!r}: must be a finite number > 0")
         if backend == "auto":
@@ -616,42 +709,39 @@ class DriveCosim:
                 (library is not None and Path(library).exists()) else "fmpy"
         if backend not in ("native", "fmpy"):
             raise ValueError(f"backend = {backend!r}: 'native', 'fmpy' or 'auto'")
+        if step_times is not None and backend != "fmpy":
+            raise ValueError("step_times: only with backend='fmpy'")
         self.backend_name = backend
         self.h = float(h)
-        self.messages: deque = deque(maxlen=200)  # (unit, status, category, message), the latest
+        self.coupling = coupling
+        self.messages: deque = deque(maxlen=200)  # (role, status, category, message), the latest
         self._user_log = log
-        self._units: list[_Unit] = []
+        self._units: dict[str, _Unit] = {}
         self._b = None
         self._closed = False
         try:
-            self._units = [_Unit(CONTROLLER, controller_fmu, instance_prefix + "controller"),
-                           _Unit(PLANT, plant_fmu, instance_prefix + "plant")]
-            c, p = self._units
+            paths = {"controller": controller_fmu, "plant": plant_fmu}
+            params = {"controller": controller_params or {}, "plant": plant_params or {}}
+            if set(paths) != set(coupling.roles):
+                raise CosimError(f"the coupling's units are {coupling.roles}: DriveCosim couples a controller "
+                                 "and a plant")
+            for unit in coupling.units:
+                self._units[unit.role] = _Unit(unit.role, unit.model_identifier, paths[unit.role],
+                                               instance_prefix + unit.role)
             if backend == "native":
-                self._b = _NativeBackend(Path(library) if library else default_library(controller_fmu), self.h,
-                                         self._log)
+                self._b = _NativeBackend(Path(library) if library else default_library(controller_fmu), coupling,
+                                         self.h, self._log)
             else:
-                self._b = _FmpyBackend(self.h, self._log)
-            self._probes = [self._probe(SAMPLE_SOURCES[name]) for name in SAMPLE_FIELDS]
+                self._b = _FmpyBackend(coupling, self.h, self._log, step_times)
             b = self._b
-            b.instantiate(c, logging_on)
-            b.instantiate(p, logging_on)
-            # the plant first: the controller's flying start needs the plant's initial current
-            b.enter_initialization(p, 0.0)
-            self._set_parameters(p, plant_params or {})
-            b.set(p, "Real", [p.variable(n).valueReference for n in ("w_m", "T_magnet", "T_winding")],
-                  [float(w_m), float(T_magnet), float(T_winding)])
-            b.exit_initialization(p)
-            i_d, i_q = b.get_real(p, [p.variable("i_d").valueReference, p.variable("i_q").valueReference])
-            b.enter_initialization(c, 0.0)
-            self._set_parameters(c, controller_params or {})
-            b.set(c, "Real", [c.variable(n).valueReference for n in ("T_ref", "w_m", "u_dc", "T_magnet", "i_d", "i_q")],
-                  [float(T_ref), float(w_m), float(u_dc), float(T_magnet), i_d, i_q])
-            b.exit_initialization(c)
-            b.couple([c.variable(n).valueReference for n in _C_COUPLING],
-                     [p.variable(n).valueReference for n in _P_COUPLING])
-            b.probes([(u, kind, vr) for (u, kind, vr) in self._probes])
-            self._slow = [float(T_ref), float(w_m), float(u_dc), float(T_magnet), float(T_winding)]
+            for u in self._units.values():
+                b.instantiate(u, logging_on)
+            b.enter_initialization()
+            for role, u in self._units.items():
+                self._set_parameters(u, params[role])
+            self._inputs = DriveInputs(float(T_ref), float(w_m), float(u_dc), float(T_magnet), float(T_winding))
+            b.initialize(self._inputs)
+            b.probes([SAMPLE_SOURCES[name] for name in SAMPLE_FIELDS])
         except BaseException:
             self.close()
             raise
@@ -679,36 +769,13 @@ class DriveCosim:
             if kind in groups:
                 self._b.set(u, kind, *groups[kind])
 
-    def _probe(self, name: str) -> tuple[int, int, int]:
-        c, p = self._units
-        if name in ("|i|", "plant.|i|"):
-            return (PLANT, CURRENT_ABS, 0)
-        if name in ("|i|^2", "plant.|i|^2"):
-            return (PLANT, CURRENT_SQ, 0)
-        if name.startswith("controller."):
-            u, var = c, c.variable(name[len("controller."):])
-        elif name.startswith("plant."):
-            u, var = p, p.variable(name[len("plant."):])
-        elif name in p.vars and p.vars[name].causality == "output":
-            u, var = p, p.vars[name]
-        elif name in c.vars and c.vars[name].causality == "output":
-            u, var = c, c.vars[name]
-        else:
-            raise CosimError(f"output {name!r}: neither FMU has an output of that name "
-                             "(use 'controller.X' or 'plant.X' for other variables)")
-        if var.type == "Real":
-            return (u.index, REAL, var.valueReference)
-        if var.type in ("Integer", "Enumeration"):
-            return (u.index, INTEGER, var.valueReference)
-        raise CosimError(f"output {name!r} is a {var.type}: only Real and Integer variables can be averaged")
-
-    def _log(self, unit: int, status: int, category: str, message: str) -> None:
-        name = self._units[unit].instance_name if unit < len(self._units) else str(unit)
-        self.messages.append((_LABEL[unit] if unit in (0, 1) else str(unit), status, category, message))
-        level = {0: logging.INFO, 1: logging.WARNING}.get(status, logging.ERROR)
-        LOG.log(level, "[%s %s] %s", name, category, message)
+    def _log(self, role: str, status: int, category: str, message: str) -> None:
+        u = self._units.get(role)
+        self.messages.append((role, status, category, message))
+        level = {Status.fmi2OK: logging.INFO, Status.fmi2Warning: logging.WARNING}.get(status, logging.ERROR)
+        LOG.log(level, "[%s %s] %s", u.instance_name if u else role, category, message)
         if self._user_log is not None:
-            self._user_log(_LABEL[unit] if unit in (0, 1) else str(unit), status, category, message)
+            self._user_log(role, status, category, message)
 
     # -- the API
     @property
@@ -724,6 +791,17 @@ class DriveCosim:
     def trace_columns(self) -> tuple[str, ...]:
         return ("t",) + SAMPLE_FIELDS
 
+    def value(self, name: str) -> float | int:
+        """The current value of "ROLE.VARIABLE" (a Real or Integer variable)."""
+        role, _, var = name.partition(".")
+        if role not in self._units:
+            raise CosimError(f"{name!r}: no unit '{role}' (units: {', '.join(self._units)})")
+        u = self._units[role]
+        v = u.variable(var)
+        if v.type not in ("Real", "Integer", "Enumeration"):
+            raise CosimError(f"{name!r} is a {v.type}: only Real and Integer variables are read")
+        return self._b.get(u, "Real" if v.type == "Real" else "Integer", v.valueReference)
+
     def advance(self, n_steps: int, T_ref: float, w_m: float, u_dc: float | None = None,
                 T_magnet: float | None = None, T_winding: float | None = None,
                 trace: np.ndarray | None = None, decimation: int = 1) -> AdvanceResult:
@@ -736,10 +814,10 @@ class DriveCosim:
             raise CosimError("advance: the master is closed")
         if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
             raise ValueError(f"n_steps = {n_steps!r}: must be an integer >= 1")
-        slow = self._slow
-        new = [T_ref, w_m, slow[2] if u_dc is None else u_dc, slow[3] if T_magnet is None else T_magnet,
-               slow[4] if T_winding is None else T_winding]
-        new = [float(x) for x in new]
+        held = self._inputs
+        new = DriveInputs(float(T_ref), float(w_m), held.u_dc if u_dc is None else float(u_dc),
+                          held.T_magnet if T_magnet is None else float(T_magnet),
+                          held.T_winding if T_winding is None else float(T_winding))
         if trace is not None:
             decimation = int(decimation)
             if decimation < 1:
@@ -752,7 +830,7 @@ class DriveCosim:
             if trace.shape[0] < n_steps // decimation:
                 raise ValueError(f"trace has {trace.shape[0]} rows, {n_steps // decimation} are needed")
         mean, end, rows = self._b.advance(int(n_steps), new, trace, decimation)
-        self._slow = new
+        self._inputs = new
         return AdvanceResult(mean=Sample(*mean), end=Sample(*end), t=self._b.k * self.h, k=self._b.k, rows=rows)
 
     def close(self) -> None:
@@ -763,7 +841,7 @@ class DriveCosim:
             if self._b is not None:
                 self._b.close()
         finally:
-            for u in self._units:
+            for u in self._units.values():
                 u.remove_dir()
 
     def __enter__(self):

@@ -1,4 +1,5 @@
-// ipmsm_cosim: the native FMI 2.0 master for IpmsmController + IpmsmPlant (see cosim.h).
+// ipmsm_cosim: the native FMI 2.0 master of the coupled drive (see cosim.h): the coupling
+// description's names resolved to value references, then the Jacobi loop over the units.
 // scenarios/master.py (backend "fmpy") makes the same FMI calls in the same order in Python.
 #include "cosim.h"
 
@@ -15,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "coupling/coupling.hpp"
 #include "fmi2Functions.h"
 #include "fmu_binary.hpp"
 
@@ -69,56 +71,116 @@ struct LogEntry {
 
 struct Master;
 
+// One FMU of the description, and what the loop reads of it after every step.
 struct Unit {
     Master* master = nullptr;
-    int index = 0;
-    std::string model_identifier, instance_name;
+    std::string role, model_identifier, instance_name;
+    fmu_binary::Description md;
     fmi2Component component = nullptr;
     fmi2CallbackFunctions callbacks{};
-    bool initialised = false;  // fmi2ExitInitializationMode succeeded
-    bool fatal = false;        // an fmi2Fatal: only fmi2FreeInstance is allowed
+    bool initialised = false;       // fmi2ExitInitializationMode succeeded
+    bool fatal = false;             // an fmi2Fatal: only fmi2FreeInstance is allowed
     std::vector<LogEntry> pending;  // logged during the current FMI call
 
     fmu_binary::Functions fmi;  // the FMU's binary, dlopened; closed with the instance
 
-    const char* label() const { return index == 0 ? "controller" : "plant"; }
+    // Its external inputs: value references and the fields of ipmsm_cosim_inputs they take.
+    std::vector<fmi2ValueReference> external_vr;
+    std::vector<double ipmsm_cosim_inputs::*> external_field;
+    std::vector<double> external_value;
+    std::string external_names;  // "w_m, T_magnet, T_winding", for messages
+    // Read after every step: Reals (the connected outputs first, n_connected of them, then the
+    // Real probes) and Integers (Integer probes).
+    std::vector<fmi2ValueReference> read_real, read_int;
+    size_t n_connected = 0;
+    std::vector<double> real;
+    std::vector<fmi2Integer> integer;
+
+    std::string describe() const { return model_identifier + " (" + role + ", instance '" + instance_name + "')"; }
+
+    std::string type_of(const std::string& name) const {
+        const auto it = md.type.find(name);
+        return it != md.type.end() ? it->second : "";
+    }
+
+    // The value reference of a Real variable; false, with why, if there is none.
+    bool real_vr(const std::string& name, fmi2ValueReference& vr, std::string& why) const {
+        const auto it = md.vr.find(name);
+        if (it == md.vr.end()) return why = model_identifier + " has no variable '" + name + "'", false;
+        if (type_of(name) != "Real") return why = model_identifier + "." + name + " is not a Real", false;
+        vr = it->second;
+        return true;
+    }
+};
+
+// The connected inputs of one unit fed by one other unit: one fmi2SetReal per step, the values
+// straight from the sender's read buffer (its connected outputs are laid out in this order).
+struct Feed {
+    size_t to, from;  // units
+    std::vector<fmi2ValueReference> vr;
+    size_t offset;      // into the sender's read buffer
+    std::string names;  // "u_d, u_q", for messages
 };
 
 struct Probe {
-    int unit, kind;
-    unsigned vr;
-    size_t slot;  // index into the unit's real or integer read buffer
+    enum Kind { real, integer, current_abs, current_sq } kind;
+    size_t unit, slot;  // where the value is read (current_*: the plant's i_d; i_q at slot2)
+    size_t slot2;
+};
+
+// The fields of ipmsm_cosim_inputs by name: a description's external input binds to one.
+struct InputField {
+    const char* name;
+    double ipmsm_cosim_inputs::*field;
+};
+constexpr InputField kInputFields[] = {
+    {"T_ref", &ipmsm_cosim_inputs::T_ref},         {"w_m", &ipmsm_cosim_inputs::w_m},
+    {"u_dc", &ipmsm_cosim_inputs::u_dc},           {"T_magnet", &ipmsm_cosim_inputs::T_magnet},
+    {"T_winding", &ipmsm_cosim_inputs::T_winding},
 };
 
 struct Master {
+    std::string coupling_text;
+    ipmsm::coupling::Coupling coupling;
+    bool coupling_read = false;
     double h;
     ipmsm_cosim_log_fn log_fn;
     void* log_user;
-    Unit units[2];
+    std::vector<Unit> units;  // in the description's order
     std::string error;
 
-    // coupling (ipmsm_cosim_couple)
-    bool coupled = false;
+    bool resolved = false;
+    bool coupled = false;  // initialised: advance may run
     bool stopped = false;  // a step failed: the units are no longer in step
     long long k = 0;
-    fmi2ValueReference c_slow[4], c_in_i[2], p_slow[3], p_in_u[2];
-    // per unit, what is read after every step: Reals (the coupling outputs first), Integers
-    std::vector<fmi2ValueReference> read_real[2], read_int[2];
-    std::vector<double> real_buf[2];
-    std::vector<fmi2Integer> int_buf[2];
+    std::vector<Feed> feeds;
     std::vector<Probe> probes;
     std::vector<double> values, sums;
 
-    Master(double h_, ipmsm_cosim_log_fn fn, void* user) : h(h_), log_fn(fn), log_user(user) {
-        for (int i = 0; i < 2; ++i) {
-            units[i].master = this;
-            units[i].index = i;
-        }
-    }
+    Master(const char* text, double h_, ipmsm_cosim_log_fn fn, void* user)
+        : coupling_text(text != nullptr ? text : ""), h(h_), log_fn(fn), log_user(user) {}
 
     bool fail(std::string text) {
         error = std::move(text);
         return false;
+    }
+
+    // The description, read on first use (a bad one fails every call that needs it).
+    bool read_coupling() {
+        if (coupling_read) return true;
+        try {
+            coupling = ipmsm::coupling::parse(coupling_text);
+        } catch (const std::invalid_argument& e) {
+            return fail(e.what());
+        }
+        units = std::vector<Unit>(coupling.units.size());
+        for (size_t i = 0; i < units.size(); ++i) {
+            units[i].master = this;
+            units[i].role = coupling.units[i].role;
+            units[i].model_identifier = coupling.units[i].model_identifier;
+        }
+        coupling_read = true;
+        return true;
     }
 
     // Passes the unit's pending log messages on and clears them; all of them, or (after a
@@ -127,7 +189,8 @@ struct Master {
         for (const LogEntry& e : u.pending) {
             if (quoted && e.status >= fmi2Warning) continue;
             if (log_fn != nullptr) {
-                log_fn(log_user, u.index, u.instance_name.c_str(), e.status, e.category.c_str(), e.message.c_str());
+                log_fn(log_user, u.role.c_str(), u.instance_name.c_str(), e.status, e.category.c_str(),
+                       e.message.c_str());
             } else if (e.status >= fmi2Warning) {
                 std::fprintf(stderr, "[%s %s %s] %s\n", u.instance_name.c_str(),
                              status_name(static_cast<fmi2Status>(e.status)), e.category.c_str(), e.message.c_str());
@@ -136,16 +199,9 @@ struct Master {
         u.pending.clear();
     }
 
-    // After an FMI call: true if it succeeded (fmi2OK, fmi2Warning). Otherwise the error text
-    // names the FMU, the function, the time (`when`) and quotes the FMU's log of the call.
-    bool check(Unit& u, fmi2Status s, const char* function, const std::string& when) {
-        if (s == fmi2OK || s == fmi2Warning) {
-            if (!u.pending.empty()) flush(u);
-            return true;
-        }
-        if (s == fmi2Fatal) u.fatal = true;
-        std::string text = u.model_identifier + " (" + u.label() + ", instance '" + u.instance_name + "'): " +
-                           function + when + " returned " + status_name(s);
+    // The unit's failure text: what failed, then the messages the FMU logged during the call.
+    std::string failure(Unit& u, const std::string& what) {
+        std::string text = u.describe() + ": " + what;
         bool any = false;
         for (const LogEntry& e : u.pending) {
             if (e.status < fmi2Warning) continue;
@@ -155,19 +211,111 @@ struct Master {
         }
         if (!any) text += " (the FMU logged no message)";
         flush(u, true);
-        return fail(std::move(text));
+        return text;
     }
 
-    std::string at_time() const {
-        return format(" at t = %.9g s (step k = %lld)", static_cast<double>(k) * h, k);
+    // After an FMI call: true if it succeeded (fmi2OK, fmi2Warning). Otherwise the error text
+    // names the FMU, the function, the time (`when`) and quotes the FMU's log of the call.
+    bool check(Unit& u, fmi2Status s, const std::string& function, const std::string& when) {
+        if (s == fmi2OK || s == fmi2Warning) {
+            if (!u.pending.empty()) flush(u);
+            return true;
+        }
+        if (s == fmi2Fatal) u.fatal = true;
+        return fail(failure(u, function + when + " returned " + status_name(s)));
     }
 
-    bool unit_ok(int unit, bool need_instance = true) {
-        if (unit != 0 && unit != 1) return fail(format("unit %d: 0 is the controller, 1 the plant", unit));
-        if (need_instance && units[unit].component == nullptr)
-            return fail(std::string(unit == 0 ? "the controller" : "the plant") + " is not instantiated");
-        if (need_instance && units[unit].fatal)
-            return fail(units[unit].model_identifier + " reported fmi2Fatal earlier: it can only be freed");
+    std::string at_time() const { return format(" at t = %.9g s (step k = %lld)", static_cast<double>(k) * h, k); }
+
+    // The unit of that role; nullptr (and the error set) if there is none or it cannot be used.
+    Unit* unit(const char* role, bool need_instance = true) {
+        if (!read_coupling()) return nullptr;
+        if (role == nullptr) return fail("NULL role"), nullptr;
+        const int i = coupling.unit_index(role);
+        if (i < 0) return fail(std::string("the coupling has no unit '") + role + "'"), nullptr;
+        Unit& u = units[static_cast<size_t>(i)];
+        if (need_instance && u.component == nullptr) return fail("the " + u.role + " is not instantiated"), nullptr;
+        if (need_instance && u.fatal)
+            return fail(u.model_identifier + " reported fmi2Fatal earlier: it can only be freed"), nullptr;
+        return &u;
+    }
+
+    bool all_instantiated() {
+        if (!read_coupling()) return false;
+        for (Unit& u : units)
+            if (unit(u.role.c_str()) == nullptr) return false;
+        return true;
+    }
+
+    // The description's names as value references: each unit's external inputs, the feeds and
+    // the connected outputs at the front of each unit's read list.
+    bool resolve() {
+        std::string why;
+        for (Unit& u : units) {
+            u.external_vr.clear();
+            u.external_field.clear();
+            u.external_names.clear();
+            u.read_real.clear();
+            u.read_int.clear();
+        }
+        for (const auto& input : coupling.inputs) {
+            const InputField* field = nullptr;
+            for (const InputField& f : kInputFields)
+                if (input.name == f.name) field = &f;
+            if (field == nullptr)
+                return fail("the coupling's external input '" + input.name + "' is not a field of ipmsm_cosim_inputs");
+            for (const auto& port : input.to) {
+                Unit& u = units[static_cast<size_t>(coupling.unit_index(port.unit))];
+                fmi2ValueReference vr;
+                if (!u.real_vr(port.variable, vr, why)) return fail("coupling: " + why);
+                u.external_vr.push_back(vr);
+                u.external_field.push_back(field->field);
+                u.external_names += (u.external_names.empty() ? "" : ", ") + port.variable;
+            }
+        }
+        feeds.clear();
+        for (size_t to = 0; to < units.size(); ++to) {
+            for (size_t from = 0; from < units.size(); ++from) {
+                Feed f{to, from, {}, units[from].read_real.size(), ""};
+                for (const auto& c : coupling.connections) {
+                    if (coupling.unit_index(c.to.unit) != static_cast<int>(to) ||
+                        coupling.unit_index(c.from.unit) != static_cast<int>(from))
+                        continue;
+                    fmi2ValueReference in_vr, out_vr;
+                    if (!units[to].real_vr(c.to.variable, in_vr, why) ||
+                        !units[from].real_vr(c.from.variable, out_vr, why))
+                        return fail("coupling: " + why);
+                    f.names += (f.vr.empty() ? "" : ", ") + c.to.variable;
+                    f.vr.push_back(in_vr);
+                    units[from].read_real.push_back(out_vr);
+                }
+                if (!f.vr.empty()) feeds.push_back(std::move(f));
+            }
+        }
+        for (Unit& u : units) {
+            u.n_connected = u.read_real.size();
+            u.real.assign(u.n_connected, 0.0);
+            u.integer.clear();
+            u.external_value.assign(u.external_vr.size(), 0.0);
+        }
+        probes.clear();
+        values.clear();
+        sums.clear();
+        resolved = true;
+        return true;
+    }
+
+    // Sets the units' external inputs from `in` (one fmi2SetReal per unit that has any).
+    bool set_external(const ipmsm_cosim_inputs& in, const std::string& when) {
+        for (Unit& u : units) {
+            if (u.external_vr.empty()) continue;
+            for (size_t j = 0; j < u.external_vr.size(); ++j) u.external_value[j] = in.*u.external_field[j];
+            if (!check(
+                    u,
+                    u.fmi.fmi2SetReal(u.component, u.external_vr.data(), u.external_vr.size(), u.external_value.data()),
+                    "fmi2SetReal (" + u.external_names + ")", when))
+                return false;
+        }
         return true;
     }
 };
@@ -186,8 +334,7 @@ void logger(fmi2ComponentEnvironment env, fmi2String /*instance*/, fmi2Status st
         }
         if (u->pending.size() < 1000)
             u->pending.push_back({static_cast<int>(status), category != nullptr ? category : "", std::move(text)});
-    } catch (...) {
-    }
+    } catch (...) {}
 }
 
 // file:// URI of a directory (percent-encoding all but the unreserved characters and '/').
@@ -220,15 +367,20 @@ void release(Unit& u) {
     }
 }
 
-Master* as_master(ipmsm_cosim* m) { return reinterpret_cast<Master*>(m); }
+}  // namespace
+
+struct ipmsm_cosim : Master {
+    using Master::Master;
+};
+
+namespace {
 
 template <class Body>
-int guarded(ipmsm_cosim* handle, Body&& body) noexcept {
-    Master* m = as_master(handle);
+int guarded(ipmsm_cosim* m, Body&& body) noexcept {
     if (m == nullptr) return -1;
     try {
         m->error.clear();
-        return body(*m) ? 0 : -1;
+        return body(static_cast<Master&>(*m)) ? 0 : -1;
     } catch (const std::exception& e) {
         m->error = std::string("ipmsm_cosim: ") + e.what();
     } catch (...) {
@@ -237,44 +389,12 @@ int guarded(ipmsm_cosim* handle, Body&& body) noexcept {
     return -1;
 }
 
-// Builds the read lists of both units and the probes' slots.
-void build_reads(Master& m, const std::vector<Probe>& requested) {
-    for (int u = 0; u < 2; ++u) {
-        m.read_real[u].resize(2);  // the coupling outputs stay in front
-        m.read_int[u].clear();
-    }
-    m.probes.clear();
-    for (Probe p : requested) {
-        if (p.kind == IPMSM_COSIM_REAL || p.kind == IPMSM_COSIM_INTEGER) {
-            auto& list = p.kind == IPMSM_COSIM_REAL ? m.read_real[p.unit] : m.read_int[p.unit];
-            size_t slot = 0;
-            while (slot < list.size() && list[slot] != p.vr) ++slot;
-            if (slot == list.size()) list.push_back(p.vr);
-            p.slot = slot;
-        } else {
-            p.unit = IPMSM_COSIM_PLANT;
-            p.slot = 0;
-        }
-        m.probes.push_back(p);
-    }
-    for (int u = 0; u < 2; ++u) {
-        m.real_buf[u].resize(m.read_real[u].size());
-        m.int_buf[u].resize(m.read_int[u].size());
-    }
-    m.values.assign(m.probes.size(), 0.0);
-    m.sums.assign(m.probes.size(), 0.0);
-}
-
 }  // namespace
 
-struct ipmsm_cosim : Master {
-    using Master::Master;
-};
-
-IPMSM_COSIM_API ipmsm_cosim* ipmsm_cosim_new(double h, ipmsm_cosim_log_fn log, void* user) {
+IPMSM_COSIM_API ipmsm_cosim* ipmsm_cosim_new(const char* coupling, double h, ipmsm_cosim_log_fn log, void* user) {
     if (!(h > 0.0) || !std::isfinite(h)) return nullptr;
     try {
-        return new ipmsm_cosim(h, log, user);
+        return new ipmsm_cosim(coupling, h, log, user);
     } catch (...) {
         return nullptr;
     }
@@ -283,10 +403,8 @@ IPMSM_COSIM_API ipmsm_cosim* ipmsm_cosim_new(double h, ipmsm_cosim_log_fn log, v
 IPMSM_COSIM_API void ipmsm_cosim_free(ipmsm_cosim* m) {
     if (m == nullptr) return;
     try {
-        release(m->units[1]);
-        release(m->units[0]);
-    } catch (...) {
-    }
+        for (auto u = m->units.rbegin(); u != m->units.rend(); ++u) release(*u);
+    } catch (...) {}
     delete m;
 }
 
@@ -294,43 +412,37 @@ IPMSM_COSIM_API const char* ipmsm_cosim_error(const ipmsm_cosim* m) {
     return m != nullptr ? m->error.c_str() : "ipmsm_cosim: NULL master";
 }
 
-IPMSM_COSIM_API int ipmsm_cosim_instantiate(ipmsm_cosim* handle, int unit, const char* unzip_dir,
-                                            const char* model_identifier, const char* guid,
+IPMSM_COSIM_API int ipmsm_cosim_instantiate(ipmsm_cosim* handle, const char* role, const char* unzip_dir,
                                             const char* instance_name, int logging_on) {
     return guarded(handle, [&](Master& m) {
-        if (!m.unit_ok(unit, false)) return false;
-        Unit& u = m.units[unit];
-        if (u.fmi.is_open()) return m.fail(std::string("the ") + u.label() + " is already instantiated");
-        if (unzip_dir == nullptr || model_identifier == nullptr || guid == nullptr || instance_name == nullptr)
-            return m.fail("ipmsm_cosim_instantiate: NULL argument");
-        u.model_identifier = model_identifier;
+        Unit* found = m.unit(role, false);
+        if (found == nullptr) return false;
+        Unit& u = *found;
+        if (u.fmi.is_open()) return m.fail("the " + u.role + " is already instantiated");
+        if (unzip_dir == nullptr || instance_name == nullptr) return m.fail("ipmsm_cosim_instantiate: NULL argument");
         u.instance_name = instance_name;
         char* absolute = realpath(unzip_dir, nullptr);  // the resource URI needs an absolute path
         if (absolute == nullptr)
             return m.fail(u.model_identifier + ": the unzipped FMU folder " + unzip_dir + " does not exist");
         const std::string dir = absolute;
         std::free(absolute);
-        const std::string path = fmu_binary::library_path(dir, model_identifier);
         std::string why;
-        if (!u.fmi.open(path, why)) return m.fail(u.model_identifier + ": " + why);
+        if (!fmu_binary::parse_description(dir, u.md, why)) return m.fail(u.model_identifier + ": " + why);
+        if (u.md.model_identifier != u.model_identifier)
+            return m.fail("the " + u.role + " must be " + u.model_identifier + ", " + dir + " holds '" +
+                          u.md.model_identifier + "'");
+        if (!u.fmi.open(fmu_binary::library_path(dir, u.model_identifier), why))
+            return m.fail(u.model_identifier + ": " + why);
         u.callbacks.logger = logger;
         u.callbacks.allocateMemory = std::calloc;
         u.callbacks.freeMemory = std::free;
         u.callbacks.stepFinished = nullptr;
         u.callbacks.componentEnvironment = &u;
         const std::string resources = file_uri(dir + "/resources");
-        u.component = u.fmi.fmi2Instantiate(instance_name, fmi2CoSimulation, guid, resources.c_str(), &u.callbacks,
-                                    fmi2False, logging_on ? fmi2True : fmi2False);
+        u.component = u.fmi.fmi2Instantiate(instance_name, fmi2CoSimulation, u.md.guid.c_str(), resources.c_str(),
+                                            &u.callbacks, fmi2False, logging_on ? fmi2True : fmi2False);
         if (u.component == nullptr) {
-            std::string text = u.model_identifier + " (" + u.label() + ", instance '" + u.instance_name +
-                               "'): fmi2Instantiate returned NULL";
-            bool any = false;
-            for (const LogEntry& e : u.pending) {
-                if (e.status < fmi2Warning) continue;
-                text += (any ? "; " : ": ") + e.message;
-                any = true;
-            }
-            m.flush(u, true);
+            std::string text = m.failure(u, "fmi2Instantiate returned NULL");
             u.fmi.close();
             return m.fail(std::move(text));
         }
@@ -339,35 +451,28 @@ IPMSM_COSIM_API int ipmsm_cosim_instantiate(ipmsm_cosim* handle, int unit, const
     });
 }
 
-IPMSM_COSIM_API int ipmsm_cosim_enter_initialization(ipmsm_cosim* handle, int unit, double start_time) {
+IPMSM_COSIM_API int ipmsm_cosim_enter_initialization(ipmsm_cosim* handle) {
     return guarded(handle, [&](Master& m) {
-        if (!m.unit_ok(unit)) return false;
-        Unit& u = m.units[unit];
-        const std::string when = format(" (start time %.9g s)", start_time);
-        return m.check(u, u.fmi.fmi2SetupExperiment(u.component, fmi2False, 0.0, start_time, fmi2False, 0.0),
-                       "fmi2SetupExperiment", when) &&
-               m.check(u, u.fmi.fmi2EnterInitializationMode(u.component), "fmi2EnterInitializationMode", when);
-    });
-}
-
-IPMSM_COSIM_API int ipmsm_cosim_exit_initialization(ipmsm_cosim* handle, int unit) {
-    return guarded(handle, [&](Master& m) {
-        if (!m.unit_ok(unit)) return false;
-        Unit& u = m.units[unit];
-        if (!m.check(u, u.fmi.fmi2ExitInitializationMode(u.component), "fmi2ExitInitializationMode", "")) return false;
-        u.initialised = true;
+        if (!m.all_instantiated()) return false;
+        const std::string when = " (start time 0 s)";
+        for (Unit& u : m.units) {
+            if (!m.check(u, u.fmi.fmi2SetupExperiment(u.component, fmi2False, 0.0, 0.0, fmi2False, 0.0),
+                         "fmi2SetupExperiment", when) ||
+                !m.check(u, u.fmi.fmi2EnterInitializationMode(u.component), "fmi2EnterInitializationMode", when))
+                return false;
+        }
         return true;
     });
 }
 
-#define IPMSM_COSIM_ACCESS(NAME, FMI, CTYPE, FMITYPE)                                                        \
-    IPMSM_COSIM_API int NAME(ipmsm_cosim* handle, int unit, size_t n, const unsigned* vr, CTYPE value) {     \
-        return guarded(handle, [&](Master& m) {                                                              \
-            if (!m.unit_ok(unit)) return false;                                                              \
-            Unit& u = m.units[unit];                                                                         \
-            return m.check(u, u.fmi.FMI(u.component, vr, n, reinterpret_cast<FMITYPE>(value)), #FMI,        \
-                           m.coupled ? m.at_time() : std::string());                                         \
-        });                                                                                                  \
+#define IPMSM_COSIM_ACCESS(NAME, FMI, CTYPE, FMITYPE)                                                            \
+    IPMSM_COSIM_API int NAME(ipmsm_cosim* handle, const char* role, size_t n, const unsigned* vr, CTYPE value) { \
+        return guarded(handle, [&](Master& m) {                                                                  \
+            Unit* u = m.unit(role);                                                                              \
+            if (u == nullptr) return false;                                                                      \
+            return m.check(*u, u->fmi.FMI(u->component, vr, n, reinterpret_cast<FMITYPE>(value)), #FMI,          \
+                           m.coupled ? m.at_time() : std::string());                                             \
+        });                                                                                                      \
     }
 IPMSM_COSIM_ACCESS(ipmsm_cosim_set_real, fmi2SetReal, const double*, const fmi2Real*)
 IPMSM_COSIM_ACCESS(ipmsm_cosim_set_integer, fmi2SetInteger, const int*, const fmi2Integer*)
@@ -377,139 +482,180 @@ IPMSM_COSIM_ACCESS(ipmsm_cosim_get_real, fmi2GetReal, double*, fmi2Real*)
 IPMSM_COSIM_ACCESS(ipmsm_cosim_get_integer, fmi2GetInteger, int*, fmi2Integer*)
 #undef IPMSM_COSIM_ACCESS
 
-IPMSM_COSIM_API int ipmsm_cosim_couple(ipmsm_cosim* handle, const unsigned* controller_vr, const unsigned* plant_vr,
-                                       long long k0) {
+IPMSM_COSIM_API int ipmsm_cosim_initialize(ipmsm_cosim* handle, const ipmsm_cosim_inputs* start) {
     return guarded(handle, [&](Master& m) {
-        if (!m.unit_ok(0) || !m.unit_ok(1)) return false;
-        if (!m.units[0].initialised || !m.units[1].initialised)
-            return m.fail("ipmsm_cosim_couple: initialise both units first");
-        if (controller_vr == nullptr || plant_vr == nullptr) return m.fail("ipmsm_cosim_couple: NULL argument");
-        std::copy(controller_vr, controller_vr + 4, m.c_slow);
-        std::copy(controller_vr + 4, controller_vr + 6, m.c_in_i);
-        std::copy(plant_vr, plant_vr + 2, m.p_in_u);
-        std::copy(plant_vr + 2, plant_vr + 5, m.p_slow);
-        m.read_real[0].assign(controller_vr + 6, controller_vr + 8);
-        m.read_real[1].assign(plant_vr + 5, plant_vr + 7);
-        const std::vector<Probe> keep = m.probes;
-        build_reads(m, keep);
-        m.k = k0;
-        m.stopped = false;
-        m.coupled = true;
-        Unit &c = m.units[0], &p = m.units[1];
-        const std::string when = m.at_time();
-        return m.check(p, p.fmi.fmi2GetReal(p.component, m.read_real[1].data(), 2, m.real_buf[1].data()), "fmi2GetReal",
-                       when) &&
-               m.check(c, c.fmi.fmi2GetReal(c.component, m.read_real[0].data(), 2, m.real_buf[0].data()), "fmi2GetReal",
-                       when);
-    });
-}
-
-IPMSM_COSIM_API int ipmsm_cosim_probes(ipmsm_cosim* handle, size_t n, const int* unit, const int* kind,
-                                       const unsigned* vr) {
-    return guarded(handle, [&](Master& m) {
-        if (!m.coupled) return m.fail("ipmsm_cosim_probes: couple first");
-        if (n > 0 && (unit == nullptr || kind == nullptr || vr == nullptr))
-            return m.fail("ipmsm_cosim_probes: NULL argument");
-        std::vector<Probe> requested;
-        for (size_t i = 0; i < n; ++i) {
-            if (kind[i] < IPMSM_COSIM_REAL || kind[i] > IPMSM_COSIM_CURRENT_SQ)
-                return m.fail(format("probe %zu: unknown kind %d", i, kind[i]));
-            if (unit[i] != 0 && unit[i] != 1) return m.fail(format("probe %zu: unknown unit %d", i, unit[i]));
-            requested.push_back({unit[i], kind[i], vr[i], 0});
+        if (!m.all_instantiated()) return false;
+        if (m.resolved) return m.fail("ipmsm_cosim_initialize: already initialised");
+        if (start == nullptr) return m.fail("ipmsm_cosim_initialize: NULL inputs");
+        if (!m.resolve()) return false;
+        for (size_t i = 0; i < m.units.size(); ++i) {
+            Unit& u = m.units[i];
+            // its external inputs, then its connected inputs from the units before it
+            std::vector<fmi2ValueReference> vr = u.external_vr;
+            std::vector<double> value;
+            for (auto field : u.external_field) value.push_back(start->*field);
+            std::string names = u.external_names;
+            for (const Feed& f : m.feeds) {
+                if (f.to != i || f.from >= i) continue;
+                names += (vr.empty() ? "" : ", ") + f.names;
+                vr.insert(vr.end(), f.vr.begin(), f.vr.end());
+                const double* sent = m.units[f.from].real.data() + f.offset;
+                value.insert(value.end(), sent, sent + f.vr.size());
+            }
+            if (!vr.empty() && !m.check(u, u.fmi.fmi2SetReal(u.component, vr.data(), vr.size(), value.data()),
+                                        "fmi2SetReal (" + names + ")", ""))
+                return false;
+            if (!m.check(u, u.fmi.fmi2ExitInitializationMode(u.component), "fmi2ExitInitializationMode", ""))
+                return false;
+            u.initialised = true;
+            if (u.n_connected > 0 &&
+                !m.check(u, u.fmi.fmi2GetReal(u.component, u.read_real.data(), u.n_connected, u.real.data()),
+                         "fmi2GetReal", ""))
+                return false;
         }
-        // Keep the current coupling outputs (the buffers are resized, the front two kept).
-        const double c0 = m.real_buf[0][0], c1 = m.real_buf[0][1], p0 = m.real_buf[1][0], p1 = m.real_buf[1][1];
-        build_reads(m, requested);
-        m.real_buf[0][0] = c0;
-        m.real_buf[0][1] = c1;
-        m.real_buf[1][0] = p0;
-        m.real_buf[1][1] = p1;
+        m.k = 0;
+        m.coupled = true;
         return true;
     });
 }
 
-IPMSM_COSIM_API long long ipmsm_cosim_advance(ipmsm_cosim* handle, long long n_steps, const double* slow,
+IPMSM_COSIM_API int ipmsm_cosim_probes(ipmsm_cosim* handle, size_t n, const char* const* names) {
+    return guarded(handle, [&](Master& m) {
+        if (!m.coupled) return m.fail("ipmsm_cosim_probes: initialise first");
+        if (n > 0 && names == nullptr) return m.fail("ipmsm_cosim_probes: NULL names");
+        // The read lists: the connected outputs stay in front (and keep their values).
+        for (Unit& u : m.units) {
+            u.read_real.resize(u.n_connected);
+            u.read_int.clear();
+        }
+        // a variable read twice is read once (the connected outputs included)
+        auto slot = [](std::vector<fmi2ValueReference>& list, fmi2ValueReference vr) {
+            for (size_t s = 0; s < list.size(); ++s)
+                if (list[s] == vr) return s;
+            list.push_back(vr);
+            return list.size() - 1;
+        };
+        std::vector<Probe> probes;
+        for (size_t j = 0; j < n; ++j) {
+            if (names[j] == nullptr) return m.fail(format("probe %zu: NULL name", j));
+            const std::string name = names[j];
+            if (name == "|i|" || name == "|i|^2") {
+                const int p = m.coupling.unit_index("plant");
+                if (p < 0) return m.fail("probe " + name + ": the coupling has no plant");
+                Unit& u = m.units[static_cast<size_t>(p)];
+                fmi2ValueReference d, q;
+                std::string why;
+                if (!u.real_vr("i_d", d, why) || !u.real_vr("i_q", q, why)) return m.fail("probe " + name + ": " + why);
+                probes.push_back({name == "|i|" ? Probe::current_abs : Probe::current_sq, static_cast<size_t>(p),
+                                  slot(u.read_real, d), slot(u.read_real, q)});
+                continue;
+            }
+            const size_t dot = name.find('.');
+            const int i = dot == std::string::npos ? -1 : m.coupling.unit_index(name.substr(0, dot));
+            if (i < 0)
+                return m.fail("probe '" + name + "': not ROLE.VARIABLE of a unit of the coupling, '|i|' or '|i|^2'");
+            Unit& u = m.units[static_cast<size_t>(i)];
+            const std::string var = name.substr(dot + 1);
+            const auto it = u.md.vr.find(var);
+            if (it == u.md.vr.end())
+                return m.fail("probe '" + name + "': " + u.model_identifier + " has no variable '" + var + "'");
+            const std::string type = u.type_of(var);
+            if (type == "Real") {
+                probes.push_back({Probe::real, static_cast<size_t>(i), slot(u.read_real, it->second), 0});
+            } else if (type == "Integer" || type == "Enumeration") {
+                probes.push_back({Probe::integer, static_cast<size_t>(i), slot(u.read_int, it->second), 0});
+            } else {
+                return m.fail("probe '" + name + "' is a " + type +
+                              ": only Real and Integer variables can be averaged");
+            }
+        }
+        for (Unit& u : m.units) {
+            u.real.resize(u.read_real.size());
+            u.integer.resize(u.read_int.size());
+        }
+        m.probes = std::move(probes);
+        m.values.assign(m.probes.size(), 0.0);
+        m.sums.assign(m.probes.size(), 0.0);
+        return true;
+    });
+}
+
+IPMSM_COSIM_API long long ipmsm_cosim_advance(ipmsm_cosim* handle, long long n_steps, const ipmsm_cosim_inputs* inputs,
                                               double* mean, double* end, double* trace, long long trace_rows,
                                               long long decimation) {
     long long rows = 0;
     const int rc = guarded(handle, [&](Master& m) {
-        if (!m.coupled) return m.fail("ipmsm_cosim_advance: couple first");
+        if (!m.coupled) return m.fail("ipmsm_cosim_advance: initialise first");
         if (m.stopped)
             return m.fail("advance: the master stopped after a failed step" + m.at_time() +
                           "; the units are out of step: close the master");
         if (n_steps < 1) return m.fail(format("ipmsm_cosim_advance: n_steps = %lld, must be >= 1", n_steps));
-        if (slow == nullptr) return m.fail("ipmsm_cosim_advance: NULL slow inputs");
+        if (inputs == nullptr) return m.fail("ipmsm_cosim_advance: NULL inputs");
         const size_t np = m.probes.size();
         if (np > 0 && (mean == nullptr || end == nullptr)) return m.fail("ipmsm_cosim_advance: NULL mean/end");
-        long long want_rows = 0;
         if (trace != nullptr) {
-            if (decimation < 1) return m.fail(format("ipmsm_cosim_advance: decimation = %lld, must be >= 1", decimation));
-            want_rows = n_steps / decimation;
+            if (decimation < 1)
+                return m.fail(format("ipmsm_cosim_advance: decimation = %lld, must be >= 1", decimation));
+            const long long want_rows = n_steps / decimation;
             if (trace_rows < want_rows)
-                return m.fail(format("ipmsm_cosim_advance: the trace has %lld rows, %lld steps / decimation %lld "
-                                     "need %lld", trace_rows, n_steps, decimation, want_rows));
+                return m.fail(
+                    format("ipmsm_cosim_advance: the trace has %lld rows, %lld steps / decimation %lld "
+                           "need %lld",
+                           trace_rows, n_steps, decimation, want_rows));
         }
-        Unit &c = m.units[0], &p = m.units[1];
-        // The slow inputs, once (refused values change nothing: the master stays usable).
-        const double c_slow[4] = {slow[0], slow[1], slow[2], slow[3]};
-        const double p_slow[3] = {slow[1], slow[3], slow[4]};
-        {
-            const std::string when = m.at_time();
-            if (!m.check(c, c.fmi.fmi2SetReal(c.component, m.c_slow, 4, c_slow), "fmi2SetReal (T_ref, w_m, u_dc, T_magnet)",
-                         when) ||
-                !m.check(p, p.fmi.fmi2SetReal(p.component, m.p_slow, 3, p_slow), "fmi2SetReal (w_m, T_magnet, T_winding)",
-                         when))
-                return false;
-        }
-        const fmi2Component cc = c.component, pc = p.component;
-        fmi2SetRealTYPE *c_set = c.fmi.fmi2SetReal, *p_set = p.fmi.fmi2SetReal;
-        fmi2DoStepTYPE *c_step = c.fmi.fmi2DoStep, *p_step = p.fmi.fmi2DoStep;
-        fmi2GetRealTYPE *c_get = c.fmi.fmi2GetReal, *p_get = p.fmi.fmi2GetReal;
-        fmi2GetIntegerTYPE *c_geti = c.fmi.fmi2GetInteger, *p_geti = p.fmi.fmi2GetInteger;
-        double* c_real = m.real_buf[0].data();
-        double* p_real = m.real_buf[1].data();
-        fmi2Integer* c_int = m.int_buf[0].data();
-        fmi2Integer* p_int = m.int_buf[1].data();
-        const fmi2ValueReference *c_rvr = m.read_real[0].data(), *p_rvr = m.read_real[1].data();
-        const fmi2ValueReference *c_ivr = m.read_int[0].data(), *p_ivr = m.read_int[1].data();
-        const size_t c_nr = m.read_real[0].size(), p_nr = m.read_real[1].size();
-        const size_t c_ni = m.read_int[0].size(), p_ni = m.read_int[1].size();
+        // The external inputs, once (refused values: k unchanged, the master stays usable).
+        if (!m.set_external(*inputs, m.at_time())) return false;
+
+        const double h = m.h;
         const Probe* probes = m.probes.data();
         double* values = m.values.data();
         double* sums = m.sums.data();
         for (size_t j = 0; j < np; ++j) sums[j] = 0.0;
-        const double h = m.h;
         long long next_row_step = trace != nullptr ? decimation : -1;
-
-        auto stop = [&](Unit& u, fmi2Status s, const char* fn) {
+        auto stop = [&](Unit& u, fmi2Status s, const std::string& fn) {
             m.stopped = true;
             return m.check(u, s, fn, m.at_time());
         };
         for (long long step = 1; step <= n_steps; ++step) {
             const double t = static_cast<double>(m.k) * h;
             fmi2Status s;
-            // The exchange: the plant gets the controller's voltage of the previous step (c_real[0..1]),
-            // the controller the plant's current at t (p_real[0..1]).
-            if ((s = p_set(pc, m.p_in_u, 2, c_real)) > fmi2Warning) return stop(p, s, "fmi2SetReal (u_d, u_q)");
-            if ((s = c_set(cc, m.c_in_i, 2, p_real)) > fmi2Warning) return stop(c, s, "fmi2SetReal (i_d, i_q)");
-            if ((s = p_step(pc, t, h, fmi2True)) > fmi2Warning) return stop(p, s, "fmi2DoStep");
-            if ((s = c_step(cc, t, h, fmi2True)) > fmi2Warning) return stop(c, s, "fmi2DoStep");
+            // The exchange: each connected input gets its output's value after the previous step.
+            for (const Feed& f : m.feeds) {
+                Unit& to = m.units[f.to];
+                if ((s = to.fmi.fmi2SetReal(to.component, f.vr.data(), f.vr.size(),
+                                            m.units[f.from].real.data() + f.offset)) > fmi2Warning)
+                    return stop(to, s, "fmi2SetReal (" + f.names + ")");
+            }
+            for (Unit& u : m.units)
+                if ((s = u.fmi.fmi2DoStep(u.component, t, h, fmi2True)) > fmi2Warning) return stop(u, s, "fmi2DoStep");
             ++m.k;
-            if ((s = p_get(pc, p_rvr, p_nr, p_real)) > fmi2Warning) return stop(p, s, "fmi2GetReal");
-            if ((s = c_get(cc, c_rvr, c_nr, c_real)) > fmi2Warning) return stop(c, s, "fmi2GetReal");
-            if (p_ni > 0 && (s = p_geti(pc, p_ivr, p_ni, p_int)) > fmi2Warning) return stop(p, s, "fmi2GetInteger");
-            if (c_ni > 0 && (s = c_geti(cc, c_ivr, c_ni, c_int)) > fmi2Warning) return stop(c, s, "fmi2GetInteger");
-            if (!p.pending.empty()) m.flush(p);
-            if (!c.pending.empty()) m.flush(c);
-            const double id = p_real[0], iq = p_real[1];
+            for (Unit& u : m.units) {
+                if ((s = u.fmi.fmi2GetReal(u.component, u.read_real.data(), u.read_real.size(), u.real.data())) >
+                    fmi2Warning)
+                    return stop(u, s, "fmi2GetReal");
+                if (!u.read_int.empty() && (s = u.fmi.fmi2GetInteger(u.component, u.read_int.data(), u.read_int.size(),
+                                                                     u.integer.data())) > fmi2Warning)
+                    return stop(u, s, "fmi2GetInteger");
+            }
+            for (Unit& u : m.units)
+                if (!u.pending.empty()) m.flush(u);
             for (size_t j = 0; j < np; ++j) {
                 const Probe& pr = probes[j];
+                const Unit& u = m.units[pr.unit];
                 double v;
                 switch (pr.kind) {
-                    case IPMSM_COSIM_REAL: v = m.real_buf[pr.unit][pr.slot]; break;
-                    case IPMSM_COSIM_INTEGER: v = static_cast<double>(pr.unit == 0 ? c_int[pr.slot] : p_int[pr.slot]); break;
-                    case IPMSM_COSIM_CURRENT_ABS: v = std::sqrt(id * id + iq * iq); break;
-                    default: v = id * id + iq * iq; break;
+                    case Probe::real: v = u.real[pr.slot]; break;
+                    case Probe::integer: v = static_cast<double>(u.integer[pr.slot]); break;
+                    case Probe::current_abs: {
+                        const double id = u.real[pr.slot], iq = u.real[pr.slot2];
+                        v = std::sqrt(id * id + iq * iq);
+                        break;
+                    }
+                    default: {
+                        const double id = u.real[pr.slot], iq = u.real[pr.slot2];
+                        v = id * id + iq * iq;
+                        break;
+                    }
                 }
                 values[j] = v;
                 sums[j] += v;

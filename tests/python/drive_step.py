@@ -4,22 +4,20 @@ Scenario: a torque step (0 -> 200 N.m at 2 ms) during a speed ramp (2000 -> 8000
 50 ms) at 100 us, on the default motor; the speed ramp takes the drive from MTPA into field
 weakening, where the command is clamped to what is reachable.
 
-Coupling, the same in every master (what libcosim's fixed-step algorithm does):
-- Jacobi: both FMUs step from t_k to t_k + h; then the outputs are passed on (plant i_d, i_q ->
-  controller; controller u_d_ref, u_q_ref -> plant), to be used over the next step.
-- The external inputs T_ref, w_m (to both) are set before the step from t_k, with their values
-  at t_k (step index k: no floating-point test on the time).
-- Initialisation: both FMUs in Initialization Mode with the inputs at t = 0, the connections
-  passed plant -> controller, then controller -> plant (the controller's voltage output depends
-  on the measured currents: this order is exact in one pass), then fmi2ExitInitializationMode,
-  then the connections passed once more.
+Coupling, the same in every master: the drive's coupling description
+(fmu_src/coupling/ipmsm_drive.coupling, scenarios.coupling.DRIVE: Jacobi, what libcosim's
+fixed-step algorithm does). The external inputs T_ref and w_m are set before the step from t_k
+with their values at t_k (step index k: no floating-point test on the time); u_dc, T_magnet and
+T_winding are held at the FMUs' start values.
 
 Masters:
-- run_fmpy: this project's own master on fmpy's FMU2Slave; time_grid="ns" passes the times as
-  libcosim does (step_times).
-- run_libcosim: libcosim (PyPI libcosimpy), from scenarios/osp/OspSystemStructure.xml; T_ref and
-  w_m through an override manipulator.
-- run_container: fmpy's container FMU (fmpy.container_fmu) holding both FMUs, driven as one FMU.
+- run_fmpy: this project's plain fmpy master (scenarios.master.DriveCosim, backend "fmpy"),
+  advanced one step at a time; time_grid="ns" passes the times as libcosim does (step_times).
+- run_libcosim: libcosim (PyPI libcosimpy), from scenarios/osp/OspSystemStructure.xml (its
+  connections are the description's, test_importers checks it); T_ref and w_m through an
+  override manipulator.
+- run_container: fmpy's container FMU (fmpy.container_fmu) holding both FMUs with the
+  description's connections, driven as one FMU.
 
 Each returns a structured numpy array, one row per step (the values at t_k + h), with the
 columns of COLUMNS. `compare` gives the largest difference of each column relative to the
@@ -28,12 +26,13 @@ column's largest magnitude.
 from __future__ import annotations
 
 import math
-import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
+
+from scenarios.coupling import DRIVE, Port
 
 H = 1e-4              # s, communication step
 N_STEPS = 500         # 50 ms
@@ -44,13 +43,6 @@ U_DC = 355.0          # V
 
 OSP_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "osp"
 
-# (from FMU, variable, to FMU, variable); plant -> controller first (see the module docstring)
-CONNECTIONS = [
-    ("plant", "i_d", "controller", "i_d"),
-    ("plant", "i_q", "controller", "i_q"),
-    ("controller", "u_d_ref", "plant", "u_d"),
-    ("controller", "u_q_ref", "plant", "u_q"),
-]
 # the recorded outputs: (FMU, variable); their FMI types come from the model descriptions
 RECORDED = [
     ("controller", "T_cmd"), ("controller", "T_max"), ("controller", "i_d_ref"), ("controller", "i_q_ref"),
@@ -70,10 +62,16 @@ def speed(k: int) -> float:
     return (RPM_START + (RPM_END - RPM_START) * k / N_STEPS) * math.pi / 30.0
 
 
+def targets(name: str) -> tuple[Port, ...]:
+    """The inputs the description's external input `name` feeds."""
+    return next(e.targets for e in DRIVE.inputs if e.name == name)
+
+
 def external(k: int) -> list[tuple[str, str, float]]:
-    """The external inputs at step k: (FMU, variable, value)."""
-    T, w = torque(k), speed(k)
-    return [("controller", "T_ref", T), ("controller", "w_m", w), ("plant", "w_m", w)]
+    """The external inputs the scenario drives at step k, to the inputs they feed: (FMU,
+    variable, value)."""
+    return [(p.unit, p.variable, value) for name, value in (("T_ref", torque(k)), ("w_m", speed(k)))
+            for p in targets(name)]
 
 
 def _table(rows) -> np.ndarray:
@@ -108,60 +106,15 @@ def step_times(k: int, time_grid: str = "kh") -> tuple[float, float]:
 
 
 def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str = "kh") -> np.ndarray:
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import FMU2Slave
+    from scenarios.master import DriveCosim
 
-    from scenarios.fmu import get_values, set_values
-
-    fmus, variables, dirs = {}, {}, []
-    try:
-        for key, path in (("controller", controller_fmu), ("plant", plant_fmu)):
-            md = read_model_description(str(path))
-            d = extract(str(path))
-            dirs.append(d)
-            f = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier,
-                          instanceName=key)
-            f.instantiate()
-            f.setupExperiment(startTime=0.0)
-            fmus[key] = f
-            variables[key] = {v.name: v for v in md.modelVariables}
-
-        def set_value(fmu, name, value):
-            set_values(fmus[fmu], variables[fmu], **{name: value})
-
-        def get(fmu, name):
-            return get_values(fmus[fmu], variables[fmu], name)
-
-        def exchange():
-            for src, out, dst, inp in CONNECTIONS:
-                set_value(dst, inp, get(src, out))
-
-        for f in fmus.values():
-            f.enterInitializationMode()
-        set_value("controller", "u_dc", U_DC)
-        for fmu, name, value in external(0):
-            set_value(fmu, name, value)
-        exchange()
-        for f in fmus.values():
-            f.exitInitializationMode()
-        exchange()
-        rows = []
+    rows = []
+    with DriveCosim(controller_fmu, plant_fmu, h=H, backend="fmpy", T_ref=torque(0), w_m=speed(0), u_dc=U_DC,
+                    step_times=None if time_grid == "kh" else (lambda k: step_times(k, time_grid))) as cosim:
         for k in range(N_STEPS):
-            for fmu, name, value in external(k):
-                set_value(fmu, name, value)
-            t, h = step_times(k, time_grid)
-            for f in fmus.values():
-                f.doStep(currentCommunicationPoint=t, communicationStepSize=h)
-            exchange()
-            rows.append(_row(k, get))
-        for f in fmus.values():
-            f.terminate()
-        return _table(rows)
-    finally:
-        for f in fmus.values():
-            f.freeInstance()
-        for d in dirs:
-            shutil.rmtree(d, ignore_errors=True)
+            cosim.advance(1, T_ref=torque(k), w_m=speed(k))
+            rows.append(_row(k, lambda fmu, name: cosim.value(f"{fmu}.{name}")))
+    return _table(rows)
 
 
 # --- libcosim ---
@@ -180,13 +133,12 @@ def osp_config(controller_fmu: str | Path, plant_fmu: str | Path, out_dir: str |
 
 
 def run_libcosim(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarray:
+    from fmpy import read_model_description
     from libcosimpy.CosimEnums import CosimExecutionState
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimManipulator import CosimManipulator
     from libcosimpy.CosimObserver import CosimObserver
-
-    from fmpy import read_model_description
 
     log_output_level(CosimLogLevel.ERROR)
     variables = {key: {v.name: v for v in read_model_description(str(p)).modelVariables}
@@ -224,8 +176,8 @@ def run_libcosim(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarra
 # --- fmpy's container FMU ---
 
 def build_container(controller_fmu: str | Path, plant_fmu: str | Path, work_dir: str | Path) -> Path:
-    """A container FMU (fmpy.container_fmu) of the two FMUs with CONNECTIONS inside; inputs
-    T_ref, w_m (w_m to both), outputs "<fmu>.<name>" for RECORDED."""
+    """A container FMU (fmpy.container_fmu) of the two FMUs with the description's connections
+    inside; inputs T_ref, w_m (each to the inputs it feeds), outputs "<fmu>.<name>" for RECORDED."""
     import attrs
     from fmpy import read_model_description
     from fmpy.container_fmu.cli import create_container_fmu
@@ -241,10 +193,7 @@ def build_container(controller_fmu: str | Path, plant_fmu: str | Path, work_dir:
     T_ref = ModelVariable(type="Real", variability="continuous", causality="input", name="T_ref",
                           start=repr(torque(0)))
     w_m = ModelVariable(type="Real", variability="continuous", causality="input", name="w_m", start=repr(speed(0)))
-    mappings = {
-        T_ref: [(comps["controller"], variables["controller"]["T_ref"])],
-        w_m: [(comps["controller"], variables["controller"]["w_m"]), (comps["plant"], variables["plant"]["w_m"])],
-    }
+    mappings = {v: [(comps[p.unit], variables[p.unit][p.variable]) for p in targets(v.name)] for v in (T_ref, w_m)}
     outputs = []
     for fmu, name in RECORDED:
         kind = variables[fmu][name].type
@@ -264,7 +213,9 @@ def build_container(controller_fmu: str | Path, plant_fmu: str | Path, work_dir:
         v = variables[fmu][name]
         return attrs.evolve(v, type={"Real": "Float64", "Integer": "Int32"}.get(v.type, v.type))
 
-    connections = [Connection(comps[a], [connector(a, x)], comps[b], [connector(b, y)]) for a, x, b, y in CONNECTIONS]
+    connections = [Connection(comps[c.source.unit], [connector(c.source.unit, c.source.variable)],
+                              comps[c.target.unit], [connector(c.target.unit, c.target.variable)])
+                   for c in DRIVE.connections]
     config = Configuration(parallelDoStep=False, modelDescription=md, components=list(comps.values()),
                            connections=connections, variableMappings=mappings)
     work_dir = Path(work_dir)

@@ -1,40 +1,42 @@
-"""The IpmsmController and IpmsmPlant FMUs coupled by fmpy at 100 us (Jacobi exchange, as a
-digital drive: the voltage the controller computes at t_k is applied by the plant over
-[t_k + h, t_k + 2h]; the controller sees the plant's currents at t_k) on the default map, speed
-held: torque steps 0 -> 150 N.m -> -100 N.m settle to the commanded torque, with sane regions
-and currents.
+"""The IpmsmController and IpmsmPlant FMUs coupled by the plain fmpy master (DriveCosim,
+backend "fmpy", on the coupling description: Jacobi exchange, as a digital drive: the voltage the
+controller computes at t_k is applied by the plant over [t_k + h, t_k + 2h]; the controller sees
+the plant's currents at t_k) at 100 us on the default map, speed held: torque steps
+0 -> 150 N.m -> -100 N.m settle to the commanded torque, with sane regions and currents.
 """
+import itertools
 import math
 
 import numpy as np
 import pytest
 
-from scenarios.fmu import Fmu
+from scenarios.master import SAMPLE_FIELDS, DriveCosim
 
 H = 1e-4
 I_MAX = 500.0
+RECORDED = ("T_cmd", "region", "T_e", "i_d", "i_q", "T_shaft")
 
 
 def run(controller_fmu, plant_fmu, rpm, torque, t_end):
+    """Rows (t_{k+1}, then RECORDED after the step from t_k)."""
     w_m = rpm * 2 * math.pi / 60
-    rows = []
-    with Fmu(controller_fmu, w_m=w_m) as c, Fmu(plant_fmu, w_m=w_m) as p:
+    n = int(round(t_end / H))
+    trace = np.zeros((n, 1 + len(SAMPLE_FIELDS)))
+    T_ref = np.array([torque(k * H) for k in range(n)])
+    with DriveCosim(controller_fmu, plant_fmu, h=H, backend="fmpy", w_m=w_m) as cosim:
         # The controller's outputs after initialisation hold the measured current (a flying start).
-        u_d, u_q = c.get("u_d_ref", "u_q_ref")
+        u_d, u_q = cosim.value("controller.u_d_ref"), cosim.value("controller.u_q_ref")
         # (Above about 6000 r/min the back-EMF exceeds the inverter's u_dc / sqrt 3: the voltage
         # is limited and field-weakening current flows from the first step.)
-        u_hold, u_lim = 4 * w_m * p.get("psi_d"), 355.0 / math.sqrt(3)
+        u_hold, u_lim = 4 * w_m * cosim.value("plant.psi_d"), 355.0 / math.sqrt(3)
         assert math.hypot(u_d, u_q) == pytest.approx(min(u_hold, u_lim), rel=1e-9)
-        for k in range(int(round(t_end / H))):
-            t = k * H
-            i_d, i_q = p.get("i_d", "i_q")
-            p.set(u_d=u_d, u_q=u_q, w_m=w_m)
-            c.set(T_ref=torque(t), w_m=w_m, i_d=i_d, i_q=i_q)
-            p.step(t, H)
-            c.step(t, H)
-            u_d, u_q = c.get("u_d_ref", "u_q_ref")
-            rows.append((t + H, torque(t), c.get("T_cmd"), c.get("region"), *p.get("T_e", "i_d", "i_q", "T_shaft")))
-    return np.array(rows)
+        row = 0
+        for T, steps in itertools.groupby(T_ref):  # T_ref is piecewise constant: one advance per piece
+            m = len(list(steps))
+            cosim.advance(m, T_ref=T, w_m=w_m, trace=trace[row:])
+            row += m
+    columns = [1 + SAMPLE_FIELDS.index(name) for name in RECORDED]
+    return np.column_stack([trace[:, 0], trace[:, columns]])
 
 
 STEPS = [(5e-3, 150.0), (25e-3, -100.0)]  # the first 5 ms: start-up at zero torque
@@ -55,7 +57,7 @@ CASES = {1000: (1, 1), 6000: (2, 2), 11000: (4, 4)}
 @pytest.mark.parametrize("rpm", list(CASES))
 def test_torque_steps_settle(controller_fmu, plant_fmu, rpm):
     r = run(controller_fmu, plant_fmu, rpm, torque, 45e-3)
-    t, T_ref, T_cmd, region, T_e, i_d, i_q = r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4], r[:, 5], r[:, 6]
+    t, T_cmd, region, T_e, i_d, i_q = r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4], r[:, 5]
     assert np.all(np.isfinite(r))
     bounds = [s for s, _ in STEPS] + [t[-1] + H]
     for (start, T), end, expected_region in zip(STEPS, bounds[1:], CASES[rpm]):

@@ -1,6 +1,7 @@
 """The coupled drive in three FMI 2.0 masters (issue 5): this project's fmpy master, libcosim
 (PyPI libcosimpy, scenarios/osp/OspSystemStructure.xml) and fmpy's container FMU. Scenario and
-coupling: tests/python/drive_step.py (torque step during a speed ramp, 50 ms at 100 us, Jacobi).
+coupling: tests/python/drive_step.py (torque step during a speed ramp, 50 ms at 100 us; the
+coupling description fmu_src/coupling/ipmsm_drive.coupling, Jacobi).
 
 Measured (pytest -s prints the figures):
 - container FMU vs fmpy: bit-identical.
@@ -13,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from scenarios.coupling import DRIVE
 
 import drive_step as ds
 
@@ -63,13 +66,15 @@ def test_container_fmu_matches_fmpy(reference, controller_fmu, plant_fmu):
     assert max(diffs.values()) == 0.0, diffs
 
 
-def test_the_osp_configuration_ships_and_names_both_fmus():
+def test_the_osp_configuration_is_the_coupling_description():
+    """The shipped OSP file names both FMUs and holds the description's step and connections
+    (it is the description in libcosim's format: edit both together)."""
     import xml.etree.ElementTree as ET
     ns = {"osp": "http://opensimulationplatform.com/MSMI/OSPSystemStructure"}
     root = ET.parse(ds.OSP_DIR / "OspSystemStructure.xml").getroot()
     sims = {s.get("name"): s.get("source") for s in root.findall(".//osp:Simulator", ns)}
-    assert sims == {"controller": "../../build/fmu/IpmsmController.fmu", "plant": "../../build/fmu/IpmsmPlant.fmu"}
-    assert float(root.find("osp:BaseStepSize", ns).text) == ds.H
+    assert sims == {u.role: f"../../build/fmu/{u.model_identifier}.fmu" for u in DRIVE.units}
+    assert float(root.find("osp:BaseStepSize", ns).text) == DRIVE.step == ds.H
     pairs = {(c[0].get("simulator"), c[0].get("name"), c[1].get("simulator"), c[1].get("name"))
              for c in root.findall(".//osp:VariableConnection", ns)}
-    assert pairs == set(ds.CONNECTIONS)
+    assert pairs == {(c.source.unit, c.source.variable, c.target.unit, c.target.variable) for c in DRIVE.connections}

@@ -1,8 +1,11 @@
-"""The co-simulation master (scenarios/master.py; native backend scenarios/native/cosim.cpp):
-both backends bit-identical on torque steps and a speed ramp, and identical to the plain fmpy
-loop of test_coupled.py; means are the means of the recorded trace; time is k h; bad input
-raises CosimError naming the FMU (and leaves the master usable), a failing step stops it; two
-masters in one process are independent; the C API is valgrind-clean.
+"""The co-simulation master (scenarios/master.py; native backend scenarios/native/cosim.cpp) on
+the coupling description (fmu_src/coupling/ipmsm_drive.coupling): both backends bit-identical on
+torque steps and a speed ramp, and identical to an independent plain loop (scenarios.fmu, every
+input set every step); means are the means of the recorded trace; time is k h; the coupling is
+by name (the description's lines in another order give the same numbers; bad descriptions name
+their line, names the FMUs lack are refused); bad input raises CosimError naming the FMU (and
+leaves the master usable), a failing step stops it; two masters in one process are independent;
+the C API is valgrind-clean.
 """
 import dataclasses
 import math
@@ -11,12 +14,13 @@ import subprocess
 
 import numpy as np
 import pytest
-
 from fmpy import extract
 
-from conftest import ROOT
+from scenarios.coupling import DRIVE, Coupling, CouplingError
 from scenarios.fmu import Fmu
 from scenarios.master import SAMPLE_FIELDS, CosimError, DriveCosim, default_library
+
+from conftest import ROOT
 
 H = 1e-4
 BACKENDS = ("native", "fmpy")
@@ -157,7 +161,7 @@ def bad_inputs(backend, controller_fmu, plant_fmu, library):
         good = cosim.advance(20, 50.0, W0)
         cases = [(dict(T_ref=math.nan), "IpmsmController", "T_ref"),
                  (dict(u_dc=0.0), "IpmsmController", "u_dc"),
-                 (dict(w_m=math.inf), "IpmsmController", "w_m"),
+                 (dict(w_m=math.inf), "IpmsmPlant", "w_m"),  # the plant's inputs are set first
                  (dict(T_winding=-1.0), "IpmsmPlant", "T_winding")]
         for bad, fmu, name in cases:
             x = dict(T_ref=50.0, w_m=W0, u_dc=355.0)
@@ -246,3 +250,66 @@ def test_native_c_api_valgrind_clean(library, controller_fmu, plant_fmu, tmp_pat
     assert "all checks passed" in r.stdout, report
     assert "ERROR SUMMARY: 0 errors" in r.stderr, report
     assert "definitely lost: 0 bytes" in r.stderr or "All heap blocks were freed" in r.stderr, report
+
+
+def _permuted(text: str) -> str:
+    """The description with its connection and external-input lines in reverse order."""
+    lines = text.splitlines()
+    links = [i for i, line in enumerate(lines) if "->" in line and not line.lstrip().startswith("#")]
+    permuted = list(lines)
+    for i, j in zip(links, reversed(links)):
+        permuted[i] = lines[j]
+    return "\n".join(permuted)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_coupling_is_by_name_not_by_position(runs, backend, controller_fmu, plant_fmu, library):
+    """The description's lines in another order (so other value-reference orders in every
+    fmi2SetReal): the same numbers, bit for bit."""
+    permuted = Coupling.parse(_permuted(DRIVE.text))
+    assert permuted.connections == DRIVE.connections[::-1] and permuted.inputs == DRIVE.inputs[::-1]
+    results, trace = run(backend, controller_fmu, plant_fmu, library, coupling=permuted)
+    assert np.array_equal(trace, runs["native"][1])
+    assert results == runs["native"][0]
+
+
+@pytest.mark.parametrize("text, line, why", [
+    ("unit plant IpmsmPlant\nstep 1e-4\nplant.i_d => controller.i_d\n", 3, "expected: unit, step"),
+    ("unit plant IpmsmPlant\nstep 1e-4\nplant.i_d -> controller.i_d\n", 3, "no unit 'controller'"),
+    ("unit plant IpmsmPlant\nunit plant IpmsmPlant\n", 2, "declared twice"),
+    ("unit plant IpmsmPlant\nstep -1\n", 2, "the step must be a number > 0"),
+    ("unit p P\nunit c C\nstep 1e-4\nw -> p.w\nw2 -> p.w\n", 5, "p.w is fed twice"),
+    ("unit p P\nunit c C\nstep 1e-4\np.y -> c.u, c.v\n", 4, "a connection feeds one input"),
+])
+def test_coupling_description_errors_name_the_line(text, line, why):
+    with pytest.raises(CouplingError, match=f"line {line} .*{why}"):
+        Coupling.parse(text)
+
+
+def test_a_description_the_fmus_do_not_fit_is_refused(controller_fmu, plant_fmu, library):
+    wrong = Coupling.parse(DRIVE.text.replace("-> plant.u_q", "-> plant.u_x"))
+    for backend in BACKENDS:
+        with pytest.raises(CosimError, match="IpmsmPlant has no variable 'u_x'"):
+            DriveCosim(controller_fmu, plant_fmu, backend=backend, library=library, coupling=wrong)
+
+
+@pytest.mark.parametrize("text", [
+    "unit plant IpmsmPlant\nstep 1e-4\nplant.i_d => controller.i_d\n",
+    "unit plant IpmsmPlant\nstep 1e-4\nplant.i_d -> controller.i_d\n",
+    "unit p P\nunit c C\nstep 1e-4\nw -> p.w\nw2 -> p.w\n",
+    "unit p P\nunit p P\n",
+    "unit p P\n",
+])
+def test_cpp_and_python_read_descriptions_alike(library, text):
+    """coupling.hpp (in the native master) and scenarios/coupling.py refuse a bad description
+    with the same words."""
+    from scenarios.master import _NativeBackend
+    lib = _NativeBackend._load(library)
+    with pytest.raises(CouplingError) as e:
+        Coupling.parse(text)
+    m = lib.ipmsm_cosim_new(text.encode(), 1e-4, _NativeBackend._LOG_FN(0), None)
+    try:
+        assert lib.ipmsm_cosim_instantiate(m, b"p", b"/nonexistent", b"x", 0) == -1
+        assert lib.ipmsm_cosim_error(m).decode() == str(e.value)
+    finally:
+        lib.ipmsm_cosim_free(m)
