@@ -8,7 +8,7 @@
 //      separately (rdtsc)
 //   C  B plus what the glue's undoable() does per step besides the call: copy-assign each model
 //      to a backup, check the computed Reals are finite, and build the "the step from t = ..."
-//      text it passes (fmi2_glue.hpp do_step)
+//      text it passes (fmi2_functions.hpp do_step)
 // A and B must agree bit for bit (checked). A - C is then the rest of the FMI glue (set/get
 // validation, state checks, the call boundary) plus the master's loop.
 //   cosim_profile <unzipped controller dir> <unzipped plant dir> [seconds = 10] [repeats = 3] [drive|stress]

@@ -1,5 +1,5 @@
 # add_fmu(NAME <ModelIdentifier>
-#         SOURCES <.cpp ...>            # the one with IPMSM_FMI2_EXPORT(Model), plus any model sources
+#         SOURCES <.cpp ...>            # the one that includes fmi2_entry_points.inc, plus model sources
 #         [LIBRARIES <targets ...>]     # linked into the FMU and its generator
 #         [RESOURCES <files ...>]       # copied into resources/ (files, not directories)
 #         [DOCUMENTATION <index.html>]) # copied to documentation/index.html, with the variable
@@ -103,7 +103,7 @@ function(add_fmu)
       "LINKER:--wrap=hypot,--wrap=exp,--wrap=log,--wrap=pow,--wrap=stat,--wrap=fstat64,--wrap=pthread_once")
   endif()
 
-  # The modelDescription.xml generator: the same sources, IPMSM_FMI2_EXPORT expands to main().
+  # The modelDescription.xml generator: the same sources, fmi2_entry_points.inc defines main().
   add_executable(${name}_modelDescription ${FMU_SOURCES})
   target_link_libraries(${name}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
   target_compile_definitions(${name}_modelDescription PRIVATE

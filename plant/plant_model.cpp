@@ -75,7 +75,7 @@ const std::vector<V>& PlantModel::variables() {
 }
 
 PlantModel::PlantModel(const fmi::Context& context)
-    : context_(std::make_shared<const fmi::Context>(context)), integrator_(settings()) {}
+    : context_(fmi::share(context)), integrator_(settings()) {}
 
 CvodeSettings PlantModel::settings() const {
     CvodeSettings s;
@@ -205,16 +205,14 @@ void PlantModel::do_step(double t, double h) {
     const DqFluxOde o = ode();
     integrator_.set_settings(settings());  // rtol, atol, cvode_max_steps are tunable
     CvodeState start = integrator_.state();
-    const CvodeState saved = start;
     start.t = t;  // the ODE is autonomous: CVODE's clock simply follows the master's
     integrator_.set_state(start);
     try {
         integrator_.advance(o, t + h);
     } catch (const std::exception& e) {
-        integrator_.set_state(saved);
         std::ostringstream os;
         os << e.what() << " [inputs u_d = " << num(u_d) << " V, u_q = " << num(u_q) << " V, w_m = " << num(w_m)
-           << " rad/s; state psi_d = " << num(saved.psi[0]) << " Wb, psi_q = " << num(saved.psi[1])
+           << " rad/s; state psi_d = " << num(start.psi[0]) << " Wb, psi_q = " << num(start.psi[1])
            << " Wb; rtol " << num(rtol) << ", atol " << num(atol) << ", cvode_max_steps " << cvode_max_steps << "]";
         throw fmi::Error(os.str());
     }
@@ -236,27 +234,6 @@ void PlantModel::do_step(double t, double h) {
         ctx.log_warning(os.str());
     }
     outside_warned_ = outside;
-}
-
-void PlantModel::save_state(fmi::StateWriter& w) const {
-    const CvodeState& s = integrator_.state();
-    w.put(s.t);
-    w.put_doubles(s.psi, 2);
-    w.put(s.h_next);
-    w.put(outside_warned_);
-}
-
-void PlantModel::load_state(fmi::StateReader& r) {
-    CvodeState s;
-    s.t = r.get<double>();
-    r.get_doubles(s.psi, 2);
-    s.h_next = r.get<double>();
-    const bool warned = r.get<bool>();
-    if (!std::isfinite(s.t) || !std::isfinite(s.psi[0]) || !std::isfinite(s.psi[1]) || !std::isfinite(s.h_next) ||
-        s.h_next < 0)
-        throw fmi::Error("serialised FMU state: the integrator state is not finite");
-    integrator_.set_state(s);
-    outside_warned_ = warned;
 }
 
 }  // namespace ipmsm

@@ -36,8 +36,14 @@ public:
     explicit PlantModel(const fmi::Context& context);
     void exit_initialization();
     void do_step(double t, double h);
-    void save_state(fmi::StateWriter& w) const;
-    void load_state(fmi::StateReader& r);
+    // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
+    template <class Field>
+    void state_fields(Field&& field) {
+        CvodeState s = integrator_.state();
+        field(s.t), field(s.psi), field(s.h_next);
+        integrator_.set_state(s);  // what was read in; the same state when the fields were written
+        field(outside_warned_);
+    }
 
     // --- inputs
     double u_d = 0.0, u_q = 0.0;   // V
@@ -79,7 +85,7 @@ private:
     void update_outputs(const DqFluxOde& ode);
     CvodeSettings settings() const;
 
-    std::shared_ptr<const fmi::Context> context_;
+    fmi::SharedContext context_;
     std::shared_ptr<const FluxMap> map_;
     std::shared_ptr<const InverseFluxMap> inverse_;
     CvodeIntegrator integrator_;

@@ -60,7 +60,7 @@ const std::vector<V>& ControllerModel::variables() {
     return table;
 }
 
-ControllerModel::ControllerModel(const fmi::Context& context) : context_(&context) {}
+ControllerModel::ControllerModel(const fmi::Context& context) : context_(fmi::share(context)) {}
 
 void ControllerModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.
@@ -159,17 +159,10 @@ void ControllerModel::initial_outputs() {
 void ControllerModel::do_step(double /*t*/, double h) {
     const Conditions c = conditions();
     const MagnetFlux flux(*map_, c.shift);
-    // The step changes only the solver's warm starts and the regulator's state: keep them to
-    // undo a failing step (the outputs are written only at the end).
-    const SolverMemory memory = solver_->memory;
-    const RegulatorState regulator = regulator_.state;
     const CurrentCommand cmd = current_command(c);
     const VoltageCommand u = regulator_.step(cmd.i_d, cmd.i_q, i_d, i_q, c.omega, u_dc, h, flux);
-    if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q))) {
-        solver_->memory = memory;
-        regulator_.state = regulator;
+    if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q)))
         throw fmi::Error("the controller produced a non-finite value (inputs out of the flux map's sensible range?)");
-    }
     if (!cmd.feasible && !warned_unreachable_ && context_->log_warning) {
         std::ostringstream os;
         os << "no current within I_max = " << I_max << " A keeps the voltage within V_max = " << c.V_max
@@ -181,47 +174,6 @@ void ControllerModel::do_step(double /*t*/, double h) {
     u_q_ref = u.u_q;
     voltage_saturated = u.limited;
     publish(cmd, flux);
-}
-
-// Field by field (never whole structs: their padding bytes would carry garbage into the state).
-void ControllerModel::save_state(fmi::StateWriter& w) const {
-    const SolverMemory m = solver_ ? solver_->memory : SolverMemory{};
-    for (double x : {m.op_i_d, m.op_i_q, m.limit_i_d, m.limit_i_q}) w.put(x);
-    w.put(m.has_limit);
-    const RegulatorState& r = regulator_.state;
-    for (double x : {r.v_d, r.v_q, r.u_d_prev, r.u_q_prev, r.psi_ref_d, r.psi_ref_q}) w.put(x);
-    w.put(r.primed);
-    w.put(warned_unreachable_);
-    const CommandCache& c = cache_;
-    w.put(c.valid);
-    for (double x : {c.T_ref, c.w_m, c.u_dc, c.T_magnet, c.cmd.i_d, c.cmd.i_q, c.cmd.torque, c.cmd.torque_max}) w.put(x);
-    w.put(static_cast<int>(c.cmd.region));
-    w.put(c.cmd.iterations);
-    w.put(c.cmd.feasible);
-    w.put(c.cmd.converged);
-}
-
-void ControllerModel::load_state(fmi::StateReader& rd) {
-    SolverMemory m;
-    for (double* x : {&m.op_i_d, &m.op_i_q, &m.limit_i_d, &m.limit_i_q}) *x = rd.get<double>();
-    m.has_limit = rd.get<bool>();
-    RegulatorState r;
-    for (double* x : {&r.v_d, &r.v_q, &r.u_d_prev, &r.u_q_prev, &r.psi_ref_d, &r.psi_ref_q}) *x = rd.get<double>();
-    r.primed = rd.get<bool>();
-    const bool warned = rd.get<bool>();
-    CommandCache c;
-    c.valid = rd.get<bool>();
-    for (double* x : {&c.T_ref, &c.w_m, &c.u_dc, &c.T_magnet, &c.cmd.i_d, &c.cmd.i_q, &c.cmd.torque, &c.cmd.torque_max})
-        *x = rd.get<double>();
-    c.cmd.region = static_cast<Region>(rd.get<int>());
-    c.cmd.iterations = rd.get<int>();
-    c.cmd.feasible = rd.get<bool>();
-    c.cmd.converged = rd.get<bool>();
-    // All read: commit.
-    if (solver_) solver_->memory = m;
-    regulator_.state = r;
-    warned_unreachable_ = warned;
-    cache_ = c;
 }
 
 }  // namespace ipmsm

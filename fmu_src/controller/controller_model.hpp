@@ -30,8 +30,21 @@ public:
     explicit ControllerModel(const fmi::Context& context);
     void exit_initialization();
     void do_step(double t, double h);
-    void save_state(fmi::StateWriter& w) const;
-    void load_state(fmi::StateReader& r);
+    // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
+    template <class Field>
+    void state_fields(Field&& field) {
+        SolverMemory unused;  // before initialisation there is no solver, and no memory to keep
+        SolverMemory& m = solver_ ? solver_->memory : unused;
+        field(m.op_i_d), field(m.op_i_q), field(m.limit_i_d), field(m.limit_i_q), field(m.has_limit);
+        RegulatorState& r = regulator_.state;
+        field(r.v_d), field(r.v_q), field(r.u_d_prev), field(r.u_q_prev), field(r.psi_ref_d), field(r.psi_ref_q);
+        field(r.primed);
+        field(warned_unreachable_);
+        CommandCache& c = cache_;
+        field(c.valid), field(c.T_ref), field(c.w_m), field(c.u_dc), field(c.T_magnet);
+        field(c.cmd.i_d), field(c.cmd.i_q), field(c.cmd.torque), field(c.cmd.torque_max), field(c.cmd.region);
+        field(c.cmd.iterations), field(c.cmd.feasible), field(c.cmd.converged);
+    }
 
     // --- inputs
     double T_ref = 0.0;         // N.m
@@ -90,7 +103,7 @@ private:
     };
     CommandCache cache_;
 
-    const fmi::Context* context_;  // owned by the FMI instance, which outlives every copy of the model
+    fmi::SharedContext context_;
     std::shared_ptr<const FluxMap> map_;
     std::shared_ptr<const TorqueTable> table_;
     std::optional<SaturatedOptimalCurrent> solver_;  // its warm-start memory is state

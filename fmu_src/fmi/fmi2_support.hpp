@@ -1,4 +1,4 @@
-// Small pieces shared by the FMI 2.0 glue (fmi2_glue.hpp) and the model-description generator
+// Small pieces shared by the FMI 2.0 glue and the model-description generator
 // (model_description.hpp): instance states, log categories, resource-URI parsing, number text.
 // Nothing here depends on a model or on the FMI C headers.
 #pragma once

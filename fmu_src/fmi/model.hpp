@@ -1,4 +1,4 @@
-// What an FMU's model must provide to the shared FMI 2.0 glue (fmi2_glue.hpp).
+// What an FMU's model must provide to the shared FMI 2.0 glue (README.md in this folder).
 //
 // A model is a copyable C++ class, free of FMI types:
 //
@@ -14,38 +14,38 @@
 //     explicit MyModel(const fmi::Context& context);  // start values
 //     void exit_initialization();  // parameters are final: validate, load data (may throw)
 //     void do_step(double t, double h);  // one communication step from t to t + h (may throw)
-//     void save_state(fmi::StateWriter& w) const;  // internal state beyond the variables
-//     void load_state(fmi::StateReader& r);
+//     template <class Field>
+//     void state_fields(Field&& field);  // field(x) for every member x of the internal state
 //     ... members named in variables() ...
 //   };
 //
 // Contract with the glue:
 // - Exceptions are the only error channel: the glue turns fmi::Error and std::exception into
-//   fmi2Error plus a log message, at one boundary. A throwing call must leave the model as it was
-//   (compute into locals, commit at the end), so that the instance stays usable.
+//   fmi2Error plus a log message, at one boundary.
+// - Undo is the glue's: before exit_initialization() and do_step() it copy-assigns the model,
+//   and puts that copy back if the call throws or leaves an output or local Real non-finite. A
+//   model may therefore fail half-way; it must keep copy-assignment cheap (it runs once per
+//   communication step: large read-only data behind std::shared_ptr<const T>).
+// - The FMU state is the variables (the table) plus the internal state that state_fields()
+//   lists, once, in a fixed order: plain members (double, int, bool, an enum, or a fixed-size
+//   array of them) that a step changes beyond the variables. fmi2GetFMUstate copies the whole
+//   model; serialisation writes the variables and these fields (fmu_state.hpp). Data that
+//   exit_initialization() loads is not state: the glue loads it again when it deserialises a
+//   state into an instance that is not initialised (it sets the saved values, calls
+//   exit_initialization(), sets them again, then the fields).
 // - fmi2Reset replaces the model with a fresh MyModel(context).
-// - fmi2GetFMUstate copies the model (copy constructor): keep large read-only data behind
-//   std::shared_ptr<const T>. Serialisation writes every variable's value plus save_state().
-// - Before each do_step and exit_initialization the glue copy-assigns the model to a scratch copy,
-//   and swaps it back if the call throws or leaves an output or local Real non-finite: keep
-//   copy-assignment cheap (it runs once per communication step) and swap non-throwing.
 // - exit_initialization() may also run on a copy of the model in Initialization Mode, to answer a
 //   Get of an output (InitialUnknowns) before fmi2ExitInitializationMode: it must have no effect
 //   outside the model object but its log messages (which the glue mutes there).
 // - The glue validates values before the model sees them: type, causality and state rules,
 //   finite Reals, [min, max] from the table. exit_initialization() checks what depends on
 //   several values (or on data).
-// - Deserialising a state saved after initialisation into an instance not yet initialised: the
-//   glue sets the saved values, calls exit_initialization() (to load data), sets the saved values
-//   again, then load_state().
 #pragma once
 
-#include <cstdint>
-#include <cstring>
 #include <functional>
+#include <memory>
 #include <stdexcept>
 #include <string>
-#include <vector>
 
 namespace fmi {
 
@@ -54,7 +54,9 @@ struct Error : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
-// What the model may use of its environment.
+// What the model may use of its environment. The instance makes it; a model keeps it as a
+// SharedContext (below), so that every copy of the model (undo copy, FMU states) and a model
+// made outside an instance (tests, benchmarks) refer to a context that lives as long as they do.
 struct Context {
     std::string instance_name;
     std::string resource_dir;  // local path of the FMU's resources/ folder, "" if unknown
@@ -62,63 +64,8 @@ struct Context {
     std::function<void(const std::string&)> log_warning;  // category logStatusWarning
 };
 
-// Byte stream for FMU-state serialisation of a model's internal state.
-class StateWriter {
-public:
-    explicit StateWriter(std::vector<char>& out) : out_(out) {}
-    template <class T>
-    void put(const T& v) {
-        static_assert(std::is_trivially_copyable_v<T>, "put() takes plain values");
-        const char* p = reinterpret_cast<const char*>(&v);
-        out_.insert(out_.end(), p, p + sizeof(T));
-    }
-    void put_doubles(const double* v, std::size_t n) {
-        put<std::uint64_t>(n);
-        const char* p = reinterpret_cast<const char*>(v);
-        out_.insert(out_.end(), p, p + n * sizeof(double));
-    }
-    void put_string(const std::string& s) {
-        put<std::uint64_t>(s.size());
-        out_.insert(out_.end(), s.begin(), s.end());
-    }
-
-private:
-    std::vector<char>& out_;
-};
-
-class StateReader {
-public:
-    StateReader(const char* data, std::size_t size) : p_(data), end_(data + size) {}
-    template <class T>
-    T get() {
-        static_assert(std::is_trivially_copyable_v<T>, "get() takes plain values");
-        need(sizeof(T));
-        T v;
-        std::memcpy(&v, p_, sizeof(T));
-        p_ += sizeof(T);
-        return v;
-    }
-    void get_doubles(double* v, std::size_t n) {
-        if (get<std::uint64_t>() != n) throw Error("serialised FMU state: array size mismatch");
-        need(n * sizeof(double));
-        std::memcpy(v, p_, n * sizeof(double));
-        p_ += n * sizeof(double);
-    }
-    std::string get_string() {
-        const auto n = get<std::uint64_t>();
-        need(n);
-        std::string s(p_, p_ + n);
-        p_ += n;
-        return s;
-    }
-    bool at_end() const { return p_ == end_; }
-
-private:
-    void need(std::size_t n) const {
-        if (static_cast<std::size_t>(end_ - p_) < n) throw Error("serialised FMU state is truncated");
-    }
-    const char* p_;
-    const char* end_;
-};
+// How a model holds its Context: shared by all its copies, read-only.
+using SharedContext = std::shared_ptr<const Context>;
+inline SharedContext share(const Context& c) { return std::make_shared<const Context>(c); }
 
 }  // namespace fmi

@@ -4,10 +4,9 @@
 // causality/variability combinations, types, units, ranges, finite start values) and fails with a
 // list of the problems, which fails the build.
 //
-// An FMU's generator executable is one line (add_fmu builds it from the FMU's own .cpp, where
-// IPMSM_FMI2_EXPORT expands to this when IPMSM_FMI2_GENERATOR is defined):
-//
-//     IPMSM_FMI2_MODEL_DESCRIPTION_MAIN(MyModel)   // main: `gen [out.xml] [--html table.html]`
+// An FMU's generator executable is its own .cpp compiled with IPMSM_FMI2_GENERATOR (add_fmu does
+// that), where fmi2_entry_points.inc defines main() as model_description_main<MyModel>:
+// `gen [out.xml] [--html table.html]`.
 //
 // `--html` also writes the variable reference (an HTML <section> with one table row per variable:
 // name, value reference, causality, variability, type, unit, start, range, description), which
@@ -26,7 +25,6 @@
 #include <string>
 #include <vector>
 
-#include "fmi2_glue.hpp"
 #include "fmi2_support.hpp"
 #include "model.hpp"
 #include "variable.hpp"
@@ -160,11 +158,11 @@ std::string table_problems(const M& defaults) {
     return p.str();
 }
 
-// The glue's value_text, but a String bare and escaped (it goes into an attribute).
+// value_text, but a String bare and escaped (it goes into an attribute).
 template <class M>
 std::string start_text(const M& m, const Variable<M>& v) {
     if (type_of(v) == Type::String) return xml_escape(m.*std::get<std::string M::*>(v.member));
-    return glue::value_text(m, v);
+    return value_text(m, v);
 }
 
 }  // namespace detail
@@ -344,6 +342,3 @@ int model_description_main(int argc, char** argv) {
 }
 
 }  // namespace fmi
-
-#define IPMSM_FMI2_MODEL_DESCRIPTION_MAIN(Model) \
-    int main(int argc, char** argv) { return ::fmi::model_description_main<Model>(argc, argv); }

@@ -22,6 +22,7 @@
 #include "machine/inverse_flux_map.hpp"
 #include "ipmsm_ode.hpp"
 #include "plant_model.hpp"
+#include "state_stream.hpp"
 
 using namespace ipmsm;
 
@@ -358,14 +359,10 @@ TEST(PlantModel, CopySaveAndLoadAreExact) {
         m.do_step(k * 1e-4, 1e-4);
     }
     PlantModel copy(m);
-    std::vector<char> bytes;
-    fmi::StateWriter w(bytes);
-    m.save_state(w);
+    const std::vector<char> bytes = fmi::save_state_fields(m);
     PlantModel restored(context_with());  // a fresh instance, as fmi2DeSerializeFMUstate makes
     restored.exit_initialization();
-    fmi::StateReader r(bytes.data(), bytes.size());
-    restored.load_state(r);
-    EXPECT_TRUE(r.at_end());
+    fmi::load_state_fields(restored, bytes.data(), bytes.size());
     for (int k = 40; k < 100; ++k) {
         for (PlantModel* x : {&m, &copy, &restored}) {
             inputs(*x, k, 900.0);

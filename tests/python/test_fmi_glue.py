@@ -379,6 +379,59 @@ def test_bad_steps_refused(toys, t, h, match):
     assert a.get("steps") == 1
 
 
+# --- time: a step continues where the last one ended ---
+
+WALL_CLOCK = 1.7e9  # s: a start time of masters synchronised to the Unix epoch
+
+
+@pytest.mark.parametrize("start, gap", [
+    (0.0, 1e-10),          # a tenth of a nanosecond late (the former tolerance was 1 ns there)
+    (0.0, -0.005),         # half a step back: overlapping the last step
+    (WALL_CLOCK, 0.01),    # one whole step skipped (the former tolerance was 1.7 s there)
+    (WALL_CLOCK, -0.005),
+])
+def test_a_communication_point_that_does_not_follow_the_last_is_refused(toys, start, gap):
+    a = toys()
+    a.fmu.setupExperiment(startTime=start)
+    a.fmu.enterInitializationMode()
+    a.fmu.exitInitializationMode()
+    h = 0.01
+    a.fmu.doStep(start, h)
+    t = start + h
+    before = a.outputs()
+    e = refused(a, a.fmu.doStep, t + gap, h, match="previous step ended at")
+    assert e.function == "fmi2DoStep"
+    assert same([a.outputs()], [before]) and a.get("steps") == 1  # nothing happened
+    assert a.fmu.getRealStatus(fmi2LastSuccessfulTime) == t
+    a.fmu.doStep(t, h)  # the instance stays usable
+    assert a.get("steps") == 2
+
+
+@pytest.mark.parametrize("start", [0.0, -3.3, 12345.678, WALL_CLOCK])
+@pytest.mark.parametrize("h", [1e-5, 1e-4, 1.0 / 3.0])
+def test_masters_that_count_their_steps_are_accepted(toys, start, h):
+    """The tolerance is as tight as rounding allows but no tighter: masters that compute
+    t_k = start + k h (numpy.linspace) rather than adding up h are never refused."""
+    a = toys()
+    a.fmu.setupExperiment(startTime=start)
+    a.set(tau=1e6)  # no "longer than tau" warning
+    a.fmu.enterInitializationMode()
+    a.fmu.exitInitializationMode()
+    n = 3000
+    counted = start + np.arange(n) * h
+    grid = np.linspace(start, start + n * h, n + 1)
+    for t in counted:
+        a.fmu.doStep(float(t), h)
+    b = toys(name="b")
+    b.fmu.setupExperiment(startTime=start)
+    b.set(tau=1e6)
+    b.fmu.enterInitializationMode()
+    b.fmu.exitInitializationMode()
+    for k in range(n):  # a time grid stepped by its own differences
+        b.fmu.doStep(float(grid[k]), float(grid[k + 1] - grid[k]))
+    assert a.get("steps") == n and b.get("steps") == n
+
+
 # --- model failures ---
 
 @pytest.mark.parametrize("fault, match", [

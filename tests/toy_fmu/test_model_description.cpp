@@ -39,8 +39,8 @@ struct Bad {
     explicit Bad(const fmi::Context&) {}
     void exit_initialization() {}
     void do_step(double, double) {}
-    void save_state(fmi::StateWriter&) const {}
-    void load_state(fmi::StateReader&) {}
+    template <class Field>
+    void state_fields(Field&&) {}
 
     double a = 0.0, b = std::nan(""), c = 5.0;
     int n = 0;
@@ -67,8 +67,8 @@ struct Small {
     explicit Small(const fmi::Context&) {}
     void exit_initialization() {}
     void do_step(double, double) {}
-    void save_state(fmi::StateWriter&) const {}
-    void load_state(fmi::StateReader&) {}
+    template <class Field>
+    void state_fields(Field&&) {}
 
     double u_dc = 400.0;
     int count = 10000000;

@@ -10,7 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "fmi2_glue.hpp"
+#include "model.hpp"
+#include "variable.hpp"
 
 class ToyLag {
 public:
@@ -48,16 +49,16 @@ public:
         return v;
     }
 
-    explicit ToyLag(const fmi::Context& context) : context_(context) {}
+    explicit ToyLag(const fmi::Context& context) : context_(fmi::share(context)) {}
 
     void exit_initialization() {
         offset_ = 0.0;
         if (!offset_file.empty()) {
-            if (context_.resource_dir.empty()) throw fmi::Error("offset_file is set but the FMU has no resources directory");
-            const std::string path = context_.resource_dir + "/" + offset_file;
+            if (context_->resource_dir.empty()) throw fmi::Error("offset_file is set but the FMU has no resources directory");
+            const std::string path = context_->resource_dir + "/" + offset_file;
             std::ifstream f(path);
             if (!(f >> offset_)) throw fmi::Error("cannot read a number from " + path);
-            context_.log_info("offset " + std::to_string(offset_) + " from " + path);
+            context_->log_info("offset " + std::to_string(offset_) + " from " + path);
         }
         state_ = y0;
         outputs();
@@ -75,7 +76,7 @@ public:
                 default: throw std::bad_alloc();
             }
         }
-        if (h > tau) context_.log_warning("step " + std::to_string(h) + " s is longer than tau");
+        if (h > tau) context_->log_warning("step " + std::to_string(h) + " s is longer than tau");
         y_prev = y;
         if (!hold) {
             const double a = std::exp(-(h / n_sub) / tau), target = k * u;
@@ -87,8 +88,10 @@ public:
         outputs();
     }
 
-    void save_state(fmi::StateWriter& w) const { w.put(state_); }
-    void load_state(fmi::StateReader& r) { state_ = r.get<double>(); }
+    template <class Field>
+    void state_fields(Field&& field) {
+        field(state_);
+    }
 
     double u = 0.0, w = 0.0;
     bool hold = false;
@@ -107,9 +110,10 @@ private:
         y = state_ + offset_;
         T_out = T_amb + y;
     }
-    fmi::Context context_;
-    double state_ = 0.0;   // the lag's state without offset: saved by save_state()
+    fmi::SharedContext context_;
+    double state_ = 0.0;   // the lag's state without offset: listed by state_fields()
     double offset_ = 0.0;  // loaded data: not saved, exit_initialization() reads it again
 };
 
-IPMSM_FMI2_EXPORT(ToyLag)
+using ExportedModel = ToyLag;
+#include "fmi2_entry_points.inc"

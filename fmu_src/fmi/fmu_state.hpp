@@ -1,0 +1,147 @@
+// Serialised FMU states (fmi2SerializeFMUstate, fmi2DeSerializeFMUstate); the format is in
+// README.md of this folder. A model's part is its variables (the table) and its internal state
+// (state_fields(), model.hpp), both written and read by the same lists.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <type_traits>
+#include <variant>
+#include <vector>
+
+#include "fmi2_support.hpp"
+#include "instance.hpp"
+#include "state_stream.hpp"
+#include "variable.hpp"
+
+namespace fmi {
+
+namespace glue {
+
+inline constexpr char kStateMagic[8] = {'I', 'P', 'M', 'S', 'M', 'F', 'S', 'T'};
+inline constexpr std::uint32_t kStateFormat = 2;
+
+// The variables of a model, each as its type's index then its value.
+template <class M>
+void write_variables(StateWriter& w, const M& m) {
+    const auto& vars = variables<M>();
+    w.put<std::uint64_t>(vars.size());
+    for (const auto& v : vars) {
+        w.put<std::uint8_t>(static_cast<std::uint8_t>(v.member.index()));
+        std::visit(
+            [&](auto p) {
+                using T = std::decay_t<decltype(m.*p)>;
+                if constexpr (std::is_same_v<T, std::string>) w.put_string(m.*p);
+                else if constexpr (std::is_same_v<T, bool>) w.put<std::uint8_t>(m.*p ? 1 : 0);
+                else if constexpr (std::is_same_v<T, int>) w.put<std::int32_t>(m.*p);
+                else w.put<double>(m.*p);
+            },
+            v.member);
+    }
+}
+
+// Reads what write_variables() wrote into m; throws fmi::Error naming the variable.
+template <class M>
+void read_variables(StateReader& r, M& m, const char* what) {
+    const auto& vars = variables<M>();
+    if (const auto n = r.get<std::uint64_t>(); n != vars.size())
+        throw Error(std::string(what) + " has " + std::to_string(n) + " variables; this FMU has " +
+                    std::to_string(vars.size()));
+    for (const auto& v : vars) {
+        if (r.get<std::uint8_t>() != v.member.index())
+            throw Error(std::string(what) + ": variable " + v.name + " has another type");
+        std::visit(
+            [&](auto p) {
+                using T = std::decay_t<decltype(m.*p)>;
+                if constexpr (std::is_same_v<T, std::string>) m.*p = r.get_string();
+                else if constexpr (std::is_same_v<T, bool>) m.*p = r.get<std::uint8_t>() != 0;
+                else if constexpr (std::is_same_v<T, int>) m.*p = r.get<std::int32_t>();
+                else {
+                    m.*p = r.get<double>();
+                    if (!std::isfinite(m.*p)) throw Error(std::string(what) + ": variable " + v.name + " is not finite");
+                }
+            },
+            v.member);
+    }
+}
+
+template <class M>
+std::vector<char> serialise(Snapshot<M>& s) {
+    std::vector<char> out(kStateMagic, kStateMagic + sizeof kStateMagic);
+    StateWriter w(out);
+    w.put<std::uint32_t>(kStateFormat);
+    w.put_string(M::model_identifier);
+    w.put_string(M::guid);
+    w.put<std::uint8_t>(static_cast<std::uint8_t>(s.phase));
+    w.put<double>(s.start_time);
+    w.put<double>(s.time);
+    write_variables(w, s.model);
+    const std::vector<char> block = save_state_fields(s.model);
+    w.put_string(std::string(block.begin(), block.end()));
+    w.put<std::uint64_t>(fnv1a(out.data(), out.size()));
+    return out;
+}
+
+// Reads a serialised state made by serialise() for the instance `in`; throws fmi::Error.
+template <class M>
+std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data, std::size_t size) {
+    const char* what = "the serialised FMU state";
+    if (size < sizeof kStateMagic + sizeof(std::uint64_t))
+        throw Error(std::string(what) + " is truncated (" + std::to_string(size) + " bytes)");
+    if (std::memcmp(data, kStateMagic, sizeof kStateMagic) != 0)
+        throw Error(std::string(what) + " is not one (it does not start with the ipmsm-fmu state header)");
+    std::uint64_t stored;
+    std::memcpy(&stored, data + size - sizeof stored, sizeof stored);
+    if (stored != fnv1a(data, size - sizeof stored))
+        throw Error(std::string(what) + " is corrupt or truncated (checksum mismatch)");
+    StateReader r(data + sizeof kStateMagic, size - sizeof kStateMagic - sizeof stored);
+    if (const auto format = r.get<std::uint32_t>(); format != kStateFormat)
+        throw Error(std::string(what) + " has format " + std::to_string(format) + "; this FMU reads format " +
+                    std::to_string(kStateFormat));
+    const std::string id = r.get_string(), guid = r.get_string();
+    if (id != M::model_identifier || guid != M::guid)
+        throw Error(std::string(what) + " belongs to " + id + " " + guid + ", not to " + M::model_identifier +
+                    " " + M::guid);
+    const auto phase_value = r.get<std::uint8_t>();
+    if (phase_value < static_cast<std::uint8_t>(Phase::instantiated) ||
+        phase_value > static_cast<std::uint8_t>(Phase::terminated))
+        throw Error(std::string(what) + " has an invalid instance state (" + std::to_string(phase_value) + ")");
+    const auto phase = static_cast<Phase>(phase_value);
+    const double start_time = r.get<double>(), time = r.get<double>();
+    if (!std::isfinite(start_time) || !std::isfinite(time)) throw Error(std::string(what) + " has a non-finite time");
+
+    M m = in.model;
+    read_variables(r, m, what);
+    std::string mismatch;
+    for (const auto& v : variables<M>()) {
+        if (v.causality != Causality::parameter || v.variability != Variability::fixed) continue;
+        const std::string there = value_text(m, v), here = value_text(in.model, v);
+        if (there != here)
+            mismatch += std::string(mismatch.empty() ? "" : ", ") + v.name + " = " + there + " there, " + here + " here";
+    }
+    if (!mismatch.empty())
+        throw Error(std::string(what) + " was saved with other fixed parameters than this instance has (" +
+                    mismatch + "); set the same parameters before fmi2DeSerializeFMUstate");
+
+    const bool saved_initialised = phase == Phase::step_complete || phase == Phase::terminated;
+    const bool here_initialised = in.phase == Phase::step_complete || in.phase == Phase::terminated;
+    if (saved_initialised && !here_initialised) {
+        // The model's data (loaded by exit_initialization) is not in the state: load it with the
+        // saved parameters, then put the saved values back.
+        M initialised = m;
+        initialised.exit_initialization();
+        for (const auto& v : variables<M>()) std::visit([&](auto p) { initialised.*p = m.*p; }, v.member);
+        m = std::move(initialised);
+    }
+
+    const std::string block = r.get_string();
+    load_state_fields(m, block.data(), block.size());
+    if (!r.at_end()) throw Error(std::string(what) + " has trailing bytes");
+    return std::unique_ptr<Snapshot<M>>(new Snapshot<M>{std::move(m), phase, start_time, time, {}});
+}
+
+}  // namespace glue
+}  // namespace fmi

@@ -1,0 +1,214 @@
+// One FMU instance (an fmi2Component): the model, where the instance is in the FMI state machine
+// and in time, its logging, and the undo of a failed model call. README.md in this folder says
+// what the glue does with it.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <exception>
+#include <memory>
+#include <new>
+#include <string>
+#include <unordered_set>
+#include <utility>
+#include <vector>
+
+#include "fmi2Functions.h"
+#include "fmi2_support.hpp"
+#include "model.hpp"
+#include "variable.hpp"
+
+namespace fmi::glue {
+
+template <class M>
+const std::vector<Variable<M>>& variables() {
+    static const std::vector<Variable<M>>& table = M::variables();
+    return table;
+}
+
+// Real variables the model computes (outputs and locals): they must stay finite.
+template <class M>
+const std::vector<const Variable<M>*>& computed_reals() {
+    static const std::vector<const Variable<M>*> list = [] {
+        std::vector<const Variable<M>*> l;
+        for (const auto& v : variables<M>())
+            if (type_of(v) == Type::Real && is_computed(v.causality)) l.push_back(&v);
+        return l;
+    }();
+    return list;
+}
+
+// --- logging ---
+inline constexpr unsigned bit(LogCategory c) { return 1u << static_cast<unsigned>(c); }
+// loggingOn = true without a list of categories: everything but the call trace.
+inline constexpr unsigned default_categories = bit(LogCategory::events) | bit(LogCategory::warning) |
+                                               bit(LogCategory::discard) | bit(LogCategory::error) |
+                                               bit(LogCategory::fatal);
+
+inline void call_logger(fmi2CallbackLogger logger, fmi2ComponentEnvironment env, const char* instance,
+                        fmi2Status status, LogCategory category, const std::string& message) noexcept {
+    if (logger == nullptr) return;
+    try {
+        std::string text;  // the logger treats the message as a printf format
+        text.reserve(message.size() + 8);
+        for (char ch : message) {
+            text += ch;
+            if (ch == '%') text += '%';
+        }
+        logger(env, instance != nullptr ? instance : "", status,
+               log_categories[static_cast<unsigned>(category)].name, text.c_str());
+    } catch (...) {
+    }
+}
+
+// An FMU state (fmi2FMUstate): a copy of the model plus where the instance was.
+template <class M>
+struct Snapshot {
+    M model;
+    Phase phase;
+    double start_time;
+    double time;
+    std::vector<char> bytes;  // the serialised form, made on the first request
+};
+
+template <class M>
+class Instance {
+public:
+    // First member: lets the glue recognise its own instances (and not the other FMU's).
+    static constexpr std::uint64_t kTag = fnv1a(M::guid) ^ 0x494e5354414e4345ull;
+    std::uint64_t tag = kTag;
+
+    const std::string name;
+    const fmi2CallbackLogger logger;
+    const fmi2ComponentEnvironment environment;
+    unsigned categories;  // enabled log categories, bit(LogCategory)
+    bool warned = false;  // the model logged a warning during the current call
+
+    const Context context;  // what fresh models (fmi2Reset) are made with
+    M model;
+    Phase phase = Phase::instantiated;
+    double start_time = 0.0;  // fmi2SetupExperiment's startTime
+    double time = 0.0;        // where the next step starts
+
+    std::vector<std::string> strings;  // what fmi2GetString returned last
+    std::unique_ptr<M> initial;  // Initialization Mode: the model as exit_initialization() leaves it
+    std::unordered_set<Snapshot<M>*> snapshots;
+
+    Instance(const char* instance_name, fmi2CallbackLogger log, fmi2ComponentEnvironment env,
+             bool logging_on, std::string resource_dir)
+        : name(instance_name),
+          logger(log),
+          environment(env),
+          categories(logging_on ? default_categories : 0u),
+          context(make_context(std::move(resource_dir))),
+          model(context),
+          backup_(model) {}
+
+    ~Instance() {
+        for (auto* s : snapshots) delete s;
+        *static_cast<volatile std::uint64_t*>(&tag) = 0;  // best effort against a freed component
+    }
+    Instance(const Instance&) = delete;
+    Instance& operator=(const Instance&) = delete;
+
+    void log(fmi2Status status, LogCategory category, const std::string& message) noexcept {
+        const bool always = status == fmi2Error || status == fmi2Fatal;
+        if (!always && !(categories & (bit(category) | bit(LogCategory::all)))) return;
+        call_logger(logger, environment, name.c_str(), status, category, message);
+    }
+    bool tracing() const { return (categories & bit(LogCategory::all)) != 0; }
+
+    static double value_of(const M& m, const Variable<M>* v) { return m.*std::get<double M::*>(v->member); }
+    // The first computed Real of m that is not finite, or nullptr.
+    static const Variable<M>* first_non_finite(const M& m) {
+        for (const Variable<M>* v : computed_reals<M>())
+            if (!std::isfinite(value_of(m, v))) return v;
+        return nullptr;
+    }
+
+    // The undo: runs f (a model call) so that, if it throws or leaves a computed Real non-finite,
+    // the model is as before (the glue's copy of it is put back). what() describes the call for
+    // the log; it is called only on failure (a step's description costs as much as the glue's
+    // whole per-step work otherwise).
+    template <class F, class W>
+    void undoable(F&& f, W&& what) {
+        backup_ = model;
+        try {
+            f();
+            if (const Variable<M>* v = first_non_finite(model))
+                throw Error(std::string("the model computed ") + v->name + " = " + number_text(value_of(model, v)) +
+                            ", not a finite number");
+        } catch (const std::bad_alloc&) {
+            restore();
+            throw;
+        } catch (const std::exception& e) {
+            restore();
+            throw Error(undone(e.what(), what()));
+        } catch (...) {
+            restore();
+            throw Error(undone("unknown exception (not a std::exception)", what()));
+        }
+    }
+
+    // Initialization Mode: the model as fmi2ExitInitializationMode will leave it, for the Get of an
+    // output or local (README.md). Computed on a copy, with the model's logging muted; kept until
+    // a Set, fmi2SetFMUstate, fmi2Reset or fmi2ExitInitializationMode drops it.
+    const M& initial_model() {
+        if (initial) return *initial;
+        auto m = std::make_unique<M>(model);
+        struct Mute {
+            bool& q;
+            explicit Mute(bool& flag) : q(flag) { q = true; }
+            ~Mute() { q = false; }
+        } mute(quiet_);
+        const char* why = "the outputs cannot be computed in Initialization Mode with the values set so far: ";
+        try {
+            m->exit_initialization();
+        } catch (const std::bad_alloc&) {
+            throw;
+        } catch (const std::exception& e) {
+            throw Error(why + std::string(e.what()) + " (fmi2ExitInitializationMode would fail the same way)");
+        } catch (...) {
+            throw Error(why + std::string("unknown exception (not a std::exception)"));
+        }
+        if (const Variable<M>* v = first_non_finite(*m))
+            throw Error(why + std::string("the model computes ") + v->name + " = " + number_text(value_of(*m, v)));
+        initial = std::move(m);
+        return *initial;
+    }
+
+private:
+    M backup_;            // the model before the call undoable() runs
+    bool quiet_ = false;  // the model's log messages are dropped (while computing `initial`)
+
+    Context make_context(std::string resource_dir) {
+        Context c;
+        c.instance_name = name;
+        c.resource_dir = std::move(resource_dir);
+        c.log_info = [this](const std::string& m) {
+            if (!quiet_) log(fmi2OK, LogCategory::events, m);
+        };
+        c.log_warning = [this](const std::string& m) {
+            if (quiet_) return;
+            warned = true;
+            log(fmi2Warning, LogCategory::warning, m);
+        };
+        return c;
+    }
+
+    std::string undone(const std::string& cause, const std::string& what) const {
+        if (phase == Phase::error) return cause + " [" + what + "; the model could not be restored: state error]";
+        return cause + " [" + what + " was undone: the instance is as before the call and can be used again]";
+    }
+
+    void restore() noexcept {
+        try {
+            using std::swap;
+            swap(model, backup_);
+        } catch (...) {
+            phase = Phase::error;
+        }
+    }
+};
+
+}  // namespace fmi::glue
