@@ -19,7 +19,8 @@ set --
 source scripts/setup.sh
 bash scripts/sanitize.sh
 echo "[test] lint"
-bash scripts/lint.sh
+lint_status=0
+bash scripts/lint.sh || lint_status=$?  # reported at the end: a style slip does not hide test results
 echo "[test] C++ unit tests"
 ctest --test-dir build --output-on-failure -j "$(nproc)"
 echo "[test] Python system tests"
@@ -27,3 +28,7 @@ if [ "$has_mark" = 0 ]; then
   pytest_args=(-m "not slow" "${pytest_args[@]}")
 fi
 IPMSM_REQUIRE_SANITIZERS=1 python -m pytest tests/python "${pytest_args[@]}"
+if [ "$lint_status" != 0 ]; then
+  echo "[test] the tests passed but the lint step failed (above; scripts/format_all.sh fixes most)" >&2
+  exit "$lint_status"
+fi

@@ -15,8 +15,9 @@ STEPS = ("setup.sh", "sanitize.sh", "lint.sh")  # scripts/ of test.sh and run.sh
 COMMANDS = ("ctest", "python")                  # on PATH once the set-up has run
 
 
-def _run(tmp_path, script: str, *args: str) -> list[str]:
-    """Run a copy of `script` with stubbed steps; the lines the steps logged ("name: argc: args")."""
+def _run(tmp_path, script: str, *args: str, lint_status: int = 0) -> list[str]:
+    """Run a copy of `script` with stubbed steps; the lines the steps logged ("name: argc: args").
+    The script must succeed, unless the lint stub is told to fail (then the script must fail)."""
     log = tmp_path / "log"
     (tmp_path / "scripts").mkdir()
     (tmp_path / "bin").mkdir()
@@ -24,12 +25,14 @@ def _run(tmp_path, script: str, *args: str) -> list[str]:
     for name in STEPS:
         # setup.sh is sourced: it sees the caller's positional parameters unless the caller cleared them
         extra = f'export PATH="{tmp_path / "bin"}:$PATH"\n' if name == "setup.sh" else ""
+        extra += f"exit {lint_status}\n" if name == "lint.sh" else ""
         (tmp_path / "scripts" / name).write_text(f'echo "{name}: $#: $*" >> "{log}"\n{extra}')
     for name in COMMANDS:
         stub = tmp_path / "bin" / name
         stub.write_text(f'#!/bin/sh\necho "{name}: $#: $*" >> "{log}"\n')
         stub.chmod(0o755)
-    subprocess.run(["bash", str(tmp_path / script), *args], check=True, timeout=60, capture_output=True)
+    r = subprocess.run(["bash", str(tmp_path / script), *args], timeout=60, capture_output=True, text=True)
+    assert (r.returncode == 0) == (lint_status == 0), (r.returncode, r.stderr)
     return log.read_text().splitlines()
 
 
@@ -65,3 +68,9 @@ def test_setup_sources_the_vdmcheck2_installer_with_its_default_destination():
     text = (ROOT / "scripts" / "setup.sh").read_text()
     sources = [line.strip() for line in text.splitlines() if line.strip().startswith("source ")]
     assert sources == ['source scripts/install_vdmcheck2.sh ""'], sources
+
+
+def test_a_lint_failure_fails_test_sh_after_the_tests_ran(tmp_path):
+    lines = _run(tmp_path, "test.sh", lint_status=1)
+    assert any(line.startswith("ctest: ") for line in lines), lines
+    assert _pytest_line(lines).endswith("-m pytest tests/python -m not slow"), lines
