@@ -28,9 +28,9 @@ from pathlib import Path
 import pytest
 from fmpy import extract, read_model_description
 
-from conftest import ROOT, WIN64_BUILT, fmu_path
+from conftest import BUILD_FMU, WIN64_BUILT, fmu_path
 
-BUILD = ROOT / "build"
+BUILD = BUILD_FMU.parent  # the build the FMUs come from: its harness and its win64 half
 WIN64_BUILD = BUILD / "win64"
 NATIVE_HARNESS = BUILD / "bin" / "fmi2_harness"
 WINE_HARNESS = WIN64_BUILD / "bin" / "fmi2_harness.exe"
