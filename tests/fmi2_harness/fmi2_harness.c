@@ -30,15 +30,41 @@
 
 #include "fmi2Functions.h"
 
-#define FMI2_FUNCTIONS(X)                                                                       \
-    X(GetTypesPlatform) X(GetVersion) X(SetDebugLogging) X(Instantiate) X(FreeInstance)         \
-    X(SetupExperiment) X(EnterInitializationMode) X(ExitInitializationMode) X(Terminate)        \
-    X(Reset) X(GetReal) X(GetInteger) X(GetBoolean) X(GetString) X(SetReal) X(SetInteger)       \
-    X(SetBoolean) X(SetString) X(GetFMUstate) X(SetFMUstate) X(FreeFMUstate)                    \
-    X(SerializedFMUstateSize) X(SerializeFMUstate) X(DeSerializeFMUstate)                       \
-    X(GetDirectionalDerivative) X(SetRealInputDerivatives) X(GetRealOutputDerivatives)          \
-    X(DoStep) X(CancelStep) X(GetStatus) X(GetRealStatus) X(GetIntegerStatus)                   \
-    X(GetBooleanStatus) X(GetStringStatus)
+#define FMI2_FUNCTIONS(X)       \
+    X(GetTypesPlatform)         \
+    X(GetVersion)               \
+    X(SetDebugLogging)          \
+    X(Instantiate)              \
+    X(FreeInstance)             \
+    X(SetupExperiment)          \
+    X(EnterInitializationMode)  \
+    X(ExitInitializationMode)   \
+    X(Terminate)                \
+    X(Reset)                    \
+    X(GetReal)                  \
+    X(GetInteger)               \
+    X(GetBoolean)               \
+    X(GetString)                \
+    X(SetReal)                  \
+    X(SetInteger)               \
+    X(SetBoolean)               \
+    X(SetString)                \
+    X(GetFMUstate)              \
+    X(SetFMUstate)              \
+    X(FreeFMUstate)             \
+    X(SerializedFMUstateSize)   \
+    X(SerializeFMUstate)        \
+    X(DeSerializeFMUstate)      \
+    X(GetDirectionalDerivative) \
+    X(SetRealInputDerivatives)  \
+    X(GetRealOutputDerivatives) \
+    X(DoStep)                   \
+    X(CancelStep)               \
+    X(GetStatus)                \
+    X(GetRealStatus)            \
+    X(GetIntegerStatus)         \
+    X(GetBooleanStatus)         \
+    X(GetStringStatus)
 
 static struct {
 #define X(f) fmi2##f##TYPE* f;
@@ -51,8 +77,8 @@ static const char* status_name(fmi2Status s) {
     return (s >= 0 && s <= fmi2Pending) ? names[s] : "invalid-status";
 }
 
-static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status,
-                   fmi2String category, fmi2String message, ...) {
+static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
+                   fmi2String message, ...) {
     (void)env;
     (void)instance;
     char text[4096];
@@ -65,7 +91,7 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
 
 static int load(const char* path) {
 #ifdef _WIN32
-    wchar_t wide[4096];  /* the path is UTF-8: LoadLibraryA would read it in the ANSI code page */
+    wchar_t wide[4096]; /* the path is UTF-8: LoadLibraryA would read it in the ANSI code page */
     if (!MultiByteToWideChar(CP_UTF8, 0, path, -1, wide, 4096)) return 0;
     HMODULE lib = LoadLibraryW(wide);
     if (!lib) {
@@ -82,12 +108,16 @@ static int load(const char* path) {
 #define RESOLVE(name) dlsym(lib, name)
 #endif
     int found = 0, missing = 0;
-#define X(f)                                                 \
-    {                                                        \
-        void* p = RESOLVE("fmi2" #f);                        \
-        memcpy(&fmi.f, &p, sizeof p);                        \
-        if (p) ++found;                                      \
-        else { printf("missing fmi2%s\n", #f); ++missing; } \
+#define X(f)                                \
+    {                                       \
+        void* p = RESOLVE("fmi2" #f);       \
+        memcpy(&fmi.f, &p, sizeof p);       \
+        if (p)                              \
+            ++found;                        \
+        else {                              \
+            printf("missing fmi2%s\n", #f); \
+            ++missing;                      \
+        }                                   \
     }
     FMI2_FUNCTIONS(X)
 #undef X
@@ -95,7 +125,7 @@ static int load(const char* path) {
     return missing == 0;
 }
 
-static char* rest_of_line(char* s) {  /* after the first word; trailing newline removed */
+static char* rest_of_line(char* s) { /* after the first word; trailing newline removed */
     s += strspn(s, " ");
     s += strcspn(s, " \r\n");
     s += strspn(s, " ");
@@ -105,7 +135,7 @@ static char* rest_of_line(char* s) {  /* after the first word; trailing newline 
 
 int main(void) {
 #ifdef _WIN32
-    _setmode(_fileno(stdout), _O_BINARY);  /* "\n" as on Linux */
+    _setmode(_fileno(stdout), _O_BINARY); /* "\n" as on Linux */
 #endif
     setvbuf(stdout, NULL, _IOLBF, 0);
     static char line[8192];
@@ -131,8 +161,7 @@ int main(void) {
         if (strcmp(word, "instantiate") == 0) {
             char guid[256];
             if (sscanf(rest, "%255s", guid) != 1) return printf("plan-error: %s", line), 1;
-            c = fmi.Instantiate("harness", fmi2CoSimulation, guid, rest_of_line(rest), &callbacks,
-                                fmi2False, fmi2True);
+            c = fmi.Instantiate("harness", fmi2CoSimulation, guid, rest_of_line(rest), &callbacks, fmi2False, fmi2True);
             printf("instantiate %s\n", c ? "ok" : "NULL");
             continue;
         } else if (strcmp(word, "setup") == 0) {
