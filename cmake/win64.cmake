@@ -54,6 +54,7 @@ function(ipmsm_add_win64_build)
     INSTALL_COMMAND ""
     BUILD_ALWAYS ON  # the inner build decides what is out of date
     BUILD_BYPRODUCTS ${byproducts}
+    LOG_CONFIGURE ON LOG_OUTPUT_ON_FAILURE ON  # the inner configure's chatter in win64-prefix/
     USES_TERMINAL_BUILD ON)
   foreach(name IN LISTS fmus)
     add_dependencies(${name}_fmu win64)
