@@ -48,13 +48,6 @@ Fields fields_at(const MagnetFlux& flux, double w, double R, double i_d, double 
     return F;
 }
 
-Fields gradients_at(const MagnetFlux& flux, double w, double R, double i_d, double i_q) {
-    return fields_at<false>(flux, w, R, i_d, i_q);
-}
-
-// The z component of a x b.
-double cross(double a_d, double a_q, double b_d, double b_q) { return a_d * b_q - a_q * b_d; }
-
 // One equation and its gradient.
 struct Eq {
     double F, Fd, Fq;
@@ -86,30 +79,6 @@ double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, 
     const FluxPoint f = flux.eval(i_d, i_q);
     const double vd = R_s * i_d - omega * f.psi_q, vq = R_s * i_q + omega * f.psi_d;
     return vd * vd + vq * vq;
-}
-
-bool voltage_limit_is_optimal(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q) {
-    const Fields F = gradients_at(flux, omega, R_s, i_d, i_q);
-    // Tangent of the torque curve, t = (-dT/di_q, dT/di_d); rates of c and g along it.
-    const double t_d = -F.T.q, t_q = F.T.d;
-    const double dc = F.c.d * t_d + F.c.q * t_q, dg = F.g.d * t_d + F.g.q * t_q;
-    return dc * dg <= 0.0;
-}
-
-bool current_voltage_is_optimal(const MagnetFlux& flux, double omega, double R_s, double torque_sign,
-                                double i_d, double i_q) {
-    const Fields F = gradients_at(flux, omega, R_s, i_d, i_q);
-    // Maximising T'' = torque_sign T' with both limits active (KKT): grad T'' = lambda grad c +
-    // mu grad g with lambda, mu >= 0. Crossing with grad c and grad g isolates each multiplier:
-    //   grad c x grad T'' = mu (grad c x grad g),   grad T'' x grad g = lambda (grad c x grad g).
-    // mu >= 0: along the circle, the way to more torque raises the voltage (else MTPA at the
-    // current limit lies inside the ellipse); lambda >= 0: along the ellipse, the way to more
-    // torque raises the current (else MTPV lies inside the circle).
-    const double Td = torque_sign * F.T.d, Tq = torque_sign * F.T.q;
-    const double c_x_g = cross(F.c.d, F.c.q, F.g.d, F.g.q);
-    const double mu_sign = cross(F.c.d, F.c.q, Td, Tq) * c_x_g;
-    const double lambda_sign = cross(Td, Tq, F.g.d, F.g.q) * c_x_g;
-    return mu_sign >= 0.0 && lambda_sign >= 0.0;
 }
 
 Result solve(const MagnetFlux& flux, const Problem& P, double i_d, double i_q, int max_iterations,

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "control/decision.hpp"
 #include "control/map_newton.hpp"
 
 namespace ipmsm {
@@ -102,109 +103,65 @@ using map_newton::System;
 constexpr double kNewtonStepTolerance = 5e-5;
 constexpr int kNewtonMaxIterations = 12;  // from a Ferrari seed, 2 to 4 are usual
 
-// The map-Newton solves of one solve_optimal() call for one torque sign s. The Ferrari seeds
-// (linear::) are computed for T >= 0 on the mirrored problem (omega, i_q) -> (s omega, s i_q).
-struct MapNewton {
-    MapNewton(const MagnetFlux& flux, const OperatingLimits& lim, double R_s, double s)
-        : flux(flux), lim(lim), R_s(R_s), s(s), w_pos(s * lim.omega),
+// The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s: each
+// condition is Newton on the map (map_newton.hpp) from Ferrari's point on the machine linearised
+// at the last solutions. Points are the map's own (i_q signed like the torque); torque() is
+// s T', >= 0 on the side decided. Ferrari's seeds are for T >= 0 on the mirrored problem
+// (omega, i_q) -> (s omega, s i_q).
+struct MapView {
+    MapView(const MagnetFlux& flux, const OperatingLimits& lim, double R_s, double s, const LinearMachine& lin_limit,
+            const LinearMachine& lin_command)
+        : flux(flux), lim(lim), R_s(R_s), s(s), w_pos(s * lim.omega), lin_limit(lin_limit), lin_command(lin_command),
           V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)), I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)) {}
 
-    map_newton::Result solve(System sys, double T_red, linear::Point seed) {
-        const map_newton::Problem P{sys, lim.omega, R_s, T_red, lim.V_max, lim.I_max};
-        const auto r = map_newton::solve(flux, P, seed.i_d, seed.i_q, kNewtonMaxIterations,
+    double torque(CurrentPoint p) const { return s * flux.reduced_torque(p.i_d, p.i_q); }
+    bool within_voltage(CurrentPoint p) const { return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2; }
+    bool within_current(CurrentPoint p) const { return p.i_d * p.i_d + p.i_q * p.i_q <= I2; }
+
+    bool mtpa_at_current_limit(CurrentPoint& p) {
+        return solve(System::mtpa_at_current, 0.0, linear::mtpa_at_current(lin_limit, lim.I_max), p);
+    }
+    bool mtpv(CurrentPoint& p) {
+        linear::Point seed;
+        return linear::mtpv(lin_limit, w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, p) && torque(p) >= 0;
+    }
+    bool current_voltage_intersection(CurrentPoint& p) {
+        linear::Point seed;
+        return linear::current_voltage_intersection(lin_limit, w_pos, lim.V_max, lim.I_max, seed) &&
+               solve(System::current_voltage, 0.0, seed, p) && torque(p) >= 0;
+    }
+    bool mtpa(double T_red, CurrentPoint& p) {
+        return solve(System::mtpa, T_red, linear::mtpa(lin_command, T_red), p) && within_current(p);
+    }
+    bool voltage_limit(double T_red, CurrentPoint& p) {
+        linear::Point seed;
+        if (!linear::voltage_limit(lin_command, w_pos, lim.V_max, T_red, seed)) return false;
+        return solve(System::voltage_limit, T_red, seed, p) && within_current(p);
+    }
+    bool zero_torque(CurrentPoint& p) {
+        p = {0.0, 0.0};
+        if (within_voltage(p)) return true;
+        linear::Point seed;
+        return linear::zero_torque(lin_command, w_pos, lim.V_max, seed) && solve(System::voltage_limit, 0.0, seed, p);
+    }
+
+    // Newton on `sys` from the mirrored seed, to a point p of the map (T_red >= 0 on this side).
+    bool solve(System sys, double T_red, linear::Point seed, CurrentPoint& p) {
+        const map_newton::Problem P{sys, lim.omega, R_s, s * T_red, lim.V_max, lim.I_max};
+        const auto r = map_newton::solve(flux, P, seed.i_d, s * seed.i_q, kNewtonMaxIterations,
                                          kNewtonStepTolerance * lim.I_max);
         iterations += r.iterations;
-        return r;
-    }
-    linear::Point mirrored(linear::Point p) const { return {p.i_d, s * p.i_q}; }
-    // Limit tests at a point p (anything with i_d, i_q): a Newton result or a seed.
-    template <class P>
-    bool within_voltage(const P& p) const {
-        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2;
-    }
-    template <class P>
-    bool within_current(const P& p) const {
-        return p.i_d * p.i_d + p.i_q * p.i_q <= I2;
-    }
-    bool both_limits_active(const map_newton::Result& r) const {
-        return map_newton::current_voltage_is_optimal(flux, lim.omega, R_s, s, r.i_d, r.i_q);
+        p = {r.i_d, r.i_q};
+        return r.converged;
     }
 
     const MagnetFlux& flux;
     const OperatingLimits& lim;
     const double R_s, s, w_pos;
+    const LinearMachine &lin_limit, &lin_command;  // Ferrari's machines for T_max and the command
     const double V2, I2;  // squared limits with slack, for points computed on a limit
     int iterations = 0;
 };
-
-// A T_max point on the map.
-struct MapLimit {
-    linear::Point point;
-    Region region;
-};
-
-// The T_max region and point predicted from Ferrari on the linearised machine, in the order of
-// linear::max_torque(), except that MTPA at the current limit is judged by the voltage on the
-// map at Ferrari's point: the machine is linearised at the last limit point, often far from
-// I_max, and its voltage there is the least reliable part of the prediction. The seed is for
-// T >= 0 (mirrored).
-bool predicted_region(const MapNewton& m, const LinearMachine& lin, linear::Point& seed, Region& region) {
-    seed = linear::mtpa_at_current(lin, m.lim.I_max);
-    region = Region::mtpa;
-    if (m.within_voltage(m.mirrored(seed))) return true;
-    region = Region::mtpv;
-    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed) && m.within_current(seed) &&
-        linear::reduced_torque(lin, seed.i_d, seed.i_q) >= 0)
-        return true;
-    region = Region::current_and_voltage_limit;
-    return linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed) &&
-           linear::reduced_torque(lin, seed.i_d, seed.i_q) >= 0;
-}
-
-// T_max on the map in a given region: Newton on that region's system from a Ferrari seed (for
-// T >= 0), then the limit the region leaves free must hold at the result; on the intersection
-// of both limits, if `check_kkt`, also the signs of the multipliers.
-bool limit_on_map(MapNewton& m, Region region, linear::Point seed, bool check_kkt, MapLimit& out) {
-    map_newton::Result r{};
-    bool ok = false;
-    switch (region) {
-        case Region::mtpa:
-            r = m.solve(System::mtpa_at_current, 0, m.mirrored(seed));
-            ok = r.converged && m.within_voltage(r);
-            break;
-        case Region::mtpv:
-            r = m.solve(System::mtpv, 0, m.mirrored(seed));
-            ok = r.converged && m.within_current(r);
-            break;
-        case Region::current_and_voltage_limit:
-            r = m.solve(System::current_voltage, 0, m.mirrored(seed));
-            ok = r.converged && (!check_kkt || m.both_limits_active(r));
-            break;
-        default: break;
-    }
-    if (ok) out = {{r.i_d, r.i_q}, region};
-    return ok;
-}
-
-// T_max with one Newton solve: on the predicted region, from Ferrari's point, confirmed on the
-// map by the condition that makes that region the optimum. False if the confirmation fails
-// (the prediction was wrong, or Newton did not converge).
-bool predicted_limit(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
-    linear::Point seed;
-    Region region;
-    return predicted_region(m, lin, seed, region) && limit_on_map(m, region, seed, true, out);
-}
-
-// T_max by elimination: MTPA at the current limit unless its voltage is too high, then MTPV
-// unless its current is too high, then the intersection of the two limits.
-bool limit_by_elimination(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
-    if (limit_on_map(m, Region::mtpa, linear::mtpa_at_current(lin, m.lim.I_max), false, out)) return true;
-    linear::Point seed;
-    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed) && limit_on_map(m, Region::mtpv, seed, false, out))
-        return true;
-    return linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed) &&
-           limit_on_map(m, Region::current_and_voltage_limit, seed, false, out);
-}
 
 }  // namespace
 
@@ -212,78 +169,40 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
                                                       double R_s, const MagnetFlux& flux) {
     const double s = sign_of(T_ref);
     const double kT = torque_factor(pole_pairs_);
-    MapNewton m(flux, lim, R_s, s);
 
     // Ferrari seeds from the machine linearised (apparent inductances) at the last solutions.
     auto linearised_at = [&](double i_d, double i_q) { return apparent_machine(flux, i_d, s * std::abs(i_q), R_s); };
-    const LinearMachine lin_lim = memory.has_limit ? linearised_at(memory.limit_i_d, memory.limit_i_q)
-                                                   : linearised_at(memory.op_i_d, memory.op_i_q);
+    const LinearMachine lin_limit = memory.has_limit ? linearised_at(memory.limit_i_d, memory.limit_i_q)
+                                                     : linearised_at(memory.op_i_d, memory.op_i_q);
+    const LinearMachine lin_command = linearised_at(memory.op_i_d, memory.op_i_q);
+    MapView view(flux, lim, R_s, s, lin_limit, lin_command);
 
     // 1. The largest torque reachable now (this torque sign), on the map.
-    MapLimit top;
-    if (!predicted_limit(m, lin_lim, top) && !limit_by_elimination(m, lin_lim, top)) {
-        // No exact limit point on the map: above the maximum speed, or Newton failed.
-        // Fall back to the paper's recursion for this step.
+    const decision::Choice top = decision::max_torque(view);
+    if (!top.feasible) {
+        // No limit point on the map: above the maximum speed, or Newton failed. Fall back to the
+        // paper's recursion for this step.
         CurrentCommand fb = solve_recursive(T_ref, lim, R_s, flux);
-        fb.iterations += m.iterations;
+        fb.iterations += view.iterations;
         fb.converged = false;
         return fb;
     }
-    const double T_red_top = flux.reduced_torque(top.point.i_d, top.point.i_q);
-    const double T_top = std::max(0.0, s * T_red_top);  // reduced, >= 0
+    const double T_top = std::max(0.0, view.torque(top.point));  // reduced, >= 0
     memory.limit_i_d = top.point.i_d;
     memory.limit_i_q = top.point.i_q;
     memory.has_limit = true;
 
-    // 2. The command: clamped to T_max, else MTPA, else the voltage ellipse (Case ii).
+    // 2. The command: clamped to T_max, else MTPA, else the voltage limit (Case ii).
     const double T_red = std::abs(T_ref) / kT;
-    linear::Point p = top.point;
-    Region region = top.region;
-    bool converged = true;
-    if (T_red < T_top) {
-        const double target = s * T_red;
-        const LinearMachine lin_op = linearised_at(memory.op_i_d, memory.op_i_q);
-        // Below the base speed for this torque side (T_max is MTPA) try MTPA first. In field
-        // weakening, the Ferrari Case ii point and its a-priori test say which to try first;
-        // the same test on the map confirms it (or sends us to the other).
-        linear::Point case_ii{};
-        const bool have_case_ii = top.region != Region::mtpa && T_red > 0 &&
-                                  linear::voltage_limit(lin_op, m.w_pos, lim.V_max, T_red, case_ii);
-        auto try_mtpa = [&]() {
-            const auto r = m.solve(System::mtpa, target, m.mirrored(linear::mtpa(lin_op, T_red)));
-            if (!r.converged || !m.within_voltage(r) || !m.within_current(r)) return false;
-            p = {r.i_d, r.i_q};
-            region = Region::mtpa;
-            return true;
-        };
-        auto try_voltage_limit = [&](bool must_be_optimal) {
-            linear::Point seed = case_ii;
-            if (!have_case_ii) {
-                const bool have = T_red > 0 ? linear::voltage_limit(lin_op, m.w_pos, lim.V_max, T_red, seed)
-                                            : linear::zero_torque(lin_op, m.w_pos, lim.V_max, seed);
-                if (!have) seed = m.mirrored(top.point);
-            }
-            const auto r = m.solve(System::voltage_limit, target, m.mirrored(seed));
-            if (!r.converged || !m.within_current(r)) return false;
-            if (must_be_optimal && !map_newton::voltage_limit_is_optimal(flux, lim.omega, R_s, r.i_d, r.i_q)) return false;
-            p = {r.i_d, r.i_q};
-            region = Region::voltage_limit;
-            return true;
-        };
-        const bool voltage_first = have_case_ii && linear::voltage_limit_is_optimal(lin_op, m.w_pos, case_ii);
-        const bool ok = voltage_first ? (try_voltage_limit(true) || try_mtpa() || try_voltage_limit(false))
-                                      : (try_mtpa() || try_voltage_limit(false));
-        if (!ok) converged = false;  // at the edge of reach: keep the limit point
-        if (T_red == 0.0) region = Region::zero_torque;
-    }
+    const decision::Choice c = decision::command(view, T_red, top);
     CurrentCommand cmd;
-    cmd.i_d = p.i_d;
-    cmd.i_q = p.i_q;
-    cmd.region = region;
-    cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(p.i_d, p.i_q) : T_red_top);
+    cmd.i_d = c.point.i_d;
+    cmd.i_q = c.point.i_q;
+    cmd.region = c.region;
+    cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(c.point.i_d, c.point.i_q) : s * T_top);
     cmd.torque_max = kT * T_top;
-    cmd.iterations = m.iterations;
-    cmd.converged = converged;
+    cmd.iterations = view.iterations;
+    cmd.converged = T_red >= T_top || c.point.i_d != top.point.i_d || c.point.i_q != top.point.i_q;
     return cmd;
 }
 

@@ -6,8 +6,8 @@
 //                but its MTPA ignores dL/di and so uses more current than needed.
 //   recursion 2: the true optimum on the map: Newton on the exact optimality conditions
 //                (map_newton.hpp), seeded by one Ferrari solve with apparent inductances.
-//                T_max: one Newton solve for the limit region Ferrari predicts, confirmed on
-//                the map (else MTPA at I_max, MTPV, the limits' intersection in turn).
+//                T_max and the case by the same decisions as the linear machine (decision.hpp),
+//                each condition solved by Newton on the map.
 // The solver remembers its last solutions as warm starts (a drive's commands move little
 // between 100-us samples); the memory is part of the FMU state.
 #pragma once
