@@ -48,6 +48,13 @@ Fields fields_at(const MagnetFlux& flux, double w, double R, double i_d, double 
     return F;
 }
 
+Fields gradients_at(const MagnetFlux& flux, double w, double R, double i_d, double i_q) {
+    return fields_at<false>(flux, w, R, i_d, i_q);
+}
+
+// The z component of a x b.
+double cross(double a_d, double a_q, double b_d, double b_q) { return a_d * b_q - a_q * b_d; }
+
 // One equation and its gradient.
 struct Eq {
     double F, Fd, Fq;
@@ -79,6 +86,16 @@ double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, 
     const FluxPoint f = flux.eval(i_d, i_q);
     const double vd = R_s * i_d - omega * f.psi_q, vq = R_s * i_q + omega * f.psi_d;
     return vd * vd + vq * vq;
+}
+
+bool voltage_limit_binds_on_circle(const MagnetFlux& flux, double omega, double R_s, double torque_sign, double i_d,
+                                   double i_q) {
+    const Fields F = gradients_at(flux, omega, R_s, i_d, i_q);
+    // Maximising T'' = torque_sign T' with both limits active (KKT): grad T'' = lambda grad c +
+    // mu grad g. Crossing with grad c isolates mu: grad c x grad T'' = mu (grad c x grad g).
+    // mu >= 0: along the circle, the way to more torque raises the voltage.
+    const double mu_sign = cross(F.c.d, F.c.q, torque_sign * F.T.d, torque_sign * F.T.q) * cross(F.c.d, F.c.q, F.g.d, F.g.q);
+    return mu_sign >= 0.0;
 }
 
 Result solve(const MagnetFlux& flux, const Problem& P, double i_d, double i_q, int max_iterations,

@@ -36,6 +36,12 @@ struct Result {
 Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double i_q,
              int max_iterations = 12, double tolerance_A = 1e-3, double max_step_A = 50.0);
 
+// At a point where the current circle meets the voltage limit: does moving along the circle towards
+// more torque (torque_sign +1: more T, -1: less) raise the voltage? Else a local maximum of the
+// torque along the circle lies within the voltage limit next to it.
+bool voltage_limit_binds_on_circle(const MagnetFlux& flux, double omega, double R_s, double torque_sign, double i_d,
+                                   double i_q);
+
 // Squared steady-state voltage at a current.
 double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);
 

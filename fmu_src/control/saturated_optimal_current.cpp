@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "control/current_circles.hpp"
 #include "control/decision.hpp"
 #include "control/map_newton.hpp"
 
@@ -103,79 +104,203 @@ using map_newton::System;
 constexpr double kNewtonStepTolerance = 5e-5;
 constexpr int kNewtonMaxIterations = 12;  // from a Ferrari seed, 2 to 4 are usual
 
-// The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s: each
-// condition is Newton on the map (map_newton.hpp) from Ferrari's point on the machine linearised
-// at the last solutions. Points are the map's own (i_q signed like the torque); torque() is
-// s T', >= 0 on the side decided. Ferrari's seeds are for T >= 0 on the mirrored problem
-// (omega, i_q) -> (s omega, s i_q).
+// The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s. Each
+// condition is Newton on the map (map_newton.hpp); where the map can have several local optima
+// (the torque along a current circle), the seed is the best of the map's samples on the current
+// circles (CurrentCircles), so the polished point is the global one; elsewhere the seed is
+// Ferrari's point on the machine linearised at the global MTPA point. Nothing depends on earlier
+// calls. Points are the map's own (i_q signed like the torque); torque() is s T', >= 0 on the side
+// decided. Ferrari's seeds are for T >= 0 on the mirrored problem (omega, i_q) -> (s omega, s i_q).
 struct MapView {
-    MapView(const MagnetFlux& flux, const OperatingLimits& lim, double R_s, double s, const LinearMachine& lin_limit,
-            const LinearMachine& lin_command)
-        : flux(flux), lim(lim), R_s(R_s), s(s), w_pos(s * lim.omega), lin_limit(lin_limit), lin_command(lin_command),
-          V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)), I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)) {}
+    MapView(const SaturatedOptimalCurrent& solver, const MagnetFlux& flux, const CurrentCircles& circles,
+            const CircleMaxima& maxima, const OperatingLimits& lim, double R_s, double s)
+        : solver(solver), flux(flux), circles(circles), maxima(maxima.side(s)), lim(lim), R_s(R_s), s(s),
+          w_pos(s * lim.omega), V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)),
+          I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)) {}
 
     double torque(CurrentPoint p) const { return s * flux.reduced_torque(p.i_d, p.i_q); }
     bool within_voltage(CurrentPoint p) const { return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2; }
     bool within_current(CurrentPoint p) const { return p.i_d * p.i_d + p.i_q * p.i_q <= I2; }
 
-    bool mtpa_at_current_limit(CurrentPoint& p) {
-        return solve(System::mtpa_at_current, 0.0, linear::mtpa_at_current(lin_limit, lim.I_max), p);
+    // The global maximum of the torque along the current circle (CircleMaxima).
+    bool mtpa_at_current_limit(CurrentPoint& p) const {
+        p = maxima.top;
+        return maxima.top_converged;
     }
+    // The most torque on the voltage limit: Newton from Ferrari's MTPV point of the machine
+    // linearised where the current circle's best sample within the voltage limit is (near the
+    // MTPV point where it has just entered the circle), and from that sample itself; the best
+    // point within the current limit. It is T_max only if no sample of the current circle within
+    // the voltage limit gives more (then it is the largest torque on the voltage limit).
     bool mtpv(CurrentPoint& p) {
+        const CircleArcMax& arc = best_on_circle_within_voltage();
+        const CircleSample& x = circles.at(CurrentCircles::kRadii, arc.j);
+        const CurrentPoint at = arc.found ? CurrentPoint{x.i_d, x.i_q} : maxima.top;
+        bool found = false, found_inside = false;
+        auto consider = [&](const CurrentPoint& q) {
+            const bool inside = within_current(q);
+            if (torque(q) < 0 || (found_inside && !inside)) return;
+            if (!found || (inside && !found_inside) || torque(q) > torque(p)) p = q;
+            found = true;
+            found_inside |= inside;
+        };
         linear::Point seed;
-        return linear::mtpv(lin_limit, w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, p) && torque(p) >= 0;
+        CurrentPoint q;
+        if (linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q)) consider(q);
+        if (arc.found && solve_from(System::mtpv, 0.0, at, q)) consider(q);
+        return found && !(found_inside && arc.found && arc.T > torque(p));
     }
+    // The best point of the current circle within the voltage limit: where the circle meets the
+    // voltage limit, or a local maximum of the torque along the circle between two such points.
     bool current_voltage_intersection(CurrentPoint& p) {
-        linear::Point seed;
-        return linear::current_voltage_intersection(lin_limit, w_pos, lim.V_max, lim.I_max, seed) &&
-               solve(System::current_voltage, 0.0, seed, p) && torque(p) >= 0;
+        const CircleArcMax arc = best_on_circle_within_voltage();
+        if (!arc.found) return false;
+        const CircleSample& x = circles.at(CurrentCircles::kRadii, arc.j);
+        const CircleSample& prev = circles.at(CurrentCircles::kRadii, arc.j - 1);
+        const CircleSample& next = circles.at(CurrentCircles::kRadii, arc.j + 1);
+        const bool prev_in = voltage_sq(prev) <= V2, next_in = voltage_sq(next) <= V2;
+        if (prev_in && next_in && s * prev.torque(flux.shift()) <= arc.T && s * next.torque(flux.shift()) <= arc.T) {
+            return solve_from(System::mtpa_at_current, 0.0, {x.i_d, x.i_q}, p) && within_voltage(p) && torque(p) >= 0;
+        }
+        // The voltage limit is crossed towards the neighbour outside it (the one with more torque
+        // if both are): the seed where |v|^2 - V^2 interpolates to zero.
+        const CircleSample& out = !next_in && (prev_in || s * next.torque(flux.shift()) >= s * prev.torque(flux.shift()))
+                                      ? next
+                                      : prev;
+        const double g0 = voltage_sq(x) - V2, g1 = voltage_sq(out) - V2, t = g0 / (g0 - g1);
+        const CurrentPoint seed{x.i_d + t * (out.i_d - x.i_d), x.i_q + t * (out.i_q - x.i_q)};
+        if (!(solve_from(System::current_voltage, 0.0, seed, p) && torque(p) >= 0)) return false;
+        // A maximum of the torque along the circle within a sample's width of the voltage limit.
+        CurrentPoint q;
+        if (!map_newton::voltage_limit_binds_on_circle(flux, lim.omega, R_s, s, p.i_d, p.i_q) &&
+            solve_from(System::mtpa_at_current, 0.0, p, q) && within_voltage(q) && torque(q) > torque(p))
+            p = q;
+        return true;
     }
+    // Case i: the global minimum current for T', bracketed between two current circles whose
+    // sampled maxima straddle T'; Newton from each circle's best sample (they differ where the
+    // global maximum jumps between two local ones), the least current wins.
     bool mtpa(double T_red, CurrentPoint& p) {
-        return solve(System::mtpa, T_red, linear::mtpa(lin_command, T_red), p) && within_current(p);
+        int k = 1;
+        while (k < CurrentCircles::kRadii && maxima.T[k] < T_red) ++k;
+        const double T0 = maxima.T[k - 1], T1 = maxima.T[k];
+        const double t = T1 > T0 ? std::clamp((T_red - T0) / (T1 - T0), 0.0, 1.0) : 1.0;
+        const double r = circles.radius(k - 1) + t * (circles.radius(k) - circles.radius(k - 1));
+        bool found = false;
+        for (int kk : {k, k - 1}) {
+            if (kk < 1 || (kk == k - 1 && std::abs(maxima.angle[kk] - maxima.angle[k]) <= 1)) continue;
+            const CircleSample& x = circles.at(kk, maxima.angle[kk]);
+            const double scale = r / circles.radius(kk);
+            CurrentPoint q;
+            if (!(solve_from(System::mtpa, s * T_red, {scale * x.i_d, scale * x.i_q}, q) && within_current(q))) continue;
+            if (!found || q.i_d * q.i_d + q.i_q * q.i_q < p.i_d * p.i_d + p.i_q * p.i_q) p = q;
+            found = true;
+        }
+        if (found) mtpa_point = p, have_mtpa_point = true;
+        return found;
     }
+    // Case ii: Ferrari's point on the machine linearised at the MTPA point for T'.
     bool voltage_limit(double T_red, CurrentPoint& p) {
         linear::Point seed;
-        if (!linear::voltage_limit(lin_command, w_pos, lim.V_max, T_red, seed)) return false;
+        if (!linear::voltage_limit(linearised_at(have_mtpa_point ? mtpa_point : maxima.top), w_pos, lim.V_max, T_red, seed))
+            return false;
         return solve(System::voltage_limit, T_red, seed, p) && within_current(p);
     }
     bool zero_torque(CurrentPoint& p) {
         p = {0.0, 0.0};
         if (within_voltage(p)) return true;
         linear::Point seed;
-        return linear::zero_torque(lin_command, w_pos, lim.V_max, seed) && solve(System::voltage_limit, 0.0, seed, p);
+        return linear::zero_torque(linearised_at({0.0, 0.0}), w_pos, lim.V_max, seed) &&
+               solve(System::voltage_limit, 0.0, seed, p);
     }
 
-    // Newton on `sys` from the mirrored seed, to a point p of the map (T_red >= 0 on this side).
+    using CircleSample = CurrentCircles::Sample;
+    struct CircleArcMax {
+        bool found = false;
+        int j = 0;     // the sample on the circle |i| = I_max
+        double T = 0;  // its s T'
+    };
+    // The sample of most torque on the current circle within the voltage limit (computed once).
+    const CircleArcMax& best_on_circle_within_voltage() {
+        if (!arc_scanned) {
+            arc_scanned = true;
+            for (int j = 0; j < CurrentCircles::kAngles; ++j) {
+                const CircleSample& x = circles.at(CurrentCircles::kRadii, j);
+                const double T = s * x.torque(flux.shift());
+                if ((!arc.found || T > arc.T) && voltage_sq(x) <= V2) arc = {true, j, T};
+            }
+        }
+        return arc;
+    }
+    // |v|^2 at a sample, from its stored flux.
+    double voltage_sq(const CircleSample& x) const {
+        const double v_d = R_s * x.i_d - lim.omega * x.psi_q, v_q = R_s * x.i_q + lim.omega * (x.psi_d + flux.shift());
+        return v_d * v_d + v_q * v_q;
+    }
+    // The machine linearised at a point of the map, mirrored to T >= 0.
+    LinearMachine linearised_at(CurrentPoint p) const { return solver.apparent_machine(flux, p.i_d, s * p.i_q, R_s); }
+    // Newton on `sys` from Ferrari's mirrored seed.
     bool solve(System sys, double T_red, linear::Point seed, CurrentPoint& p) {
-        const map_newton::Problem P{sys, lim.omega, R_s, s * T_red, lim.V_max, lim.I_max};
-        const auto r = map_newton::solve(flux, P, seed.i_d, s * seed.i_q, kNewtonMaxIterations,
+        return solve_from(sys, s * T_red, {seed.i_d, s * seed.i_q}, p);
+    }
+    // Newton on `sys` from a point of the map; T_target signed like the torque.
+    bool solve_from(System sys, double T_target, CurrentPoint seed, CurrentPoint& p) {
+        const map_newton::Problem P{sys, lim.omega, R_s, T_target, lim.V_max, lim.I_max};
+        const auto r = map_newton::solve(flux, P, seed.i_d, seed.i_q, kNewtonMaxIterations,
                                          kNewtonStepTolerance * lim.I_max);
         iterations += r.iterations;
         p = {r.i_d, r.i_q};
         return r.converged;
     }
 
+    const SaturatedOptimalCurrent& solver;
     const MagnetFlux& flux;
+    const CurrentCircles& circles;
+    const CircleMaxima::Side& maxima;
     const OperatingLimits& lim;
     const double R_s, s, w_pos;
-    const LinearMachine &lin_limit, &lin_command;  // Ferrari's machines for T_max and the command
     const double V2, I2;  // squared limits with slack, for points computed on a limit
     int iterations = 0;
+    bool arc_scanned = false;
+    CircleArcMax arc;
+    CurrentPoint mtpa_point{0.0, 0.0};
+    bool have_mtpa_point = false;
 };
 
 }  // namespace
+
+const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flux, double I_max) {
+    if (!(circles_.I_max() == I_max)) {
+        circles_ = CurrentCircles(*map_, I_max);
+        maxima_.shift = NAN;
+    }
+    if (maxima_.shift == flux.shift()) return maxima_;
+    maxima_.shift = flux.shift();
+    for (int side = 0; side < 2; ++side) {
+        const double s = side == 0 ? 1.0 : -1.0;
+        CircleMaxima::Side& m = maxima_.sides[side];
+        m.T[0] = 0.0;
+        m.angle[0] = 0;
+        for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
+            m.angle[k] = circles_.best_angle(k, s, flux.shift());
+            m.T[k] = s * circles_.at(k, m.angle[k]).torque(flux.shift());
+        }
+        // MTPA at I_max polished from the best sample (Newton stays on its maximum: the samples
+        // are 2.8 degrees apart, each maximum's basin far wider).
+        const CurrentCircles::Sample& x = circles_.at(CurrentCircles::kRadii, m.angle[CurrentCircles::kRadii]);
+        const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, I_max};
+        const auto r = map_newton::solve(flux, P, x.i_d, x.i_q, kNewtonMaxIterations, kNewtonStepTolerance * I_max);
+        m.top = {r.i_d, r.i_q};
+        m.top_converged = r.converged && s * flux.reduced_torque(r.i_d, r.i_q) >= m.T[CurrentCircles::kRadii];
+    }
+    return maxima_;
+}
 
 CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const OperatingLimits& lim,
                                                       double R_s, const MagnetFlux& flux) {
     const double s = sign_of(T_ref);
     const double kT = torque_factor(pole_pairs_);
-
-    // Ferrari seeds from the machine linearised (apparent inductances) at the last solutions.
-    auto linearised_at = [&](double i_d, double i_q) { return apparent_machine(flux, i_d, s * std::abs(i_q), R_s); };
-    const LinearMachine lin_limit = memory.has_limit ? linearised_at(memory.limit_i_d, memory.limit_i_q)
-                                                     : linearised_at(memory.op_i_d, memory.op_i_q);
-    const LinearMachine lin_command = linearised_at(memory.op_i_d, memory.op_i_q);
-    MapView view(flux, lim, R_s, s, lin_limit, lin_command);
+    MapView view(*this, flux, circles_, circle_maxima(flux, lim.I_max), lim, R_s, s);
 
     // 1. The largest torque reachable now (this torque sign), on the map.
     const decision::Choice top = decision::max_torque(view);
@@ -188,9 +313,6 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
         return fb;
     }
     const double T_top = std::max(0.0, view.torque(top.point));  // reduced, >= 0
-    memory.limit_i_d = top.point.i_d;
-    memory.limit_i_q = top.point.i_q;
-    memory.has_limit = true;
 
     // 2. The command: clamped to T_max, else MTPA, else the voltage limit (Case ii).
     const double T_red = std::abs(T_ref) / kT;
@@ -202,6 +324,7 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
     cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(c.point.i_d, c.point.i_q) : s * T_top);
     cmd.torque_max = kT * T_top;
     cmd.iterations = view.iterations;
+    // Below T_max the command is T_max's point only at the edge of reach (neither case had a point).
     cmd.converged = T_red >= T_top || c.point.i_d != top.point.i_d || c.point.i_q != top.point.i_q;
     return cmd;
 }

@@ -8,13 +8,15 @@
 //                (map_newton.hpp), seeded by one Ferrari solve with apparent inductances.
 //                T_max and the case by the same decisions as the linear machine (decision.hpp),
 //                each condition solved by Newton on the map.
-// The solver remembers its last solutions as warm starts (a drive's commands move little
-// between 100-us samples); the memory is part of the FMU state.
+// Recursion 2 depends on its inputs only; recursion 1 starts from its last solutions (a drive's
+// commands move little between 100-us samples), a memory that is part of the FMU state.
 #pragma once
 
+#include <cmath>
 #include <memory>
 
 #include "machine/flux_map.hpp"
+#include "control/current_circles.hpp"
 #include "control/linear_optimal_current.hpp"
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
@@ -22,6 +24,21 @@
 namespace ipmsm {
 
 enum class Recursion : int { nominal = 0, apparent = 1, optimal = 2 };
+
+// The torque along the current circles (CurrentCircles) at one magnet shift: per torque side, the
+// sample of most torque on each circle and MTPA at I_max polished on the map from the best one.
+// A function of the map, I_max and the shift only.
+struct CircleMaxima {
+    struct Side {
+        double T[CurrentCircles::kRadii + 1];   // s T' of the best sample on circle k (k = 0: the origin)
+        int angle[CurrentCircles::kRadii + 1];  // its angle index
+        CurrentPoint top{0.0, 0.0};             // MTPA at I_max, polished
+        bool top_converged = false;
+    };
+    double shift = NAN;
+    Side sides[2];  // T > 0, T < 0
+    const Side& side(double s) const { return sides[s < 0 ? 1 : 0]; }
+};
 
 struct SolverMemory {
     double op_i_d = 0, op_i_q = 0;        // last command
@@ -54,6 +71,12 @@ private:
                                    const MagnetFlux& flux);
     CurrentCommand solve_optimal(double T_ref, const OperatingLimits& lim, double R_s,
                                  const MagnetFlux& flux);
+
+    // The circles and their maxima for the last I_max and magnet shift (recursion 2): computed
+    // again when either changes, so the answer depends on the inputs only.
+    const CircleMaxima& circle_maxima(const MagnetFlux& flux, double I_max);
+    CurrentCircles circles_;
+    CircleMaxima maxima_;
 
     std::shared_ptr<const FluxMap> map_;
     int pole_pairs_;
