@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
+#include <stdexcept>
 
 #include "control/current_circles.hpp"
 #include "control/decision.hpp"
@@ -18,6 +20,16 @@ constexpr double kLimitSlack = 1e-9;
 double sign_of(double T) { return T < 0 ? -1.0 : 1.0; }
 
 }  // namespace
+
+void check_current_limit_within_map(const FluxMap& map, double I_max) {
+    const double reach = std::min({-map.i_d_min(), -map.i_q_min(), map.i_q_max()});
+    if (I_max <= reach) return;
+    std::ostringstream os;
+    os << "I_max = " << I_max << " A reaches beyond the flux map's grid, which covers currents up to " << reach
+       << " A (i_d from " << map.i_d_min() << " A, i_q from " << map.i_q_min() << " to " << map.i_q_max()
+       << " A): lower I_max or extend the map";
+    throw std::invalid_argument(os.str());
+}
 
 SaturatedOptimalCurrent::SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs)
     : map_(std::move(map)), pole_pairs_(pole_pairs), linear_(pole_pairs) {

@@ -46,6 +46,11 @@ struct SolverMemory {
     bool has_limit = false;
 };
 
+// Every method commands currents in the half disk |i| <= I_max, i_d <= 0, and the map must cover it:
+// beyond its grid the map is an extrapolation, not the machine. Throws std::invalid_argument naming
+// I_max and the grid's reach if it does not.
+void check_current_limit_within_map(const FluxMap& map, double I_max);
+
 class SaturatedOptimalCurrent {
 public:
     SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs);

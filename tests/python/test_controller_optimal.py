@@ -8,6 +8,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
+from fmpy.fmi1 import FMICallException
 
 from brute_force import Drive, max_torque, min_current
 from scenarios.flux_map import linear_flux_map, read_flux_map, write_flux_map
@@ -143,3 +144,17 @@ def test_measured_map_recursion2_is_optimal(controller_fmu, measured_map_path):
     regions, _ = check(rows, params["I_max"], CURRENT_TOL, TORQUE_TOL_MAP, "measured Baldor map, recursion 2")
     for reg in (1, 2):
         assert regions[reg] >= 5, f"region {reg} barely exercised: {regions}"
+
+
+@pytest.mark.parametrize("method, recursion", [(1, 0), (1, 1), (1, 2), (2, 2), (3, 2)])
+def test_current_limit_beyond_the_map_is_refused(controller_fmu, default_map_path, capsys, method, recursion):
+    """I_max beyond the map's grid (the default map reaches 700 A): refused at initialisation by
+    every method, with a message naming both values."""
+    with pytest.raises(FMICallException):
+        Fmu(controller_fmu, logging=True, method=method, recursion=recursion, flux_map=str(default_map_path),
+            I_max=1e4)
+    out = capsys.readouterr().out
+    assert "I_max = 10000 A" in out and "700 A" in out, out
+    with Fmu(controller_fmu, method=method, recursion=recursion, flux_map=str(default_map_path), I_max=700.0) as c:
+        c.set(T_ref=100.0, w_m=300.0, u_dc=355.0)
+        c.step(0.0, H)
