@@ -44,15 +44,15 @@ struct MtpaQuartic {
 // depressed quartic in i_q (MATH.md), monic.
 struct VoltageLimitQuartic {
     VoltageLimitQuartic(const LinearMachine& m, double omega, double V_max, double T_red)
-        : m(m), T_red(T_red) {
+        : m(m), T_red(T_red), inv_dL(1.0 / (m.L_d - m.L_q)) {
         const double R = m.R_s, w = omega, dL = m.L_d - m.L_q, psi = m.psi_m;
         const double zq = R * R + w * w * m.L_q * m.L_q;
-        const double a4 = dL * dL * zq;
-        c[2] = (psi * psi * zq + 2.0 * R * w * dL * dL * T_red - V_max * V_max * dL * dL) / a4;
-        c[3] = -2.0 * psi * T_red * (R * R + w * w * m.L_d * m.L_q) / a4;
-        c[4] = T_red * T_red * (R * R + w * w * m.L_d * m.L_d) / a4;
+        const double inv_a4 = 1.0 / (dL * dL * zq);
+        c[2] = (psi * psi * zq + 2.0 * R * w * dL * dL * T_red - V_max * V_max * dL * dL) * inv_a4;
+        c[3] = -2.0 * psi * T_red * (R * R + w * w * m.L_d * m.L_q) * inv_a4;
+        c[4] = T_red * T_red * (R * R + w * w * m.L_d * m.L_d) * inv_a4;
     }
-    Point at(double i_q) const { return {(T_red / i_q - m.psi_m) / (m.L_d - m.L_q), i_q}; }
+    Point at(double i_q) const { return {(T_red / i_q - m.psi_m) * inv_dL, i_q}; }
     bool point(const RealRoots& r, Point& out) const {
         // Every intersection is on the ellipse; the current along the torque curve has its minimum
         // at the MTPA point (outside the ellipse here), so the best is the intersection with the
@@ -70,7 +70,7 @@ struct VoltageLimitQuartic {
         return true;
     }
     const LinearMachine& m;
-    double T_red;
+    double T_red, inv_dL;
     double c[5] = {1.0, 0.0, 0.0, 0.0, 0.0};
 };
 

@@ -110,11 +110,14 @@ namespace {
 
 using map_newton::System;
 
-// Newton's step tolerance, relative to I_max: converged after a step below it (0.025 A at
+// Newton's step tolerance, relative to I_max: converged after a step below it (5e-4 A at
 // 500 A). Newton converges quadratically, so the error left is of the order of the last step
-// squared over the current scale: below 1e-7 I_max on the default and the measured map.
-constexpr double kNewtonStepTolerance = 5e-5;
-constexpr int kNewtonMaxIterations = 12;  // from a Ferrari seed, 2 to 4 are usual
+// squared over the current scale: rounding level, whether the seed was a sample or exact.
+constexpr double kNewtonStepTolerance = 1e-6;
+constexpr int kNewtonMaxIterations = 12;
+// |v|^2 / V_max^2 at the interpolated MTPA point above which MTPA is taken to be outside the
+// voltage limit without Newton (5 % in voltage).
+constexpr double kClearlyOutside = 1.1025;  // from a Ferrari seed, 2 to 4 are usual
 
 // The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s. Each
 // condition is Newton on the map (map_newton.hpp); where the map can have several local optima
@@ -128,16 +131,24 @@ struct MapView {
             const CircleMaxima& maxima, const OperatingLimits& lim, double R_s, double s)
         : solver(solver), flux(flux), circles(circles), maxima(maxima.side(s)), lim(lim), R_s(R_s), s(s),
           w_pos(s * lim.omega), V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)),
-          I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)) {}
+          I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)), exact_shift(maxima.shift == flux.shift()) {}
 
     double torque(CurrentPoint p) const { return s * flux.reduced_torque(p.i_d, p.i_q); }
     bool within_voltage(CurrentPoint p) const { return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2; }
     bool within_current(CurrentPoint p) const { return p.i_d * p.i_d + p.i_q * p.i_q <= I2; }
+    bool within(CurrentPoint p, double V2_max, double I2_max) const {
+        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2_max && p.i_d * p.i_d + p.i_q * p.i_q <= I2_max;
+    }
 
     // The global maximum of the torque along the current circle (CircleMaxima).
-    bool mtpa_at_current_limit(CurrentPoint& p) const {
-        p = maxima.top;
-        return maxima.top_converged;
+    bool mtpa_at_current_limit(CurrentPoint& p) {
+        constexpr int K = CurrentCircles::kRadii;
+        if (!maxima.converged[K]) return false;
+        if (exact_shift) {  // polished at this very shift already
+            p = maxima.mtpa[K];
+            return true;
+        }
+        return solve_from(System::mtpa_at_current, 0.0, maxima.mtpa[K], p) && torque(p) >= maxima.T[K] * (1.0 - kLimitSlack);
     }
     // The most torque on the voltage limit: Newton from Ferrari's MTPV point of the machine
     // linearised where the current circle's best sample within the voltage limit is (near the
@@ -147,7 +158,7 @@ struct MapView {
     bool mtpv(CurrentPoint& p) {
         const CircleArcMax& arc = best_on_circle_within_voltage();
         const CircleSample& x = circles.at(CurrentCircles::kRadii, arc.j);
-        const CurrentPoint at = arc.found ? CurrentPoint{x.i_d, x.i_q} : maxima.top;
+        const CurrentPoint at = arc.found ? CurrentPoint{x.i_d, x.i_q} : maxima.mtpa[CurrentCircles::kRadii];
         bool found = false, found_inside = false;
         auto consider = [&](const CurrentPoint& q) {
             const bool inside = within_current(q);
@@ -159,7 +170,7 @@ struct MapView {
         linear::Point seed;
         CurrentPoint q;
         if (linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q)) consider(q);
-        if (arc.found && solve_from(System::mtpv, 0.0, at, q)) consider(q);
+        if (!found_inside && arc.found && solve_from(System::mtpv, 0.0, at, q)) consider(q);
         return found && !(found_inside && arc.found && arc.T > torque(p));
     }
     // The best point of the current circle within the voltage limit: where the circle meets the
@@ -189,22 +200,35 @@ struct MapView {
             p = q;
         return true;
     }
-    // Case i: the global minimum current for T', bracketed between two current circles whose
-    // sampled maxima straddle T'; Newton from each circle's best sample (they differ where the
-    // global maximum jumps between two local ones), the least current wins.
+    // Case i: the global minimum current for T', bracketed between two current circles whose MTPA
+    // torques straddle T'. Newton from the MTPA points interpolated between the two circles; where
+    // they lie on different maxima of the torque along the circles (the global one jumps between
+    // two local ones), from each, and the least current wins.
     bool mtpa(double T_red, CurrentPoint& p) {
+        constexpr int K = CurrentCircles::kRadii;
         int k = 1;
-        while (k < CurrentCircles::kRadii && maxima.T[k] < T_red) ++k;
+        while (k < K && maxima.T[k] < T_red) ++k;
         const double T0 = maxima.T[k - 1], T1 = maxima.T[k];
         const double t = T1 > T0 ? std::clamp((T_red - T0) / (T1 - T0), 0.0, 1.0) : 1.0;
+        const CurrentPoint a = maxima.mtpa[k - 1], b = maxima.mtpa[k];
         const double r = circles.radius(k - 1) + t * (circles.radius(k) - circles.radius(k - 1));
+        // One maximum: the two points are less than two samples apart in angle (the origin is on every one).
+        const double sample_angle = 2.0 * M_PI / CurrentCircles::kAngles;
+        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * M_PI)) < 2.0 * sample_angle;
+        auto scaled = [&](CurrentPoint x, double radius) { return CurrentPoint{x.i_d * r / radius, x.i_q * r / radius}; };
+        CurrentPoint seeds[2] = {{a.i_d + t * (b.i_d - a.i_d), a.i_q + t * (b.i_q - a.i_q)}, {}};
+        int n_seeds = 1;
+        if (!one_branch) {
+            seeds[0] = scaled(b, circles.radius(k));
+            seeds[n_seeds++] = scaled(a, circles.radius(k - 1));
+        }
+        // On one maximum the interpolated point is within a fraction of a per cent of MTPA: a voltage
+        // that far above the limit there means Case ii, without Newton.
+        if (one_branch && !within(seeds[0], kClearlyOutside * V2, INFINITY)) return false;
         bool found = false;
-        for (int kk : {k, k - 1}) {
-            if (kk < 1 || (kk == k - 1 && std::abs(maxima.angle[kk] - maxima.angle[k]) <= 1)) continue;
-            const CircleSample& x = circles.at(kk, maxima.angle[kk]);
-            const double scale = r / circles.radius(kk);
+        for (int i = 0; i < n_seeds; ++i) {
             CurrentPoint q;
-            if (!(solve_from(System::mtpa, s * T_red, {scale * x.i_d, scale * x.i_q}, q) && within_current(q))) continue;
+            if (!(solve_from(System::mtpa, s * T_red, seeds[i], q) && within_current(q))) continue;
             if (!found || q.i_d * q.i_d + q.i_q * q.i_q < p.i_d * p.i_d + p.i_q * p.i_q) p = q;
             found = true;
         }
@@ -214,7 +238,7 @@ struct MapView {
     // Case ii: Ferrari's point on the machine linearised at the MTPA point for T'.
     bool voltage_limit(double T_red, CurrentPoint& p) {
         linear::Point seed;
-        if (!linear::voltage_limit(linearised_at(have_mtpa_point ? mtpa_point : maxima.top), w_pos, lim.V_max, T_red, seed))
+        if (!linear::voltage_limit(linearised_at(have_mtpa_point ? mtpa_point : maxima.mtpa[CurrentCircles::kRadii]), w_pos, lim.V_max, T_red, seed))
             return false;
         return solve(System::voltage_limit, T_red, seed, p) && within_current(p);
     }
@@ -272,6 +296,7 @@ struct MapView {
     const OperatingLimits& lim;
     const double R_s, s, w_pos;
     const double V2, I2;  // squared limits with slack, for points computed on a limit
+    const bool exact_shift;  // the circles' maxima were found at this magnet shift
     int iterations = 0;
     bool arc_scanned = false;
     CircleArcMax arc;
@@ -286,24 +311,28 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
         circles_ = CurrentCircles(*map_, I_max);
         maxima_.shift = NAN;
     }
-    if (maxima_.shift == flux.shift()) return maxima_;
-    maxima_.shift = flux.shift();
+    const double shift = CircleMaxima::kShiftStep * std::round(flux.shift() / CircleMaxima::kShiftStep);
+    if (maxima_.shift == shift) return maxima_;
+    maxima_.shift = shift;
+    const MagnetFlux rounded(flux.map(), shift);
     for (int side = 0; side < 2; ++side) {
         const double s = side == 0 ? 1.0 : -1.0;
         CircleMaxima::Side& m = maxima_.sides[side];
         m.T[0] = 0.0;
-        m.angle[0] = 0;
+        m.mtpa[0] = {0.0, 0.0};
+        m.converged[0] = true;
         for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
-            m.angle[k] = circles_.best_angle(k, s, flux.shift());
-            m.T[k] = s * circles_.at(k, m.angle[k]).torque(flux.shift());
+            // Newton stays on the best sample's maximum: the samples are 2.8 degrees apart, each
+            // maximum's basin far wider.
+            const CurrentCircles::Sample& x = circles_.at(k, circles_.best_angle(k, s, shift));
+            const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, circles_.radius(k)};
+            const auto r = map_newton::solve(rounded, P, x.i_d, x.i_q, kNewtonMaxIterations,
+                                             kNewtonStepTolerance * I_max);
+            const double T = s * rounded.reduced_torque(r.i_d, r.i_q), T_sample = s * x.torque(shift);
+            m.converged[k] = r.converged && T >= T_sample;
+            m.mtpa[k] = m.converged[k] ? CurrentPoint{r.i_d, r.i_q} : CurrentPoint{x.i_d, x.i_q};
+            m.T[k] = m.converged[k] ? T : T_sample;
         }
-        // MTPA at I_max polished from the best sample (Newton stays on its maximum: the samples
-        // are 2.8 degrees apart, each maximum's basin far wider).
-        const CurrentCircles::Sample& x = circles_.at(CurrentCircles::kRadii, m.angle[CurrentCircles::kRadii]);
-        const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, I_max};
-        const auto r = map_newton::solve(flux, P, x.i_d, x.i_q, kNewtonMaxIterations, kNewtonStepTolerance * I_max);
-        m.top = {r.i_d, r.i_q};
-        m.top_converged = r.converged && s * flux.reduced_torque(r.i_d, r.i_q) >= m.T[CurrentCircles::kRadii];
     }
     return maxima_;
 }

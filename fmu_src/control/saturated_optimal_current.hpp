@@ -25,21 +25,24 @@ namespace ipmsm {
 
 enum class Recursion : int { nominal = 0, apparent = 1, optimal = 2 };
 
-// The torque along the current circles (CurrentCircles) at one magnet shift: per torque side, the
-// sample of most torque on each circle and MTPA at I_max polished on the map from the best one.
-// A function of the map, I_max and the shift only.
+// The torque along the current circles (CurrentCircles): per torque side and circle, MTPA at that
+// current polished on the map from the circle's best sample (its global maximum along the
+// circle). Found for a magnet shift rounded to kShiftStep: they only seed Newton at the exact
+// shift, so a drifting magnet temperature does not find them again every call, and the answer
+// stays a function of the inputs.
 struct CircleMaxima {
+    static constexpr double kShiftStep = 1e-4;  // Wb: 0.1 % of a typical psi_m
     struct Side {
-        double T[CurrentCircles::kRadii + 1];   // s T' of the best sample on circle k (k = 0: the origin)
-        int angle[CurrentCircles::kRadii + 1];  // its angle index
-        CurrentPoint top{0.0, 0.0};             // MTPA at I_max, polished
-        bool top_converged = false;
+        double T[CurrentCircles::kRadii + 1];         // s T' at MTPA on circle k (k = 0: the origin)
+        CurrentPoint mtpa[CurrentCircles::kRadii + 1];
+        bool converged[CurrentCircles::kRadii + 1];   // Newton converged to at least the best sample's torque
     };
-    double shift = NAN;
-    Side sides[2];  // T > 0, T < 0
+    double shift = NAN;  // rounded
+    Side sides[2];       // T > 0, T < 0
     const Side& side(double s) const { return sides[s < 0 ? 1 : 0]; }
 };
 
+// The paper's recursion (recursion 1) starts from its last solutions.
 struct SolverMemory {
     double op_i_d = 0, op_i_q = 0;        // last command
     double limit_i_d = 0, limit_i_q = 0;  // last T_max point

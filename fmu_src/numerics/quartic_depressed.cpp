@@ -112,7 +112,7 @@ RealRoots solve_depressed_quartic(double p, double q, double r) {
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e) {
     if (a == 1.0 && b == 0.0) return depressed_roots(c, d, e);
     // Monic, then depressed by x = y + sh about the centroid sh of the roots (Taylor shift).
-    const double B = b / a, C = c / a, D = d / a, E = e / a, sh = -0.25 * B;
+    const double inv_a = 1.0 / a, B = b * inv_a, C = c * inv_a, D = d * inv_a, E = e * inv_a, sh = -0.25 * B;
     if (!(std::fabs(sh) <= kCentredMaxShift) || !std::isfinite(C + D + E)) return solve_quartic(a, b, c, d, e);
     const double P = C + sh * (3.0 * B + 6.0 * sh);
     const double Q = D + sh * (2.0 * C + sh * (3.0 * B + 4.0 * sh));

@@ -20,21 +20,9 @@ namespace {
 constexpr int kPolePairs = 4;
 constexpr double kIMax = 500.0, kRs = 0.012, kPsiM = 0.078, kLd = 2.0e-4, kLq = 6.0e-4;
 
-// psi_q = L_q i_q / sqrt(1 + (i_q / I_s)^2) (a q axis that levels off), psi_d = psi_m (1 - x
-// (i_q / I_max)^2) + L_d i_d (cross-saturation lowering the magnet flux by up to x), on a grid
-// reaching 1.3 I_max.
+// A q axis that levels off (I_s), cross-saturation up to `cross`, on a grid reaching 1.3 I_max.
 std::shared_ptr<const FluxMap> saturating_map(double I_s, double cross) {
-    FluxMapTable t;
-    const int n = 53;
-    for (int k = 0; k < n; ++k) t.i_d.push_back(1.3 * kIMax * (2.0 * k / (n - 1) - 1));
-    t.i_q = t.i_d;
-    for (double i_q : t.i_q)
-        for (double i_d : t.i_d) {
-            const double y = i_q / kIMax;
-            t.psi_d.push_back(kPsiM * (1 - cross * y * y / (1 + y * y)) + kLd * i_d);
-            t.psi_q.push_back(kLq * i_q / std::sqrt(1 + (i_q / I_s) * (i_q / I_s)));
-        }
-    return std::make_shared<const FluxMap>(t);
+    return std::make_shared<const FluxMap>(saturating_flux_map(kLd, kLq, kPsiM, I_s, cross, kIMax, 1.3 * kIMax, 53));
 }
 
 struct Sampled {
