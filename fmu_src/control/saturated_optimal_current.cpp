@@ -117,7 +117,10 @@ constexpr double kNewtonStepTolerance = 1e-6;
 constexpr int kNewtonMaxIterations = 12;
 // |v|^2 / V_max^2 at the interpolated MTPA point above which MTPA is taken to be outside the
 // voltage limit without Newton (5 % in voltage).
-constexpr double kClearlyOutside = 1.1025;  // from a Ferrari seed, 2 to 4 are usual
+constexpr double kClearlyOutside = 1.1025;
+// Candidates for T_max on the current circle are polished while their sampled estimate is within
+// this of the best polished torque (an estimate is off by the torque's curvature over a sample).
+constexpr double kCandidateMargin = 0.01;  // from a Ferrari seed, 2 to 4 are usual
 
 // The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s. Each
 // condition is Newton on the map (map_newton.hpp); where the map can have several local optima
@@ -127,6 +130,23 @@ constexpr double kClearlyOutside = 1.1025;  // from a Ferrari seed, 2 to 4 are u
 // calls. Points are the map's own (i_q signed like the torque); torque() is s T', >= 0 on the side
 // decided. Ferrari's seeds are for T >= 0 on the mirrored problem (omega, i_q) -> (s omega, s i_q).
 struct MapView {
+    struct CircleCandidate {
+        CurrentPoint seed;
+        double T;  // estimated s T'
+        bool interior;
+    };
+    static constexpr int kMaxCandidates = 6;
+    struct CircleCandidates {
+        int n = 0;
+        CircleCandidate c[kMaxCandidates];
+        void add(const CircleCandidate& x) {
+            int i = n < kMaxCandidates ? n++ : kMaxCandidates - 1;
+            if (i == kMaxCandidates - 1 && n == kMaxCandidates && !(x.T > c[i].T)) return;
+            for (; i > 0 && c[i - 1].T < x.T; --i) c[i] = c[i - 1];
+            c[i] = x;
+        }
+    };
+
     MapView(const SaturatedOptimalCurrent& solver, const MagnetFlux& flux, const CurrentCircles& circles,
             const CircleMaxima& maxima, const OperatingLimits& lim, double R_s, double s)
         : solver(solver), flux(flux), circles(circles), maxima(maxima.side(s)), lim(lim), R_s(R_s), s(s),
@@ -156,9 +176,9 @@ struct MapView {
     // point within the current limit. It is T_max only if no sample of the current circle within
     // the voltage limit gives more (then it is the largest torque on the voltage limit).
     bool mtpv(CurrentPoint& p) {
-        const CircleArcMax& arc = best_on_circle_within_voltage();
-        const CircleSample& x = circles.at(CurrentCircles::kRadii, arc.j);
-        const CurrentPoint at = arc.found ? CurrentPoint{x.i_d, x.i_q} : maxima.mtpa[CurrentCircles::kRadii];
+        const CircleCandidates& arc = circle_within_voltage();
+        const bool on_arc = arc.n > 0;
+        const CurrentPoint at = on_arc ? arc.c[0].seed : maxima.mtpa[CurrentCircles::kRadii];
         bool found = false, found_inside = false;
         auto consider = [&](const CurrentPoint& q) {
             const bool inside = within_current(q);
@@ -170,29 +190,27 @@ struct MapView {
         linear::Point seed;
         CurrentPoint q;
         if (linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q)) consider(q);
-        if (!found_inside && arc.found && solve_from(System::mtpv, 0.0, at, q)) consider(q);
-        return found && !(found_inside && arc.found && arc.T > torque(p));
+        if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
+        return found && !(found_inside && on_arc && arc.c[0].T > torque(p));
     }
     // The best point of the current circle within the voltage limit: where the circle meets the
     // voltage limit, or a local maximum of the torque along the circle between two such points.
+    // Every candidate of the scan (circle_within_voltage) whose estimate comes within
+    // kCandidateMargin of the best polished one is polished; the most torque wins.
     bool current_voltage_intersection(CurrentPoint& p) {
-        const CircleArcMax arc = best_on_circle_within_voltage();
-        if (!arc.found) return false;
-        const CircleSample& x = circles.at(CurrentCircles::kRadii, arc.j);
-        const CircleSample& prev = circles.at(CurrentCircles::kRadii, arc.j - 1);
-        const CircleSample& next = circles.at(CurrentCircles::kRadii, arc.j + 1);
-        const bool prev_in = voltage_sq(prev) <= V2, next_in = voltage_sq(next) <= V2;
-        if (prev_in && next_in && s * prev.torque(flux.shift()) <= arc.T && s * next.torque(flux.shift()) <= arc.T) {
-            return solve_from(System::mtpa_at_current, 0.0, {x.i_d, x.i_q}, p) && within_voltage(p) && torque(p) >= 0;
+        const CircleCandidates& arc = circle_within_voltage();
+        bool found = false;
+        for (int i = 0; i < arc.n; ++i) {
+            if (found && arc.c[i].T < torque(p) * (1.0 - kCandidateMargin)) break;
+            CurrentPoint q;
+            if (polish(arc.c[i], q) && (!found || torque(q) > torque(p))) p = q, found = true;
         }
-        // The voltage limit is crossed towards the neighbour outside it (the one with more torque
-        // if both are): the seed where |v|^2 - V^2 interpolates to zero.
-        const CircleSample& out = !next_in && (prev_in || s * next.torque(flux.shift()) >= s * prev.torque(flux.shift()))
-                                      ? next
-                                      : prev;
-        const double g0 = voltage_sq(x) - V2, g1 = voltage_sq(out) - V2, t = g0 / (g0 - g1);
-        const CurrentPoint seed{x.i_d + t * (out.i_d - x.i_d), x.i_q + t * (out.i_q - x.i_q)};
-        if (!(solve_from(System::current_voltage, 0.0, seed, p) && torque(p) >= 0)) return false;
+        return found;
+    }
+    bool polish(const CircleCandidate& c, CurrentPoint& p) {
+        if (c.interior)
+            return solve_from(System::mtpa_at_current, 0.0, c.seed, p) && within_voltage(p) && torque(p) >= 0;
+        if (!(solve_from(System::current_voltage, 0.0, c.seed, p) && torque(p) >= 0)) return false;
         // A maximum of the torque along the circle within a sample's width of the voltage limit.
         CurrentPoint q;
         if (!map_newton::voltage_limit_binds_on_circle(flux, lim.omega, R_s, s, p.i_d, p.i_q) &&
@@ -235,12 +253,26 @@ struct MapView {
         if (found) mtpa_point = p, have_mtpa_point = true;
         return found;
     }
-    // Case ii: Ferrari's point on the machine linearised at the MTPA point for T'.
+    // Case ii: Newton from Ferrari's point on the machine linearised at the MTPA point for T', and
+    // from Ferrari's point and the point itself of T_max (close to Case ii's just below T_max);
+    // the least current within the current limit wins.
     bool voltage_limit(double T_red, CurrentPoint& p) {
+        bool found = false;
+        auto consider = [&](const CurrentPoint& q) {
+            if (!within_current(q) || (found && q.i_d * q.i_d + q.i_q * q.i_q >= p.i_d * p.i_d + p.i_q * p.i_q)) return;
+            p = q;
+            found = true;
+        };
         linear::Point seed;
-        if (!linear::voltage_limit(linearised_at(have_mtpa_point ? mtpa_point : maxima.mtpa[CurrentCircles::kRadii]), w_pos, lim.V_max, T_red, seed))
-            return false;
-        return solve(System::voltage_limit, T_red, seed, p) && within_current(p);
+        CurrentPoint q;
+        for (const CurrentPoint& at : {have_mtpa_point ? mtpa_point : top_point, top_point}) {
+            if (linear::voltage_limit(linearised_at(at), w_pos, lim.V_max, T_red, seed) &&
+                solve(System::voltage_limit, T_red, seed, q))
+                consider(q);
+            if (found) return true;
+        }
+        if (solve_from(System::voltage_limit, s * T_red, top_point, q)) consider(q);
+        return found;
     }
     bool zero_torque(CurrentPoint& p) {
         p = {0.0, 0.0};
@@ -251,19 +283,30 @@ struct MapView {
     }
 
     using CircleSample = CurrentCircles::Sample;
-    struct CircleArcMax {
-        bool found = false;
-        int j = 0;     // the sample on the circle |i| = I_max
-        double T = 0;  // its s T'
-    };
-    // The sample of most torque on the current circle within the voltage limit (computed once).
-    const CircleArcMax& best_on_circle_within_voltage() {
-        if (!arc_scanned) {
-            arc_scanned = true;
-            for (int j = 0; j < CurrentCircles::kAngles; ++j) {
-                const CircleSample& x = circles.at(CurrentCircles::kRadii, j);
-                const double T = s * x.torque(flux.shift());
-                if ((!arc.found || T > arc.T) && voltage_sq(x) <= V2) arc = {true, j, T};
+    // Where the torque along the current circle |i| = I_max may be largest within the voltage
+    // limit, from its samples: each local maximum between two samples within the limit, and each
+    // crossing of the limit (the point where |v|^2 - V^2 interpolates to zero between a sample
+    // within and one outside, its torque interpolated too). The kMaxCandidates best, best first.
+    const CircleCandidates& circle_within_voltage() {
+        if (arc_scanned) return arc;
+        arc_scanned = true;
+        constexpr int K = CurrentCircles::kRadii, N = CurrentCircles::kAngles;
+        double T[N], g[N];
+        for (int j = 0; j < N; ++j) {
+            const CircleSample& x = circles.at(K, j);
+            T[j] = s * x.torque(flux.shift());
+            g[j] = voltage_sq(x) - V2;
+        }
+        for (int j = 0; j < N; ++j) {
+            if (!(g[j] <= 0)) continue;
+            const int prev = (j + N - 1) % N, next = (j + 1) % N;
+            const CircleSample& x = circles.at(K, j);
+            if (g[prev] <= 0 && g[next] <= 0 && T[j] >= T[prev] && T[j] >= T[next]) arc.add({{x.i_d, x.i_q}, T[j], true});
+            for (int o : {prev, next}) {
+                if (g[o] <= 0) continue;
+                const CircleSample& y = circles.at(K, o);
+                const double t = g[j] / (g[j] - g[o]);
+                arc.add({{x.i_d + t * (y.i_d - x.i_d), x.i_q + t * (y.i_q - x.i_q)}, T[j] + t * (T[o] - T[j]), false});
             }
         }
         return arc;
@@ -299,9 +342,10 @@ struct MapView {
     const bool exact_shift;  // the circles' maxima were found at this magnet shift
     int iterations = 0;
     bool arc_scanned = false;
-    CircleArcMax arc;
+    CircleCandidates arc;
     CurrentPoint mtpa_point{0.0, 0.0};
     bool have_mtpa_point = false;
+    CurrentPoint top_point{0.0, 0.0};  // T_max's, once decided
 };
 
 }  // namespace
@@ -354,6 +398,7 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
         return fb;
     }
     const double T_top = std::max(0.0, view.torque(top.point));  // reduced, >= 0
+    view.top_point = top.point;
 
     // 2. The command: clamped to T_max, else MTPA, else the voltage limit (Case ii).
     const double T_red = std::abs(T_ref) / kT;
