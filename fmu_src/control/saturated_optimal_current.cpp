@@ -149,7 +149,7 @@ struct MapView {
 
     MapView(const SaturatedOptimalCurrent& solver, const MagnetFlux& flux, const CurrentCircles& circles,
             const CircleMaxima& maxima, const OperatingLimits& lim, double R_s, double s)
-        : solver(solver), flux(flux), circles(circles), maxima(maxima.side(s)), lim(lim), R_s(R_s), s(s),
+        : solver(solver), flux(flux), circles(circles), all_maxima(maxima), maxima(maxima.side(s)), lim(lim), R_s(R_s), s(s),
           w_pos(s * lim.omega), V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)),
           I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)), exact_shift(maxima.shift == flux.shift()) {}
 
@@ -187,9 +187,18 @@ struct MapView {
             found = true;
             found_inside |= inside;
         };
-        linear::Point seed;
+        // The global one: from the sampled maxima at the two flux levels about V_max / |omega|.
         CurrentPoint q;
-        if (linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q)) consider(q);
+        const double level = lim.V_max / std::abs(lim.omega);
+        const double x = (level - all_maxima.psi_min) / (all_maxima.psi_max - all_maxima.psi_min) * (CircleMaxima::kFluxLevels - 1);
+        if (std::isfinite(x) && x >= 0 && x <= CircleMaxima::kFluxLevels - 1) {
+            const int l = std::min(static_cast<int>(x), CircleMaxima::kFluxLevels - 2);
+            for (int ll : {l, l + 1})
+                if (maxima.has_mtpv[ll] && solve_from(System::mtpv, 0.0, maxima.mtpv[ll], q)) consider(q);
+        }
+        linear::Point seed;
+        if (!found_inside && linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q))
+            consider(q);
         if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
         return found && !(found_inside && on_arc && arc.c[0].T > torque(p));
     }
@@ -335,6 +344,7 @@ struct MapView {
     const SaturatedOptimalCurrent& solver;
     const MagnetFlux& flux;
     const CurrentCircles& circles;
+    const CircleMaxima& all_maxima;
     const CircleMaxima::Side& maxima;
     const OperatingLimits& lim;
     const double R_s, s, w_pos;
@@ -378,6 +388,36 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
             m.T[k] = m.converged[k] ? T : T_sample;
         }
     }
+    // The flux levels' MTPV seeds: every crossing of a level between neighbouring samples of a circle.
+    constexpr int K = CurrentCircles::kRadii, N = CurrentCircles::kAngles, L = CircleMaxima::kFluxLevels;
+    auto psi_of = [&](const CurrentCircles::Sample& x) { return std::hypot(x.psi_d + shift, x.psi_q); };
+    maxima_.psi_min = INFINITY, maxima_.psi_max = 0.0;
+    for (int k = 1; k <= K; ++k)
+        for (int j = 0; j < N; ++j) {
+            const double psi = psi_of(circles_.at(k, j));
+            maxima_.psi_min = std::min(maxima_.psi_min, psi), maxima_.psi_max = std::max(maxima_.psi_max, psi);
+        }
+    double best[2][L];
+    for (int side = 0; side < 2; ++side)
+        for (int l = 0; l < L; ++l) best[side][l] = -INFINITY, maxima_.sides[side].has_mtpv[l] = false;
+    for (int k = 1; k <= K; ++k)
+        for (int j = 0; j < N; ++j) {
+            const CurrentCircles::Sample &x = circles_.at(k, j), &y = circles_.at(k, j + 1);
+            const double a = psi_of(x), b = psi_of(y);
+            const double lo = std::min(a, b), hi = std::max(a, b);
+            const double step = (maxima_.psi_max - maxima_.psi_min) / (L - 1);
+            for (int l = std::max(0, static_cast<int>(std::ceil((lo - maxima_.psi_min) / step))); l < L; ++l) {
+                const double level = maxima_.psi_level(l);
+                if (level > hi) break;
+                const double t = b != a ? (level - a) / (b - a) : 0.0;
+                const CurrentPoint p{x.i_d + t * (y.i_d - x.i_d), x.i_q + t * (y.i_q - x.i_q)};
+                const double T = x.torque(shift) + t * (y.torque(shift) - x.torque(shift));
+                for (int side = 0; side < 2; ++side) {
+                    const double sT = side == 0 ? T : -T;
+                    if (sT > best[side][l]) best[side][l] = sT, maxima_.sides[side].mtpv[l] = p, maxima_.sides[side].has_mtpv[l] = true;
+                }
+            }
+        }
     return maxima_;
 }
 

@@ -32,11 +32,18 @@ enum class Recursion : int { nominal = 0, apparent = 1, optimal = 2 };
 // stays a function of the inputs.
 struct CircleMaxima {
     static constexpr double kShiftStep = 1e-4;  // Wb: 0.1 % of a typical psi_m
+    // MTPV seeds: for flux levels |psi| = psi_level[l] (the lossless voltage limit V_max / |omega|),
+    // the sampled point of most torque where a circle crosses that level.
+    static constexpr int kFluxLevels = 48;
     struct Side {
         double T[CurrentCircles::kRadii + 1];         // s T' at MTPA on circle k (k = 0: the origin)
         CurrentPoint mtpa[CurrentCircles::kRadii + 1];
         bool converged[CurrentCircles::kRadii + 1];   // Newton converged to at least the best sample's torque
+        CurrentPoint mtpv[kFluxLevels];
+        bool has_mtpv[kFluxLevels];
     };
+    double psi_min = 0, psi_max = 0;  // the levels, evenly spaced
+    double psi_level(int l) const { return psi_min + (psi_max - psi_min) * l / (kFluxLevels - 1); }
     double shift = NAN;  // rounded
     Side sides[2];       // T > 0, T < 0
     const Side& side(double s) const { return sides[s < 0 ? 1 : 0]; }
