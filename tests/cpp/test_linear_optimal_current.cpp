@@ -289,10 +289,9 @@ TEST(LinearOptimalCurrent, ReluctanceMachineInFieldWeakening) {
     EXPECT_GT(voltage_limited, 4);
 }
 
-// Large R_s against omega L while braking (the mirrored speed negative): the lossless estimate
-// can be far off, and a polished root that is another stationary point or intersection of the
-// limit quartics (a torque minimum on the ellipse, an intersection where the voltage limit does
-// not bind) must not be taken for T_max. Two cases found by a review, then random machines with
+// Large R_s against omega L while braking (the mirrored speed negative): the limit quartics have
+// other stationary points and intersections (a torque minimum on the ellipse, an intersection
+// where the voltage limit does not bind), which must not be taken for T_max. Two cases found by a review, then random machines with
 // R_s up to three times omega L_d: T_max against the sampled boundary.
 TEST(LinearOptimalCurrent, TorqueLimitWithLargeResistanceAgainstOmegaL) {
     struct Known {
