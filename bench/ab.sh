@@ -13,17 +13,26 @@ rounds=${3:-3}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
+# The FMI-free sources: fmu_src/core/ before ed0f875 (included as "quartic.hpp"), then
+# fmu_src/{numerics,machine,control}/ (included as "numerics/quartic.hpp").
 build() {  # build REV DIR
     local rev=$1 d=$2
     mkdir -p "$d/src" "$d/obj"
     if [ "$rev" = work ]; then
-        cp -r "$repo/fmu_src/core" "$repo/bench" "$d/src/"
+        cp -r "$repo/fmu_src" "$repo/bench" "$d/src/"
     else
-        git -C "$repo" archive "$rev" fmu_src/core bench | tar -x -C "$d/src"
-        mv "$d/src/fmu_src/core" "$d/src/core"
+        git -C "$repo" archive "$rev" fmu_src bench | tar -x -C "$d/src"
     fi
-    local flags=(-std=c++17 -O3 -DNDEBUG -I"$d/src/core" -isystem /usr/include/eigen3)
-    for f in "$d"/src/core/*.cpp; do g++ "${flags[@]}" -fPIC -c "$f" -o "$d/obj/$(basename "$f" .cpp).o" & done
+    local include sources=()
+    if [ -d "$d/src/fmu_src/core" ]; then
+        include="$d/src/fmu_src/core"
+        sources=("$d"/src/fmu_src/core/*.cpp)
+    else
+        include="$d/src/fmu_src"
+        sources=("$d"/src/fmu_src/{numerics,machine,control}/*.cpp)
+    fi
+    local flags=(-std=c++17 -O3 -DNDEBUG -I"$include" -isystem /usr/include/eigen3)
+    for f in "${sources[@]}"; do g++ "${flags[@]}" -fPIC -c "$f" -o "$d/obj/$(basename "$f" .cpp).o" & done
     wait
     ar rcs "$d/libcore.a" "$d"/obj/*.o
     g++ "${flags[@]}" -fPIE -DIPMSM_SOURCE_DIR="\"$repo\"" "$d/src/bench/bench_controller.cpp" "$d/libcore.a" \

@@ -13,9 +13,7 @@
 
 namespace ipmsm::linear {
 
-struct Point {
-    double i_d, i_q;
-};
+using Point = CurrentPoint;
 
 // Steady-state voltage magnitude squared at a current.
 double voltage_sq(const LinearMachine& m, double omega, double i_d, double i_q);
@@ -29,9 +27,6 @@ Point mtpa_at_current(const LinearMachine& m, double I);
 // Case ii: T' meets the voltage ellipse (with R_s); the root with the largest i_q.
 // Returns false if the torque curve misses the ellipse.
 bool voltage_limit(const LinearMachine& m, double omega, double V_max, double T_red, Point& out);
-// The a-priori test at a Case ii point (seed Sec. V, generalised to R_s): true if moving along the
-// torque curve towards less current leaves the ellipse, i.e. the point is the current minimum.
-bool voltage_limit_is_optimal(const LinearMachine& m, double omega, Point p);
 // Zero torque: i_q = 0 and the smallest |i_d| that brings the voltage within V_max.
 bool zero_torque(const LinearMachine& m, double omega, double V_max, Point& out);
 // The maximum-torque point on the voltage ellipse (MTPV, with R_s).
@@ -40,35 +35,25 @@ bool mtpv(const LinearMachine& m, double omega, double V_max, Point& out);
 bool current_voltage_intersection(const LinearMachine& m, double omega, double V_max, double I,
                                   Point& out);
 
-// The largest reduced torque reachable (T' >= 0 side) and the point giving it.
+// The largest reduced torque reachable (T' >= 0 side) and the point giving it
+// (decision::max_torque on the linear machine).
 struct Limit {
     Point point;
     double T_red;
     Region region;  // mtpa (current limit only), mtpv or current_and_voltage_limit
     bool feasible;
-    // The torque below which MTPA is (estimated to be) within the voltage limit at this speed;
-    // +inf below the base speed. Only chooses which quartic optimal_current() solves first (the
-    // field-weakening fast path predicts with its square and leaves +inf here).
-    double T_base;
 };
 Limit max_torque(const LinearMachine& m, const OperatingLimits& lim);
 
-
 // The whole decision for one torque command (either sign, either speed sign): clamp to T_max,
-// then MTPA or Case ii. Fills every field of CurrentCommand (iterations = 0). A controller keeps
-// one solver (SaturatedOptimalCurrent does): MTPA at I_max, which depends on the machine and the
-// current limit only, is computed again only when one of them changes. Not for concurrent use by
-// several threads.
+// then MTPA or Case ii (decision.hpp). Fills every field of CurrentCommand (iterations = 0).
 class CommandSolver {
 public:
     explicit CommandSolver(int pole_pairs);
-    CurrentCommand operator()(const LinearMachine& m, double T_ref, const OperatingLimits& lim);
+    CurrentCommand operator()(const LinearMachine& m, double T_ref, const OperatingLimits& lim) const;
 
 private:
-    double kT_, inv_kT_;  // torque factor 1.5 p and its inverse
-    // MTPA at I_max (p1_) and what it was computed for (NaN: nothing yet).
-    double psi_m_ = NAN, L_d_ = NAN, L_q_ = NAN, I_max_ = NAN;
-    Point p1_{0.0, 0.0};
+    double kT_;  // torque factor 1.5 p
 };
 
 // The same with a solver built for the call.

@@ -88,28 +88,14 @@ double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, 
     return vd * vd + vq * vq;
 }
 
-bool voltage_limit_is_optimal(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q) {
-    const Fields F = gradients_at(flux, omega, R_s, i_d, i_q);
-    // Tangent of the torque curve, t = (-dT/di_q, dT/di_d); rates of c and g along it.
-    const double t_d = -F.T.q, t_q = F.T.d;
-    const double dc = F.c.d * t_d + F.c.q * t_q, dg = F.g.d * t_d + F.g.q * t_q;
-    return dc * dg <= 0.0;
-}
-
-bool current_voltage_is_optimal(const MagnetFlux& flux, double omega, double R_s, double torque_sign,
-                                double i_d, double i_q) {
+bool voltage_limit_binds_on_circle(const MagnetFlux& flux, double omega, double R_s, double torque_sign, double i_d,
+                                   double i_q) {
     const Fields F = gradients_at(flux, omega, R_s, i_d, i_q);
     // Maximising T'' = torque_sign T' with both limits active (KKT): grad T'' = lambda grad c +
-    // mu grad g with lambda, mu >= 0. Crossing with grad c and grad g isolates each multiplier:
-    //   grad c x grad T'' = mu (grad c x grad g),   grad T'' x grad g = lambda (grad c x grad g).
-    // mu >= 0: along the circle, the way to more torque raises the voltage (else MTPA at the
-    // current limit lies inside the ellipse); lambda >= 0: along the ellipse, the way to more
-    // torque raises the current (else MTPV lies inside the circle).
-    const double Td = torque_sign * F.T.d, Tq = torque_sign * F.T.q;
-    const double c_x_g = cross(F.c.d, F.c.q, F.g.d, F.g.q);
-    const double mu_sign = cross(F.c.d, F.c.q, Td, Tq) * c_x_g;
-    const double lambda_sign = cross(Td, Tq, F.g.d, F.g.q) * c_x_g;
-    return mu_sign >= 0.0 && lambda_sign >= 0.0;
+    // mu grad g. Crossing with grad c isolates mu: grad c x grad T'' = mu (grad c x grad g).
+    // mu >= 0: along the circle, the way to more torque raises the voltage.
+    const double mu_sign = cross(F.c.d, F.c.q, torque_sign * F.T.d, torque_sign * F.T.q) * cross(F.c.d, F.c.q, F.g.d, F.g.q);
+    return mu_sign >= 0.0;
 }
 
 Result solve(const MagnetFlux& flux, const Problem& P, double i_d, double i_q, int max_iterations,

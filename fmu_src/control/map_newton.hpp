@@ -36,16 +36,11 @@ struct Result {
 Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double i_q,
              int max_iterations = 12, double tolerance_A = 1e-3, double max_step_A = 50.0);
 
-// The a-priori test of the paper, generalised to a flux map: at a point on the torque curve and
-// the voltage ellipse, does moving along the torque curve towards less current raise the
-// voltage? Then the point is the current minimum (Case ii); otherwise MTPA lies inside.
-bool voltage_limit_is_optimal(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);
-
-// T_max test at a point where the current circle meets the voltage ellipse: are both limits
-// active there (non-negative multipliers), so that neither MTPA at the current limit nor MTPV
-// is the better point? torque_sign: +1 for the largest torque, -1 for the most negative one.
-bool current_voltage_is_optimal(const MagnetFlux& flux, double omega, double R_s, double torque_sign,
-                                double i_d, double i_q);
+// At a point where the current circle meets the voltage limit: does moving along the circle towards
+// more torque (torque_sign +1: more T, -1: less) raise the voltage? Else a local maximum of the
+// torque along the circle lies within the voltage limit next to it.
+bool voltage_limit_binds_on_circle(const MagnetFlux& flux, double omega, double R_s, double torque_sign, double i_d,
+                                   double i_q);
 
 // Squared steady-state voltage at a current.
 double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);

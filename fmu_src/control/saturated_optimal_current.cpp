@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
+#include <stdexcept>
 
+#include "control/current_circles.hpp"
+#include "control/decision.hpp"
 #include "control/map_newton.hpp"
 
 namespace ipmsm {
@@ -16,6 +20,16 @@ constexpr double kLimitSlack = 1e-9;
 double sign_of(double T) { return T < 0 ? -1.0 : 1.0; }
 
 }  // namespace
+
+void check_current_limit_within_map(const FluxMap& map, double I_max) {
+    const double reach = std::min({-map.i_d_min(), -map.i_q_min(), map.i_q_max()});
+    if (I_max <= reach) return;
+    std::ostringstream os;
+    os << "I_max = " << I_max << " A reaches beyond the flux map's grid, which covers currents up to " << reach
+       << " A (i_d from " << map.i_d_min() << " A, i_q from " << map.i_q_min() << " to " << map.i_q_max()
+       << " A): lower I_max or extend the map";
+    throw std::invalid_argument(os.str());
+}
 
 SaturatedOptimalCurrent::SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs)
     : map_(std::move(map)), pole_pairs_(pole_pairs), linear_(pole_pairs) {
@@ -96,194 +110,348 @@ namespace {
 
 using map_newton::System;
 
-// Newton's step tolerance, relative to I_max: converged after a step below it (0.025 A at
+// Newton's step tolerance, relative to I_max: converged after a step below it (5e-4 A at
 // 500 A). Newton converges quadratically, so the error left is of the order of the last step
-// squared over the current scale: below 1e-7 I_max on the default and the measured map.
-constexpr double kNewtonStepTolerance = 5e-5;
-constexpr int kNewtonMaxIterations = 12;  // from a Ferrari seed, 2 to 4 are usual
+// squared over the current scale: rounding level, whether the seed was a sample or exact.
+constexpr double kNewtonStepTolerance = 1e-6;
+constexpr int kNewtonMaxIterations = 12;
+// |v|^2 / V_max^2 at the interpolated MTPA point above which MTPA is taken to be outside the
+// voltage limit without Newton (5 % in voltage).
+constexpr double kClearlyOutside = 1.1025;
+// Candidates for T_max on the current circle are polished while their sampled estimate is within
+// this of the best polished torque (an estimate is off by the torque's curvature over a sample).
+constexpr double kCandidateMargin = 0.01;  // from a Ferrari seed, 2 to 4 are usual
 
-// The map-Newton solves of one solve_optimal() call for one torque sign s. The Ferrari seeds
-// (linear::) are computed for T >= 0 on the mirrored problem (omega, i_q) -> (s omega, s i_q).
-struct MapNewton {
-    MapNewton(const MagnetFlux& flux, const OperatingLimits& lim, double R_s, double s)
-        : flux(flux), lim(lim), R_s(R_s), s(s), w_pos(s * lim.omega),
-          V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)), I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)) {}
+// The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s. Each
+// condition is Newton on the map (map_newton.hpp); where the map can have several local optima
+// (the torque along a current circle), the seed is the best of the map's samples on the current
+// circles (CurrentCircles), so the polished point is the global one; elsewhere the seed is
+// Ferrari's point on the machine linearised at the global MTPA point. Nothing depends on earlier
+// calls. Points are the map's own (i_q signed like the torque); torque() is s T', >= 0 on the side
+// decided. Ferrari's seeds are for T >= 0 on the mirrored problem (omega, i_q) -> (s omega, s i_q).
+struct MapView {
+    struct CircleCandidate {
+        CurrentPoint seed;
+        double T;  // estimated s T'
+        bool interior;
+    };
+    static constexpr int kMaxCandidates = 6;
+    struct CircleCandidates {
+        int n = 0;
+        CircleCandidate c[kMaxCandidates];
+        void add(const CircleCandidate& x) {
+            int i = n < kMaxCandidates ? n++ : kMaxCandidates - 1;
+            if (i == kMaxCandidates - 1 && n == kMaxCandidates && !(x.T > c[i].T)) return;
+            for (; i > 0 && c[i - 1].T < x.T; --i) c[i] = c[i - 1];
+            c[i] = x;
+        }
+    };
 
-    map_newton::Result solve(System sys, double T_red, linear::Point seed) {
-        const map_newton::Problem P{sys, lim.omega, R_s, T_red, lim.V_max, lim.I_max};
+    MapView(const SaturatedOptimalCurrent& solver, const MagnetFlux& flux, const CurrentCircles& circles,
+            const CircleMaxima& maxima, const OperatingLimits& lim, double R_s, double s)
+        : solver(solver), flux(flux), circles(circles), all_maxima(maxima), maxima(maxima.side(s)), lim(lim), R_s(R_s), s(s),
+          w_pos(s * lim.omega), V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)),
+          I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)), exact_shift(maxima.shift == flux.shift()) {}
+
+    double torque(CurrentPoint p) const { return s * flux.reduced_torque(p.i_d, p.i_q); }
+    bool within_voltage(CurrentPoint p) const { return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2; }
+    bool within_current(CurrentPoint p) const { return p.i_d * p.i_d + p.i_q * p.i_q <= I2; }
+    bool within(CurrentPoint p, double V2_max, double I2_max) const {
+        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2_max && p.i_d * p.i_d + p.i_q * p.i_q <= I2_max;
+    }
+
+    // The global maximum of the torque along the current circle (CircleMaxima).
+    bool mtpa_at_current_limit(CurrentPoint& p) {
+        constexpr int K = CurrentCircles::kRadii;
+        if (!maxima.converged[K]) return false;
+        if (exact_shift) {  // polished at this very shift already
+            p = maxima.mtpa[K];
+            return true;
+        }
+        return solve_from(System::mtpa_at_current, 0.0, maxima.mtpa[K], p) && torque(p) >= maxima.T[K] * (1.0 - kLimitSlack);
+    }
+    // The most torque on the voltage limit: Newton from Ferrari's MTPV point of the machine
+    // linearised where the current circle's best sample within the voltage limit is (near the
+    // MTPV point where it has just entered the circle), and from that sample itself; the best
+    // point within the current limit. It is T_max only if no sample of the current circle within
+    // the voltage limit gives more (then it is the largest torque on the voltage limit).
+    bool mtpv(CurrentPoint& p) {
+        const CircleCandidates& arc = circle_within_voltage();
+        const bool on_arc = arc.n > 0;
+        const CurrentPoint at = on_arc ? arc.c[0].seed : maxima.mtpa[CurrentCircles::kRadii];
+        bool found = false, found_inside = false;
+        auto consider = [&](const CurrentPoint& q) {
+            const bool inside = within_current(q);
+            if (torque(q) < 0 || (found_inside && !inside)) return;
+            if (!found || (inside && !found_inside) || torque(q) > torque(p)) p = q;
+            found = true;
+            found_inside |= inside;
+        };
+        // The global one: from the sampled maxima at the two flux levels about V_max / |omega|.
+        CurrentPoint q;
+        const double level = lim.V_max / std::abs(lim.omega);
+        const double x = (level - all_maxima.psi_min) / (all_maxima.psi_max - all_maxima.psi_min) * (CircleMaxima::kFluxLevels - 1);
+        if (std::isfinite(x) && x >= 0 && x <= CircleMaxima::kFluxLevels - 1) {
+            const int l = std::min(static_cast<int>(x), CircleMaxima::kFluxLevels - 2);
+            for (int ll : {l, l + 1})
+                if (maxima.has_mtpv[ll] && solve_from(System::mtpv, 0.0, maxima.mtpv[ll], q)) consider(q);
+        }
+        linear::Point seed;
+        if (!found_inside && linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q))
+            consider(q);
+        if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
+        return found && !(found_inside && on_arc && arc.c[0].T > torque(p));
+    }
+    // The best point of the current circle within the voltage limit: where the circle meets the
+    // voltage limit, or a local maximum of the torque along the circle between two such points.
+    // Every candidate of the scan (circle_within_voltage) whose estimate comes within
+    // kCandidateMargin of the best polished one is polished; the most torque wins.
+    bool current_voltage_intersection(CurrentPoint& p) {
+        const CircleCandidates& arc = circle_within_voltage();
+        bool found = false;
+        for (int i = 0; i < arc.n; ++i) {
+            if (found && arc.c[i].T < torque(p) * (1.0 - kCandidateMargin)) break;
+            CurrentPoint q;
+            if (polish(arc.c[i], q) && (!found || torque(q) > torque(p))) p = q, found = true;
+        }
+        return found;
+    }
+    bool polish(const CircleCandidate& c, CurrentPoint& p) {
+        if (c.interior)
+            return solve_from(System::mtpa_at_current, 0.0, c.seed, p) && within_voltage(p) && torque(p) >= 0;
+        if (!(solve_from(System::current_voltage, 0.0, c.seed, p) && torque(p) >= 0)) return false;
+        // A maximum of the torque along the circle within a sample's width of the voltage limit.
+        CurrentPoint q;
+        if (!map_newton::voltage_limit_binds_on_circle(flux, lim.omega, R_s, s, p.i_d, p.i_q) &&
+            solve_from(System::mtpa_at_current, 0.0, p, q) && within_voltage(q) && torque(q) > torque(p))
+            p = q;
+        return true;
+    }
+    // Case i: the global minimum current for T', bracketed between two current circles whose MTPA
+    // torques straddle T'. Newton from the MTPA points interpolated between the two circles; where
+    // they lie on different maxima of the torque along the circles (the global one jumps between
+    // two local ones), from each, and the least current wins.
+    bool mtpa(double T_red, CurrentPoint& p) {
+        constexpr int K = CurrentCircles::kRadii;
+        int k = 1;
+        while (k < K && maxima.T[k] < T_red) ++k;
+        const double T0 = maxima.T[k - 1], T1 = maxima.T[k];
+        const double t = T1 > T0 ? std::clamp((T_red - T0) / (T1 - T0), 0.0, 1.0) : 1.0;
+        const CurrentPoint a = maxima.mtpa[k - 1], b = maxima.mtpa[k];
+        const double r = circles.radius(k - 1) + t * (circles.radius(k) - circles.radius(k - 1));
+        // One maximum: the two points are less than two samples apart in angle (the origin is on every one).
+        const double sample_angle = 2.0 * M_PI / CurrentCircles::kAngles;
+        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * M_PI)) < 2.0 * sample_angle;
+        auto scaled = [&](CurrentPoint x, double radius) { return CurrentPoint{x.i_d * r / radius, x.i_q * r / radius}; };
+        CurrentPoint seeds[2] = {{a.i_d + t * (b.i_d - a.i_d), a.i_q + t * (b.i_q - a.i_q)}, {}};
+        int n_seeds = 1;
+        if (!one_branch) {
+            seeds[0] = scaled(b, circles.radius(k));
+            seeds[n_seeds++] = scaled(a, circles.radius(k - 1));
+        }
+        // On one maximum the interpolated point is within a fraction of a per cent of MTPA: a voltage
+        // that far above the limit there means Case ii, without Newton.
+        if (one_branch && !within(seeds[0], kClearlyOutside * V2, INFINITY)) return false;
+        bool found = false;
+        for (int i = 0; i < n_seeds; ++i) {
+            CurrentPoint q;
+            if (!(solve_from(System::mtpa, s * T_red, seeds[i], q) && within_current(q))) continue;
+            if (!found || q.i_d * q.i_d + q.i_q * q.i_q < p.i_d * p.i_d + p.i_q * p.i_q) p = q;
+            found = true;
+        }
+        if (found) mtpa_point = p, have_mtpa_point = true;
+        return found;
+    }
+    // Case ii: Newton from Ferrari's point on the machine linearised at the MTPA point for T', and
+    // from Ferrari's point and the point itself of T_max (close to Case ii's just below T_max);
+    // the least current within the current limit wins.
+    bool voltage_limit(double T_red, CurrentPoint& p) {
+        bool found = false;
+        auto consider = [&](const CurrentPoint& q) {
+            if (!within_current(q) || (found && q.i_d * q.i_d + q.i_q * q.i_q >= p.i_d * p.i_d + p.i_q * p.i_q)) return;
+            p = q;
+            found = true;
+        };
+        linear::Point seed;
+        CurrentPoint q;
+        for (const CurrentPoint& at : {have_mtpa_point ? mtpa_point : top_point, top_point}) {
+            if (linear::voltage_limit(linearised_at(at), w_pos, lim.V_max, T_red, seed) &&
+                solve(System::voltage_limit, T_red, seed, q))
+                consider(q);
+            if (found) return true;
+        }
+        if (solve_from(System::voltage_limit, s * T_red, top_point, q)) consider(q);
+        return found;
+    }
+    bool zero_torque(CurrentPoint& p) {
+        p = {0.0, 0.0};
+        if (within_voltage(p)) return true;
+        linear::Point seed;
+        return linear::zero_torque(linearised_at({0.0, 0.0}), w_pos, lim.V_max, seed) &&
+               solve(System::voltage_limit, 0.0, seed, p);
+    }
+
+    using CircleSample = CurrentCircles::Sample;
+    // Where the torque along the current circle |i| = I_max may be largest within the voltage
+    // limit, from its samples: each local maximum between two samples within the limit, and each
+    // crossing of the limit (the point where |v|^2 - V^2 interpolates to zero between a sample
+    // within and one outside, its torque interpolated too). The kMaxCandidates best, best first.
+    const CircleCandidates& circle_within_voltage() {
+        if (arc_scanned) return arc;
+        arc_scanned = true;
+        constexpr int K = CurrentCircles::kRadii, N = CurrentCircles::kAngles;
+        double T[N], g[N];
+        for (int j = 0; j < N; ++j) {
+            const CircleSample& x = circles.at(K, j);
+            T[j] = s * x.torque(flux.shift());
+            g[j] = voltage_sq(x) - V2;
+        }
+        for (int j = 0; j < N; ++j) {
+            if (!(g[j] <= 0)) continue;
+            const int prev = (j + N - 1) % N, next = (j + 1) % N;
+            const CircleSample& x = circles.at(K, j);
+            if (g[prev] <= 0 && g[next] <= 0 && T[j] >= T[prev] && T[j] >= T[next]) arc.add({{x.i_d, x.i_q}, T[j], true});
+            for (int o : {prev, next}) {
+                if (g[o] <= 0) continue;
+                const CircleSample& y = circles.at(K, o);
+                const double t = g[j] / (g[j] - g[o]);
+                arc.add({{x.i_d + t * (y.i_d - x.i_d), x.i_q + t * (y.i_q - x.i_q)}, T[j] + t * (T[o] - T[j]), false});
+            }
+        }
+        return arc;
+    }
+    // |v|^2 at a sample, from its stored flux.
+    double voltage_sq(const CircleSample& x) const {
+        const double v_d = R_s * x.i_d - lim.omega * x.psi_q, v_q = R_s * x.i_q + lim.omega * (x.psi_d + flux.shift());
+        return v_d * v_d + v_q * v_q;
+    }
+    // The machine linearised at a point of the map, mirrored to T >= 0.
+    LinearMachine linearised_at(CurrentPoint p) const { return solver.apparent_machine(flux, p.i_d, s * p.i_q, R_s); }
+    // Newton on `sys` from Ferrari's mirrored seed.
+    bool solve(System sys, double T_red, linear::Point seed, CurrentPoint& p) {
+        return solve_from(sys, s * T_red, {seed.i_d, s * seed.i_q}, p);
+    }
+    // Newton on `sys` from a point of the map; T_target signed like the torque.
+    bool solve_from(System sys, double T_target, CurrentPoint seed, CurrentPoint& p) {
+        const map_newton::Problem P{sys, lim.omega, R_s, T_target, lim.V_max, lim.I_max};
         const auto r = map_newton::solve(flux, P, seed.i_d, seed.i_q, kNewtonMaxIterations,
                                          kNewtonStepTolerance * lim.I_max);
         iterations += r.iterations;
-        return r;
-    }
-    linear::Point mirrored(linear::Point p) const { return {p.i_d, s * p.i_q}; }
-    // Limit tests at a point p (anything with i_d, i_q): a Newton result or a seed.
-    template <class P>
-    bool within_voltage(const P& p) const {
-        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2;
-    }
-    template <class P>
-    bool within_current(const P& p) const {
-        return p.i_d * p.i_d + p.i_q * p.i_q <= I2;
-    }
-    bool both_limits_active(const map_newton::Result& r) const {
-        return map_newton::current_voltage_is_optimal(flux, lim.omega, R_s, s, r.i_d, r.i_q);
+        p = {r.i_d, r.i_q};
+        return r.converged;
     }
 
+    const SaturatedOptimalCurrent& solver;
     const MagnetFlux& flux;
+    const CurrentCircles& circles;
+    const CircleMaxima& all_maxima;
+    const CircleMaxima::Side& maxima;
     const OperatingLimits& lim;
     const double R_s, s, w_pos;
     const double V2, I2;  // squared limits with slack, for points computed on a limit
+    const bool exact_shift;  // the circles' maxima were found at this magnet shift
     int iterations = 0;
+    bool arc_scanned = false;
+    CircleCandidates arc;
+    CurrentPoint mtpa_point{0.0, 0.0};
+    bool have_mtpa_point = false;
+    CurrentPoint top_point{0.0, 0.0};  // T_max's, once decided
 };
-
-// A T_max point on the map.
-struct MapLimit {
-    linear::Point point;
-    Region region;
-};
-
-// The T_max region and point predicted from Ferrari on the linearised machine, in the order of
-// linear::max_torque(), except that MTPA at the current limit is judged by the voltage on the
-// map at Ferrari's point: the machine is linearised at the last limit point, often far from
-// I_max, and its voltage there is the least reliable part of the prediction. The seed is for
-// T >= 0 (mirrored).
-bool predicted_region(const MapNewton& m, const LinearMachine& lin, linear::Point& seed, Region& region) {
-    seed = linear::mtpa_at_current(lin, m.lim.I_max);
-    region = Region::mtpa;
-    if (m.within_voltage(m.mirrored(seed))) return true;
-    region = Region::mtpv;
-    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed) && m.within_current(seed) &&
-        linear::reduced_torque(lin, seed.i_d, seed.i_q) >= 0)
-        return true;
-    region = Region::current_and_voltage_limit;
-    return linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed) &&
-           linear::reduced_torque(lin, seed.i_d, seed.i_q) >= 0;
-}
-
-// T_max on the map in a given region: Newton on that region's system from a Ferrari seed (for
-// T >= 0), then the limit the region leaves free must hold at the result; on the intersection
-// of both limits, if `check_kkt`, also the signs of the multipliers.
-bool limit_on_map(MapNewton& m, Region region, linear::Point seed, bool check_kkt, MapLimit& out) {
-    map_newton::Result r{};
-    bool ok = false;
-    switch (region) {
-        case Region::mtpa:
-            r = m.solve(System::mtpa_at_current, 0, m.mirrored(seed));
-            ok = r.converged && m.within_voltage(r);
-            break;
-        case Region::mtpv:
-            r = m.solve(System::mtpv, 0, m.mirrored(seed));
-            ok = r.converged && m.within_current(r);
-            break;
-        case Region::current_and_voltage_limit:
-            r = m.solve(System::current_voltage, 0, m.mirrored(seed));
-            ok = r.converged && (!check_kkt || m.both_limits_active(r));
-            break;
-        default: break;
-    }
-    if (ok) out = {{r.i_d, r.i_q}, region};
-    return ok;
-}
-
-// T_max with one Newton solve: on the predicted region, from Ferrari's point, confirmed on the
-// map by the condition that makes that region the optimum. False if the confirmation fails
-// (the prediction was wrong, or Newton did not converge).
-bool predicted_limit(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
-    linear::Point seed;
-    Region region;
-    return predicted_region(m, lin, seed, region) && limit_on_map(m, region, seed, true, out);
-}
-
-// T_max by elimination: MTPA at the current limit unless its voltage is too high, then MTPV
-// unless its current is too high, then the intersection of the two limits.
-bool limit_by_elimination(MapNewton& m, const LinearMachine& lin, MapLimit& out) {
-    if (limit_on_map(m, Region::mtpa, linear::mtpa_at_current(lin, m.lim.I_max), false, out)) return true;
-    linear::Point seed;
-    if (linear::mtpv(lin, m.w_pos, m.lim.V_max, seed) && limit_on_map(m, Region::mtpv, seed, false, out))
-        return true;
-    return linear::current_voltage_intersection(lin, m.w_pos, m.lim.V_max, m.lim.I_max, seed) &&
-           limit_on_map(m, Region::current_and_voltage_limit, seed, false, out);
-}
 
 }  // namespace
+
+const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flux, double I_max) {
+    if (!(circles_.I_max() == I_max)) {
+        circles_ = CurrentCircles(*map_, I_max);
+        maxima_.shift = NAN;
+    }
+    const double shift = CircleMaxima::kShiftStep * std::round(flux.shift() / CircleMaxima::kShiftStep);
+    if (maxima_.shift == shift) return maxima_;
+    maxima_.shift = shift;
+    const MagnetFlux rounded(flux.map(), shift);
+    for (int side = 0; side < 2; ++side) {
+        const double s = side == 0 ? 1.0 : -1.0;
+        CircleMaxima::Side& m = maxima_.sides[side];
+        m.T[0] = 0.0;
+        m.mtpa[0] = {0.0, 0.0};
+        m.converged[0] = true;
+        for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
+            // Newton stays on the best sample's maximum: the samples are 2.8 degrees apart, each
+            // maximum's basin far wider.
+            const CurrentCircles::Sample& x = circles_.at(k, circles_.best_angle(k, s, shift));
+            const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, circles_.radius(k)};
+            const auto r = map_newton::solve(rounded, P, x.i_d, x.i_q, kNewtonMaxIterations,
+                                             kNewtonStepTolerance * I_max);
+            const double T = s * rounded.reduced_torque(r.i_d, r.i_q), T_sample = s * x.torque(shift);
+            m.converged[k] = r.converged && T >= T_sample;
+            m.mtpa[k] = m.converged[k] ? CurrentPoint{r.i_d, r.i_q} : CurrentPoint{x.i_d, x.i_q};
+            m.T[k] = m.converged[k] ? T : T_sample;
+        }
+    }
+    // The flux levels' MTPV seeds: every crossing of a level between neighbouring samples of a circle.
+    constexpr int K = CurrentCircles::kRadii, N = CurrentCircles::kAngles, L = CircleMaxima::kFluxLevels;
+    auto psi_of = [&](const CurrentCircles::Sample& x) { return std::hypot(x.psi_d + shift, x.psi_q); };
+    maxima_.psi_min = INFINITY, maxima_.psi_max = 0.0;
+    for (int k = 1; k <= K; ++k)
+        for (int j = 0; j < N; ++j) {
+            const double psi = psi_of(circles_.at(k, j));
+            maxima_.psi_min = std::min(maxima_.psi_min, psi), maxima_.psi_max = std::max(maxima_.psi_max, psi);
+        }
+    double best[2][L];
+    for (int side = 0; side < 2; ++side)
+        for (int l = 0; l < L; ++l) best[side][l] = -INFINITY, maxima_.sides[side].has_mtpv[l] = false;
+    for (int k = 1; k <= K; ++k)
+        for (int j = 0; j < N; ++j) {
+            const CurrentCircles::Sample &x = circles_.at(k, j), &y = circles_.at(k, j + 1);
+            const double a = psi_of(x), b = psi_of(y);
+            const double lo = std::min(a, b), hi = std::max(a, b);
+            const double step = (maxima_.psi_max - maxima_.psi_min) / (L - 1);
+            for (int l = std::max(0, static_cast<int>(std::ceil((lo - maxima_.psi_min) / step))); l < L; ++l) {
+                const double level = maxima_.psi_level(l);
+                if (level > hi) break;
+                const double t = b != a ? (level - a) / (b - a) : 0.0;
+                const CurrentPoint p{x.i_d + t * (y.i_d - x.i_d), x.i_q + t * (y.i_q - x.i_q)};
+                const double T = x.torque(shift) + t * (y.torque(shift) - x.torque(shift));
+                for (int side = 0; side < 2; ++side) {
+                    const double sT = side == 0 ? T : -T;
+                    if (sT > best[side][l]) best[side][l] = sT, maxima_.sides[side].mtpv[l] = p, maxima_.sides[side].has_mtpv[l] = true;
+                }
+            }
+        }
+    return maxima_;
+}
 
 CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const OperatingLimits& lim,
                                                       double R_s, const MagnetFlux& flux) {
     const double s = sign_of(T_ref);
     const double kT = torque_factor(pole_pairs_);
-    MapNewton m(flux, lim, R_s, s);
-
-    // Ferrari seeds from the machine linearised (apparent inductances) at the last solutions.
-    auto linearised_at = [&](double i_d, double i_q) { return apparent_machine(flux, i_d, s * std::abs(i_q), R_s); };
-    const LinearMachine lin_lim = memory.has_limit ? linearised_at(memory.limit_i_d, memory.limit_i_q)
-                                                   : linearised_at(memory.op_i_d, memory.op_i_q);
+    MapView view(*this, flux, circles_, circle_maxima(flux, lim.I_max), lim, R_s, s);
 
     // 1. The largest torque reachable now (this torque sign), on the map.
-    MapLimit top;
-    if (!predicted_limit(m, lin_lim, top) && !limit_by_elimination(m, lin_lim, top)) {
-        // No exact limit point on the map: above the maximum speed, or Newton failed.
-        // Fall back to the paper's recursion for this step.
+    const decision::Choice top = decision::max_torque(view);
+    if (!top.feasible) {
+        // No limit point on the map: above the maximum speed, or Newton failed. Fall back to the
+        // paper's recursion for this step.
         CurrentCommand fb = solve_recursive(T_ref, lim, R_s, flux);
-        fb.iterations += m.iterations;
+        fb.iterations += view.iterations;
         fb.converged = false;
         return fb;
     }
-    const double T_red_top = flux.reduced_torque(top.point.i_d, top.point.i_q);
-    const double T_top = std::max(0.0, s * T_red_top);  // reduced, >= 0
-    memory.limit_i_d = top.point.i_d;
-    memory.limit_i_q = top.point.i_q;
-    memory.has_limit = true;
+    const double T_top = std::max(0.0, view.torque(top.point));  // reduced, >= 0
+    view.top_point = top.point;
 
-    // 2. The command: clamped to T_max, else MTPA, else the voltage ellipse (Case ii).
+    // 2. The command: clamped to T_max, else MTPA, else the voltage limit (Case ii).
     const double T_red = std::abs(T_ref) / kT;
-    linear::Point p = top.point;
-    Region region = top.region;
-    bool converged = true;
-    if (T_red < T_top) {
-        const double target = s * T_red;
-        const LinearMachine lin_op = linearised_at(memory.op_i_d, memory.op_i_q);
-        // Below the base speed for this torque side (T_max is MTPA) try MTPA first. In field
-        // weakening, the Ferrari Case ii point and its a-priori test say which to try first;
-        // the same test on the map confirms it (or sends us to the other).
-        linear::Point case_ii{};
-        const bool have_case_ii = top.region != Region::mtpa && T_red > 0 &&
-                                  linear::voltage_limit(lin_op, m.w_pos, lim.V_max, T_red, case_ii);
-        auto try_mtpa = [&]() {
-            const auto r = m.solve(System::mtpa, target, m.mirrored(linear::mtpa(lin_op, T_red)));
-            if (!r.converged || !m.within_voltage(r) || !m.within_current(r)) return false;
-            p = {r.i_d, r.i_q};
-            region = Region::mtpa;
-            return true;
-        };
-        auto try_voltage_limit = [&](bool must_be_optimal) {
-            linear::Point seed = case_ii;
-            if (!have_case_ii) {
-                const bool have = T_red > 0 ? linear::voltage_limit(lin_op, m.w_pos, lim.V_max, T_red, seed)
-                                            : linear::zero_torque(lin_op, m.w_pos, lim.V_max, seed);
-                if (!have) seed = m.mirrored(top.point);
-            }
-            const auto r = m.solve(System::voltage_limit, target, m.mirrored(seed));
-            if (!r.converged || !m.within_current(r)) return false;
-            if (must_be_optimal && !map_newton::voltage_limit_is_optimal(flux, lim.omega, R_s, r.i_d, r.i_q)) return false;
-            p = {r.i_d, r.i_q};
-            region = Region::voltage_limit;
-            return true;
-        };
-        const bool voltage_first = have_case_ii && linear::voltage_limit_is_optimal(lin_op, m.w_pos, case_ii);
-        const bool ok = voltage_first ? (try_voltage_limit(true) || try_mtpa() || try_voltage_limit(false))
-                                      : (try_mtpa() || try_voltage_limit(false));
-        if (!ok) converged = false;  // at the edge of reach: keep the limit point
-        if (T_red == 0.0) region = Region::zero_torque;
-    }
+    const decision::Choice c = decision::command(view, T_red, top);
     CurrentCommand cmd;
-    cmd.i_d = p.i_d;
-    cmd.i_q = p.i_q;
-    cmd.region = region;
-    cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(p.i_d, p.i_q) : T_red_top);
+    cmd.i_d = c.point.i_d;
+    cmd.i_q = c.point.i_q;
+    cmd.region = c.region;
+    cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(c.point.i_d, c.point.i_q) : s * T_top);
     cmd.torque_max = kT * T_top;
-    cmd.iterations = m.iterations;
-    cmd.converged = converged;
+    cmd.iterations = view.iterations;
+    // Below T_max the command is T_max's point only at the edge of reach (neither case had a point).
+    cmd.converged = T_red >= T_top || c.point.i_d != top.point.i_d || c.point.i_q != top.point.i_q;
     return cmd;
 }
 

@@ -6,15 +6,17 @@
 //                but its MTPA ignores dL/di and so uses more current than needed.
 //   recursion 2: the true optimum on the map: Newton on the exact optimality conditions
 //                (map_newton.hpp), seeded by one Ferrari solve with apparent inductances.
-//                T_max: one Newton solve for the limit region Ferrari predicts, confirmed on
-//                the map (else MTPA at I_max, MTPV, the limits' intersection in turn).
-// The solver remembers its last solutions as warm starts (a drive's commands move little
-// between 100-us samples); the memory is part of the FMU state.
+//                T_max and the case by the same decisions as the linear machine (decision.hpp),
+//                each condition solved by Newton on the map.
+// Recursion 2 depends on its inputs only; recursion 1 starts from its last solutions (a drive's
+// commands move little between 100-us samples), a memory that is part of the FMU state.
 #pragma once
 
+#include <cmath>
 #include <memory>
 
 #include "machine/flux_map.hpp"
+#include "control/current_circles.hpp"
 #include "control/linear_optimal_current.hpp"
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
@@ -23,11 +25,41 @@ namespace ipmsm {
 
 enum class Recursion : int { nominal = 0, apparent = 1, optimal = 2 };
 
+// The torque along the current circles (CurrentCircles): per torque side and circle, MTPA at that
+// current polished on the map from the circle's best sample (its global maximum along the
+// circle). Found for a magnet shift rounded to kShiftStep: they only seed Newton at the exact
+// shift, so a drifting magnet temperature does not find them again every call, and the answer
+// stays a function of the inputs.
+struct CircleMaxima {
+    static constexpr double kShiftStep = 1e-4;  // Wb: 0.1 % of a typical psi_m
+    // MTPV seeds: for flux levels |psi| = psi_level[l] (the lossless voltage limit V_max / |omega|),
+    // the sampled point of most torque where a circle crosses that level.
+    static constexpr int kFluxLevels = 48;
+    struct Side {
+        double T[CurrentCircles::kRadii + 1];         // s T' at MTPA on circle k (k = 0: the origin)
+        CurrentPoint mtpa[CurrentCircles::kRadii + 1];
+        bool converged[CurrentCircles::kRadii + 1];   // Newton converged to at least the best sample's torque
+        CurrentPoint mtpv[kFluxLevels];
+        bool has_mtpv[kFluxLevels];
+    };
+    double psi_min = 0, psi_max = 0;  // the levels, evenly spaced
+    double psi_level(int l) const { return psi_min + (psi_max - psi_min) * l / (kFluxLevels - 1); }
+    double shift = NAN;  // rounded
+    Side sides[2];       // T > 0, T < 0
+    const Side& side(double s) const { return sides[s < 0 ? 1 : 0]; }
+};
+
+// The paper's recursion (recursion 1) starts from its last solutions.
 struct SolverMemory {
     double op_i_d = 0, op_i_q = 0;        // last command
     double limit_i_d = 0, limit_i_q = 0;  // last T_max point
     bool has_limit = false;
 };
+
+// Every method commands currents in the half disk |i| <= I_max, i_d <= 0, and the map must cover it:
+// beyond its grid the map is an extrapolation, not the machine. Throws std::invalid_argument naming
+// I_max and the grid's reach if it does not.
+void check_current_limit_within_map(const FluxMap& map, double I_max);
 
 class SaturatedOptimalCurrent {
 public:
@@ -54,6 +86,12 @@ private:
                                    const MagnetFlux& flux);
     CurrentCommand solve_optimal(double T_ref, const OperatingLimits& lim, double R_s,
                                  const MagnetFlux& flux);
+
+    // The circles and their maxima for the last I_max and magnet shift (recursion 2): computed
+    // again when either changes, so the answer depends on the inputs only.
+    const CircleMaxima& circle_maxima(const MagnetFlux& flux, double I_max);
+    CurrentCircles circles_;
+    CircleMaxima maxima_;
 
     std::shared_ptr<const FluxMap> map_;
     int pole_pairs_;

@@ -34,7 +34,6 @@ TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec)
     const int p = pole_pairs_;
 
     // Torque axis from the zero-speed peak (MTPA at I_max).
-    solver.memory = {};
     const CurrentCommand peak = solver.solve(1e12, {0.0, V_max, spec.I_max}, spec.R_s, spec.psi_d_shift, Recursion::optimal);
     T_peak_ = peak.torque_max;
 
@@ -50,7 +49,7 @@ TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec)
         for (int j = 0; j < spec.n_second; ++j) x_[j] = psi_lo + (psi_hi - psi_lo) * j / (spec.n_second - 1);
     }
 
-    // Entries, walking each torque row so the warm starts follow the solution.
+    // Entries: recursion 2 at every node (its answer depends on the node only).
     const std::size_t n = static_cast<std::size_t>(spec.n_torque) * spec.n_second;
     i_d_.assign(n, 0.0);
     i_q_.assign(n, 0.0);
@@ -60,7 +59,6 @@ TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec)
     for (int j = 0; j < spec.n_second; ++j) {
         const double omega = spec.axis == TableAxis::speed ? p * x_[j] : V_max / x_[j];
         const OperatingLimits lim{omega, V_max, spec.I_max};
-        solver.memory = {};
         for (int k = 0; k < spec.n_torque; ++k) {
             const double T = T_peak_ * (2.0 * k / (spec.n_torque - 1) - 1.0);
             const CurrentCommand c = solver.solve(T, lim, spec.R_s, spec.psi_d_shift, Recursion::optimal);

@@ -78,6 +78,7 @@ void ControllerModel::exit_initialization() {
            << pole_pairs << "; using the parameter";
         context_->log_warning(os.str());
     }
+    check_current_limit_within_map(*map, I_max);
     SaturatedOptimalCurrent solver(map, pole_pairs);
     std::shared_ptr<const TorqueTable> table;
     if (method == 2 || method == 3) {

@@ -281,6 +281,18 @@ FluxMapTable linear_flux_map(double L_d, double L_q, double psi_m, double i_rang
     return t;
 }
 
+FluxMapTable saturating_flux_map(double L_d, double L_q, double psi_m, double I_s, double cross, double I_ref,
+                                 double i_range, int n) {
+    FluxMapTable t = linear_flux_map(L_d, L_q, psi_m, i_range, n);
+    for (int k = 0; k < n; ++k)
+        for (int j = 0; j < n; ++j) {
+            const double y = t.i_q[k] / I_ref, z = t.i_q[k] / I_s;
+            t.psi_d[static_cast<std::size_t>(k) * n + j] = psi_m * (1.0 - cross * y * y / (1.0 + y * y)) + L_d * t.i_d[j];
+            t.psi_q[static_cast<std::size_t>(k) * n + j] = L_q * t.i_q[k] / std::sqrt(1.0 + z * z);
+        }
+    return t;
+}
+
 FluxMap::FluxMap(const FluxMapTable& table) : table_(table) {
     const std::size_t N = table.i_d.size() * table.i_q.size();
     if (table.psi_d.size() != N || table.psi_q.size() != N)

@@ -29,6 +29,11 @@ struct OperatingLimits {
     double I_max;  // peak current limit, A
 };
 
+// A current in the dq frame, A.
+struct CurrentPoint {
+    double i_d, i_q;
+};
+
 // A current command and what it achieves.
 struct CurrentCommand {
     double i_d = 0, i_q = 0;   // A

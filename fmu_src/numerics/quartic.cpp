@@ -40,7 +40,6 @@
 //
 // No heap allocation, no exceptions, no iteration apart from the single Newton step per root.
 #include "numerics/quartic.hpp"
-#include "numerics/quartic_fast.hpp"
 
 #include <algorithm>
 #include <cfloat>
@@ -59,10 +58,6 @@ constexpr int kMaxRootExp = 1000;             // roots beyond 2^1000 are never r
 constexpr double kClampDisc = 64 * kEps;      // "tiny negative" discriminant, relative
 constexpr double kNearDoubleDisc = 0x1p-20;   // window of the near-double-root test
 constexpr double kNearDoubleRes = 16 * kEps;  // its residual tolerance
-// centred_quartic_roots: a centroid of the roots beyond 2^10 means a root near infinity (a tiny
-// leading coefficient) for the O(1) roots it is made for; the Taylor shift would cost the other
-// roots their accuracy, so the robust solver takes over.
-constexpr double kCentredMaxShift = 0x1p10;
 constexpr double kDepressRatio = 0.8;         // depress the quartic or not (solve_quartic)
 constexpr int kZeroExp = -1000000;            // exponent given to 0 (below any real one)
 
@@ -610,40 +605,5 @@ RealRoots solve_quartic(double a, double b, double c, double d, double e) {
     return finish<4>(q, y, n, m);
 }
 
-
-// ---------------------------------------------------------------------------------------------
-// The fast path for depressed quartics (see quartic.hpp).
-
-namespace {
-
-// Sorts the first n (0, 2 or 4) entries.
-inline void sort_up_to_4(double* y, int n) {
-    if (n == 2) cswap(y[0], y[1]);
-    if (n == 4) sort4(y);
-}
-
-}  // namespace
-
-RealRoots solve_depressed_quartic(double p, double q, double r) {
-    RealRoots out = fast::depressed_quartic_roots(p, q, r);
-    // Every root polished, over all four slots (no data-dependent branches; unused slots are 0).
-    const double c[5] = {1.0, 0.0, p, q, r};
-    for (int k = 0; k < 4; ++k) out.root[k] = k < out.count ? newton_step(c, out.root[k]).root() : 0.0;
-    sort_up_to_4(out.root, out.count);
-    return out;
-}
-
-RealRoots centred_quartic_roots(double a, double b, double c, double d, double e) {
-    // Already monic and depressed (the controller's MTPA and voltage-limit quartics): as is.
-    if (a == 1.0 && b == 0.0) return fast::depressed_quartic_roots(c, d, e);
-    // Monic, then depressed by x = y + sh about the centroid sh of the roots.
-    const double inv_a = 1.0 / a, B = b * inv_a, C = c * inv_a, D = d * inv_a, E = e * inv_a;
-    const double sh = -0.25 * B;
-    if (!(std::fabs(sh) <= kCentredMaxShift) || !std::isfinite(C + D + E)) return solve_quartic(a, b, c, d, e);
-    const TaylorShift z = taylor_shift(B, C, D, E, sh);
-    RealRoots out = fast::depressed_quartic_roots(z.P, z.Q, z.R);
-    for (int k = 0; k < out.count; ++k) out.root[k] += sh;
-    return out;
-}
 
 }  // namespace ipmsm

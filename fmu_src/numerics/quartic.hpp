@@ -32,19 +32,17 @@ struct RealRoots {
 RealRoots solve_quartic(double a, double b, double c, double d, double e);
 
 // x^4 + p x^2 + q x + r = 0 (depressed, monic): the form of the controller's own quartics (MTPA
-// and Case ii have no cubic term). Ferrari directly: the largest root m of the resolvent cubic
-// m^3 + p m^2 + (p^2/4 - r) m - q^2/8 (trigonometric form and one Newton step for three real
-// roots, Cardano otherwise), two quadratics, one Newton polish per root (quartic_fast.hpp). No
-// scaling or degree tests: for well-scaled coefficients (|roots| within ~1e-6..1e6 of each other)
-// it is several times faster than solve_quartic and as accurate; never NaN for finite input.
+// and Case ii have no cubic term). Ferrari directly (quartic_depressed.cpp): the largest root of
+// the resolvent cubic, two quadratics, one Newton polish per root. No scaling or degree tests:
+// for well-scaled coefficients (|roots| within ~1e-6..1e6 of each other) about twice as fast as
+// solve_quartic and as accurate; never NaN for finite input.
 RealRoots solve_depressed_quartic(double p, double q, double r);
 
-// The fast path's parts, for callers that want one root: pick it among the unpolished roots,
-// then polish only that one (the polish of all four roots is a third of the cost).
-// a x^4 + b x^3 + c x^2 + d x + e = 0 through the fast path (monic, depressed by x = y - b/4a),
-// unsorted and not polished, for quartics whose roots of interest are O(1) (the controller's
-// tan-half-angle quartics) or that are depressed already (b = 0). If the centroid -b/4a is
-// beyond 2^10 (a root near infinity) it returns solve_quartic()'s roots instead.
+// The same Ferrari path for a caller that wants one root: the roots unsorted and not polished
+// (pick one, then polish it with newton_step). a x^4 + b x^3 + c x^2 + d x + e = 0, made monic and
+// depressed about the centroid -b/4a, for quartics whose roots of interest are O(1) (the
+// controller's tan-half-angle quartics) or that are depressed already (a = 1, b = 0). If the
+// centroid is beyond 2^10 (a root near infinity) it returns solve_quartic()'s roots instead.
 RealRoots centred_quartic_roots(double a, double b, double c, double d, double e);
 
 // A quartic c[0] x^4 + ... + c[4] and its slope at x (Horner).

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <iostream>
 #include <random>
+#include <utility>
 
 #include "control/linear_optimal_current.hpp"
 
@@ -40,6 +41,46 @@ Case random_case(std::mt19937_64& rng) {
 bool feasible(const Case& c, double i_d, double i_q) {
     return i_d * i_d + i_q * i_q <= c.lim.I_max * c.lim.I_max &&
            linear::voltage_sq(c.m, c.lim.omega, i_d, i_q) <= c.lim.V_max * c.lim.V_max;
+}
+
+
+// T' max (this side: T' >= 0 on the mirrored problem) by sampling the boundary of the feasible set,
+// independently of the solver's quartics: the current circle i = I (cos a, sin a) within the
+// voltage limit, and the voltage ellipse v = V (cos b, sin b), i = M^-1 (v - (0, omega psi_m)),
+// within the current limit; then golden-section search about the best sample (an infeasible point
+// counts as -inf, so a maximum at an end of a feasible arc is found too).
+double sampled_max_torque(const LinearMachine& m, const OperatingLimits& lim) {
+    const double R = m.R_s, w = lim.omega, det = R * R + w * w * m.L_d * m.L_q;
+    auto on_circle = [&](double a) { return std::make_pair(lim.I_max * std::cos(a), lim.I_max * std::sin(a)); };
+    auto on_ellipse = [&](double b) {
+        const double v_d = lim.V_max * std::cos(b), v_q = lim.V_max * std::sin(b) - w * m.psi_m;
+        return std::make_pair((R * v_d + w * m.L_q * v_q) / det, (-w * m.L_d * v_d + R * v_q) / det);
+    };
+    auto torque_if_feasible = [&](std::pair<double, double> i) {
+        const bool ok = i.first * i.first + i.second * i.second <= lim.I_max * lim.I_max * (1 + 1e-12) &&
+                        linear::voltage_sq(m, w, i.first, i.second) <= lim.V_max * lim.V_max * (1 + 1e-12);
+        return ok ? linear::reduced_torque(m, i.first, i.second) : -INFINITY;
+    };
+    double best = -INFINITY;
+    constexpr int kSamples = 4000;
+    constexpr double kGolden = 0.6180339887498949;
+    for (int curve = 0; curve < 2; ++curve) {
+        auto T = [&](double x) { return torque_if_feasible(curve == 0 ? on_circle(x) : on_ellipse(x)); };
+        double x_best = 0, T_best = -INFINITY;
+        for (int k = 0; k < kSamples; ++k) {
+            const double x = 2 * M_PI * k / kSamples;
+            if (T(x) > T_best) T_best = T(x), x_best = x;
+        }
+        if (T_best == -INFINITY) continue;
+        double a = x_best - 2 * M_PI / kSamples, b = x_best + 2 * M_PI / kSamples;
+        for (int it = 0; it < 80; ++it) {
+            const double x1 = b - kGolden * (b - a), x2 = a + kGolden * (b - a);
+            if (T(x1) >= T(x2)) b = x2; else a = x1;
+            T_best = std::max({T_best, T(x1), T(x2)});
+        }
+        best = std::max(best, T_best);
+    }
+    return best;
 }
 
 }  // namespace
@@ -138,43 +179,39 @@ TEST(LinearOptimalCurrent, AboveMaximumSpeedIsReportedInfeasible) {
     EXPECT_TRUE(std::isfinite(c.i_d) && std::isfinite(c.i_q));
 }
 
-// optimal_current() finds T_max in field weakening by Halley's method from the lossless closed
-// form (between the stages of the command's Ferrari solution); max_torque() by Ferrari on the
-// limit quartics.
-// Two independent routes to one number, on random machines (R_s up to 0.05 ohm), speeds and
-// torque signs.
-TEST(LinearOptimalCurrent, TorqueLimitByHalleyMatchesFerrari) {
+// T_max against the sampled boundary of the feasible set (sampled_max_torque) on random machines
+// (R_s up to 0.05 ohm), speeds and torque signs.
+TEST(LinearOptimalCurrent, TorqueLimitMatchesTheSampledBoundary) {
     std::mt19937_64 rng(20261122);
     int compared = 0;
     double worst = 0;
-    for (int n = 0; n < 100000; ++n) {
+    for (int n = 0; n < 3000; ++n) {
         const Case c = random_case(rng);
         const CurrentCommand cmd = linear::optimal_current(c.m, kPolePairs, c.T_ref, c.lim);
         const double s = c.T_ref < 0 ? -1 : 1;
-        const linear::Limit top = linear::max_torque(c.m, {s * c.lim.omega, c.lim.V_max, c.lim.I_max});
-        if (!top.feasible || top.T_red <= 0) continue;
+        const double T_ref = sampled_max_torque(c.m, {s * c.lim.omega, c.lim.V_max, c.lim.I_max});
+        if (!(T_ref > 0)) continue;
         ++compared;
-        const double T_max = 1.5 * kPolePairs * top.T_red;
+        const double T_max = 1.5 * kPolePairs * T_ref;
         worst = std::max(worst, std::abs(cmd.torque_max - T_max) / T_max);
-        ASSERT_NEAR(cmd.torque_max, T_max, 1e-11 * T_max) << n;
+        ASSERT_NEAR(cmd.torque_max, T_max, 1e-9 * T_max) << n;
     }
     std::cout << "[ measured ] " << compared << " cases; worst relative difference of T_max " << worst << "\n";
-    EXPECT_GT(compared, 90000);
+    EXPECT_GT(compared, 2500);
 }
 
-// Near the speed where the MTPV point enters the current circle, the lossless estimate (the
-// R_s = 0 machine's limit) can name the other limit than the machine with R_s has: there the
-// fast path polishes the other limit from the first one's point. Speeds swept finely across that
-// band, both directions of rotation, both torque signs, clamped commands: T_max, its point and
-// its region as max_torque() has them by Ferrari.
+// Near the speed where the MTPV point enters the current circle, the lossless (R_s = 0) machine
+// names the other limit than the machine with R_s: the two limits' points are close there. Speeds
+// swept across that band, both directions of rotation, both torque signs, clamped commands:
+// T_max against the sampled boundary, the command at T_max's point with its region.
 TEST(LinearOptimalCurrent, TorqueLimitWhereTheLosslessEstimateNamesTheOtherLimit) {
     const LinearMachine m{0.05, 1.5e-4, 4.5e-4, 0.05};  // psi_m / L_d < I_max; a large R_s: a wide band
     LinearMachine lossless = m;
     lossless.R_s = 0.0;
     const double V_max = 200.0, I_max = 400.0;
     int disagree = 0, compared = 0;
-    for (int k = 0; k <= 20000; ++k) {
-        const double w = 1500.0 + 10500.0 * k / 20000.0;  // electrical rad/s
+    for (int k = 0; k <= 2000; ++k) {
+        const double w = 1500.0 + 10500.0 * k / 2000.0;  // electrical rad/s
         for (double sw : {-1.0, 1.0}) {
             for (double sT : {-1.0, 1.0}) {
                 const OperatingLimits lim{sw * w, V_max, I_max};
@@ -184,8 +221,8 @@ TEST(LinearOptimalCurrent, TorqueLimitWhereTheLosslessEstimateNamesTheOtherLimit
                 disagree += linear::max_torque(lossless, mirrored).region != top.region;
                 ++compared;
                 const CurrentCommand cmd = linear::optimal_current(m, kPolePairs, sT * 1e6, lim);
-                const double T_max = 1.5 * kPolePairs * top.T_red;
-                ASSERT_NEAR(cmd.torque_max, T_max, 1e-11 * T_max) << w << " " << sw << " " << sT;
+                const double T_max = 1.5 * kPolePairs * sampled_max_torque(m, mirrored);
+                ASSERT_NEAR(cmd.torque_max, T_max, 1e-9 * T_max) << w << " " << sw << " " << sT;
                 ASSERT_NEAR(cmd.i_d, top.point.i_d, 1e-9 * I_max) << w << " " << sw << " " << sT;
                 ASSERT_NEAR(cmd.i_q, sT * top.point.i_q, 1e-9 * I_max) << w << " " << sw << " " << sT;
                 ASSERT_EQ(cmd.region, top.region) << w << " " << sw << " " << sT;
@@ -194,7 +231,7 @@ TEST(LinearOptimalCurrent, TorqueLimitWhereTheLosslessEstimateNamesTheOtherLimit
     }
     std::cout << "[ measured ] " << compared << " clamped commands in field weakening; the lossless limit differs in "
               << disagree << "\n";
-    EXPECT_GT(disagree, 100);  // the band is exercised
+    EXPECT_GT(disagree, 10);  // the band is exercised
 }
 
 // Nearly non-salient machines (|L_d - L_q| / L from 1e-9 to 3e-2, both signs): Case ii's quartic in
@@ -252,11 +289,10 @@ TEST(LinearOptimalCurrent, ReluctanceMachineInFieldWeakening) {
     EXPECT_GT(voltage_limited, 4);
 }
 
-// Large R_s against omega L while braking (the mirrored speed negative): the lossless estimate
-// can be far off, and a polished root that is another stationary point or intersection of the
-// limit quartics (a torque minimum on the ellipse, an intersection where the voltage limit does
-// not bind) must not be taken for T_max. Two cases found by a review, then random machines with
-// R_s up to three times omega L_d: T_max as max_torque() has it by Ferrari.
+// Large R_s against omega L while braking (the mirrored speed negative): the limit quartics have
+// other stationary points and intersections (a torque minimum on the ellipse, an intersection
+// where the voltage limit does not bind), which must not be taken for T_max. Two cases found by a review, then random machines with
+// R_s up to three times omega L_d: T_max against the sampled boundary.
 TEST(LinearOptimalCurrent, TorqueLimitWithLargeResistanceAgainstOmegaL) {
     struct Known {
         LinearMachine m;
@@ -265,32 +301,31 @@ TEST(LinearOptimalCurrent, TorqueLimitWithLargeResistanceAgainstOmegaL) {
     const Known known[] = {{{0.7876, 0.005147, 0.023552, 28.44}, -2048.76, 485.63, 205.74, 528.9},
                            {{0.08383, 0.008555, 0.021822, 1.26}, -72.2, 10.28, 13.25, 1e3}};
     for (const Known& k : known) {
-        const linear::Limit top = linear::max_torque(k.m, {k.omega, k.V_max, k.I_max});
         const CurrentCommand c = linear::optimal_current(k.m, kPolePairs, k.T_ref, {k.omega, k.V_max, k.I_max});
-        ASSERT_NEAR(c.torque_max, 1.5 * kPolePairs * top.T_red, 1e-9 * c.torque_max) << k.m.R_s;
+        const double T_max = 1.5 * kPolePairs * sampled_max_torque(k.m, {k.omega, k.V_max, k.I_max});
+        ASSERT_NEAR(c.torque_max, T_max, 1e-9 * T_max) << k.m.R_s;
     }
     std::mt19937_64 rng(20261124);
     std::uniform_real_distribution<double> u(0.0, 1.0);
     int compared = 0;
-    for (int n = 0; n < 100000; ++n) {
+    for (int n = 0; n < 3000; ++n) {
         Case c = random_case(rng);
         const double w = (u(rng) < 0.5 ? -1 : 1) * (300 + 6000 * u(rng));
         c.lim.omega = w;
         c.m.R_s = 3.0 * u(rng) * std::abs(w) * c.m.L_d;
         const double s = c.T_ref < 0 ? -1 : 1;
-        const linear::Limit top = linear::max_torque(c.m, {s * w, c.lim.V_max, c.lim.I_max});
-        if (!top.feasible || top.T_red <= 0) continue;
+        const double T_ref = sampled_max_torque(c.m, {s * w, c.lim.V_max, c.lim.I_max});
+        if (!(T_ref > 0)) continue;
         ++compared;
         const CurrentCommand cmd = linear::optimal_current(c.m, kPolePairs, c.T_ref, c.lim);
-        const double T_max = 1.5 * kPolePairs * top.T_red;
+        const double T_max = 1.5 * kPolePairs * T_ref;
         ASSERT_NEAR(cmd.torque_max, T_max, 1e-9 * T_max) << n;
     }
-    EXPECT_GT(compared, 50000);
+    EXPECT_GT(compared, 1500);
 }
 
-// A kept solver (MTPA at I_max cached, recomputed when the machine or I_max changes) gives the
-// same commands, bit for bit, as a fresh solver per call, whatever the sequence of machines and
-// current limits.
+// A kept solver gives the same commands, bit for bit, as a fresh solver per call, whatever the
+// sequence of machines and current limits (the answer depends on the inputs only).
 TEST(LinearOptimalCurrent, KeptSolverMatchesAFreshOneAsTheMachineAndCurrentLimitChange) {
     std::mt19937_64 rng(20261123);
     std::uniform_real_distribution<double> u(0.0, 1.0);

@@ -8,7 +8,6 @@
 #include <random>
 
 #include "numerics/quartic.hpp"
-#include "numerics/quartic_fast.hpp"
 
 using namespace ipmsm;
 
@@ -87,47 +86,10 @@ TEST(DepressedQuartic, KnownRootsAndNoNaN) {
     EXPECT_NEAR(b.root[3], 2, 1e-14);
 }
 
-// The general quartics of the fast path (centred_quartic_roots, the controller's tan-half-angle
-// quartics) against the robust solver: random quartics with four or two real roots of order 1
-// around a random centroid within the fast path's range, each root polished once as the
+// The general quartics of the depressed path (centred_quartic_roots, the controller's
+// tan-half-angle quartics) against the robust solver: random quartics with four or two real roots
+// of order 1 around a random centroid within its range, each root polished once as the
 // controller does. Also: far-off centroids (a root near infinity) are handed to the robust solver.
-// The fast path's reciprocal roots (from the pair products, no division per root): 1/x for every
-// root found, +inf in the unused slots; random quartics with q = 0 (the biquadratic branch), with
-// roots of both signs, and with widely spread roots.
-TEST(DepressedQuartic, ReciprocalRootsFromThePairProducts) {
-    std::mt19937_64 rng(13);
-    std::uniform_real_distribution<double> u(-1, 1);
-    double worst = 0;
-    int biquadratic = 0, found = 0;
-    for (int n = 0; n < 400000; ++n) {
-        // Roots r0..r3 (sum zero: depressed), from x^4 + p x^2 + q x + r = prod (x - r_k).
-        double x[4];
-        const double spread = std::pow(10.0, 3 * std::abs(u(rng)));
-        x[0] = u(rng), x[1] = u(rng) * spread, x[2] = (n % 4 == 0) ? -x[0] : u(rng);
-        if (n % 4 == 0) x[3] = -x[1];  // q = 0: pairs +-a, +-b
-        else x[3] = -(x[0] + x[1] + x[2]);
-        const double e2 = x[0] * x[1] + x[0] * x[2] + x[0] * x[3] + x[1] * x[2] + x[1] * x[3] + x[2] * x[3];
-        const double e3 = x[0] * x[1] * x[2] + x[0] * x[1] * x[3] + x[0] * x[2] * x[3] + x[1] * x[2] * x[3];
-        const double e4 = x[0] * x[1] * x[2] * x[3];
-        const double p = e2, q = n % 4 == 0 ? 0.0 : -e3, r = e4;
-        if (q == 0.0) ++biquadratic;
-        double inv[4];
-        const RealRoots roots = fast::depressed_quartic_roots(p, q, r, [] {}, inv);
-        for (int k = 0; k < 4; ++k) {
-            if (k >= roots.count) {
-                ASSERT_EQ(inv[k], INFINITY) << "case " << n << " slot " << k;
-                continue;
-            }
-            ++found;
-            const double err = std::abs(roots.root[k] * inv[k] - 1.0);
-            worst = std::max(worst, err);
-            ASSERT_LT(err, 1e-12) << "case " << n << ": root " << roots.root[k] << ", reciprocal " << inv[k];
-        }
-    }
-    std::cout << "[ measured ] " << found << " roots (" << biquadratic << " quartics with q = 0); worst |x (1/x) - 1| "
-              << worst << "\n";
-}
-
 TEST(CentredQuartic, MatchesTheRobustSolverAfterOnePolish) {
     const double kCentre = 16;  // centroids in [-16, 16], clusters of width 2 (gaps >= 1e-3)
     std::mt19937_64 rng(13);

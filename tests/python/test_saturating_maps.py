@@ -277,7 +277,8 @@ def _cases(family, xfails):
 
 
 # Failing on ed0f875 (measured, see the report of the branch h/satmaps).
-FAST_FAILING = {"Is0.3-Idsnone-x0", "Is0.3-Ids0.5-x0.15", "Is0.2-Idsnone-x0.15"}
+# All fixed by h/controller (recursion 2 bracketed on the map's current circles): none left.
+FAST_FAILING: set[str] = set()
 FAIL_FRESH_R2 = FAST_FAILING
 FAIL_WARM_R2 = FAST_FAILING
 
@@ -311,9 +312,9 @@ def test_recursion2_warm_equals_fresh(controller_fmu, maps, m):
     _recursion2_history(controller_fmu, maps, m, 1, 13)
 
 
-SLOW_FAILING = {"Is0.2-Idsnone-x0", "Is0.2-Ids0.5-x0", "Is0.3-Ids1-x0.15", "Is0.5-Idsnone-x0.15-Ld0.0003"}
+SLOW_FAILING: set[str] = set()
 FAIL_FRESH_R2_SLOW = SLOW_FAILING
-FAIL_WARM_R2_SLOW = SLOW_FAILING | {"Is0.5-Ids0.5-x0"}  # right when fresh, wrong after some histories
+FAIL_WARM_R2_SLOW = SLOW_FAILING
 
 
 @pytest.mark.slow
@@ -390,8 +391,7 @@ def _tables_history(controller_fmu, maps, m, method, seed):
 
 
 # (method, machine id); the tables are built with recursion 2, so its wrong maxima are theirs.
-FAIL_TABLES = ({(3, "Is0.3-Idsnone-x0")} | {(method, m) for method in (2, 3) for m in FAST_FAILING - {"Is0.3-Idsnone-x0"}}
-               | {(method, m) for method in (2, 3) for m in SLOW_FAILING})
+FAIL_TABLES = {(method, m) for method in (2, 3) for m in FAST_FAILING | SLOW_FAILING}
 
 
 @pytest.mark.parametrize("method", [2, 3])
