@@ -115,6 +115,17 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
 
     M m = in.model;
     read_variables(r, m, what);
+    // Validated as fmi2SetReal/Integer validate them: a state is input, not proof (its checksum
+    // guards against accidents, not against edits).
+    for (const auto& v : variables<M>()) {
+        if (v.causality != Causality::input && v.causality != Causality::parameter) continue;
+        const Type t = type_of(v);
+        if (t != Type::Real && t != Type::Integer) continue;
+        const double x = t == Type::Real ? m.*std::get<double M::*>(v.member) : m.*std::get<int M::*>(v.member);
+        if (!in_range(v, x))
+            throw Error(std::string(what) + ": " + v.name + " = " + number_text(x) + " is out of range: it must be " +
+                        range_text(v) + "; not restored");
+    }
     std::string mismatch;
     for (const auto& v : variables<M>()) {
         if (v.causality != Causality::parameter || v.variability != Variability::fixed) continue;
