@@ -51,8 +51,8 @@ std::vector<std::string> metadata_warnings(const FluxMapTable& table, const std:
     for (const MetadataCheck& c : checks) {
         const auto it = table.metadata.find(c.key);
         if (it == table.metadata.end()) continue;
-        const std::string said = "flux map " + quoted_excerpt(map_name) + " says '# " + c.key + ": " +
-                                 quoted_excerpt(it->second) + "'";
+        const std::string said =
+            "flux map " + quoted_excerpt(map_name) + " says " + c.key + ": " + quoted_excerpt(it->second);
         const MetadataValue m = split_metadata_value(it->second);
         if (!m.is_number) {
             out.push_back(said + ", which does not start with a number: ignored (the parameter " + c.parameter +

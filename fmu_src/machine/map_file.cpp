@@ -64,8 +64,15 @@ std::string read_regular(const std::string& path, std::size_t max_bytes) {
         int fd;
         ~Closer() { ::close(fd); }
     } closer{fd};
+#ifdef __GLIBC__
+    // fstat64: the symbol every glibc has (the FMUs' glibc_compat wraps it); fstat is 2.33's
+    struct stat64 st;
+    const int stat_result = ::fstat64(fd, &st);
+#else
     struct stat st;
-    if (::fstat(fd, &st) != 0) throw MapFileError(std::string("cannot open file (") + std::strerror(errno) + ")");
+    const int stat_result = ::fstat(fd, &st);
+#endif
+    if (stat_result != 0) throw MapFileError(std::string("cannot open file (") + std::strerror(errno) + ")");
     if (S_ISDIR(st.st_mode)) throw MapFileError("cannot open file (it is a directory)");
     if (S_ISFIFO(st.st_mode)) throw MapFileError("not a regular file (a named pipe)");
     if (S_ISCHR(st.st_mode) || S_ISBLK(st.st_mode)) throw MapFileError("not a regular file (a device)");
