@@ -14,6 +14,7 @@
 
 #include "fmi2_support.hpp"
 #include "instance.hpp"
+#include "log_text.hpp"
 #include "state_stream.hpp"
 #include "variable.hpp"
 
@@ -103,7 +104,8 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
                     std::to_string(kStateFormat));
     const std::string id = r.get_string(), guid = r.get_string();
     if (id != M::model_identifier || guid != M::guid)
-        throw Error(std::string(what) + " belongs to " + id + " " + guid + ", not to " + M::model_identifier +
+        throw Error(std::string(what) + " belongs to " + utf8_excerpt(id, 100) + " " + utf8_excerpt(guid, 100) +
+                    ", not to " + M::model_identifier +
                     " " + M::guid);
     const auto phase_value = r.get<std::uint8_t>();
     if (phase_value < static_cast<std::uint8_t>(Phase::instantiated) ||
