@@ -43,10 +43,14 @@ inline bool decode(const std::string& in, std::string& out) {
         for (int k = 1; k <= 2; ++k) {
             const char h = in[i + k];
             v *= 16;
-            if (h >= '0' && h <= '9') v += h - '0';
-            else if (h >= 'a' && h <= 'f') v += h - 'a' + 10;
-            else if (h >= 'A' && h <= 'F') v += h - 'A' + 10;
-            else return false;
+            if (h >= '0' && h <= '9')
+                v += h - '0';
+            else if (h >= 'a' && h <= 'f')
+                v += h - 'a' + 10;
+            else if (h >= 'A' && h <= 'F')
+                v += h - 'A' + 10;
+            else
+                return false;
         }
         if (v == 0) return false;
         out += static_cast<char>(v);
@@ -79,13 +83,17 @@ inline std::string resource_dir_from_uri(const char* uri, bool windows = kWindow
     if (windows && s.size() > 2 && s[0] == '\\' && s[1] == '\\') return without_trailing_slashes(s, 2, windows);
     std::string encoded, path;
     bool unc = false;
-    if (starts(s, "file:///")) encoded = s.substr(7);
-    else if (starts(s, "file://localhost/")) encoded = s.substr(16);
+    if (starts(s, "file:///"))
+        encoded = s.substr(7);
+    else if (starts(s, "file://localhost/"))
+        encoded = s.substr(16);
     else if (starts(s, "file://")) {
         encoded = s.substr(5);  // "//host/share/...": a UNC path
         unc = true;
-    } else if (starts(s, "file:/")) encoded = s.substr(5);
-    else return "";
+    } else if (starts(s, "file:/"))
+        encoded = s.substr(5);
+    else
+        return "";
     if (!decode(encoded, path)) return "";
     if (unc) {
         if (!windows) return "";  // no remote files on POSIX

@@ -18,10 +18,10 @@ struct KeyUnit {
 };
 // The contract's metadata keys (INTERFACE.md, the map format) and their SI units.
 constexpr KeyUnit kKeyUnits[] = {
-    {"pole_pairs", ""},          {"R_s_ohm", "Ohm"},          {"T_winding_ref_K", "K"},
-    {"alpha_cu_per_K", "1/K"},   {"T_magnet_ref_K", "K"},     {"k_psi_T_per_K", "1/K"},
-    {"fe_k_h_W_per_Hz", "W/Hz"}, {"fe_alpha", ""},            {"fe_k_e_W_per_Hz2", "W/Hz^2"},
-    {"fe_psi_ref_Wb", "Wb"},     {"I_max_A", "A"},            {"u_dc_V", "V"},
+    {"pole_pairs", ""},          {"R_s_ohm", "Ohm"},      {"T_winding_ref_K", "K"},
+    {"alpha_cu_per_K", "1/K"},   {"T_magnet_ref_K", "K"}, {"k_psi_T_per_K", "1/K"},
+    {"fe_k_h_W_per_Hz", "W/Hz"}, {"fe_alpha", ""},        {"fe_k_e_W_per_Hz2", "W/Hz^2"},
+    {"fe_psi_ref_Wb", "Wb"},     {"I_max_A", "A"},        {"u_dc_V", "V"},
 };
 
 bool same_unit(const std::string& a, const std::string& b) {
@@ -62,9 +62,9 @@ std::vector<std::string> metadata_warnings(const FluxMapTable& table, const std:
         const std::string unit = metadata_unit(c.key);
         const std::string word = m.rest.substr(0, m.rest.find_first_of(" \t("));
         if (!unit.empty() && !word.empty() && !same_unit(word, unit)) {
-            out.push_back(said + ": the unit '" + quoted_excerpt(word, 40) + "' is not the contract's SI unit " +
-                          unit + "; the value is ignored (the parameter " + c.parameter + " is " + num(c.value) +
-                          " " + unit + ")");
+            out.push_back(said + ": the unit '" + quoted_excerpt(word, 40) + "' is not the contract's SI unit " + unit +
+                          "; the value is ignored (the parameter " + c.parameter + " is " + num(c.value) + " " + unit +
+                          ")");
             continue;
         }
         if (std::abs(m.value - c.value) > 1e-9 * std::max(std::abs(m.value), std::abs(c.value)))

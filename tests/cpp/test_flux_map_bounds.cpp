@@ -109,7 +109,8 @@ TEST(FluxMapBounds, GridSizeIsCheckedBeforeAllocation) {
     s << "i_d,i_q,psi_d,psi_q\n";
     for (int k = 0; k < 3000; ++k) s << k << "," << k << "," << 0.08 + 1e-6 * k << "," << 1e-6 * k << "\n";
     const std::string e = error_of(write("distinct.csv", s.str()));
-    EXPECT_NE(e.find("3000 distinct i_d x 3000 distinct i_q values need 9000000 rows, found 3000"), std::string::npos) << e;
+    EXPECT_NE(e.find("3000 distinct i_d x 3000 distinct i_q values need 9000000 rows, found 3000"), std::string::npos)
+        << e;
     EXPECT_NE(e.find("and more than 512 values on an axis"), std::string::npos) << e;
     // a hole in a full grid: the point named without the grid
     std::string holed = grid();
@@ -140,7 +141,8 @@ TEST(FluxMapBounds, LineEndings) {
 }
 
 TEST(FluxMapBounds, EchoesAreShortValidUtf8) {
-    const std::string e = error_of(write("latin1.csv", "i_d,i_q,psi_d,psi_q\n" + std::string(3000, '\xe9') + ",1,2,3\n"));
+    const std::string e =
+        error_of(write("latin1.csv", "i_d,i_q,psi_d,psi_q\n" + std::string(3000, '\xe9') + ",1,2,3\n"));
     EXPECT_TRUE(valid_utf8(e)) << e;
     EXPECT_NE(e.find("\\xE9\\xE9"), std::string::npos) << e;
     EXPECT_NE(e.find("(3000 bytes in all)"), std::string::npos) << e;
@@ -174,17 +176,22 @@ TEST(FluxMapBounds, MetadataLeadingNumberAndUnits) {
     EXPECT_EQ(split_metadata_value("1.5e-3 Ohm").value, 1.5e-3);
     EXPECT_FALSE(split_metadata_value("four").is_number);
 
-    FluxMapTable t = read_flux_map(write("meta.csv", grid("\n", "# pole_pairs: 4 (8 poles)\n# R_s_ohm: 12 mOhm\n"
-                                                                 "# T_magnet_ref_K: 293.15 K\n# k_psi_T_per_K: -0.0012 1/K\n")));
+    FluxMapTable t =
+        read_flux_map(write("meta.csv", grid("\n",
+                                             "# pole_pairs: 4 (8 poles)\n# R_s_ohm: 12 mOhm\n"
+                                             "# T_magnet_ref_K: 293.15 K\n# k_psi_T_per_K: -0.0012 1/K\n")));
     EXPECT_EQ(t.metadata_number("pole_pairs", 0), 4);
-    const auto w = metadata_warnings(t, "m.csv", {{"pole_pairs", "pole_pairs", 4}, {"R_s_ohm", "R_s", 0.012},
-                                                  {"T_magnet_ref_K", "T_magnet_ref", 293.15},
-                                                  {"k_psi_T_per_K", "k_psi_T", -0.0012}});
+    const auto w = metadata_warnings(t, "m.csv",
+                                     {{"pole_pairs", "pole_pairs", 4},
+                                      {"R_s_ohm", "R_s", 0.012},
+                                      {"T_magnet_ref_K", "T_magnet_ref", 293.15},
+                                      {"k_psi_T_per_K", "k_psi_T", -0.0012}});
     ASSERT_EQ(w.size(), 1u);
     EXPECT_NE(w[0].find("'mOhm' is not the contract's SI unit Ohm"), std::string::npos) << w[0];
     const auto differs = metadata_warnings(t, "m.csv", {{"pole_pairs", "pole_pairs", 3}});
     ASSERT_EQ(differs.size(), 1u);
-    EXPECT_NE(differs[0].find("but the parameter pole_pairs is 3; using the parameter"), std::string::npos) << differs[0];
+    EXPECT_NE(differs[0].find("but the parameter pole_pairs is 3; using the parameter"), std::string::npos)
+        << differs[0];
 }
 
 TEST(FluxMapBounds, ContentHashAndSharedMaps) {

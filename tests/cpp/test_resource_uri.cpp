@@ -40,8 +40,8 @@ TEST(ResourceUri, WindowsUncUris) {
     EXPECT_EQ(windows("file://server/share/fmu/resources"), "//server/share/fmu/resources");
     EXPECT_EQ(windows("file://server/share/fmu/resources/"), "//server/share/fmu/resources");
     EXPECT_EQ(windows("file://server/sh%20are/fmu"), "//server/sh are/fmu");
-    EXPECT_EQ(windows("file://server"), "");   // no share
-    EXPECT_EQ(windows("file://server/"), "");  // no share
+    EXPECT_EQ(windows("file://server"), "");                    // no share
+    EXPECT_EQ(windows("file://server/"), "");                   // no share
     EXPECT_EQ(posix("file://server/share/fmu/resources"), "");  // a remote host: nothing local
 }
 
@@ -59,10 +59,10 @@ TEST(ResourceUri, Refused) {
         EXPECT_EQ((*f)(""), "");
         EXPECT_EQ((*f)("relative/path"), "");
         EXPECT_EQ((*f)("http://example.com/fmu/resources"), "");
-        EXPECT_EQ((*f)("file:///tmp/a%2"), "");        // truncated escape
-        EXPECT_EQ((*f)("file:///tmp/a%zz"), "");       // not hex
-        EXPECT_EQ((*f)("file:///tmp/a%00b"), "");      // an encoded NUL
-        EXPECT_EQ((*f)("file:///tmp/a?query"), "");    // a query
+        EXPECT_EQ((*f)("file:///tmp/a%2"), "");         // truncated escape
+        EXPECT_EQ((*f)("file:///tmp/a%zz"), "");        // not hex
+        EXPECT_EQ((*f)("file:///tmp/a%00b"), "");       // an encoded NUL
+        EXPECT_EQ((*f)("file:///tmp/a?query"), "");     // a query
         EXPECT_EQ((*f)("file:///tmp/a#fragment"), "");  // a fragment
     }
 }

@@ -18,10 +18,11 @@ from pathlib import Path
 
 import pytest
 
+from scenarios.flux_map import linear_flux_map, write_flux_map
+
 import fmi2_raw as raw
 from conftest import fmu_path
 from fmi2_raw import ERROR, OK, WARNING
-from scenarios.flux_map import linear_flux_map, write_flux_map
 
 FMUS = ["IpmsmController", "IpmsmPlant"]
 CHILD = Path(__file__).resolve().parent / "hostile_child.py"
@@ -291,6 +292,19 @@ def test_a_deserialised_state_is_validated_like_set(make, name, variable, marker
     assert a.step() == OK  # the instance is untouched
 
 
+def test_nan_in_the_regulator_state_is_refused_not_installed(make):
+    """u_d_ref is also the regulator's u_d_prev: NaN there, checksum recomputed, must not brick."""
+    a = make("IpmsmController")
+    a.init(T_ref=100.0, w_m=300.0, i_q=50.0)
+    a.step()
+    u_d = a.get("u_d_ref")
+    blob = a.serialize(a.get_state())
+    status, state = a.deserialize_status(_patched(blob, u_d, math.nan))
+    assert status == ERROR and state is None, a.log.text()
+    assert "not finite" in a.log.text()
+    assert a.step() == OK and math.isfinite(a.get("u_d_ref"))
+
+
 @pytest.mark.parametrize("name", FMUS)
 def test_a_state_is_refused_on_an_edited_map(make, tmp_path, good_map, name):
     path = tmp_path / "edited.csv"
@@ -319,4 +333,3 @@ def test_a_remote_host_has_no_resources_but_a_clear_error(make, name):
     assert a.setup() == OK and a.enter() == OK
     assert a.exit() == ERROR
     assert "resources/ folder is unknown" in a.log.text(), a.log.text()
-    assert math.isfinite(0.0)
