@@ -141,8 +141,8 @@ MetadataValue split_metadata_value(const std::string& text) {
     // The longest prefix that is a number, then the rest: "4 (8 poles)" is 4 and "(8 poles)".
     MetadataValue m;
     const std::string s = trim(text);
-    std::size_t end = s.find_first_of(" \t(");
-    if (end == std::string::npos) end = s.size();
+    // no number is longer than 64 characters: the scan stays short whatever the value's length
+    const std::size_t end = std::min<std::size_t>(s.find_first_of(" \t("), std::min<std::size_t>(s.size(), 64));
     for (std::size_t n = end; n > 0; --n)
         if (parse_number(s.substr(0, n), m.value) == NumStatus::ok) {
             m.is_number = true;
