@@ -131,9 +131,9 @@ void PlantModel::exit_initialization() {
     const auto t0 = std::chrono::steady_clock::now();
     std::shared_ptr<const FluxMap> map;
     std::shared_ptr<const InverseFluxMap> inverse;
+    map = shared_flux_map(path);  // FluxMapError: says file and line, as in the controller; parsed once per content
     try {
-        map = shared_flux_map(path);     // says file and line; parsed once per content
-        inverse = shared_inverse(map);   // the map must be invertible
+        inverse = shared_inverse(map);  // the map must be invertible
     } catch (const std::exception& e) {
         throw fmi::Error(std::string("flux map: ") + e.what());
     }

@@ -189,6 +189,13 @@ def _with_metadata(good_map: Path, tmp_path: Path, line: str) -> Path:
     return path
 
 
+def test_both_fmus_refuse_a_map_with_the_same_words(tmp_path, good_map):
+    path = tmp_path / "distinct.csv"
+    path.write_text(_distinct_rows(100))
+    said = [errors_of(child(name, path, good_map, tmp_path)).splitlines()[0] for name in FMUS]
+    assert said[0] == said[1] and "grid is not full and rectangular" in said[0], said
+
+
 @pytest.mark.parametrize("name", FMUS)
 def test_metadata_trailing_words_are_a_comment(make, tmp_path, good_map, name):
     path = _with_metadata(good_map, tmp_path, "pole_pairs: 4 (8 poles)")
