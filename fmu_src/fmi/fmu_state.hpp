@@ -23,7 +23,7 @@ namespace fmi {
 namespace glue {
 
 inline constexpr char kStateMagic[8] = {'I', 'P', 'M', 'S', 'M', 'F', 'S', 'T'};
-inline constexpr std::uint32_t kStateFormat = 2;
+inline constexpr std::uint32_t kStateFormat = 3;
 
 // The variables of a model, each as its type's index then its value.
 template <class M>
