@@ -132,7 +132,11 @@ void PlantModel::exit_initialization() {
     const auto t0 = std::chrono::steady_clock::now();
     std::shared_ptr<const FluxMap> map;
     std::shared_ptr<const InverseFluxMap> inverse;
-    map = shared_flux_map(path);  // FluxMapError: says file and line, as in the controller; parsed once per content
+    try {
+        map = shared_flux_map(path);  // parsed once per content
+    } catch (const FluxMapError& e) {
+        throw fmi::Error(e.what());  // says file and line, in the controller's words
+    }
     try {
         inverse = shared_inverse(map);  // the map must be invertible
     } catch (const std::exception& e) {
