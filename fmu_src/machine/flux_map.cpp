@@ -81,8 +81,7 @@ NumStatus parse_number(const std::string& text, double& value) {
 bool is_metadata_key(const std::string& k) {
     if (k.empty() || !(std::isalpha(static_cast<unsigned char>(k[0])) || k[0] == '_')) return false;
     for (char c : k)
-        if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '-'))
-            return false;
+        if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == '-')) return false;
     return true;
 }
 
@@ -109,8 +108,8 @@ int axis_index(const std::vector<double>& axis, double x, double tol) {
 
 // ", missing e.g. (i_d = .. A, i_q = .. A)" for a grid that lacks points (rows < nd nq), found
 // without allocating the grid: the first axis pair, in order, that no row has.
-std::string missing_point(const std::vector<Row>& rows, const std::vector<double>& i_d,
-                          const std::vector<double>& i_q, double tol_d, double tol_q) {
+std::string missing_point(const std::vector<Row>& rows, const std::vector<double>& i_d, const std::vector<double>& i_q,
+                          double tol_d, double tol_q) {
     if (rows.size() >= i_d.size() * i_q.size()) return "";
     std::vector<std::pair<int, int>> have;
     have.reserve(rows.size());
@@ -250,15 +249,13 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
             fail_line(line, "expected 4 comma-separated values (i_d,i_q,psi_d,psi_q), found " +
                                 std::to_string(f.size()) + ": '" + quoted_excerpt(s) + "'");
         if (rows.size() == kMaxGridPoints)
-            fail_line(line, "more than " + std::to_string(kMaxGridPoints) +
-                                " data rows, the limit for a flux map (" + std::to_string(kMaxGridAxis) + " x " +
-                                std::to_string(kMaxGridAxis) + ")");
+            fail_line(line, "more than " + std::to_string(kMaxGridPoints) + " data rows, the limit for a flux map (" +
+                                std::to_string(kMaxGridAxis) + " x " + std::to_string(kMaxGridAxis) + ")");
         Row r;
         r.line = line;
         for (int c = 0; c < 4; ++c) {
             switch (parse_number(f[c], r.v[c])) {
-                case NumStatus::ok:
-                    break;
+                case NumStatus::ok: break;
                 case NumStatus::not_a_number:
                     fail_line(line, std::string("column ") + kColumns[c] + ": '" + quoted_excerpt(f[c]) +
                                         "' is not a number");
@@ -273,8 +270,7 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
     }
     if (content_lines == 0) fail("empty file (expected '#' lines, the header 'i_d,i_q,psi_d,psi_q' and data rows)");
     if (header_line == 0)
-        fail("no header line 'i_d,i_q,psi_d,psi_q' and no data (only '#' lines, " +
-             std::to_string(line) + " lines)");
+        fail("no header line 'i_d,i_q,psi_d,psi_q' and no data (only '#' lines, " + std::to_string(line) + " lines)");
     if (rows.empty())
         fail_line(header_line, "header but no data rows (file ends at line " + std::to_string(line) + ")");
 
@@ -293,8 +289,8 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
     // Before the grid is allocated: rows with distinct currents would ask for rows^2 points. More
     // rows than points (nd nq < rows) means a duplicate, which the loop below names.
     if (nd > kMaxGridAxis || nq > kMaxGridAxis || nd * nq > rows.size())
-        fail("grid is not full and rectangular: " + std::to_string(nd) + " distinct i_d x " +
-             std::to_string(nq) + " distinct i_q values need " + std::to_string(nd * nq) + " rows, found " + std::to_string(rows.size()) +
+        fail("grid is not full and rectangular: " + std::to_string(nd) + " distinct i_d x " + std::to_string(nq) +
+             " distinct i_q values need " + std::to_string(nd * nq) + " rows, found " + std::to_string(rows.size()) +
              (nd > kMaxGridAxis || nq > kMaxGridAxis
                   ? " (and more than " + std::to_string(kMaxGridAxis) + " values on an axis, the limit)"
                   : missing_point(rows, t.i_d, t.i_q, tol_d, tol_q)));
@@ -305,8 +301,8 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
         const std::size_t j = axis_index(t.i_d, r.v[0], tol_d), k = axis_index(t.i_q, r.v[1], tol_q);
         const std::size_t idx = k * nd + j;
         if (at[idx] != 0)
-            fail_line(r.line, "duplicate grid point (i_d = " + fmt(r.v[0]) + " A, i_q = " +
-                                  fmt(r.v[1]) + " A), first given on line " + std::to_string(at[idx]));
+            fail_line(r.line, "duplicate grid point (i_d = " + fmt(r.v[0]) + " A, i_q = " + fmt(r.v[1]) +
+                                  " A), first given on line " + std::to_string(at[idx]));
         at[idx] = r.line;
         t.psi_d[idx] = r.v[2];
         t.psi_q[idx] = r.v[3];
@@ -323,18 +319,18 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
             const std::size_t a = k * nd + j, b = a + 1;
             if (!(t.psi_d[b] > t.psi_d[a]))
                 fail_line(at[b], "psi_d not strictly increasing in i_d along i_q = " + fmt(t.i_q[k]) +
-                                     " A: psi_d = " + fmt(t.psi_d[a]) + " Wb at i_d = " + fmt(t.i_d[j]) +
-                                     " A (line " + std::to_string(at[a]) + "), psi_d = " +
-                                     fmt(t.psi_d[b]) + " Wb at i_d = " + fmt(t.i_d[j + 1]) + " A");
+                                     " A: psi_d = " + fmt(t.psi_d[a]) + " Wb at i_d = " + fmt(t.i_d[j]) + " A (line " +
+                                     std::to_string(at[a]) + "), psi_d = " + fmt(t.psi_d[b]) +
+                                     " Wb at i_d = " + fmt(t.i_d[j + 1]) + " A");
         }
     for (std::size_t j = 0; j < nd; ++j)
         for (std::size_t k = 0; k + 1 < nq; ++k) {
             const std::size_t a = k * nd + j, b = a + nd;
             if (!(t.psi_q[b] > t.psi_q[a]))
                 fail_line(at[b], "psi_q not strictly increasing in i_q along i_d = " + fmt(t.i_d[j]) +
-                                     " A: psi_q = " + fmt(t.psi_q[a]) + " Wb at i_q = " + fmt(t.i_q[k]) +
-                                     " A (line " + std::to_string(at[a]) + "), psi_q = " +
-                                     fmt(t.psi_q[b]) + " Wb at i_q = " + fmt(t.i_q[k + 1]) + " A");
+                                     " A: psi_q = " + fmt(t.psi_q[a]) + " Wb at i_q = " + fmt(t.i_q[k]) + " A (line " +
+                                     std::to_string(at[a]) + "), psi_q = " + fmt(t.psi_q[b]) +
+                                     " Wb at i_q = " + fmt(t.i_q[k + 1]) + " A");
         }
     return t;
 }
@@ -362,8 +358,10 @@ void check_map_content(MapContent saved, const FluxMap* map) {
     const MapContent here = map_content(map);
     if (saved == MapContent{0} || saved == here) return;
     char text[160];
-    std::snprintf(text, sizeof text, "the FMU state was saved on a flux map with content hash %016llx; the map loaded "
-                  "here has %016llx", static_cast<unsigned long long>(saved), static_cast<unsigned long long>(here));
+    std::snprintf(text, sizeof text,
+                  "the FMU state was saved on a flux map with content hash %016llx; the map loaded "
+                  "here has %016llx",
+                  static_cast<unsigned long long>(saved), static_cast<unsigned long long>(here));
     throw FluxMapError(std::string(text) + " (the file changed since, or flux_map names another file): not restored");
 }
 
@@ -391,9 +389,8 @@ FluxMap::FluxMap(const FluxMapTable& table) : table_(table) {
     const std::size_t N = table.i_d.size() * table.i_q.size();
     if (table.psi_d.size() != N || table.psi_q.size() != N)
         throw FluxMapError("FluxMap: table has " + std::to_string(table.i_d.size()) + " x " +
-                           std::to_string(table.i_q.size()) + " grid but " +
-                           std::to_string(table.psi_d.size()) + " psi_d and " +
-                           std::to_string(table.psi_q.size()) + " psi_q values");
+                           std::to_string(table.i_q.size()) + " grid but " + std::to_string(table.psi_d.size()) +
+                           " psi_d and " + std::to_string(table.psi_q.size()) + " psi_q values");
     try {
         spline_ = BicubicSpline2D(table.i_d, table.i_q, {table.psi_d.data(), table.psi_q.data()});
     } catch (const std::invalid_argument& e) {

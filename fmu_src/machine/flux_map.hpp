@@ -40,10 +40,10 @@ std::uint64_t content_hash(const std::string& bytes);
 
 // A flux map as tabulated on a full rectangular grid.
 struct FluxMapTable {
-    std::vector<double> i_d, i_q;      // grid axes, strictly ascending, A (peak)
-    std::vector<double> psi_d, psi_q;  // value at (i_d[j], i_q[k]) is at [k * i_d.size() + j], Wb
+    std::vector<double> i_d, i_q;                 // grid axes, strictly ascending, A (peak)
+    std::vector<double> psi_d, psi_q;             // value at (i_d[j], i_q[k]) is at [k * i_d.size() + j], Wb
     std::map<std::string, std::string> metadata;  // from '# key: value' lines
-    std::uint64_t content_hash = 0;  // of the text read; 0 for a table made in memory
+    std::uint64_t content_hash = 0;               // of the text read; 0 for a table made in memory
 
     // A metadata entry's leading number (trailing words ignored), or fallback if absent; throws
     // FluxMapError if the entry does not start with a number.
@@ -130,9 +130,7 @@ private:
 // loaded, or a map made in memory). A state restored onto another map would continue silently on
 // data it was not computed with.
 enum class MapContent : std::uint64_t {};
-inline MapContent map_content(const FluxMap* map) {
-    return MapContent{map != nullptr ? map->table().content_hash : 0};
-}
+inline MapContent map_content(const FluxMap* map) { return MapContent{map != nullptr ? map->table().content_hash : 0}; }
 // Throws FluxMapError if a state saved on `saved` is restored where `map` is loaded.
 void check_map_content(MapContent saved, const FluxMap* map);
 
