@@ -1,11 +1,17 @@
 #include "plant_model.hpp"
 
 #include <chrono>
+#include <deque>
+#include <mutex>
+#include <utility>
 #include <cmath>
 #include <limits>
 #include <sstream>
 
+#include "machine/flux_map_cache.hpp"
+#include "machine/flux_map_metadata.hpp"
 #include "machine/machine.hpp"
+#include "machine/map_file.hpp"
 #include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
@@ -25,6 +31,24 @@ std::string num(double x) {
     os.precision(10);
     os << x;
     return os.str();
+}
+
+// The inverse of a map, built once per map (the maps are shared by content, flux_map_cache.hpp):
+// Initialization Mode's previews and a second instance do not build it again. Bounded like the
+// map cache; thread-safe.
+std::shared_ptr<const InverseFluxMap> shared_inverse(const std::shared_ptr<const FluxMap>& map) {
+    static std::mutex mutex;
+    static std::deque<std::pair<std::shared_ptr<const FluxMap>, std::shared_ptr<const InverseFluxMap>>> cache;
+    {
+        std::lock_guard<std::mutex> lock(mutex);
+        for (const auto& e : cache)
+            if (e.first == map) return e.second;
+    }
+    auto inverse = std::make_shared<const InverseFluxMap>(*map);  // outside the lock: it takes milliseconds
+    std::lock_guard<std::mutex> lock(mutex);
+    cache.emplace_front(map, inverse);
+    if (cache.size() > 4) cache.pop_back();
+    return inverse;
 }
 }  // namespace
 
@@ -109,8 +133,12 @@ void PlantModel::exit_initialization() {
     std::shared_ptr<const FluxMap> map;
     std::shared_ptr<const InverseFluxMap> inverse;
     try {
-        map = std::make_shared<const FluxMap>(read_flux_map(path));  // says file and line
-        inverse = std::make_shared<const InverseFluxMap>(*map);      // the map must be invertible
+        map = shared_flux_map(path);  // parsed once per content
+    } catch (const FluxMapError& e) {
+        throw fmi::Error(e.what());  // says file and line, in the controller's words
+    }
+    try {
+        inverse = shared_inverse(map);  // the map must be invertible
     } catch (const std::exception& e) {
         throw fmi::Error(std::string("flux map: ") + e.what());
     }
@@ -118,29 +146,18 @@ void PlantModel::exit_initialization() {
 
     // The map's metadata describes its motor; the parameters rule, but say so when they differ.
     const FluxMapTable& t = map->table();
-    if (ctx.log_warning) {
-        auto compare = [&](const char* key, double parameter, const char* name) {
-            const auto it = t.metadata.find(key);
-            if (it == t.metadata.end()) return;
-            const double meta = t.metadata_number(key, parameter);
-            if (std::abs(meta - parameter) > 1e-9 * std::max(std::abs(meta), std::abs(parameter))) {
-                std::ostringstream os;
-                os << "flux map " << path << " says " << key << ": " << it->second << ", but the parameter " << name
-                   << " is " << num(parameter) << "; using the parameter";
-                ctx.log_warning(os.str());
-            }
-        };
-        compare("pole_pairs", pole_pairs, "pole_pairs");
-        compare("R_s_ohm", R_s, "R_s");
-        compare("T_winding_ref_K", T_winding_ref, "T_winding_ref");
-        compare("alpha_cu_per_K", alpha_cu, "alpha_cu");
-        compare("T_magnet_ref_K", T_magnet_ref, "T_magnet_ref");
-        compare("k_psi_T_per_K", k_psi_T, "k_psi_T");
-        compare("fe_k_h_W_per_Hz", fe_k_h, "fe_k_h");
-        compare("fe_alpha", fe_alpha, "fe_alpha");
-        compare("fe_k_e_W_per_Hz2", fe_k_e, "fe_k_e");
-        compare("fe_psi_ref_Wb", fe_psi_ref, "fe_psi_ref");
-    }
+    if (ctx.log_warning)
+        for (const std::string& w : metadata_warnings(t, path, {{"pole_pairs", "pole_pairs", double(pole_pairs)},
+                                                                {"R_s_ohm", "R_s", R_s},
+                                                                {"T_winding_ref_K", "T_winding_ref", T_winding_ref},
+                                                                {"alpha_cu_per_K", "alpha_cu", alpha_cu},
+                                                                {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
+                                                                {"k_psi_T_per_K", "k_psi_T", k_psi_T},
+                                                                {"fe_k_h_W_per_Hz", "fe_k_h", fe_k_h},
+                                                                {"fe_alpha", "fe_alpha", fe_alpha},
+                                                                {"fe_k_e_W_per_Hz2", "fe_k_e", fe_k_e},
+                                                                {"fe_psi_ref_Wb", "fe_psi_ref", fe_psi_ref}}))
+            ctx.log_warning(w);
 
     // Initial state: the fluxes at the initial currents and the present magnet temperature.
     // Currents outside the grid would start the machine on the map's extrapolation: refused.
@@ -167,7 +184,7 @@ void PlantModel::exit_initialization() {
 
     if (ctx.log_info) {
         std::ostringstream os;
-        os << "flux map " << path << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
+        os << "flux map " << quoted_excerpt(path) << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
            << num(map_->psi_m()) << " Wb; inverse map " << inverse_->n_psi_d() << " x " << inverse_->n_psi_q()
            << " (max residual " << inverse_->max_residual() << " Wb, " << inverse_->outside_nodes()
            << " nodes on the extrapolated map) built in " << num(build_ms) << " ms; CVODE "

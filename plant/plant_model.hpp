@@ -45,6 +45,9 @@ public:
         field(s.t), field(s.psi), field(s.h_next);
         integrator_.set_state(s);  // what was read in; the same state when the fields were written
         field(outside_warned_);
+        MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
+        field(saved);
+        check_map_content(saved, map_.get());
     }
 
     // --- inputs

@@ -3,7 +3,10 @@
 #include <cmath>
 #include <sstream>
 
+#include "machine/flux_map_cache.hpp"
+#include "machine/flux_map_metadata.hpp"
 #include "machine/machine.hpp"
+#include "machine/map_file.hpp"
 #include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
@@ -68,16 +71,16 @@ void ControllerModel::exit_initialization() {
     if (flux_map.empty() && context_->resource_dir.empty())
         throw fmi::Error("flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
                          "set flux_map to a flux-map CSV");
-    auto map = std::make_shared<const FluxMap>(read_flux_map(path));  // FluxMapError: says file and line
+    // Parsed once per content (flux_map_cache.hpp): Initialization Mode's previews do not parse it again.
+    std::shared_ptr<const FluxMap> map = shared_flux_map(path);  // FluxMapError: says file and line
 
     const FluxMapTable& t = map->table();
-    const double p_meta = t.metadata_number("pole_pairs", pole_pairs);
-    if (p_meta != pole_pairs && context_->log_warning) {
-        std::ostringstream os;
-        os << "flux map " << path << " says pole_pairs: " << p_meta << ", but the parameter pole_pairs is "
-           << pole_pairs << "; using the parameter";
-        context_->log_warning(os.str());
-    }
+    if (context_->log_warning)
+        for (const std::string& w : metadata_warnings(t, path, {{"pole_pairs", "pole_pairs", double(pole_pairs)},
+                                                                {"R_s_ohm", "R_s", R_s},
+                                                                {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
+                                                                {"k_psi_T_per_K", "k_psi_T", k_psi_T}}))
+            context_->log_warning(w);
     check_current_limit_within_map(*map, I_max);
     SaturatedOptimalCurrent solver(map, pole_pairs);
     std::shared_ptr<const TorqueTable> table;
@@ -102,7 +105,7 @@ void ControllerModel::exit_initialization() {
     initial_outputs();
     if (context_->log_info) {
         std::ostringstream os;
-        os << "flux map " << path << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
+        os << "flux map " << quoted_excerpt(path) << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
            << map_->psi_m() << " Wb; method " << method << ", recursion " << recursion;
         if (table_) os << ", 2-D table " << lut_n_torque << " x " << lut_n_speed << " (" << table_bytes << " bytes)";
         context_->log_info(os.str());

@@ -44,6 +44,9 @@ public:
         field(c.valid), field(c.T_ref), field(c.w_m), field(c.u_dc), field(c.T_magnet);
         field(c.cmd.i_d), field(c.cmd.i_q), field(c.cmd.torque), field(c.cmd.torque_max), field(c.cmd.region);
         field(c.cmd.iterations), field(c.cmd.feasible), field(c.cmd.converged);
+        MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
+        field(saved);
+        check_map_content(saved, map_.get());
     }
 
     // --- inputs

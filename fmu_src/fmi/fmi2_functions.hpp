@@ -152,10 +152,10 @@ struct Fmi2 {
             if (resources.empty())
                 in->log(fmi2Warning, LogCategory::warning,
                         "fmi2Instantiate: fmuResourceLocation " +
-                            std::string(resource_location != nullptr ? "\"" + std::string(resource_location) + "\"" : "NULL") +
+                            std::string(resource_location != nullptr ? "\"" + utf8_excerpt(resource_location, 300) + "\"" : "NULL") +
                             " is not a local file URI: the model has no resources directory");
             else
-                in->log(fmi2OK, LogCategory::events, "fmi2Instantiate: resources in " + resources);
+                in->log(fmi2OK, LogCategory::events, "fmi2Instantiate: resources in " + utf8_excerpt(resources, 300));
             return in.release();
         } catch (const std::exception& e) {
             return refuse(e.what());

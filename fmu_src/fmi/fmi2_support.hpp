@@ -1,5 +1,5 @@
 // Small pieces shared by the FMI 2.0 glue and the model-description generator
-// (model_description.hpp): instance states, log categories, resource-URI parsing, number text.
+// (model_description.hpp): instance states, log categories, number text (the resource URI: resource_uri.hpp).
 // Nothing here depends on a model or on the FMI C headers.
 #pragma once
 
@@ -9,6 +9,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+
+#include "resource_uri.hpp"
 
 namespace fmi {
 
@@ -63,50 +65,6 @@ inline constexpr std::array<LogCategoryInfo, 6> log_categories{{
     {"logStatusFatal", "Fatal errors: the instance can only be freed (always logged)"},
     {"logAll", "Every category above, plus a trace of each FMI call"},
 }};
-
-// fmuResourceLocation (an URI) to a local directory path without a trailing '/'.
-// Accepts file:///abs/path, file:/abs/path, file://localhost/abs/path (percent-encoded, e.g. %20
-// for a space) and, leniently, a plain absolute path (taken as is). Anything else (NULL, another
-// host, a relative path, a bad %-escape, an encoded NUL) gives "".
-inline std::string resource_dir_from_uri(const char* uri) {
-    if (uri == nullptr) return "";
-    std::string s(uri);
-    if (!s.empty() && s[0] == '/') {  // a plain path, not an URI
-        while (s.size() > 1 && s.back() == '/') s.pop_back();
-        return s;
-    }
-    auto starts = [&](const char* p) { return s.compare(0, std::char_traits<char>::length(p), p) == 0; };
-    std::string path;
-    if (starts("file:///")) path = s.substr(7);
-    else if (starts("file://localhost/")) path = s.substr(16);
-    else if (starts("file:/") && !starts("file://")) path = s.substr(5);
-    else return "";
-    std::string out;
-    out.reserve(path.size());
-    for (std::size_t i = 0; i < path.size(); ++i) {
-        char c = path[i];
-        if (c == '?' || c == '#') return "";  // a query or fragment has no meaning here
-        if (c != '%') {
-            out += c;
-            continue;
-        }
-        if (i + 2 >= path.size()) return "";
-        int v = 0;
-        for (int k = 1; k <= 2; ++k) {
-            const char h = path[i + k];
-            v *= 16;
-            if (h >= '0' && h <= '9') v += h - '0';
-            else if (h >= 'a' && h <= 'f') v += h - 'a' + 10;
-            else if (h >= 'A' && h <= 'F') v += h - 'A' + 10;
-            else return "";
-        }
-        if (v == 0) return "";
-        out += static_cast<char>(v);
-        i += 2;
-    }
-    while (out.size() > 1 && out.back() == '/') out.pop_back();
-    return out;
-}
 
 // The shortest text that reads back as the same double ("0.1", "1e-05", "inf", "nan").
 inline std::string number_text(double v) {

@@ -14,6 +14,7 @@
 
 #include "fmi2_support.hpp"
 #include "instance.hpp"
+#include "log_text.hpp"
 #include "state_stream.hpp"
 #include "variable.hpp"
 
@@ -22,7 +23,7 @@ namespace fmi {
 namespace glue {
 
 inline constexpr char kStateMagic[8] = {'I', 'P', 'M', 'S', 'M', 'F', 'S', 'T'};
-inline constexpr std::uint32_t kStateFormat = 2;
+inline constexpr std::uint32_t kStateFormat = 3;
 
 // The variables of a model, each as its type's index then its value.
 template <class M>
@@ -103,7 +104,8 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
                     std::to_string(kStateFormat));
     const std::string id = r.get_string(), guid = r.get_string();
     if (id != M::model_identifier || guid != M::guid)
-        throw Error(std::string(what) + " belongs to " + id + " " + guid + ", not to " + M::model_identifier +
+        throw Error(std::string(what) + " belongs to " + utf8_excerpt(id, 100) + " " + utf8_excerpt(guid, 100) +
+                    ", not to " + M::model_identifier +
                     " " + M::guid);
     const auto phase_value = r.get<std::uint8_t>();
     if (phase_value < static_cast<std::uint8_t>(Phase::instantiated) ||
@@ -115,6 +117,17 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
 
     M m = in.model;
     read_variables(r, m, what);
+    // Validated as fmi2SetReal/Integer validate them: a state is input, not proof (its checksum
+    // guards against accidents, not against edits).
+    for (const auto& v : variables<M>()) {
+        if (v.causality != Causality::input && v.causality != Causality::parameter) continue;
+        const Type t = type_of(v);
+        if (t != Type::Real && t != Type::Integer) continue;
+        const double x = t == Type::Real ? m.*std::get<double M::*>(v.member) : m.*std::get<int M::*>(v.member);
+        if (!in_range(v, x))
+            throw Error(std::string(what) + ": " + v.name + " = " + number_text(x) + " is out of range: it must be " +
+                        range_text(v) + "; not restored");
+    }
     std::string mismatch;
     for (const auto& v : variables<M>()) {
         if (v.causality != Causality::parameter || v.variability != Variability::fixed) continue;

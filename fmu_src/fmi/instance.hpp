@@ -15,6 +15,7 @@
 
 #include "fmi2Functions.h"
 #include "fmi2_support.hpp"
+#include "log_text.hpp"
 #include "model.hpp"
 #include "variable.hpp"
 
@@ -49,9 +50,12 @@ inline void call_logger(fmi2CallbackLogger logger, fmi2ComponentEnvironment env,
                         fmi2Status status, LogCategory category, const std::string& message) noexcept {
     if (logger == nullptr) return;
     try {
-        std::string text;  // the logger treats the message as a printf format
-        text.reserve(message.size() + 8);
-        for (char ch : message) {
+        // Valid UTF-8 and bounded (log_text.hpp); line breaks kept. Then '%' doubled: the
+        // logger treats the message as a printf format.
+        const std::string safe = utf8_excerpt(message, kMaxLogChars, false);
+        std::string text;
+        text.reserve(safe.size() + 8);
+        for (char ch : safe) {
             text += ch;
             if (ch == '%') text += '%';
         }
@@ -139,8 +143,13 @@ public:
                 throw Error(std::string("the model computed ") + v->name + " = " + number_text(value_of(model, v)) +
                             ", not a finite number");
         } catch (const std::bad_alloc&) {
+            // The model asked for more memory than there is (a table, a map): undone like any
+            // failure, the instance stays usable; fatal only if the undo itself fails.
             restore();
-            throw;
+            if (phase == Phase::error) throw;
+            throw Error(undone("out of memory (the model asked for more memory than the process can get: "
+                               "a parameter or data file asks for too large a table or map)",
+                               what()));
         } catch (const std::exception& e) {
             restore();
             throw Error(undone(e.what(), what()));
@@ -164,8 +173,9 @@ public:
         const char* why = "the outputs cannot be computed in Initialization Mode with the values set so far: ";
         try {
             m->exit_initialization();
-        } catch (const std::bad_alloc&) {
-            throw;
+        } catch (const std::bad_alloc&) {  // on a copy: the instance is untouched
+            throw Error(why + std::string("out of memory (a parameter or data file asks for too large a table or "
+                                          "map; fmi2ExitInitializationMode would fail the same way)"));
         } catch (const std::exception& e) {
             throw Error(why + std::string(e.what()) + " (fmi2ExitInitializationMode would fail the same way)");
         } catch (...) {

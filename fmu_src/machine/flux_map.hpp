@@ -2,6 +2,8 @@
 // with first and second derivatives (needed by the optimal-current Newton steps and the plant).
 #pragma once
 
+#include <cstddef>
+#include <cstdint>
 #include <iosfwd>
 #include <map>
 #include <stdexcept>
@@ -16,13 +18,35 @@ struct FluxMapError : std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
+// The reader's limits, checked before anything is allocated for them: a grid of at most
+// kMaxGridAxis x kMaxGridAxis points (FEM and measured maps have some 20 to 200 per axis; the
+// spline of the largest grid takes 64 MiB), lines of at most kMaxLineChars characters, files of
+// at most kMaxMapFileBytes (map_file.hpp).
+inline constexpr std::size_t kMaxGridAxis = 512;
+inline constexpr std::size_t kMaxGridPoints = kMaxGridAxis * kMaxGridAxis;
+inline constexpr std::size_t kMaxLineChars = 4096;
+
+// A metadata value "<number> <rest>": "4 (8 poles)" is 4 and "(8 poles)", "12 mOhm" 12 and
+// "mOhm"; is_number is false when the text does not start with a finite number.
+struct MetadataValue {
+    bool is_number = false;
+    double value = 0.0;
+    std::string rest;
+};
+MetadataValue split_metadata_value(const std::string& text);
+
+// 64-bit FNV-1a of a file's bytes: what an FMU state records of the map it was saved on.
+std::uint64_t content_hash(const std::string& bytes);
+
 // A flux map as tabulated on a full rectangular grid.
 struct FluxMapTable {
-    std::vector<double> i_d, i_q;      // grid axes, strictly ascending, A (peak)
-    std::vector<double> psi_d, psi_q;  // value at (i_d[j], i_q[k]) is at [k * i_d.size() + j], Wb
+    std::vector<double> i_d, i_q;                 // grid axes, strictly ascending, A (peak)
+    std::vector<double> psi_d, psi_q;             // value at (i_d[j], i_q[k]) is at [k * i_d.size() + j], Wb
     std::map<std::string, std::string> metadata;  // from '# key: value' lines
+    std::uint64_t content_hash = 0;               // of the text read; 0 for a table made in memory
 
-    // A metadata entry as a number, or fallback if absent; throws FluxMapError if not a number.
+    // A metadata entry's leading number (trailing words ignored), or fallback if absent; throws
+    // FluxMapError if the entry does not start with a number.
     double metadata_number(const std::string& key, double fallback) const;
 };
 
@@ -30,7 +54,11 @@ struct FluxMapTable {
 // Throws FluxMapError naming the file and line for: missing or unreadable file, no header,
 // no rows, text in numbers, non-finite values, duplicate points, a grid that is not full and
 // rectangular (at least 4 x 4), psi_d not increasing in i_d or psi_q not increasing in i_q.
-// Accepted: CRLF, blank lines, spaces/tabs around values, a UTF-8 byte-order mark, '#' lines
+// Also refused, before anything large is allocated: a path that is not a regular file (a
+// directory, a FIFO, a device: refused at once, map_file.hpp), more than kMaxMapFileBytes,
+// kMaxLineChars in a line, kMaxGridPoints rows or kMaxGridAxis values on an axis, a UTF-16 file.
+// Inputs echoed in messages are cut to a few hundred characters and escaped to valid UTF-8.
+// Accepted: LF, CRLF and CR line ends, blank lines, spaces/tabs around values, a UTF-8 byte-order mark, '#' lines
 // anywhere, a leading '+'. Numbers are parsed independently of the C locale and must be
 // consumed whole. '# key: value' lines (key: letters, digits, _ . -, starting with a letter or
 // _) become metadata; a repeated key keeps the last value. Axis values closer than 1e-9 of the
@@ -39,6 +67,7 @@ struct FluxMapTable {
 // function of flux linkages); the measured Baldor map satisfies it with margin.
 FluxMapTable read_flux_map(const std::string& path);
 FluxMapTable parse_flux_map(std::istream& in, const std::string& source_name);
+FluxMapTable parse_flux_map_text(const std::string& text, const std::string& source_name);
 
 // The map of a linear machine psi_d = L_d i_d + psi_m, psi_q = L_q i_q on an n x n grid
 // spanning [-i_range, i_range] on both axes.
@@ -102,6 +131,14 @@ private:
     BicubicSpline2D spline_;  // x = i_d, y = i_q; per cell 16 coefficients for psi_d, then psi_q
     double psi_m_ = 0;
 };
+
+// What an FMU state records of the map it was saved on: the content hash of its file (0: no map
+// loaded, or a map made in memory). A state restored onto another map would continue silently on
+// data it was not computed with.
+enum class MapContent : std::uint64_t {};
+inline MapContent map_content(const FluxMap* map) { return MapContent{map != nullptr ? map->table().content_hash : 0}; }
+// Throws FluxMapError if a state saved on `saved` is restored where `map` is loaded.
+void check_map_content(MapContent saved, const FluxMap* map);
 
 inline FluxPoint FluxMap::eval(double i_d, double i_q) const {
     SplineValue s[2];

@@ -30,8 +30,8 @@ ASAN_BUILD = Path(os.environ.get("IPMSM_ASAN_BUILD", ROOT / "build-asan"))
 REQUIRED = os.environ.get("IPMSM_REQUIRE_SANITIZERS") == "1"
 PYTHON_TESTS = ROOT / "tests" / "python"
 # the modules that load the FMUs, in the default pass
-DEFAULT_MODULES = ["test_hostile.py", "test_fmi_glue.py", "test_conformance.py", "test_importers.py",
-                   "test_controller_fmu.py", "test_plant_fmu.py", "test_coupled.py"]
+DEFAULT_MODULES = ["test_hostile.py", "test_hostile_bounds.py", "test_fmi_glue.py", "test_conformance.py",
+                   "test_importers.py", "test_controller_fmu.py", "test_plant_fmu.py", "test_coupled.py"]
 
 pytestmark = pytest.mark.skipif(os.environ.get("IPMSM_UNDER_SANITIZER") == "1",
                                 reason="already running under the sanitizers")
