@@ -172,10 +172,9 @@ def _controller_plan(md, points, h=1e-4) -> list[str]:
 # parser that knows drive letters and paths opened as UTF-8 on Windows (issue 16, item 6). The
 # case that works without them: the Linux spelling of the URI (wine resolves /tmp/... on its
 # current drive, Z:) under an ASCII folder with a space.
-ISSUE_16 = pytest.mark.xfail(strict=True, reason="issue 16 item 6")
-LOCATIONS = [pytest.param(ODD_DIR, "windows", marks=ISSUE_16, id="windows-uri-non-ascii"),
+LOCATIONS = [pytest.param(ODD_DIR, "windows", id="windows-uri-non-ascii"),
              pytest.param(ASCII_DIR, "posix", id="posix-uri-ascii")]
-FOLDERS = [pytest.param(ODD_DIR, marks=ISSUE_16, id="non-ascii"), pytest.param(ASCII_DIR, id="ascii")]
+FOLDERS = [pytest.param(ODD_DIR, id="non-ascii"), pytest.param(ASCII_DIR, id="ascii")]
 
 
 @pytest.mark.parametrize("folder, uri_style", LOCATIONS)

@@ -1,5 +1,6 @@
 // Unit tests of the pieces of the FMI 2.0 glue that the ToyLag FMU cannot reach: the variable-table
-// checks of the modelDescription.xml generator, its number formats, and fmuResourceLocation parsing.
+// checks of the modelDescription.xml generator and its number formats (fmuResourceLocation parsing:
+// tests/cpp/test_resource_uri.cpp, with both rule sets).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -112,26 +113,6 @@ TEST(ModelDescription, WritesValidAttributes) {
     EXPECT_TRUE(has("<Outputs>\n      <Unknown index=\"4\"/>\n    </Outputs>"));
     EXPECT_TRUE(has("<InitialUnknowns>\n      <Unknown index=\"4\"/>\n    </InitialUnknowns>"));
     EXPECT_FALSE(has("index=\"5\""));  // a local is not an output
-}
-
-TEST(ResourceLocation, Forms) {
-    using fmi::resource_dir_from_uri;
-    EXPECT_EQ(resource_dir_from_uri("file:///a/b%20c/resources"), "/a/b c/resources");
-    EXPECT_EQ(resource_dir_from_uri("file:///a/b%20c/resources/"), "/a/b c/resources");
-    EXPECT_EQ(resource_dir_from_uri("file:/a/b/resources"), "/a/b/resources");
-    EXPECT_EQ(resource_dir_from_uri("file://localhost/a/b"), "/a/b");
-    EXPECT_EQ(resource_dir_from_uri("file:///a/100%25/%C3%A9"), "/a/100%/\xC3\xA9");
-    EXPECT_EQ(resource_dir_from_uri("/plain/path/"), "/plain/path");
-    EXPECT_EQ(resource_dir_from_uri("file:///"), "/");
-    EXPECT_EQ(resource_dir_from_uri(nullptr), "");
-    EXPECT_EQ(resource_dir_from_uri(""), "");
-    EXPECT_EQ(resource_dir_from_uri("file://otherhost/a"), "");
-    EXPECT_EQ(resource_dir_from_uri("http://localhost/a"), "");
-    EXPECT_EQ(resource_dir_from_uri("relative/a"), "");
-    EXPECT_EQ(resource_dir_from_uri("file:///a%2"), "");
-    EXPECT_EQ(resource_dir_from_uri("file:///a%zz"), "");
-    EXPECT_EQ(resource_dir_from_uri("file:///a%00b"), "");
-    EXPECT_EQ(resource_dir_from_uri("file:///a?query"), "");
 }
 
 TEST(NumberText, ShortestRoundTrip) {
