@@ -8,7 +8,7 @@ CurrentCircles::CurrentCircles(const FluxMap& map, double I_max) : I_max_(I_max)
     samples_.reserve(static_cast<std::size_t>(kRadii) * kAngles);
     for (int k = 1; k <= kRadii; ++k) {
         for (int j = 0; j < kAngles; ++j) {
-            const double a = 2.0 * M_PI * j / kAngles, i_d = radius(k) * std::cos(a), i_q = radius(k) * std::sin(a);
+            const double a = 2.0 * kPi * j / kAngles, i_d = radius(k) * std::cos(a), i_q = radius(k) * std::sin(a);
             const FluxPoint f = map.eval(i_d, i_q);
             samples_.push_back({i_d, i_q, f.psi_d, f.psi_q});
         }

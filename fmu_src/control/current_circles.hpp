@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "machine/flux_map.hpp"
+#include "machine/machine.hpp"
 
 namespace ipmsm {
 

@@ -240,8 +240,8 @@ struct MapView {
         const CurrentPoint a = maxima.mtpa[k - 1], b = maxima.mtpa[k];
         const double r = circles.radius(k - 1) + t * (circles.radius(k) - circles.radius(k - 1));
         // One maximum: the two points are less than two samples apart in angle (the origin is on every one).
-        const double sample_angle = 2.0 * M_PI / CurrentCircles::kAngles;
-        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * M_PI)) < 2.0 * sample_angle;
+        const double sample_angle = 2.0 * kPi / CurrentCircles::kAngles;
+        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * kPi)) < 2.0 * sample_angle;
         auto scaled = [&](CurrentPoint x, double radius) { return CurrentPoint{x.i_d * r / radius, x.i_q * r / radius}; };
         CurrentPoint seeds[2] = {{a.i_d + t * (b.i_d - a.i_d), a.i_q + t * (b.i_q - a.i_q)}, {}};
         int n_seeds = 1;

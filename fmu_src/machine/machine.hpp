@@ -5,6 +5,9 @@
 
 namespace ipmsm {
 
+// pi, without relying on M_PI (POSIX, not ISO C++; mingw-w64 hides it without _USE_MATH_DEFINES).
+constexpr double kPi = 3.14159265358979323846;
+
 // Which constraints shape the current command (the contract's `region` output).
 enum class Region : int {
     zero_torque = 0,    // T = 0 (with i_d < 0 if the back-EMF alone exceeds V_max)

@@ -68,11 +68,11 @@ double sampled_max_torque(const LinearMachine& m, const OperatingLimits& lim) {
         auto T = [&](double x) { return torque_if_feasible(curve == 0 ? on_circle(x) : on_ellipse(x)); };
         double x_best = 0, T_best = -INFINITY;
         for (int k = 0; k < kSamples; ++k) {
-            const double x = 2 * M_PI * k / kSamples;
+            const double x = 2 * kPi * k / kSamples;
             if (T(x) > T_best) T_best = T(x), x_best = x;
         }
         if (T_best == -INFINITY) continue;
-        double a = x_best - 2 * M_PI / kSamples, b = x_best + 2 * M_PI / kSamples;
+        double a = x_best - 2 * kPi / kSamples, b = x_best + 2 * kPi / kSamples;
         for (int it = 0; it < 80; ++it) {
             const double x1 = b - kGolden * (b - a), x2 = a + kGolden * (b - a);
             if (T(x1) >= T(x2)) b = x2; else a = x1;

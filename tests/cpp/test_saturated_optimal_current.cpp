@@ -58,7 +58,7 @@ Sampled sample(const MagnetFlux& flux, const OperatingLimits& lim, double s, dou
     };
     const int n_a = 1500, n_r = 150, n_c = 20000;
     for (int a = 0; a < n_a; ++a) {
-        const double c = std::cos(2 * M_PI * a / n_a), sn = std::sin(2 * M_PI * a / n_a);
+        const double c = std::cos(2 * kPi * a / n_a), sn = std::sin(2 * kPi * a / n_a);
         auto ray = [&](double rad) { return std::make_pair(rad * c, rad * sn); };
         bool prev = false;
         for (int k = 0; k <= n_r; ++k) {
@@ -78,7 +78,7 @@ Sampled sample(const MagnetFlux& flux, const OperatingLimits& lim, double s, dou
     auto circle = [&](double ang) { return std::make_pair(lim.I_max * std::cos(ang), lim.I_max * std::sin(ang)); };
     bool prev = within_voltage(lim.I_max, 0.0);
     for (int j = 1; j <= n_c; ++j) {
-        const double ang = 2 * M_PI * j / n_c, ang0 = 2 * M_PI * (j - 1) / n_c;
+        const double ang = 2 * kPi * j / n_c, ang0 = 2 * kPi * (j - 1) / n_c;
         const auto [i_d, i_q] = circle(ang);
         const bool in = within_voltage(i_d, i_q);
         if (in) consider(i_d, i_q);
