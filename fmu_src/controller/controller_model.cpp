@@ -170,6 +170,22 @@ void ControllerModel::do_step(double /*t*/, double h) {
         context_->log_warning(os.str());
     }
     warned_unreachable_ = !cmd.feasible;
+    if (regulator_.first_lowered_bandwidth(h) && context_->log_warning) {
+        std::ostringstream os;
+        os << "current_bandwidth = " << regulator_.bandwidth() << " rad/s is more than the communication step h = "
+           << h << " s can carry (a quarter of its sampling rate, (pi/2) / h = " << regulator_.bandwidth_at(h)
+           << " rad/s): the current loop runs at " << regulator_.bandwidth_at(h) << " rad/s";
+        context_->log_warning(os.str());
+    }
+    if (regulator_.first_open_loop(u) && context_->log_warning) {
+        std::ostringstream os;
+        os << "the communication step h = " << h << " s is too long for the current loop at w_m = " << w_m
+           << " rad/s: the rotor turns by " << std::abs(c.omega * h) << " rad (electrical) within one step, and from "
+           << kMaxRotationPerSample << " rad a dq voltage held over the step averages out and cannot steer the "
+           << "flux; u_d_ref, u_q_ref are the current commands' steady-state voltage, open loop, while this holds "
+           << "(use a step below " << kMaxRotationPerSample / std::abs(c.omega) << " s at this speed)";
+        context_->log_warning(os.str());
+    }
     u_d_ref = u.u_d;
     u_q_ref = u.u_q;
     voltage_saturated = u.limited;
