@@ -182,3 +182,31 @@ def test_every_parameter_of_both_models_once_with_their_defaults():
             w = drive[v.name]
             assert (w.causality, w.type, w.unit or "") == ("parameter", v.type, v.unit or ""), v.name
             assert w.start == v.start, (v.name, w.start, v.start)
+
+
+def test_the_plant_fmu_leaving_the_grid_returns_ok_at_every_step_too():
+    """The same for the IpmsmPlant FMU alone (the condition OMSimulator stopped on)."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+
+    path = fmu_path("IpmsmPlant")
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    records = []
+    logger = fmi2CallbackLoggerTYPE(lambda env, inst, status, cat, msg: records.append((status, cat.decode(),
+                                                                                        msg.decode())))
+    cb = fmi2CallbackFunctions()
+    cb.logger, cb.allocateMemory, cb.freeMemory = logger, defaultCallbacks.allocateMemory, defaultCallbacks.freeMemory
+    p = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier="IpmsmPlant", instanceName="p")
+    p.instantiate(callbacks=cb, loggingOn=True)
+    p.setupExperiment(startTime=0.0)
+    p.enterInitializationMode()
+    p.exitInitializationMode()
+    p.setReal([vr["w_m"], vr["u_d"], vr["u_q"]], [0.0, -40.0, 0.0])  # drives i_d below the grid's -700 A
+    statuses = [p.fmi2DoStep(p.component, k * H, H, 1) for k in range(100)]
+    i_d = p.getReal([vr["i_d"]])[0]
+    p.terminate()
+    p.freeInstance()
+    assert i_d < -700.0
+    assert statuses == [fmi2OK] * 100
+    assert [(s, c) for s, c, m in records if "left the flux map" in m] == [(1, "logStatusWarning")]
