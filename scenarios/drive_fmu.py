@@ -23,7 +23,7 @@ from pathlib import Path
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2OK
 
-from .master import CosimError
+from .master import AdvanceResult, CosimError, Sample
 
 LOG = logging.getLogger("scenarios.drive_fmu")
 INPUTS = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")
@@ -41,6 +41,7 @@ class DriveStep:
     P_cu: float
     P_fe: float
     P_inv: float
+    P_elec: float
     E_dc: float
     E_mech: float
     E_cu: float
@@ -52,6 +53,7 @@ class DriveStep:
     i_q: float
     i_d_ref: float
     i_q_ref: float
+    u_ratio: float
     region: int
 
 
@@ -149,7 +151,7 @@ class DriveFmu:
         self.t += dt
         reals = fmu.getReal(self._real_vrs)
         region = fmu.getInteger(self._region_vr)[0]
-        return DriveStep(*reals, region)
+        return DriveStep(*reals, region=region)
 
     def close(self) -> None:
         if self.fmu is not None:
@@ -179,3 +181,63 @@ def steps_of(dt: float, sample_time: float) -> int:
     if n < 1 or not math.isclose(n * sample_time, dt, rel_tol=1e-9):
         raise ValueError(f"dt = {dt} s is not a whole multiple of sample_time = {sample_time} s")
     return n
+
+
+@dataclass(slots=True)
+class DriveAdvanceResult(AdvanceResult):
+    """AdvanceResult of the drive FMU, with its inverter loss (W, mean over the step)."""
+    P_inverter: float
+
+
+class DriveAsCosim:
+    """IpmsmDrive behind DriveCosim's interface (scenarios.master): advance(n_steps, inputs) is one
+    fmi2DoStep of n_steps sample times, and returns the Samples the vehicle side reads. The drive
+    outputs the means of the contract; a Sample's fields it has no output for are derived
+    (i_abs_sq = P_cu / (1.5 R) with R at the held winding temperature, exact) or NaN (i_abs,
+    iterations; the mean i_d, i_q are the end values). Its inverter loss is the FMU's
+    (`P_inverter`), not scenarios/inverter.py's."""
+
+    backend_name = "drive"
+
+    def __init__(self, drive_fmu: str | Path, controller_params: Mapping | None = None,
+                 plant_params: Mapping | None = None, h: float | None = None, w_m: float = 0.0,
+                 u_dc: float = 355.0, T_magnet: float = 293.15, T_winding: float = 293.15, T_ref: float = 0.0,
+                 inverter_params: Mapping | None = None):
+        params = {**(controller_params or {}), **(plant_params or {}), **(inverter_params or {})}
+        if h is not None:
+            params["sample_time"] = h
+        self.drive = DriveFmu(drive_fmu, params, T_ref=T_ref, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
+                              T_winding=T_winding)
+        self.h = self.drive.sample_time
+        self.k = 0
+        get = self.drive.fmu.getReal
+        self._R_s, self._alpha_cu, self._T_winding_ref = get(
+            [self.drive.vars[n].valueReference for n in ("R_s", "alpha_cu", "T_winding_ref")])
+
+    @property
+    def t(self) -> float:
+        return self.k * self.h
+
+    def advance(self, n_steps: int, T_ref: float, w_m: float, u_dc: float, T_magnet: float,
+                T_winding: float) -> DriveAdvanceResult:
+        s = self.drive.advance(n_steps * self.h, T_ref, w_m, u_dc, T_magnet, T_winding)
+        self.k += n_steps
+        R = self._R_s * (1.0 + self._alpha_cu * (T_winding - self._T_winding_ref))
+        i_abs_sq = s.P_cu / (1.5 * R) if R > 0.0 else math.nan
+        nan = math.nan
+        mean = Sample(T_shaft=s.T_shaft, T_e=s.T_e, P_elec=s.P_elec, P_mech=s.P_mech, P_cu=s.P_cu, P_fe=s.P_fe,
+                      i_d=s.i_d, i_q=s.i_q, i_abs=nan, i_abs_sq=i_abs_sq, T_cmd=s.T_cmd, T_max=s.T_max,
+                      region=float(s.region), iterations=nan, u_ratio=s.u_ratio)
+        end = Sample(T_shaft=s.T_shaft, T_e=s.T_e, P_elec=s.P_elec, P_mech=s.P_mech, P_cu=s.P_cu, P_fe=s.P_fe,
+                     i_d=s.i_d, i_q=s.i_q, i_abs=math.hypot(s.i_d, s.i_q), i_abs_sq=s.i_d * s.i_d + s.i_q * s.i_q,
+                     T_cmd=s.T_cmd, T_max=s.T_max, region=float(s.region), iterations=nan, u_ratio=s.u_ratio)
+        return DriveAdvanceResult(mean=mean, end=end, t=self.t, k=self.k, rows=0, P_inverter=s.P_inv)
+
+    def close(self) -> None:
+        self.drive.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

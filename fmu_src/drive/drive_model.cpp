@@ -123,6 +123,7 @@ const std::vector<V>& DriveModel::variables() {
         {"P_mech", &M::P_mech, Causality::output, Variability::discrete, "W", "kW", "Shaft power, mean over the last communication step"},
         {"P_cu", &M::P_cu, Causality::output, Variability::discrete, "W", "kW", "Copper loss, mean over the last communication step"},
         {"P_fe", &M::P_fe, Causality::output, Variability::discrete, "W", "kW", "Iron loss, mean over the last communication step"},
+        {"P_elec", &M::P_elec, Causality::output, Variability::discrete, "W", "kW", "Electrical input power of the machine 1.5 (u_d i_d + u_q i_q) = P_dc - P_inv, mean over the last communication step"},
         {"P_inv", &M::P_inv, Causality::output, Variability::discrete, "W", "kW", "Inverter conduction and switching loss, mean over the last communication step"},
         // outputs: integrals since the start
         {"E_dc", &M::E_dc, Causality::output, Variability::discrete, "J", "Wh", "DC energy drawn since the start (sum of P_dc sample_time over the inner steps)"},
@@ -138,6 +139,7 @@ const std::vector<V>& DriveModel::variables() {
         {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "", "d-axis current command, at the end of the step"},
         {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "", "q-axis current command, at the end of the step"},
         {"region", &M::region, Causality::output, Variability::discrete, "", "", "The controller's operating region at the end of the step (as IpmsmController.region)"},
+        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "", "The controller's voltage command relative to the inverter's linear range u_dc/sqrt(3), at the end of the step (1: voltage-limited)"},
         // the drive's parameters
         {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms", "Sample time of the controller, and step of the inner coupling; a communication step must be a whole multiple of it", 1e-7, 1.0},
         {"f_sw", &M::f_sw, Causality::parameter, Variability::fixed, "Hz", "", "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
@@ -238,6 +240,7 @@ void DriveModel::publish_end() {
     i_d_ref = controller_.i_d_ref;
     i_q_ref = controller_.i_q_ref;
     region = controller_.region;
+    u_ratio = controller_.u_ratio;
 }
 
 void DriveModel::exit_initialization() {
@@ -252,7 +255,8 @@ void DriveModel::exit_initialization() {
     const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
     P_inv = inverter_loss(std::sqrt(I2), I2, u_dc, plant_.P_elec, inverter()).P();
     T_shaft = plant_.T_shaft, T_e = plant_.T_e, P_mech = plant_.P_mech, P_cu = plant_.P_cu, P_fe = plant_.P_fe;
-    P_dc = plant_.P_elec + P_inv;
+    P_elec = plant_.P_elec;
+    P_dc = P_elec + P_inv;
     i_dc = P_dc / u_dc;
     E_dc = E_mech = E_cu = E_fe = E_inv = 0.0;
     publish_end();
@@ -301,7 +305,8 @@ void DriveModel::do_step(double t, double h) {
     P_cu = s_P_cu / nn;
     P_fe = s_P_fe / nn;
     P_inv = s_P_inv / nn;
-    P_dc = s_P_elec / nn + P_inv;
+    P_elec = s_P_elec / nn;
+    P_dc = P_elec + P_inv;
     i_dc = P_dc / u_dc;
     publish_end();
 }

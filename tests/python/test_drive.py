@@ -210,3 +210,25 @@ def test_the_plant_fmu_leaving_the_grid_returns_ok_at_every_step_too():
     assert i_d < -700.0
     assert statuses == [fmi2OK] * 100
     assert [(s, c) for s, c, m in records if "left the flux map" in m] == [(1, "logStatusWarning")]
+
+
+def test_drive_as_cosim_gives_the_vehicle_side_the_same_samples():
+    """DriveAsCosim (the scenarios' drive backend) against DriveCosim at 10 ms: the means the
+    vehicle side reads (P_elec, the mean |i|^2 derived from P_cu, T_shaft) and the inverter loss
+    of scenarios/inverter.py on the master's means, to 1e-9."""
+    from scenarios.drive_fmu import DriveAsCosim
+
+    blocks = profile()[::8]
+    first = blocks[0]
+    kw = dict(w_m=first.w_m, u_dc=U_DC, T_magnet=T_MAGNET, T_winding=T_WINDING, T_ref=first.T_ref)
+    with DriveCosim(fmu_path("IpmsmController"), fmu_path("IpmsmPlant"), backend="fmpy", **kw) as c, \
+            DriveAsCosim(fmu_path("IpmsmDrive"), **kw) as d:
+        for inp in blocks:
+            args = dict(T_ref=inp.T_ref, w_m=inp.w_m, u_dc=inp.u_dc, T_magnet=inp.T_magnet, T_winding=inp.T_winding)
+            a, b = c.advance(100, **args), d.advance(100, **args)
+            assert (a.t, a.k) == (b.t, b.k)
+            for name in ("T_shaft", "T_e", "P_elec", "P_cu", "i_abs_sq", "T_cmd", "u_ratio"):
+                x, y = getattr(a.mean if name != "u_ratio" else a.end, name), getattr(b.mean, name)
+                assert y == pytest.approx(x, rel=1e-9, abs=1e-9 * (1.0 + abs(x))), name
+            P_inv = inverter_loss(a.mean.i_abs, a.mean.i_abs_sq, inp.u_dc, P_ac_mean=a.mean.P_elec).P
+            assert b.P_inverter == pytest.approx(P_inv, rel=1e-12, abs=1e-12)
