@@ -23,6 +23,7 @@ from .driver import P_AUX_DEFAULT, BlendParams, Driver, DriverParams, blend
 from .flux_map import DEFAULT_MAP, MotorData, read_flux_map
 from .fmu import Fmu
 from .inverter import InverterParams, inverter_loss
+from .drive_fmu import DriveAsCosim
 from .master import DriveCosim
 from .progress import Progress
 from .vehicle import Vehicle, VehicleParams, motor_speed, wheel_force
@@ -64,7 +65,7 @@ class RunSpec:
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
     trace_dt: float = 0.1     # s, trace.csv sampling
-    backend: str = "auto"     # master: native if built, else fmpy
+    backend: str = "auto"     # master: native if built, else fmpy; "drive": the IpmsmDrive FMU
     reference: bool = True    # evaluate the exact optimum per vehicle step
     P_aux: float = P_AUX_DEFAULT
     soc0: float | None = None
@@ -112,10 +113,14 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
     bar = Progress(n, f"{cycle.name} {spec.method} [{cond.name}]") if progress else None
     wall0 = time.perf_counter()
     ref = Fmu(controller_fmu, instance_name="reference", method=1, recursion=2) if spec.reference else None
+    start = dict(w_m=motor_speed(veh.v, vp), u_dc=bat.u * cond.u_dc_scale, T_magnet=cond.T_magnet,
+                 T_winding=cond.T_winding)
+    if spec.backend == "drive":  # the IpmsmDrive FMU (next to the controller's), with its inverter loss
+        drive = DriveAsCosim(Path(controller_fmu).parent / "IpmsmDrive.fmu", c_params, {}, h=spec.h,
+                             inverter_params=asdict(spec.inverter), **start)
     try:
-        with DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend,
-                        w_m=motor_speed(veh.v, vp), u_dc=bat.u * cond.u_dc_scale, T_magnet=cond.T_magnet,
-                        T_winding=cond.T_winding) as cosim:
+        with (drive if spec.backend == "drive" else
+              DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend, **start)) as cosim:
             for k in range(n):
                 v = veh.v
                 w_m = motor_speed(v, vp)
@@ -135,15 +140,16 @@ def simulate(cycle: Cycle | str, spec: RunSpec = RunSpec(), fmus: tuple[Path, Pa
                 F_w = wheel_force(m.T_shaft, vp)
                 drv.applied(F_w - b.F_brake)
                 veh.step(F_w, b.F_brake, dt)
-                loss = inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.inverter)
-                P_dc = m.P_elec + loss.P
+                P_inv = (r.P_inverter if spec.backend == "drive" else
+                         inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.inverter).P)
+                P_dc = m.P_elec + P_inv
                 bat.step(P_dc + spec.P_aux, dt)
 
                 acc["E_elec"] += m.P_elec * dt
                 acc["E_mech"] += m.P_mech * dt
                 acc["E_cu"] += m.P_cu * dt
                 acc["E_fe"] += m.P_fe * dt
-                acc["E_inv"] += loss.P * dt
+                acc["E_inv"] += P_inv * dt
                 # Torque error: delivered (mean T_e) against the command within reach.
                 T_err = m.T_e - m.T_cmd
                 acc["T_err2"] += T_err * T_err
