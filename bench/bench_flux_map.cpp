@@ -1,6 +1,8 @@
-// Nanoseconds per FluxMap::eval / eval2 and InverseFluxMap::eval at random points (95 % inside
-// the grid, 5 % outside), on the measured Baldor map (uniform axes: O(1) cell lookup), on the
-// same map with a non-uniform i_d axis (binary search), and on a 41 x 41 linear map.
+// Nanoseconds per FluxMap::eval / eval2 at random points (95 % inside the grid, 5 % up to 20 %
+// beyond it) and InverseFluxMap::eval (exact: Newton on the map from the table) and ::table (the
+// start guess alone) at their fluxes, on the measured Baldor map (uniform axes: O(1) cell lookup), on the
+// same map with a non-uniform i_d axis (binary search), on a 41 x 41 linear map and on a map
+// given as the argument (e.g. a strongly saturating one from tools/saturating_map.py).
 // Prints a checksum so that the work cannot be optimised away. Times are the best of 9 rounds.
 #include <algorithm>
 #include <chrono>
@@ -38,7 +40,7 @@ Points random_points(double x0, double x1, double y0, double y1, int n, unsigned
 template <class F>
 double time_ns(const Points& p, int reps, double& checksum, F&& f) {
     const std::size_t n = p.x.size();
-    for (std::size_t i = 0; i < n; ++i) checksum += f(p.x[i], p.y[i]);  // warm-up
+    for (std::size_t i = 0; i < n; ++i) checksum += f(p.x[i], p.y[i]);  // warm-up (NaN: unreachable)
     double best = 1e300;
     for (int round = 0; round < 9; ++round) {
         const auto t0 = std::chrono::steady_clock::now();
@@ -70,25 +72,37 @@ void bench_map(const char* name, const FluxMap& m, bool with_inverse, double& ch
     const auto c0 = std::chrono::steady_clock::now();
     const InverseFluxMap inv(m);
     const auto c1 = std::chrono::steady_clock::now();
-    const Points q = random_points(inv.psi_d_min(), inv.psi_d_max(), inv.psi_q_min(),
-                                   inv.psi_q_max(), N, 7);
+    // The fluxes of the current points above: what the machine reaches (5 % beyond the grid).
+    Points q;
+    for (std::size_t i = 0; i < p.x.size(); ++i) {
+        const FluxPoint f = m.eval(p.x[i], p.y[i]);
+        q.x.push_back(f.psi_d);
+        q.y.push_back(f.psi_q);
+    }
     const double t3 = time_ns(q, reps, checksum, [&](double a, double b) {
         const InverseFluxPoint f = inv.eval(a, b);
         return f.i_d + f.i_q + f.G_dd + f.G_dq + f.G_qd + f.G_qq;
     });
-    std::printf("%-34s inverse %3d x %3d (%.1f MB, built in %.1f ms)  eval %6.1f ns\n", "",
+    const double t4 = time_ns(q, reps, checksum, [&](double a, double b) {
+        const InverseFluxPoint f = inv.table(a, b);
+        return f.i_d + f.i_q + f.G_dd + f.G_dq + f.G_qd + f.G_qq;
+    });
+    std::printf("%-34s inverse %3d x %3d (%.1f MB, built in %.1f ms)  eval %6.1f ns  table %6.1f ns\n", "",
                 inv.n_psi_d(), inv.n_psi_q(), inv.memory_bytes() / 1e6,
-                std::chrono::duration<double, std::milli>(c1 - c0).count(), t3);
+                std::chrono::duration<double, std::milli>(c1 - c0).count(), t3, t4);
+    std::printf("%-34s error at the grid-cell centres: eval %.2g A, table %.2g A; nodes beyond the grid %d, "
+                "unreachable %d\n", "", inv.max_error_A(), inv.max_table_error_A(), inv.outside_nodes(),
+                inv.unreachable_nodes());
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    std::string path = std::string(IPMSM_SOURCE_DIR) +
-                       "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
-    if (argc > 1) path = argv[1];
+    const std::string path = std::string(IPMSM_SOURCE_DIR) +
+                             "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
     double checksum = 0;
     try {
+        if (argc > 1) bench_map(argv[1], FluxMap(read_flux_map(argv[1])), true, checksum);
         const FluxMapTable t = read_flux_map(path);
         bench_map("Baldor (measured)", FluxMap(t), true, checksum);
         FluxMapTable nu = t;  // non-uniform i_d axis: stretch the positive side by 10 %

@@ -14,7 +14,9 @@
 // 3. The same replay through the FMU's fmi2SetReal + fmi2DoStep (the whole FMI call, with the
 //    glue's per-step copy of the model), for the FMU's default settings and for cvode_method 2.
 //
-// Usage: bench_plant [rounds]. The FMUs are found next to this executable (../fmu/).
+// Usage: bench_plant [rounds] [flux_map.csv]. The FMUs are found next to this executable
+// (../fmu/). A flux map (e.g. a strongly saturating one from tools/saturating_map.py, same pole
+// pairs and R_s as the default motor) replaces the default one in both FMUs and the replay.
 
 #include <algorithm>
 #include <chrono>
@@ -64,6 +66,7 @@ struct Fmu {
     fmu_binary::Description d;
     fmu_binary::Functions fn;
     fmi2CallbackFunctions cb{quiet_logger, nullptr, nullptr, nullptr, nullptr};
+    std::string flux_map;  // "" = the FMU's default map
 
     Fmu(const fs::path& unzipped, const char* id) : dir(unzipped.string()), d(fmu_binary::read_description(dir)) {
         fn.open_or_exit(fmu_binary::library_path(dir, id), "build the FMUs first");
@@ -77,6 +80,11 @@ struct Fmu {
         if (c == nullptr) std::exit(3);
         ok(fn.fmi2SetupExperiment(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
         ok(fn.fmi2EnterInitializationMode(c));
+        if (!flux_map.empty()) {
+            const fmi2ValueReference r = d.vr.at("flux_map");
+            const fmi2String v = flux_map.c_str();
+            ok(fn.fmi2SetString(c, &r, 1, &v));
+        }
         for (const auto& [n, v] : reals) set(c, n, v);
         for (const auto& [n, v] : ints) {
             const fmi2ValueReference r = d.vr.at(n);
@@ -114,12 +122,23 @@ struct Trace {
 // The closed loop (both FMUs coupled by the native master on the drive's coupling description,
 // started at rest and then held at top speed); records the plant's voltages after 20 ms of
 // settling: the voltage applied over each step, read back from the plant's inputs.
-Trace record(const cosim_tools::Units& units, const char* name, const std::function<double(int)>& torque, int n) {
+Trace record(const cosim_tools::Units& units, const std::string& flux_map, const char* name,
+             const std::function<double(int)>& torque, int n) {
     const std::vector<const char*> probes = {"plant.u_d", "plant.u_q", "plant.psi_d", "plant.psi_q",
                                              "plant.i_d", "plant.i_q", "plant.T_e"};
     enum { u_d, u_q, psi_d, psi_q, i_d, i_q, T_e };
     std::string why;
-    ipmsm_cosim* m = cosim_tools::start_drive(units, kH, {0.0, 0.0, 355.0, 293.15, 293.15}, probes, why);
+    // Both units on the same map (the FMUs' default map when flux_map is empty).
+    const auto set_map = [&](ipmsm_cosim* c) {
+        if (flux_map.empty()) return 0;
+        const char* value = flux_map.c_str();
+        for (const auto& [role, dir] : {std::pair{"controller", units.controller_dir}, {"plant", units.plant_dir}}) {
+            const unsigned vr = fmu_binary::read_description(dir).vr.at("flux_map");
+            if (ipmsm_cosim_set_string(c, role, 1, &vr, &value) != 0) return -1;
+        }
+        return 0;
+    };
+    ipmsm_cosim* m = cosim_tools::start_drive(units, kH, {0.0, 0.0, 355.0, 293.15, 293.15}, probes, why, set_map);
     if (m == nullptr) {
         std::fprintf(stderr, "%s\n", why.c_str());
         std::exit(3);
@@ -178,7 +197,7 @@ Result replay(const Trace& tr, const InverseFluxMap& inv, const CvodeSettings& s
         for (std::size_t k = 1; k < n; ++k) {
             ode.u_d = tr.u_d[k];
             ode.u_q = tr.u_q[k];
-            integ.advance(ode, (k + 1) * kH);
+            integ.advance(ode, kH);
             steps += integ.stats().steps;
             rhs += integ.stats().rhs_evals;
         }
@@ -191,7 +210,7 @@ Result replay(const Trace& tr, const InverseFluxMap& inv, const CvodeSettings& s
             for (std::size_t k = 0; k < n; ++k) {
                 ode.u_d = tr.u_d[k];
                 ode.u_q = tr.u_q[k];
-                again.advance(ode, (k + 1) * kH);
+                again.advance(ode, kH);
                 const InverseFluxPoint c = inv.eval(again.state().psi[0], again.state().psi[1]);
                 cur.push_back(c.i_d);
                 cur.push_back(c.i_q);
@@ -252,7 +271,11 @@ int main(int argc, char** argv) {
     const cosim_tools::Units units{(fmu_dir / "IpmsmController").string(), (fmu_dir / "IpmsmPlant").string()};
     Fmu plant(fmu_dir / "IpmsmPlant", "IpmsmPlant");
 
-    const std::string map_path = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    const std::string map_path =
+        argc > 2 ? std::string(argv[2]) : std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    const std::string custom_map = argc > 2 ? map_path : std::string();
+    if (argc > 2) plant.flux_map = map_path;
+    std::printf("flux map %s\n", map_path.c_str());
     const FluxMap map(read_flux_map(map_path));
     const InverseFluxMap inv(map);
 
@@ -261,13 +284,13 @@ int main(int argc, char** argv) {
     // a little every step), 80 N.m held (about the maximum: the voltage is at its limit), a ramp
     // 20 -> 80 N.m over the 100 ms, and steps 80 / 40 N.m every 10 ms (current transients).
     std::vector<Trace> traces = {record(
-                                     units, "60Nm", [](int) { return 60.0; }, n),
+                                     units, custom_map, "60Nm", [](int) { return 60.0; }, n),
                                  record(
-                                     units, "80Nm", [](int) { return 80.0; }, n),
+                                     units, custom_map, "80Nm", [](int) { return 80.0; }, n),
                                  record(
-                                     units, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
+                                     units, custom_map, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
                                  record(
-                                     units, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
+                                     units, custom_map, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
     for (const Trace& tr : traces)
         std::printf("trace %-6s: 12000 r/min, %d steps of 100 us; at the end T_e = %.2f N.m, i = (%.1f, %.1f) A\n",
                     tr.name, n, tr.T_e_end, tr.i_d_end, tr.i_q_end);
@@ -280,7 +303,8 @@ int main(int argc, char** argv) {
     CvodeSettings chosen;
     chosen.method = CvodeMethod::adams;
     chosen.nonlinear = CvodeNonlinear::fixed_point;
-    chosen.rtol = chosen.atol = 1e-6;
+    chosen.rtol = 1e-6;
+    chosen.atol = 1e-8;
     chosen.reinit_each_step = true;
     chosen.init_step = CvodeInitStep::curvature;
     chosen.nonlin_conv_coef = 0.3;
@@ -295,7 +319,9 @@ int main(int argc, char** argv) {
         return std::string(b);
     };
     std::vector<Variant> variants = {
-        {"FMU choice: Adams, fixed point, reinit, h0 curvature, nlscoef 0.3, 1e-6", chosen},
+        {"FMU choice: linearised, Adams, fixed point, reinit, h0 curvature, nlscoef 0.3, 1e-6/1e-8", chosen},
+        {"  direct (CVODE on dpsi/dt itself; the FMU's choice before, rtol atol 1e-6)", with([](auto& s) { s.linearised = false; s.atol = 1e-6; })},
+        {"  linearised, rtol atol 1e-6 (the FMU's tolerances before)", with([](auto& s) { s.atol = 1e-6; })},
         {"  h0: CVODE's estimate", with([](auto& s) { s.init_step = CvodeInitStep::estimate; })},
         {"  h0: last step of the previous call", with([](auto& s) { s.init_step = CvodeInitStep::previous_last; })},
         {"  h0: next step planned in the previous call",
@@ -303,26 +329,20 @@ int main(int argc, char** argv) {
         {"  nlscoef 0.1 (CVODE's default)", with([](auto& s) { s.nonlin_conv_coef = 0; })},
         {"  nlscoef 0.5", with([](auto& s) { s.nonlin_conv_coef = 0.5; })},
         {"  max order 2", with([](auto& s) { s.max_order = 2; })},
-        {"  history kept (no reinit)", with([](auto& s) { s.reinit_each_step = false; })},
-        {"  history kept (no reinit), rtol atol 1e-7", with([](auto& s) {
-             s.reinit_each_step = false;
-             s.rtol = s.atol = 1e-7;
-         })},
+        {"  direct, history kept (no reinit)", with([](auto& s) { s.linearised = false; s.reinit_each_step = false; s.atol = 1e-6; })},
+        {"  direct, history kept (no reinit), rtol atol 1e-7", with([](auto& s) { s.linearised = false; s.reinit_each_step = false; s.rtol = s.atol = 1e-7; })},
         {"  Newton, analytic Jacobian", with([](auto& s) { s.nonlinear = CvodeNonlinear::newton_analytic; })},
     };
     for (auto [r, a] : {std::pair{1e-4, 1e-4}, {1e-5, 1e-5}, {3e-6, 3e-6}, {1e-6, 1e-7}, {1e-7, 1e-7}, {1e-8, 1e-8}})
-        variants.push_back({tol_name(" ", r, a), with([r = r, a = a](auto& s) {
-                                s.rtol = r;
-                                s.atol = a;
-                            })});
-    variants.push_back({"BDF, Newton, analytic J, reinit, h0 curvature (FMU cvode_method 2)", with([](auto& s) {
+        variants.push_back({tol_name(" ", r, a), with([r = r, a = a](auto& s) { s.rtol = r; s.atol = a; })});
+    variants.push_back({"BDF, Newton, analytic J, reinit, h0 curvature (FMU cvode_method 2)",
+                        with([](auto& s) { s.method = CvodeMethod::bdf; s.nonlinear = CvodeNonlinear::newton_analytic; })});
+    variants.push_back({"  direct, history kept (no reinit)", with([](auto& s) {
                             s.method = CvodeMethod::bdf;
                             s.nonlinear = CvodeNonlinear::newton_analytic;
-                        })});
-    variants.push_back({"  history kept (no reinit)", with([](auto& s) {
-                            s.method = CvodeMethod::bdf;
-                            s.nonlinear = CvodeNonlinear::newton_analytic;
+                            s.linearised = false;
                             s.reinit_each_step = false;
+                            s.atol = 1e-6;
                         })});
     variants.push_back({"  difference-quotient Jacobian", with([](auto& s) {
                             s.method = CvodeMethod::bdf;
@@ -338,8 +358,9 @@ int main(int argc, char** argv) {
         {"CVODE defaults, rtol 1e-4 (CVODE's example value) atol 1e-8", CvodeSettings::cvode_defaults(1e-4, 1e-8)});
 
     for (const Trace& tr : traces) {
-        // Reference: Adams at rtol 1e-12, atol 1e-14 Wb, CVODE's own initial step.
+        // Reference: Adams on dpsi/dt itself at rtol 1e-12, atol 1e-14 Wb, CVODE's own initial step.
         CvodeSettings ref;
+        ref.linearised = false;
         ref.rtol = 1e-12;
         ref.atol = 1e-14;
         ref.init_step = CvodeInitStep::estimate;
@@ -356,8 +377,7 @@ int main(int argc, char** argv) {
                     (fmu_dir / "IpmsmPlant.fmu").c_str());
         double step_only = 0;
         double all = fmu_replay(plant, tr, {}, {}, rounds, &step_only);
-        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU defaults (Adams, rtol 1e-6, atol 1e-6)", all,
-                    step_only);
+        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU defaults (linearised, Adams, rtol 1e-6, atol 1e-8)", all, step_only);
         all = fmu_replay(plant, tr, {{"rtol", 3e-6}, {"atol", 3e-6}}, {}, rounds, &step_only);
         std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU rtol 3e-6, atol 3e-6", all, step_only);
         all = fmu_replay(plant, tr, {}, {{"cvode_method", 2}}, rounds, &step_only);

@@ -14,9 +14,14 @@
 #include <sunmatrix/sunmatrix_dense.h>
 #include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
+#include "linear_flow.hpp"
+
 namespace ipmsm {
 
 namespace {
+
+// Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
+constexpr double kStiffLimit = 2.0;
 
 std::string number(double x) {
     char b[32];
@@ -61,17 +66,32 @@ struct CvodeHandles {
 struct CvodeIntegrator::Workspace {
     CvodeSettings built_for;  // structure
     DqFluxOde ode;            // the RHS's data during advance()
+    // linearised: the step's linearisation at psi0 (cvode_integrator.hpp). CVODE's y is z.
+    struct Linearisation {
+        double psi0[2], i0[2], G0[4], f0[2];
+        LinearFlow flow;
+        // psi(tau) for z, with exp(-tau A) for the caller.
+        void psi_at(double tau, const double* z, double* psi, double* E_inv) const {
+            double E[4], P[4];
+            flow.exp(tau, E, E_inv);
+            flow.integral(tau, E, P);
+            psi[0] = psi0[0] + P[0] * f0[0] + P[1] * f0[1] + E[0] * z[0] + E[1] * z[1];
+            psi[1] = psi0[1] + P[2] * f0[0] + P[3] * f0[1] + E[2] * z[0] + E[3] * z[1];
+        }
+    } lin;
+    bool linearised = false;  // this call's formulation (built_for.linearised unless too stiff)
+    std::string bad_flux;     // where the currents could not be found (for the error message)
     std::string error;        // CVODE's error messages of the current call
     std::string warning;      // CVODE's warnings of the current call
     // reinit_each_step = false: where CVODE's history stands, to know whether it continues.
     bool live = false;
-    double live_t = 0, live_psi[2] = {0, 0};
+    double live_tau = 0, live_psi[2] = {0, 0};  // CVODE's clock and state where it stopped
     // Tolerances given to CVODE (CVodeSStolerances clears CVODE's error-weight data until its next
     // initial setup, so it is called only when they change, and then CVODE is re-initialised).
     double rtol = 0, atol = 0;
     CvodeHandles h;  // last member: destroyed first, while the data above still exists
 
-    Workspace(const CvodeSettings& s, double t0);
+    explicit Workspace(const CvodeSettings& s);
     Workspace(const Workspace&) = delete;
     Workspace& operator=(const Workspace&) = delete;
 
@@ -82,19 +102,56 @@ struct CvodeIntegrator::Workspace {
         throw CvodeError(m);
     }
 
-    static int rhs(realtype, N_Vector y, N_Vector ydot, void* data) {
+    // Non-finite: recoverable, CVODE retries with a smaller step (and fails if it persists).
+    int finite_or_retry(const double* psi, const double* d) {
+        if (std::isfinite(d[0]) && std::isfinite(d[1])) return 0;
+        bad_flux = "psi_d = " + number(psi[0]) + " Wb, psi_q = " + number(psi[1]) + " Wb";
+        return 1;
+    }
+
+    static int rhs(realtype tau, N_Vector y, N_Vector ydot, void* data) {
         auto* w = static_cast<Workspace*>(data);
         const double* p = N_VGetArrayPointer(y);
         double* d = N_VGetArrayPointer(ydot);
-        w->ode.rhs(p, d);
-        // Non-finite: recoverable, CVODE retries with a smaller step (and fails if it persists).
-        return std::isfinite(d[0]) && std::isfinite(d[1]) ? 0 : 1;
+        if (!w->linearised) {
+            w->ode.rhs(p, d);
+            return w->finite_or_retry(p, d);
+        }
+        // z' = exp(-tau A) N(psi), N = -R (i(psi) - i0 - G0 (psi - psi0)).
+        const Linearisation& L = w->lin;
+        double psi[2], E_inv[4];
+        L.psi_at(tau, p, psi, E_inv);
+        const InverseFluxPoint c = w->ode.currents(psi[0], psi[1]);
+        const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
+        const double n0 = -w->ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
+        const double n1 = -w->ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
+        d[0] = E_inv[0] * n0 + E_inv[1] * n1;
+        d[1] = E_inv[2] * n0 + E_inv[3] * n1;
+        return w->finite_or_retry(psi, d);
     }
 
-    static int jac(realtype, N_Vector y, N_Vector, SUNMatrix J, void* data, N_Vector, N_Vector, N_Vector) {
+    static int jac(realtype tau, N_Vector y, N_Vector, SUNMatrix J, void* data, N_Vector, N_Vector, N_Vector) {
         auto* w = static_cast<Workspace*>(data);
         double j[4];
-        w->ode.jacobian(N_VGetArrayPointer(y), j);
+        if (!w->linearised) {
+            w->ode.jacobian(N_VGetArrayPointer(y), j);
+        } else {
+            // d z' / d z = exp(-tau A) (-R) (G(psi) - G0) exp(tau A)
+            const Linearisation& L = w->lin;
+            double psi[2], E[4], E_inv[4];
+            L.psi_at(tau, N_VGetArrayPointer(y), psi, E_inv);
+            L.flow.exp(tau, E, E_inv);
+            const InverseFluxPoint c = w->ode.currents(psi[0], psi[1]);
+            const double R = w->ode.R;
+            const double D[4] = {-R * (c.G_dd - L.G0[0]), -R * (c.G_dq - L.G0[1]), -R * (c.G_qd - L.G0[2]),
+                                 -R * (c.G_qq - L.G0[3])};
+            const double DE[4] = {D[0] * E[0] + D[1] * E[2], D[0] * E[1] + D[1] * E[3], D[2] * E[0] + D[3] * E[2],
+                                  D[2] * E[1] + D[3] * E[3]};
+            j[0] = E_inv[0] * DE[0] + E_inv[1] * DE[2];
+            j[1] = E_inv[0] * DE[1] + E_inv[1] * DE[3];
+            j[2] = E_inv[2] * DE[0] + E_inv[3] * DE[2];
+            j[3] = E_inv[2] * DE[1] + E_inv[3] * DE[3];
+        }
         SM_ELEMENT_D(J, 0, 0) = j[0];
         SM_ELEMENT_D(J, 0, 1) = j[1];
         SM_ELEMENT_D(J, 1, 0) = j[2];
@@ -115,7 +172,7 @@ struct CvodeIntegrator::Workspace {
     }
 };
 
-CvodeIntegrator::Workspace::Workspace(const CvodeSettings& s, double t0) : built_for(s) {
+CvodeIntegrator::Workspace::Workspace(const CvodeSettings& s) : built_for(s) {
     // On a throw, h's destructor frees whatever was made so far.
     if (SUNContext_Create(nullptr, &h.ctx) != 0 || h.ctx == nullptr) throw CvodeError("SUNContext_Create failed");
     h.y = N_VNew_Serial(2, h.ctx);
@@ -124,7 +181,7 @@ CvodeIntegrator::Workspace::Workspace(const CvodeSettings& s, double t0) : built
     h.mem = CVodeCreate(s.method == CvodeMethod::bdf ? CV_BDF : CV_ADAMS, h.ctx);
     if (h.mem == nullptr) throw CvodeError("CVodeCreate failed");
     check(CVodeSetErrHandlerFn(h.mem, &Workspace::handler, this), "CVodeSetErrHandlerFn");
-    check(CVodeInit(h.mem, &Workspace::rhs, t0, h.y), "CVodeInit");
+    check(CVodeInit(h.mem, &Workspace::rhs, 0.0, h.y), "CVodeInit");
     check(CVodeSetUserData(h.mem, this), "CVodeSetUserData");
     check(CVodeSStolerances(h.mem, s.rtol, s.atol), "CVodeSStolerances");
     rtol = s.rtol;
@@ -174,12 +231,16 @@ void CvodeIntegrator::reset(double t, double psi_d, double psi_q) {
     warnings_.clear();
 }
 
-double CvodeIntegrator::initial_step(const DqFluxOde& ode, double span) const {
+double CvodeIntegrator::initial_step(const DqFluxOde& ode, double span, bool linearised) const {
     switch (settings_.init_step) {
         case CvodeInitStep::estimate: return 0.0;
+        case CvodeInitStep::curvature:
+            // linearised: z(0) = z'(0) = z''(0) = 0 (N and its gradient vanish at psi0), so the
+            // order-1 start has no curvature to resolve: try the whole step.
+            if (linearised) return span;
+            break;
         case CvodeInitStep::previous_last:
         case CvodeInitStep::previous_next: return std::min(state_.h_next, span);
-        case CvodeInitStep::curvature: break;
     }
     // Order 1 (where CVODE restarts) has the local error about h^2/2 |y''|; CVODE accepts a step
     // when its weighted RMS norm is <= 1 (weights 1 / (rtol |y| + atol)). Aim at a quarter of
@@ -194,47 +255,32 @@ double CvodeIntegrator::initial_step(const DqFluxOde& ode, double span) const {
     return std::min(span, std::sqrt(2.0 * settings_.init_step_error / ydd));
 }
 
-CvodeIntegrator::Workspace& CvodeIntegrator::workspace(double t0) {
+CvodeIntegrator::Workspace& CvodeIntegrator::workspace() {
     if (!ws_ || !ws_->built_for.same_structure(settings_)) {
         ws_.reset();
-        ws_ = std::make_unique<Workspace>(settings_, t0);
+        ws_ = std::make_unique<Workspace>(settings_);
     }
     return *ws_;
 }
 
-void CvodeIntegrator::advance(const DqFluxOde& ode, double t_end) {
-    const double t0 = state_.t, span = t_end - t0;
-    if (!(span > 0) || !std::isfinite(span))
-        throw CvodeError("CvodeIntegrator::advance: t_end = " + number(t_end) + " is not after t = " + number(t0));
+void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
+    if (!(h > 0) || !std::isfinite(h))
+        throw CvodeError("CvodeIntegrator::advance: the step h = " + number(h) + " s is not positive and finite");
     if (!(settings_.rtol > 0) || !(settings_.atol > 0))
         throw CvodeError("CvodeIntegrator: rtol and atol must be > 0");
-
-    // An interval CVODE cannot resolve in floating point ("tout too close to t0"): one Euler
-    // step, exact to far below any tolerance.
-    if (span <= 64 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t0), std::abs(t_end))) {
-        double d[2];
-        ode.rhs(state_.psi, d);
-        CvodeState s = state_;
-        s.t = t_end;
-        s.psi[0] += span * d[0];
-        s.psi[1] += span * d[1];
-        if (!std::isfinite(s.psi[0]) || !std::isfinite(s.psi[1]))
-            throw CvodeError("the right-hand side is not finite at t = " + number(t0));
-        state_ = s;
-        stats_ = CvodeStats{};
-        warnings_.clear();
-        return;
-    }
-
-    Workspace& w = workspace(t0);
+    Workspace& w = workspace();
     w.ode = ode;
     w.error.clear();
     w.warning.clear();
+    w.bad_flux.clear();
     double* y = N_VGetArrayPointer(w.h.y);
     void* mem = w.h.mem;
     const bool new_tolerances = w.rtol != settings_.rtol || w.atol != settings_.atol;
-    const bool resume = !settings_.reinit_each_step && w.live && !new_tolerances && w.live_t == t0 &&
-                        w.live_psi[0] == state_.psi[0] && w.live_psi[1] == state_.psi[1];
+    // History kept (direct formulation only): CVODE's clock continues from where it stopped.
+    const bool resume = !settings_.linearised && !settings_.reinit_each_step && w.live && !new_tolerances &&
+                        w.live_psi[0] == state_.psi[0] && w.live_psi[1] == state_.psi[1] &&
+                        h > 64 * std::numeric_limits<double>::epsilon() * w.live_tau;
+    const double tau0 = resume ? w.live_tau : 0.0, tau_end = tau0 + h;
     long steps0 = 0, rhs0 = 0, etf0 = 0, nni0 = 0, ncf0 = 0;
     try {
         if (resume) {
@@ -244,11 +290,39 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double t_end) {
             CVodeGetNumNonlinSolvIters(mem, &nni0);
             CVodeGetNumNonlinSolvConvFails(mem, &ncf0);
         } else {
-            y[0] = state_.psi[0];
-            y[1] = state_.psi[1];
+            w.linearised = false;
+            if (settings_.linearised) {
+                // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
+                Workspace::Linearisation& L = w.lin;
+                double A[4];
+                InverseFluxPoint c;
+                ode.rhs_and_jacobian(state_.psi, L.f0, A, &c);
+                if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
+                    throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
+                                     " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
+                L.psi0[0] = state_.psi[0];
+                L.psi0[1] = state_.psi[1];
+                L.i0[0] = c.i_d;
+                L.i0[1] = c.i_q;
+                L.G0[0] = c.G_dd;
+                L.G0[1] = c.G_dq;
+                L.G0[2] = c.G_qd;
+                L.G0[3] = c.G_qq;
+                L.flow = LinearFlow(A);
+                // z = exp(-tau A) (...) grows like a decaying mode decays: where the electrical
+                // time constant is shorter than the step (a stiff map), z would be badly scaled,
+                // and CVODE integrates psi itself (cvode_method 2, BDF, is meant for those).
+                w.linearised = L.flow.max_decay() * h <= kStiffLimit;
+            }
+            if (w.linearised) {
+                y[0] = y[1] = 0.0;
+            } else {
+                y[0] = state_.psi[0];
+                y[1] = state_.psi[1];
+            }
             w.live = false;
-            w.check(CVodeReInit(mem, t0, w.h.y), "CVodeReInit");
-            w.check(CVodeSetInitStep(mem, initial_step(ode, span)), "CVodeSetInitStep");
+            w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
+            w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
         }
         if (new_tolerances) {
             w.rtol = w.atol = 0;  // unknown until the call succeeds
@@ -257,17 +331,19 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double t_end) {
             w.atol = settings_.atol;
         }
         w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
-        w.check(CVodeSetStopTime(mem, t_end), "CVodeSetStopTime");
-        double t_ret = t0;
-        const int flag = CVode(mem, t_end, w.h.y, &t_ret, CV_NORMAL);
+        w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
+        double t_ret = tau0;
+        const int flag = CVode(mem, tau_end, w.h.y, &t_ret, CV_NORMAL);
         if (flag < 0) {
-            std::string m = "CVODE failed between t = " + number(t0) + " s and " + number(t_end) + " s (" +
-                            flag_name(flag) + ")";
+            std::string m = "CVODE failed over a step of " + number(h) + " s (" + flag_name(flag) + ")";
             if (!w.error.empty()) m += ": " + w.error;
+            if (!w.bad_flux.empty())
+                m += "; no finite currents at " + w.bad_flux +
+                     " (the flux linkages left what the flux map and its continuation can invert)";
             throw CvodeError(m);
         }
         if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
-            throw CvodeError("CVODE returned non-finite flux linkages at t = " + number(t_end));
+            throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
     } catch (...) {
         w.live = false;
         throw;
@@ -287,19 +363,27 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double t_end) {
     st.nonlinear_iterations -= nni0;
     st.nonlinear_failures -= ncf0;
 
+    double psi_end[2] = {y[0], y[1]};
+    if (w.linearised) {
+        double E_inv[4];
+        w.lin.psi_at(h, y, psi_end, E_inv);
+        if (!std::isfinite(psi_end[0]) || !std::isfinite(psi_end[1]))
+            throw CvodeError("non-finite flux linkages at the end of a step of " + number(h) + " s");
+    }
+
     // Commit.
-    state_.t = t_end;
-    state_.psi[0] = y[0];
-    state_.psi[1] = y[1];
+    state_.t += h;
+    state_.psi[0] = psi_end[0];
+    state_.psi[1] = psi_end[1];
     double h_next = st.last_step;
     if (settings_.init_step == CvodeInitStep::previous_next) CVodeGetCurrentStep(mem, &h_next);
     state_.h_next = h_next > 0 && std::isfinite(h_next) ? h_next : 0.0;
     stats_ = st;
     warnings_ = w.warning;
     w.live = true;
-    w.live_t = t_end;
-    w.live_psi[0] = y[0];
-    w.live_psi[1] = y[1];
+    w.live_tau = tau_end;
+    w.live_psi[0] = psi_end[0];
+    w.live_psi[1] = psi_end[1];
 }
 
 }  // namespace ipmsm

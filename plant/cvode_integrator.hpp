@@ -1,6 +1,23 @@
 // CVODE (SUNDIALS 6.x, linked statically) for the plant's two flux-linkage states, wrapped so
 // that the plant model stays an ordinary copyable value.
 //
+// What CVODE integrates (linearised = true, the default): each call linearises the dq equations
+// at its start psi0, f(psi) = f0 + A (psi - psi0) + N(psi) with A = df/dpsi(psi0) (the rotation
+// omega J and -R di/dpsi) and the remainder N(psi) = -R (i(psi) - i(psi0) - di/dpsi (psi - psi0)),
+// of second order in psi - psi0 and zero for a linear map. The linear part's flow is exact
+// (linear_flow.hpp): psi(tau) = psi0 + P(tau) f0 + exp(tau A) z(tau), and CVODE integrates
+//     z' = exp(-tau A) N(psi(tau)),  z(0) = 0,
+// an equivalent ODE whose right-hand side is small and slowly varying: the dq frame's rotation
+// (omega tau up to several radians per step) no longer limits CVODE's step, a step's error is
+// what the tolerances allow on z, and a linear machine is integrated exactly. linearised =
+// false integrates d psi / dt = f(psi) itself (kept for the benchmark's comparison), as does a
+// call whose step is longer than twice the machine's fastest electrical time constant (a stiff
+// map: z would grow like the decaying mode decays, exp(-tau A) being large).
+//
+// Time is relative: CVODE runs from tau = 0 to the step h of each call, so the result does not
+// depend on the absolute time (a master starting at t = 1.7e9 s gets what one starting at 0
+// gets); state().t is bookkeeping only.
+//
 // The integrator's state is plain data: the time, the flux linkages and the initial step size for
 // the next call. By default CVODE is re-initialised at every call of advance() (every
 // communication point): the inputs jump there anyway, and then the result of a call depends only
@@ -12,8 +29,9 @@
 // copied (a copy gets a fresh workspace when it first integrates), and freed CVODE first, then the
 // solver objects, the vector and the context it points into.
 //
-// reinit_each_step = false (for the benchmark only) keeps CVODE's history across calls (input
-// jumps then go into CVODE's error control); copies of such an integrator are not exact.
+// reinit_each_step = false (for the benchmark only, with linearised = false: a linearisation is
+// one call's) keeps CVODE's history across calls (input jumps then go into CVODE's error
+// control); copies of such an integrator are not exact.
 #pragma once
 
 #include <memory>
@@ -55,6 +73,7 @@ struct CvodeSettings {
     double rtol = 1e-6;         // relative tolerance
     double atol = 1e-6;         // absolute tolerance on the flux linkages, Wb
     bool reinit_each_step = true;
+    bool linearised = true;     // integrate the remainder of the step's linearisation (above)
     CvodeInitStep init_step = CvodeInitStep::previous_last;
     double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
     double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
@@ -62,7 +81,7 @@ struct CvodeSettings {
     // Settings that shape CVODE's objects (a workspace is reused only if they match).
     bool same_structure(const CvodeSettings& o) const {
         return method == o.method && nonlinear == o.nonlinear && max_order == o.max_order &&
-               nonlin_conv_coef == o.nonlin_conv_coef;
+               nonlin_conv_coef == o.nonlin_conv_coef && linearised == o.linearised;
     }
     // CVODE's defaults: BDF (order <= 5), Newton with a dense solver and difference-quotient
     // Jacobian, its own initial step estimate, history kept across calls (no re-initialisation).
@@ -75,6 +94,7 @@ struct CvodeSettings {
         s.rtol = rtol;
         s.atol = atol;
         s.reinit_each_step = false;
+        s.linearised = false;
         s.init_step = CvodeInitStep::estimate;
         return s;
     }
@@ -82,7 +102,7 @@ struct CvodeSettings {
 
 // The exact state of the integrator (what a copy or a serialised FMU state must carry).
 struct CvodeState {
-    double t = 0;
+    double t = 0;            // the end of the last step (bookkeeping: the integration is in relative time)
     double psi[2] = {0, 0};  // psi_d, psi_q, Wb
     double h_next = 0;       // initial step size for the next advance(), s; 0: CVODE estimates
 };
@@ -107,9 +127,12 @@ public:
     // A new initial value (forgets the step-size hint).
     void reset(double t, double psi_d, double psi_q);
 
-    // Integrates from state().t to t_end > state().t with the ODE's inputs held. Throws
+    // Integrates over a step of h > 0 seconds from state() with the ODE's inputs held (in
+    // relative time: the result does not depend on state().t, which then grows by h). Throws
     // CvodeError (CVODE's message) and leaves the state unchanged if CVODE fails.
-    void advance(const DqFluxOde& ode, double t_end);
+    // linearised and reinit_each_step together: a call's result depends only on state().psi,
+    // state().h_next (unused by the default initial step), the ODE and h.
+    void advance(const DqFluxOde& ode, double h);
 
     const CvodeState& state() const { return state_; }
     void set_state(const CvodeState& s) { state_ = s; }
@@ -123,8 +146,8 @@ public:
 
 private:
     struct Workspace;
-    Workspace& workspace(double t0);
-    double initial_step(const DqFluxOde& ode, double span) const;
+    Workspace& workspace();
+    double initial_step(const DqFluxOde& ode, double span, bool linearised) const;
 
     CvodeSettings settings_;
     CvodeState state_;

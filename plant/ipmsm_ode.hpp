@@ -1,6 +1,6 @@
 // The saturated IPMSM's electrical equations in rotor (dq) coordinates, free of FMI and of the
-// integrator. States are the flux linkages; the currents come from the inverse flux map, built
-// once from the flux map, so nothing is inverted during integration:
+// integrator. States are the flux linkages; the currents are the flux map's exact inverse at them
+// (machine/inverse_flux_map.hpp: Newton on the map from a table built once):
 //
 //     d psi_d / dt = u_d - R i_d + omega psi_q
 //     d psi_q / dt = u_q - R i_q - omega psi_d,     i = i_map(psi_d - delta_psi_m, psi_q)
@@ -45,8 +45,10 @@ struct DqFluxOde {
         double f[2];
         rhs_and_jacobian(psi, f, J);
     }
-    void rhs_and_jacobian(const double* psi, double* dpsi, double* J) const {
+    // ... and the currents there (optional), from the same inverse-map evaluation.
+    void rhs_and_jacobian(const double* psi, double* dpsi, double* J, InverseFluxPoint* at = nullptr) const {
         const InverseFluxPoint c = currents(psi[0], psi[1]);
+        if (at != nullptr) *at = c;
         dpsi[0] = u_d - R * c.i_d + omega * psi[1];
         dpsi[1] = u_q - R * c.i_q - omega * psi[0];
         J[0] = -R * c.G_dd;
@@ -81,20 +83,26 @@ struct PlantOutputs {
     double P_cu, P_fe;       // W
 };
 
+// At flux linkages psi whose currents i are known (from the inverse map, or exactly).
 inline PlantOutputs plant_outputs(const DqFluxOde& ode, int pole_pairs, double w_m, const IronLossModel& fe,
-                                  double psi_d, double psi_q) {
-    const InverseFluxPoint c = ode.currents(psi_d, psi_q);
+                                  double psi_d, double psi_q, double i_d, double i_q) {
     PlantOutputs o;
-    o.i_d = c.i_d;
-    o.i_q = c.i_q;
-    o.T_e = 1.5 * pole_pairs * (psi_d * c.i_q - psi_q * c.i_d);
-    o.P_elec = 1.5 * (ode.u_d * c.i_d + ode.u_q * c.i_q);
-    o.P_cu = 1.5 * ode.R * (c.i_d * c.i_d + c.i_q * c.i_q);
+    o.i_d = i_d;
+    o.i_q = i_q;
+    o.T_e = 1.5 * pole_pairs * (psi_d * i_q - psi_q * i_d);
+    o.P_elec = 1.5 * (ode.u_d * i_d + ode.u_q * i_q);
+    o.P_cu = 1.5 * ode.R * (i_d * i_d + i_q * i_q);
     o.P_fe = fe.power(pole_pairs, w_m, psi_d, psi_q);
     const double drag = w_m != 0.0 ? o.P_fe / w_m : 0.0;  // iron-loss drag torque, sign of w_m
     o.T_shaft = o.T_e - drag;
     o.P_mech = o.T_shaft * w_m;
     return o;
+}
+
+inline PlantOutputs plant_outputs(const DqFluxOde& ode, int pole_pairs, double w_m, const IronLossModel& fe,
+                                  double psi_d, double psi_q) {
+    const InverseFluxPoint c = ode.currents(psi_d, psi_q);
+    return plant_outputs(ode, pole_pairs, w_m, fe, psi_d, psi_q, c.i_d, c.i_q);
 }
 
 }  // namespace ipmsm

@@ -1,11 +1,13 @@
 // IpmsmPlant: the saturated IPMSM's electrical dynamics on a flux map, integrated by CVODE.
 // The model of the IpmsmPlant FMU; free of FMI types (the glue in ../fmu_src/fmi maps it).
 //
-// States psi_d, psi_q; currents from the inverse flux map (built once at initialisation);
+// States psi_d, psi_q; currents the map's exact inverse (its table built at initialisation);
 // d psi_d/dt = u_d - R i_d + omega psi_q, d psi_q/dt = u_q - R i_q - omega psi_d with the inputs
-// held over each communication step (ipmsm_ode.hpp). CVODE (Adams, functional iteration) is
-// re-initialised at every communication point, so the model's whole state is plain data and
-// copies, FMU-state rollback and serialisation are exact (cvode_integrator.hpp).
+// held over each communication step (ipmsm_ode.hpp). Each step is linearised at its start and
+// CVODE (Adams, functional iteration) integrates what the exact linear flow misses, from
+// tau = 0 to h (relative time); it is re-initialised at every communication point, so the
+// model's whole state is plain data and copies, FMU-state rollback and serialisation are exact
+// (cvode_integrator.hpp).
 #pragma once
 
 #include <memory>
@@ -87,7 +89,7 @@ public:
     double fe_psi_ref = 0.0780669432093;  // Wb
     double i_d_start = 0.0, i_q_start = 0.0;  // A
     double rtol = 1e-6;
-    double atol = 1e-6;            // Wb
+    double atol = 1e-8;            // Wb (what CVODE's error control sees: cvode_integrator.hpp)
     int cvode_method = 1;          // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
     int cvode_max_order = 0;       // 0: the method's maximum
     int cvode_max_steps = 20000;   // per communication step
@@ -97,6 +99,7 @@ public:
 private:
     DqFluxOde ode() const;        // the right-hand side for the present inputs (throws if invalid)
     void update_outputs(const DqFluxOde& ode);
+    void update_outputs(const DqFluxOde& ode, double i_d, double i_q);  // at currents known exactly
     CvodeSettings settings() const;
 
     fmi::SharedContext context_;

@@ -1,22 +1,35 @@
 // The inverse flux map i_d(psi_d, psi_q), i_q(psi_d, psi_q), for the plant: it integrates the
-// flux linkages as states and needs the currents (and d i / d psi for the solver's Jacobian)
-// without inverting anything at run time.
+// flux linkages as states and needs the currents (and d i / d psi for the solver's Jacobian).
 //
-// Built once from a FluxMap: on a uniform rectangular psi grid covering the bounding box of the
-// image of the current grid, each node's currents come from a damped Newton inversion of the
-// forward spline (converged to rounding), and the same C2 bicubic spline (bicubic_spline.hpp)
-// interpolates them. Nodes of the box that are not images of the current grid (its corners:
-// the image is a curved quadrilateral) are inverted on the forward map's linear extrapolation,
-// so the table is the inverse of the forward map as FluxMap::eval defines it everywhere;
-// outside_nodes() and max_outside_A() report how many there were and how far out they went.
-// Outside the psi box the inverse is continued linearly like every spline here.
+// eval() is exact: it inverts the forward spline (FluxMap::eval, with its linear continuation
+// outside the current grid) by Newton's method to rounding, starting from a table. So the
+// currents are the map's own inverse at every flux linkage the map (or its continuation)
+// reaches, whatever the grid or the saturation; G = (d psi / d i)^-1 at the solution.
+//
+// The table (the start guess): on a uniform rectangular psi grid covering the bounding box of
+// the image of the current grid, each node's currents from a damped Newton inversion, then the
+// same C2 bicubic spline (bicubic_spline.hpp). Nodes of the box that are images of currents
+// outside the grid (its corners: the image is a curved quadrilateral) are inverted on the
+// forward map's linear continuation (outside_nodes(), max_outside_A()); nodes that not even the
+// continuation reaches (a strongly cross-saturated map's continuation can lose monotonicity far
+// out) get a first-order continuation of the inverse from their nearest inverted neighbour
+// (unreachable_nodes()). Newton then converges from the table's guess in 1-3 steps inside the
+// image (2-3 forward evaluations per eval()). Where it does not, or converges to currents beyond
+// the grid (where the continuation may fold, giving the same fluxes more than one preimage), a
+// damped Newton search from the table's guess and from the grid node with the nearest fluxes
+// takes over and keeps the preimage nearest the grid; where no search converges the currents
+// are NaN: no current gives those flux linkages on the map or its continuation.
+//
+// The error is measured, not assumed: at construction, eval() and the table alone are checked
+// against the currents at the centre of every current-grid cell (known exactly: their fluxes
+// are the forward map's there): max_error_A(), max_table_error_A().
 //
 // Magnet temperature: a PM flux changed by delta_psi_m shifts the forward map to
 // psi_d(i) + delta_psi_m, so its inverse is i(psi_d - delta_psi_m, psi_q): pass the shifted
-// psi_d (or use the three-argument eval). One table serves every temperature; the psi box
-// simply moves by delta_psi_m and the linear continuation covers the (small) shift.
+// psi_d (or use the three-argument eval).
 #pragma once
 
+#include <cmath>
 #include <vector>
 
 #include "numerics/bicubic_spline.hpp"
@@ -34,7 +47,7 @@ struct InverseFluxPoint {
 struct InverseFluxMapOptions {
     // psi grid nodes per axis; 0: automatic: psi spacing at most half the smallest flux step
     // between adjacent current-grid nodes along that axis, at least three psi cells per current
-    // cell, at most 300 cells (each cell holds 32 doubles).
+    // cell, at most 150 cells (each cell holds 32 doubles).
     int n_psi_d = 0, n_psi_q = 0;
     // Extra width of the psi box on each side, as a fraction of its width.
     double margin = 0.0;
@@ -42,11 +55,16 @@ struct InverseFluxMapOptions {
 
 class InverseFluxMap {
 public:
-    // Throws FluxMapError if some psi node cannot be inverted (the forward map is not
-    // invertible there: a non-positive Jacobian determinant, e.g. a non-monotone map).
+    // Keeps a copy of the map (eval() inverts it). Throws FluxMapError, saying where, if the map
+    // folds on its grid (the incremental inductance matrix has a determinant <= 0 at a node or a
+    // cell's or edge's midpoint: the currents would not be a function of the fluxes), if its
+    // image has no extent, or if no node of the table could be inverted.
     explicit InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options = {});
 
+    // The currents at (psi_d, psi_q), exact to rounding; NaN where no current reaches them.
     InverseFluxPoint eval(double psi_d, double psi_q) const;
+    // The table's interpolated start guess alone (for the benchmark and the tests).
+    InverseFluxPoint table(double psi_d, double psi_q) const;
     // The machine whose PM flux is delta_psi_m above the map's (magnet temperature).
     InverseFluxPoint eval(double psi_d, double psi_q, double delta_psi_m) const {
         return eval(psi_d - delta_psi_m, psi_q);
@@ -63,8 +81,15 @@ public:
     // distance (A, max norm) by which such a current lies outside it.
     int outside_nodes() const { return outside_nodes_; }
     double max_outside_A() const { return max_outside_; }
-    // Largest Newton residual |psi(i) - psi_node| (max norm, Wb) over the nodes.
+    // psi nodes that no current reaches (filled by continuation of the inverse, above).
+    int unreachable_nodes() const { return unreachable_nodes_; }
+    // Largest Newton residual |psi(i) - psi_node| (max norm, Wb) over the inverted nodes.
     double max_residual() const { return max_residual_; }
+    // Largest error (A, max norm) of eval() and of the table alone at the currents of the
+    // current-grid cells' centres, measured at construction (above).
+    double max_error_A() const { return max_error_; }
+    double max_table_error_A() const { return max_table_error_; }
+    const FluxMap& forward() const { return forward_; }
 
     const BicubicSpline2D& spline() const { return spline_; }  // fields 0: i_d, 1: i_q
     std::size_t memory_bytes() const { return spline_.memory_bytes(); }
@@ -76,16 +101,53 @@ public:
                        double tol, int* iterations = nullptr);
 
 private:
+    static constexpr int kNewtonSteps = 8;  // from the table's guess, before the damped search
+    // The slow path: fast = the fast Newton's converged currents, nullptr if it did not converge.
+    InverseFluxPoint search(double psi_d, double psi_q, const double* fast) const;
+    void nearest_node(double psi_d, double psi_q, double& i_d, double& i_q) const;
+    double outside_grid(double i_d, double i_q) const;  // A, max norm; 0 inside
+
+    FluxMap forward_;
     BicubicSpline2D spline_;
-    int outside_nodes_ = 0;
+    double step_tol_ = 0;  // A: a Newton correction this small leaves rounding-level error
+    double flux_tol_ = 0;  // Wb: the damped search's residual
+    double psi_width_[2] = {1, 1};  // Wb: the image's extent, to compare flux distances
+    int outside_nodes_ = 0, unreachable_nodes_ = 0;
     double max_outside_ = 0;
     double max_residual_ = 0;
+    double max_error_ = 0, max_table_error_ = 0;
 };
+
+inline InverseFluxPoint InverseFluxMap::table(double psi_d, double psi_q) const {
+    SplineValue s[2];
+    spline_.eval<2>(psi_d, psi_q, s);
+    return InverseFluxPoint{s[0].f, s[1].f, s[0].fx, s[0].fy, s[1].fx, s[1].fy};
+}
 
 inline InverseFluxPoint InverseFluxMap::eval(double psi_d, double psi_q) const {
     SplineValue s[2];
     spline_.eval<2>(psi_d, psi_q, s);
-    return InverseFluxPoint{s[0].f, s[1].f, s[0].fx, s[0].fy, s[1].fx, s[1].fy};
+    double i_d = s[0].f, i_q = s[1].f;
+    // Newton on psi(i) = psi*: quadratic from the table's guess; a correction below step_tol_
+    // (1e-9 of the grid's extent) leaves an error of its square, far below rounding of i.
+    for (int k = 0; k < kNewtonSteps; ++k) {
+        const FluxPoint p = forward_.eval(i_d, i_q);
+        const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
+        if (!(std::abs(det) > 0) || !std::isfinite(det)) break;
+        const double G_dd = p.L_qq / det, G_dq = -p.L_dq / det, G_qd = -p.L_qd / det, G_qq = p.L_dd / det;
+        const double rd = psi_d - p.psi_d, rq = psi_q - p.psi_q;
+        const double dd = G_dd * rd + G_dq * rq, dq = G_qd * rd + G_qq * rq;
+        i_d += dd;
+        i_q += dq;
+        if (std::abs(dd) <= step_tol_ && std::abs(dq) <= step_tol_) {
+            if (i_d >= forward_.i_d_min() && i_d <= forward_.i_d_max() && i_q >= forward_.i_q_min() &&
+                i_q <= forward_.i_q_max())
+                return InverseFluxPoint{i_d, i_q, G_dd, G_dq, G_qd, G_qq};
+            const double fast[2] = {i_d, i_q};  // beyond the grid: is there a preimage nearer to it?
+            return search(psi_d, psi_q, fast);
+        }
+    }
+    return search(psi_d, psi_q, nullptr);
 }
 
 }  // namespace ipmsm
