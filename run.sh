@@ -6,6 +6,8 @@
 # Idempotent. Extra arguments go to the study (e.g. --cycles WLTC3b UDDS HWFET).
 set -euo pipefail
 cd "$(dirname "$0")"
+study_args=("$@")
+set --  # the sourced set-up must not see the study's arguments
 source scripts/setup.sh
 python -m scenarios sweep --out out/sweep
-python -m scenarios compare --out out/compare "$@"
+python -m scenarios compare --out out/compare "${study_args[@]}"

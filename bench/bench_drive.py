@@ -26,7 +26,8 @@ def main(argv=None) -> int:
     ap.add_argument("--build", type=Path, default=ROOT / "build")
     a = ap.parse_args(argv)
     cpu0 = time.process_time()
-    s = simulate(a.cycle, RunSpec(backend=a.backend, reference=a.reference), fmus=fmu_paths(a.build), progress=False)
+    spec = RunSpec(backend=a.backend, reference=a.reference)
+    s = simulate(a.cycle, spec, fmus=fmu_paths(a.build), progress=False).to_dict()
     cpu = time.process_time() - cpu0
     print(f"{s['cycle']} on {s['backend']}: {s['wall_s']:.1f} s wall, {cpu:.1f} s CPU, "
           f"{s['steps']} inner steps ({1e6 * cpu / s['steps']:.2f} us CPU each), {s['Wh_per_km']:.2f} Wh/km, "

@@ -5,18 +5,23 @@ import argparse
 import json
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
+from .paths import BUILD_DIR, ROOT
+
+#: the contract's summary keys (../shared/spec/INTERFACE.md) and the real-time factor: what `run` prints
+RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
+               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s", "real_time_factor")
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__)
-    ap.add_argument("--build", type=Path, default=ROOT / "build", help="build folder with fmu/ (and lib/, bin/)")
+    ap.add_argument("--build", type=Path, default=BUILD_DIR, help="build folder with fmu/ (and lib/, bin/)")
     sub = ap.add_subparsers(dest="cmd", required=True)
 
     sw = sub.add_parser("sweep", help="torque-speed sweep of the controller: table and plot of the optimal currents")
     sw.add_argument("--out", type=Path, default=ROOT / "out" / "sweep")
     sw.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
-    sw.add_argument("--u-dc", type=float, default=355.0)
+    sw.add_argument("--u-dc", type=float, default=U_DC_NOMINAL_V)
 
     run = sub.add_parser("run", help="one drive cycle: summary.json, trace.csv, run.png")
     run.add_argument("cycle", help="WLTC3b, UDDS, HWFET, US06, NEDC, or a CSV of time_s,speed_mps")
@@ -26,7 +31,7 @@ def main(argv=None) -> int:
                      help="the two FMUs coupled at 100 us by the native or the fmpy master, or the IpmsmDrive FMU "
                           "stepped at the vehicle's 10 ms through plain fmpy")
     run.add_argument("--u-dc-scale", type=float, default=1.0, help="DC voltage seen by the drive / battery's")
-    run.add_argument("--magnet-degC", type=float, default=20.0)
+    run.add_argument("--magnet-degC", type=float, default=T_REFERENCE_K - ZERO_CELSIUS_K)
     run.add_argument("--out", type=Path, default=None)
 
     cmp_ = sub.add_parser("compare", help="Ferrari versus 2-D tables over cycles and conditions: report.md")
@@ -39,21 +44,20 @@ def main(argv=None) -> int:
         from .sweep import SweepSpec, run_sweep
         s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
                       SweepSpec(recursion=args.recursion, u_dc=args.u_dc))
-        print(json.dumps({k: s[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
+        print(json.dumps({k: s.to_dict()[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
         print(f"wrote {args.out}/sweep.csv, summary.json, current_trajectories.png")
     elif args.cmd == "run":
         from .plots import plot_run
-        from .simulate import CELSIUS, Conditions, RunSpec, fmu_paths, simulate
-        cond = Conditions("custom" if (args.u_dc_scale, args.magnet_degC) != (1.0, 20.0) else "nominal",
-                          u_dc_scale=args.u_dc_scale, T_magnet=args.magnet_degC + CELSIUS,
-                          T_winding=args.magnet_degC + CELSIUS)
+        from .simulate import Conditions, RunSpec, fmu_paths, simulate
+        T = args.magnet_degC + ZERO_CELSIUS_K
+        custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
+        cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
         out = args.out or ROOT / "out" / f"{Path(args.cycle).stem}_{args.method}"
         s = simulate(args.cycle, RunSpec(method=args.method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        plot_run(out, f"{s['cycle']}, {args.method}")
-        keys = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
-                "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s", "real_time_factor")
-        print(json.dumps({k: s[k] for k in keys}, indent=1))
+        plot_run(out, f"{s.cycle}, {args.method}")
+        d = s.to_dict()
+        print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
         print(f"wrote {out}/summary.json, trace.csv, run.png")
     elif args.cmd == "compare":
         from .compare import run_study

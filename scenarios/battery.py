@@ -23,8 +23,10 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from .paths import SHARED_DIR
+
 #: `<repo>/../shared/data/ocv_nmc_cell_and_96s.csv`: SOC 0..1 step 0.05, two published cell fits
-OCV_CSV = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "ocv_nmc_cell_and_96s.csv"
+OCV_CSV = SHARED_DIR / "data" / "ocv_nmc_cell_and_96s.csv"
 
 #: fit name -> column of the cell OCV (V)
 OCV_FITS = {
@@ -36,15 +38,16 @@ OCV_FITS = {
 @dataclass
 class BatteryParams:
     """Pack parameters. Defaults: a 40 kWh (gross) pack like the 2018+ Nissan Leaf's, 192 cells
-    as 96s2p; the Chen 2020 OCV fit; the issue's R0, R1, tau (pack values)."""
+    as 96s2p; the Chen 2020 OCV fit; R0, R1, tau assumed pack values of that class (no measured
+    record of this pack: docs/vehicle.md)."""
 
     n_series: int = 96                # cells in series (Leaf 40 kWh: 96s2p, 192 cells)
     n_parallel: int = 2
     cell_capacity_Ah: float = 56.3    # Ah per cell (40 kWh / 96 / 2 / ~3.7 V; the Leaf's AESC cell)
     ocv_fit: str = "chen2020"         # measured-electrode fit of a commercial NMC cell (see docs)
-    R0: float = 0.038                 # ohm, pack series resistance (issue; 0.79 mOhm per cell at 96s2p)
-    R1: float = 0.058                 # ohm, pack polarisation resistance (issue)
-    tau1: float = 30.0                # s, R1 C1 (issue)
+    R0: float = 0.038                 # ohm, pack series resistance (assumed; 0.79 mOhm per cell at 96s2p)
+    R1: float = 0.058                 # ohm, pack polarisation resistance (assumed)
+    tau1: float = 30.0                # s, R1 C1 (assumed)
     u_cell_max: float = 4.2           # V, charge cut-off per cell (NMC | graphite)
     soc0: float = 0.5                 # mean SOC of a full-to-empty test (SAE J1634); 355.7 V with chen2020
     ocv_csv: Path = field(default=OCV_CSV)
@@ -144,7 +147,8 @@ class Battery:
     """The pack's state (SOC, u_RC) and its energy bookkeeping (J):
     E_terminal = E_ocv - E_loss_R0 - E_loss_R1 - (W_C - W_C0) holds to rounding."""
 
-    def __init__(self, p: BatteryParams = BatteryParams(), soc0: float | None = None):
+    def __init__(self, p: BatteryParams | None = None, soc0: float | None = None):
+        p = p if p is not None else BatteryParams()
         self.p = p
         self.ocv_fn = Ocv(p)
         self.soc = float(p.soc0 if soc0 is None else soc0)

@@ -15,9 +15,10 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
+from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
+from .paths import BUILD_DIR
+from .results import RunSummary
 from .simulate import STUDY_CONDITIONS, Conditions, RunSpec, fmu_paths, simulate
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @dataclass(frozen=True)
@@ -40,13 +41,27 @@ def _slug(s: str) -> str:
     return re.sub(r"[^A-Za-z0-9]+", "_", s).strip("_").lower()
 
 
-def _one(cycle: str, variant: Variant, cond: Conditions, out: Path, build: Path) -> dict:
+@dataclass(frozen=True)
+class StudyRun:
+    """One run of the study: its variant's label, its folder (relative to the study's) and summary."""
+
+    variant: str
+    run_dir: str
+    summary: RunSummary
+
+    @property
+    def condition(self) -> str:
+        return self.summary.conditions["name"]
+
+    def to_dict(self) -> dict:
+        return {**self.summary.to_dict(), "variant": self.variant, "run_dir": self.run_dir}
+
+
+def _one(cycle: str, variant: Variant, cond: Conditions, out: Path, build: Path) -> StudyRun:
     run_dir = out / "runs" / f"{_slug(cycle)}__{_slug(cond.name)}__{_slug(variant.label)}"
     s = simulate(cycle, RunSpec(method=variant.method, recursion=variant.recursion, conditions=cond),
                  fmus=fmu_paths(build), out=run_dir, progress=False)
-    s["variant"] = variant.label
-    s["run_dir"] = str(run_dir.relative_to(out))
-    return s
+    return StudyRun(variant.label, str(run_dir.relative_to(out)), s)
 
 
 def controller_costs(build: Path) -> dict:
@@ -67,7 +82,7 @@ def controller_costs(build: Path) -> dict:
 
 
 def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS,
-              build: Path = ROOT / "build", workers: int | None = None) -> list[dict]:
+              build: Path = BUILD_DIR, workers: int | None = None) -> list[StudyRun]:
     out.mkdir(parents=True, exist_ok=True)
     jobs = [(c, v, k) for c in cycles for k in conditions for v in variants]
     workers = workers or min(len(jobs), os.cpu_count() or 1)
@@ -77,97 +92,110 @@ def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, varian
     with ProcessPoolExecutor(max_workers=workers) as pool:
         futures = {pool.submit(_one, c, v, k, out, build): (c, v, k) for c, v, k in jobs}
         for n, f in enumerate(as_completed(futures), 1):
-            s = f.result()
-            results.append(s)
-            print(f"  [{n}/{len(jobs)}] {s['cycle']:>7} | {s['conditions']['name']:<17} | {s['variant']:<29} "
-                  f"{s['Wh_per_km']:6.1f} Wh/km, torque RMS {s['torque_rmse_Nm']:.3f} N.m  ({s['wall_s']:.0f} s, "
+            r = f.result()
+            results.append(r)
+            s = r.summary
+            print(f"  [{n}/{len(jobs)}] {s.cycle:>7} | {r.condition:<17} | {r.variant:<29} "
+                  f"{s.Wh_per_km:6.1f} Wh/km, torque RMS {s.torque_rmse_Nm:.3f} N.m  ({s.wall_s:.0f} s, "
                   f"{time.perf_counter() - t0:.0f} s elapsed)", flush=True)
     order = {(c, k.name, v.label): i for i, (c, v, k) in enumerate(jobs)}
-    results.sort(key=lambda s: order[(s["cycle"], s["conditions"]["name"], s["variant"])])
+    results.sort(key=lambda r: order[(r.summary.cycle, r.condition, r.variant)])
     costs = controller_costs(build)
     write_report(out, results, costs)
     return results
 
 
-def _memory(s: dict) -> str:
-    if s["method"] == "ferrari":
+def _memory(s: RunSummary) -> str:
+    if s.method == "ferrari":
         # Online Ferrari needs the flux map (51 x 71 points, psi_d and psi_q) for any u_dc and T_magnet.
         return "flux map 58 kB (any u_dc, T)"
     per = 29561  # bytes of one 41 x 41 table pair (reported by the FMU as table_bytes)
-    return f"{per / 1000:.0f} kB per table" + (" per u_dc and T" if s["method"] == "lut_speed" else " per T")
+    return f"{per / 1000:.0f} kB per table" + (" per u_dc and T" if s.method == "lut_speed" else " per T")
 
 
-def write_report(out: Path, results: list[dict], costs: dict) -> None:
+def _copper_excess(s: RunSummary) -> float:
+    """The run's copper loss over the optimum's, less 1 (NaN without the optimum)."""
+    if not s.copper_loss_optimal_Wh:
+        return float("nan")
+    return s.copper_loss_Wh / s.copper_loss_optimal_Wh - 1
+
+
+def write_report(out: Path, results: list[StudyRun], costs: dict) -> None:
     keys = ("cycle", "conditions", "variant", "Wh_per_km", "energy_battery_Wh", "distance_km", "speed_rmse_mps",
             "torque_rmse_Nm", "torque_error_max_Nm", "copper_loss_Wh", "copper_loss_optimal_Wh",
             "current_excess_rms_A", "iron_loss_Wh", "inverter_loss_Wh", "wall_s", "run_dir")
     with open(out / "summary.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(keys)
-        for s in results:
-            w.writerow([s["conditions"]["name"] if k == "conditions" else s[k] for k in keys])
-    (out / "summary.json").write_text(json.dumps(dict(results=results, controller_ns_per_call=costs), indent=2))
+        for r in results:
+            d = r.to_dict()
+            w.writerow([r.condition if k == "conditions" else d[k] for k in keys])
+    (out / "summary.json").write_text(json.dumps(dict(results=[r.to_dict() for r in results],
+                                                      controller_ns_per_call=costs), indent=2))
     plot_study(out, results)
 
     lines = ["# Ferrari versus 2-D tables on a drive cycle", "",
              "Produced by `python -m scenarios compare`. Every run couples the IpmsmController and IpmsmPlant",
              "FMUs at 100 µs with the vehicle, driver and battery at 10 ms (scenarios/simulate.py). The tables",
-             "are 41 × 41, built by the controller at initialisation for 355 V and 20 °C with the exact solver.",
+             f"are 41 × 41, built by the controller at initialisation for {U_DC_NOMINAL_V:.0f} V and "
+             f"{T_REFERENCE_K - ZERO_CELSIUS_K:.0f} °C with the exact solver.",
              "*Copper loss vs optimum*: the run's copper loss over that of the exact optimum (Ferrari,",
              "recursion 2, the same delivered torque and conditions, evaluated every 10 ms). *Torque error*:",
              "delivered T_e against the controller's own clamped command T_cmd, 10-ms means. *Time above",
              "V_max / voltage-limited*: share of the cycle (sampled every 10 ms) in which the current regulator's",
-             "voltage exceeded the planned V_max = k_u u_dc/√3, and in which it hit the inverter's linear range u_dc/√3. The optimum keeps 5 % of it in reserve (k_u = 0.95); a method",
+             "voltage exceeded the planned V_max = k_u u_dc/√3, and in which it hit the inverter's linear range "
+             "u_dc/√3. The optimum keeps 5 % of it in reserve (k_u = 0.95); a method",
              "whose commands fall outside the voltage ellipse spends that reserve (and shows copper loss *below*",
              "the optimum's) or, past it, loses torque.", ""]
-    for cycle in dict.fromkeys(s["cycle"] for s in results):
-        for cond in dict.fromkeys(s["conditions"]["name"] for s in results if s["cycle"] == cycle):
+    for cycle in dict.fromkeys(r.summary.cycle for r in results):
+        for cond in dict.fromkeys(r.condition for r in results if r.summary.cycle == cycle):
             lines += [f"## {cycle}, {cond}", "",
                       "| method | Wh/km | speed RMSE (km/h) | torque error RMS / max (N·m) | copper loss vs optimum "
                       "| current excess RMS (A) | time above V_max / voltage-limited | controller ns/call | memory |",
                       "|---|---|---|---|---|---|---|---|---|"]
-            for s in results:
-                if s["cycle"] != cycle or s["conditions"]["name"] != cond:
+            for r in results:
+                s = r.summary
+                if s.cycle != cycle or r.condition != cond:
                     continue
-                cu = s["copper_loss_Wh"] / s["copper_loss_optimal_Wh"] - 1 if s.get("copper_loss_optimal_Wh") else float("nan")
-                ns = costs.get(s["variant"])
-                lines.append(f"| {s['variant']} | {s['Wh_per_km']:.2f} | {s['speed_rmse_mps'] * 3.6:.2f} | "
-                             f"{s['torque_rmse_Nm']:.3f} / {s['torque_error_max_Nm']:.2f} | {cu:+.2%} | "
-                             f"{s['current_excess_rms_A']:.2f} | {s['time_above_V_max_pct']:.1f} % / {s['time_voltage_limited_pct']:.1f} % | "
-                             f"{'%.0f' % ns if ns else '–'} | {_memory(s)} |")
+                ns = costs.get(r.variant)
+                lines.append(f"| {r.variant} | {s.Wh_per_km:.2f} | {s.speed_rmse_mps * 3.6:.2f} | "
+                             f"{s.torque_rmse_Nm:.3f} / {s.torque_error_max_Nm:.2f} | {_copper_excess(s):+.2%} | "
+                             f"{s.current_excess_rms_A:.2f} | {s.time_above_V_max_pct:.1f} % / "
+                             f"{s.time_voltage_limited_pct:.1f} % | {f'{ns:.0f}' if ns else '–'} | {_memory(s)} |")
             lines.append("")
     lines += ["![Study](study.png)", "",
               "Per-run pictures: `runs/*/run.png`; traces: `runs/*/trace.csv`; all figures: `summary.csv`."]
     (out / "report.md").write_text("\n".join(lines) + "\n")
 
 
-def plot_study(out: Path, results: list[dict]) -> None:
+def plot_study(out: Path, results: list[StudyRun]) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 
     from .plots import plot_run
-    for s in results:
-        plot_run(out / s["run_dir"], f"{s['cycle']}, {s['conditions']['name']}, {s['variant']}")
-    conds = list(dict.fromkeys(s["conditions"]["name"] for s in results))
-    variants = list(dict.fromkeys(s["variant"] for s in results))
-    cycle = results[0]["cycle"]
+    for r in results:
+        plot_run(out / r.run_dir, f"{r.summary.cycle}, {r.condition}, {r.variant}")
+    conds = list(dict.fromkeys(r.condition for r in results))
+    variants = list(dict.fromkeys(r.variant for r in results))
+    cycle = results[0].summary.cycle
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.8))
     x = np.arange(len(conds))
     wdt = 0.8 / len(variants)
     for j, v in enumerate(variants):
-        sel = {s["conditions"]["name"]: s for s in results if s["variant"] == v and s["cycle"] == cycle}
-        def vals(f):
-            return [f(sel[c]) if c in sel else np.nan for c in conds]
-        ax[0].bar(x + j * wdt, vals(lambda s: s["torque_rmse_Nm"]), wdt, label=v)
-        ax[1].bar(x + j * wdt, vals(lambda s: 100 * (s["copper_loss_Wh"] / s["copper_loss_optimal_Wh"] - 1)), wdt)
-        ax[2].bar(x + j * wdt, vals(lambda s: s["Wh_per_km"]), wdt)
+        sel = {r.condition: r.summary for r in results if r.variant == v and r.summary.cycle == cycle}
+        torque = [sel[c].torque_rmse_Nm if c in sel else np.nan for c in conds]
+        copper = [100 * _copper_excess(sel[c]) if c in sel else np.nan for c in conds]
+        energy = [sel[c].Wh_per_km if c in sel else np.nan for c in conds]
+        ax[0].bar(x + j * wdt, torque, wdt, label=v)
+        ax[1].bar(x + j * wdt, copper, wdt)
+        ax[2].bar(x + j * wdt, energy, wdt)
     for a, t in zip(ax, ("torque error RMS (N·m)", "copper loss above the optimum (%)", "battery energy (Wh/km)")):
         a.set_xticks(x + 0.4 - wdt / 2, conds, fontsize=8)
         a.set_title(t)
         a.grid(alpha=0.3, axis="y")
-    ax[2].set_ylim(bottom=min(s["Wh_per_km"] for s in results) * 0.97)
+    ax[2].set_ylim(bottom=min(r.summary.Wh_per_km for r in results) * 0.97)
     ax[0].legend(fontsize=7)
     fig.suptitle(f"{cycle}: Ferrari versus 2-D tables")
     fig.tight_layout()

@@ -18,8 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-#: where the standard cycles live: `<repo>/../shared/data/cycles/`
-CYCLES_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cycles"
+from .paths import SHARED_DIR
+
+#: where the standard cycles live: `<repo>/../shared/data/cycles/` (scenarios.paths.SHARED_DIR)
+CYCLES_DIR = SHARED_DIR / "data" / "cycles"
 
 #: canonical names (matched case-insensitively) -> file in CYCLES_DIR
 STANDARD_CYCLES = {

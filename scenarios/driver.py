@@ -32,12 +32,10 @@ import numpy as np
 from .battery import Battery, BatteryParams
 from .cycles import STANDARD_CYCLES, Cycle, load_cycle
 from .inverter import InverterParams, inverter_loss
-from .vehicle import (Vehicle, VehicleParams, motor_speed, road_load, shaft_torque,
-                      wheel_force)
+from .vehicle import Vehicle, VehicleParams, motor_speed, road_load, shaft_torque, wheel_force
 
 #: auxiliary (low-voltage) load on the DC link, W: FASTSim's `auxKw` = 0.25 in its EV files
-#: (NREL FASTSim vehicle database, e.g. 2021_Cupra_Born.csv) and the issue's default; dynamometer
-#: tests run with HVAC off
+#: (NREL FASTSim vehicle database, e.g. 2021_Cupra_Born.csv); dynamometer tests run with HVAC off
 P_AUX_DEFAULT = 250.0
 
 
@@ -58,7 +56,9 @@ class Driver:
     wheels really got, brakes included) stops the integrator winding up when the demand is
     not met (clamping: the step's integration is undone if it pushed further into the limit)."""
 
-    def __init__(self, vp: VehicleParams = VehicleParams(), dp: DriverParams = DriverParams()):
+    def __init__(self, vp: VehicleParams | None = None, dp: DriverParams | None = None):
+        vp = vp if vp is not None else VehicleParams()
+        dp = dp if dp is not None else DriverParams()
         self.vp, self.dp = vp, dp
         self.kp = vp.m_eff * dp.bandwidth
         self.ki = self.kp * dp.bandwidth * dp.zero_ratio
@@ -118,11 +118,14 @@ class Blend:
 
 
 def blend(F_demand: float, v: float, T_max: float, P_regen_max: float,
-          vp: VehicleParams = VehicleParams(), bp: BlendParams = BlendParams()) -> Blend:
+          vp: VehicleParams | None = None, bp: BlendParams | None = None) -> Blend:
     """Split a wheel-force demand (N) at speed v (m/s) into T_ref and friction braking.
     T_max: the motor's reach now (N m, magnitude; the controller's T_max output). P_regen_max:
     the electric power (W, >= 0) the DC side can take back; the torque limit P_regen_max / w_m
-    ignores the drive's losses, which only make the power returned smaller (conservative)."""
+    ignores the drive's losses, which only make the power returned smaller (conservative).
+    vp, bp: None for the defaults."""
+    vp = vp if vp is not None else VehicleParams()
+    bp = bp if bp is not None else BlendParams()
     T_max = abs(T_max)
     if F_demand >= 0.0:
         T = min(shaft_torque(F_demand, vp), T_max)
@@ -156,7 +159,7 @@ class IdealMotor:
     load, where cycles spend their time; at high torque the reluctance torque makes the real
     current smaller, in field weakening the d current makes it larger)."""
 
-    efficiency: float = 0.92      # motor alone, both directions (the issue's suggestion)
+    efficiency: float = 0.92      # motor alone, both directions (assumed: a cycle average of the class)
     T_peak: float = 285.4         # N m
     P_peak: float = 113.4e3       # W
     k_T: float = 1.5 * 4 * 0.07807  # N m / A (pole pairs 4, psi_m 78.07 mWb)
@@ -184,8 +187,38 @@ class IdealDriveSpec:
     dt: float = 0.01              # s, vehicle step
 
 
-def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec = IdealDriveSpec(), trace: bool = False) -> dict:
+@dataclass(frozen=True)
+class IdealDriveSummary:
+    """What `simulate_ideal` returns: the energy flows of the cycle, Wh (the battery's at its
+    terminals; shaft_regen_Wh and wheel_regen_Wh <= 0), and the speed tracking."""
+
+    cycle: str
+    distance_km: float
+    duration_s: float
+    speed_rmse_kmh: float
+    speed_err_max_kmh: float
+    F_unmet_traction_max_N: float
+    wheel_traction_Wh: float
+    wheel_regen_Wh: float
+    friction_brake_Wh: float
+    shaft_motoring_Wh: float
+    shaft_regen_Wh: float
+    motor_loss_Wh: float
+    inverter_loss_Wh: float
+    aux_Wh: float
+    battery_internal_loss_Wh: float
+    regen_curtailed_Wh: float
+    energy_battery_Wh: float
+    Wh_per_km: float
+    Wh_per_km_no_aux: float
+    soc_end: float
+    #: with trace=True, a row per step: t, v_ref, v, T, w_m, F_brake, P_elec, P_inverter, u_dc, soc
+    trace: np.ndarray | None = None
+
+
+def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool = False) -> IdealDriveSummary:
     """Drive `cycle` with the ideal motor; energies in Wh, the battery's at its terminals."""
+    spec = spec if spec is not None else IdealDriveSpec()
     vp, dt = spec.vehicle, spec.dt
     veh = Vehicle(vp)
     drv = Driver(vp, spec.driver)
@@ -225,7 +258,7 @@ def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec = IdealDriveSpec(), trace:
             rows.append((t[k + 1], v_ref[k + 1], veh.v, T, w_m, b.F_brake, P_el, P_inv, bat.u, bat.soc))
     Wh = 1 / 3600.0
     km = veh.distance / 1000.0
-    out = dict(
+    return IdealDriveSummary(
         cycle=cycle.name, distance_km=km, duration_s=n * dt,
         speed_rmse_kmh=math.sqrt(err2 / n) * 3.6, speed_err_max_kmh=err_max * 3.6,
         F_unmet_traction_max_N=F_unmet_max,
@@ -240,10 +273,8 @@ def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec = IdealDriveSpec(), trace:
         Wh_per_km=bat.E_terminal * Wh / km,
         Wh_per_km_no_aux=(bat.E_terminal - E["aux"]) * Wh / km,
         soc_end=bat.soc,
+        trace=np.array(rows) if trace else None,
     )
-    if trace:
-        out["trace"] = np.array(rows)
-    return out
 
 
 def main(argv=None) -> int:
@@ -267,7 +298,7 @@ def main(argv=None) -> int:
     for name in args.cycles:
         t0 = time.perf_counter()
         r = simulate_ideal(load_cycle(name), spec)
-        print(" ".join(f.format(r[c]) for c, f in cols), f"({time.perf_counter() - t0:.1f} s)")
+        print(" ".join(f.format(getattr(r, c)) for c, f in cols), f"({time.perf_counter() - t0:.1f} s)")
     return 0
 
 

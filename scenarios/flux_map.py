@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
+from .paths import ROOT
+
 
 @dataclass
 class FluxMap:
@@ -46,7 +48,7 @@ class FluxMap:
 
 
 #: the default motor's flux map (tools/default_motor/ makes it); its metadata is the motor's data sheet
-DEFAULT_MAP = Path(__file__).resolve().parents[1] / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
+DEFAULT_MAP = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
 
 
 @dataclass(frozen=True)
@@ -62,7 +64,7 @@ class MotorData:
     k_u: float            # V_max = k_u u_dc / sqrt 3
 
     @classmethod
-    def of(cls, fmap: "FluxMap") -> "MotorData":
+    def of(cls, fmap: FluxMap) -> MotorData:
         return cls(int(fmap.number("pole_pairs")), fmap.number("R_s_ohm"), fmap.number("T_winding_ref_K"),
                    fmap.number("alpha_cu_per_K"), fmap.number("I_max_A"), fmap.number("k_u"))
 

@@ -64,10 +64,11 @@ class InverterLoss:
 
 
 def inverter_loss(I_mean: float, I2_mean: float, u_dc: float, f_sw: float | None = None,
-                  P_ac_mean: float = 0.0, p: InverterParams = InverterParams()) -> InverterLoss:
+                  P_ac_mean: float = 0.0, p: InverterParams | None = None) -> InverterLoss:
     """Loss (W) of the bridge over an interval with the given means of the phase-current peak
     |i| (A), of |i|^2 (A^2), and of the AC power P_ac (W, + motoring; 0 leaves out the
-    IGBT/diode share term), at DC voltage u_dc (V). f_sw defaults to p.f_sw."""
+    IGBT/diode share term), at DC voltage u_dc (V). f_sw defaults to p.f_sw; p (None) to InverterParams()."""
+    p = p if p is not None else InverterParams()
     if I_mean < 0.0 or I2_mean < 0.0 or u_dc <= 0.0:
         raise ValueError(f"bad operating point: I_mean={I_mean}, I2_mean={I2_mean}, u_dc={u_dc}")
     f = p.f_sw if f_sw is None else f_sw
@@ -78,7 +79,7 @@ def inverter_loss(I_mean: float, I2_mean: float, u_dc: float, f_sw: float | None
 
 
 def dc_power(P_ac: float, I_mean: float, I2_mean: float, u_dc: float, f_sw: float | None = None,
-             p: InverterParams = InverterParams()) -> float:
+             p: InverterParams | None = None) -> float:
     """DC-side power (W) of the inverter delivering P_ac (W, + motoring, - regenerating):
     P_dc = P_ac + P_loss in both directions (the loss always comes from the DC side's account)."""
     return P_ac + inverter_loss(I_mean, I2_mean, u_dc, f_sw, P_ac, p).P

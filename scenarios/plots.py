@@ -6,10 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .constants import U_DC_NOMINAL_V
 from .flux_map import DEFAULT_MAP, MotorData, read_flux_map
+from .paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-RPM = 2 * math.pi / 60
+RPM = 2 * math.pi / 60  # rad/s per r/min
 REGION_NAMES = {0: "zero torque", 1: "MTPA", 2: "voltage limit", 3: "current + voltage limit", 4: "MTPV"}
 
 
@@ -18,7 +19,7 @@ def load_trace(path: Path) -> dict:
     return {name: data[name] for name in data.dtype.names}
 
 
-def plot_run(run_dir: Path, title: str = "", u_dc_nominal: float = 355.0) -> Path:
+def plot_run(run_dir: Path, title: str = "", u_dc_nominal: float = U_DC_NOMINAL_V) -> Path:
     """run.png in run_dir: speed tracking, torque, operating points on the envelope, currents in
     the i_d-i_q plane, u_dc and the region over time."""
     import matplotlib

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .constants import T_REFERENCE_K, U_DC_NOMINAL_V
 from .flux_map import MotorData, read_flux_map
 from .fmu import Fmu
 from .progress import Progress
@@ -28,14 +29,32 @@ class SweepSpec:
     speeds_rpm: tuple = (0, 2000, 3000, 4000, 5000, 6000, 8000, 10000, 12000)
     n_torque: int = 61           # torque commands from 0 to T_overload
     T_overload: float = 320.0    # N.m, beyond the default motor's 285 N.m peak
-    u_dc: float = 355.0          # V, nominal 96s NMC pack
-    T_magnet: float = 293.15     # K
+    u_dc: float = U_DC_NOMINAL_V  # V, nominal 96s NMC pack
+    T_magnet: float = T_REFERENCE_K  # K
     method: int = 1
     recursion: int = 2
     step: float = 1e-4           # s
 
 
-def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec = SweepSpec()) -> dict:
+@dataclass(frozen=True)
+class SweepSummary:
+    """summary.json of a sweep: the spec, the points run, and the torque-speed envelope."""
+
+    spec: dict
+    points: int
+    wall_s: float
+    T_max_Nm_by_speed_rpm: dict   # r/min -> the largest T_max at that speed, N m
+    P_max_kW_by_speed_rpm: dict   # r/min -> the power at that torque, kW
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+
+def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec | None = None) -> SweepSummary:
+    spec = spec if spec is not None else SweepSpec()
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     torques = np.linspace(0.0, spec.T_overload, spec.n_torque)
@@ -47,7 +66,8 @@ def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec = SweepSpec()) ->
             for T in torques:
                 c.set(T_ref=T, w_m=n * RPM, u_dc=spec.u_dc, T_magnet=spec.T_magnet, i_d=0.0, i_q=0.0)
                 c.step(k * spec.step, spec.step)
-                i_d, i_q, T_cmd, T_max, region, its = c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max", "region", "iterations")
+                i_d, i_q, T_cmd, T_max, region, its = c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max", "region",
+                                                            "iterations")
                 rows.append(dict(speed_rpm=n, T_ref_Nm=T, T_cmd_Nm=T_cmd, T_max_Nm=T_max, i_d_A=i_d, i_q_A=i_q,
                                  I_A=math.hypot(i_d, i_q), region=region, iterations=its))
                 k += 1
@@ -59,10 +79,9 @@ def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec = SweepSpec()) ->
         w.writeheader()
         w.writerows(rows)
     envelope = {n: max(r["T_max_Nm"] for r in rows if r["speed_rpm"] == n) for n in spec.speeds_rpm}
-    summary = dict(spec=asdict(spec), points=len(rows), wall_s=wall,
-                   T_max_Nm_by_speed_rpm=envelope,
-                   P_max_kW_by_speed_rpm={n: T * n * RPM / 1e3 for n, T in envelope.items()})
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    summary = SweepSummary(spec=asdict(spec), points=len(rows), wall_s=wall, T_max_Nm_by_speed_rpm=envelope,
+                           P_max_kW_by_speed_rpm={n: T * n * RPM / 1e3 for n, T in envelope.items()})
+    (out / "summary.json").write_text(summary.to_json())
     plot_sweep(rows, spec, controller_fmu, out / "current_trajectories.png")
     return summary
 
@@ -71,7 +90,6 @@ def plot_sweep(rows, spec: SweepSpec, controller_fmu: Path, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
     from fmpy import extract
     fmap = read_flux_map(Path(extract(str(controller_fmu))) / "resources" / "ev_ipmsm_default.csv")
     motor = MotorData.of(fmap)
@@ -96,7 +114,8 @@ def plot_sweep(rows, spec: SweepSpec, controller_fmu: Path, path: Path) -> None:
             ax.contour(g_d, g_q, v, levels=[V_max], colors=[color], linewidths=0.8, linestyles=":")
     ax.set_xlabel("i_d (A)")
     ax.set_ylabel("i_q (A)")
-    ax.set_title(f"Optimal current commands, 0 to {spec.T_overload:.0f} N.m\n(dotted: voltage limit at {spec.u_dc:.0f} V)")
+    ax.set_title(f"Optimal current commands, 0 to {spec.T_overload:.0f} N.m\n"
+                 f"(dotted: voltage limit at {spec.u_dc:.0f} V)")
     ax.set_aspect("equal")
     ax.set_xlim(-560, 100)
     ax.set_ylim(-20, 560)

@@ -2,8 +2,8 @@
 load, a single-speed reduction gear with one efficiency, and the rotating parts lumped into
 an equivalent mass. SI units throughout; speeds v >= 0 (forward driving only).
 
-Defaults: a C-segment EV like the 2022 Nissan Leaf 40 kWh (the issue's figures); sources per
-field below and in docs/vehicle.md.
+Defaults: a C-segment EV like the 2022 Nissan Leaf 40 kWh; sources and status per field below
+and in docs/vehicle.md.
 
 Sign conventions: wheel (tractive) force F > 0 drives forward; the friction-brake force is a
 magnitude >= 0 that opposes motion; shaft torque T > 0 is motoring, T < 0 regenerating.
@@ -42,15 +42,17 @@ class VehicleParams:
     """Longitudinal parameters. Road load F = A + B v + C v^2 (v in m/s) is the dynamometer
     target curve, which already holds tyre rolling resistance, aerodynamic drag and the
     driveline's spin losses measured in a coast-down; so driveline_efficiency covers only the
-    loss under load (gear mesh), applied as a torque ratio."""
+    loss under load (gear mesh), applied as a torque ratio. Mass, road load and driveline
+    efficiency are assumed values of a Leaf-class car, not a published test record
+    (docs/vehicle.md gives each value's status)."""
 
-    mass: float = 1758.0            # kg, test mass (issue; = 3875 lb, an EPA equivalent-test-weight class)
-    road_load_A: float = 115.16     # N         (issue; = 25.89 lbf, EPA target-coefficient form)
+    mass: float = 1758.0            # kg, test mass (= 3875 lb, an equivalent-test-weight class of 40 CFR 1066.805)
+    road_load_A: float = 115.16     # N         (= 25.89 lbf: EPA target-coefficient form, 40 CFR 1066.301)
     road_load_B: float = 3.4319     # N/(m/s)   (= 0.3449 lbf/mph)
     road_load_C: float = 0.4329     # N/(m/s)^2 (= 0.01945 lbf/mph^2)
-    gear_ratio: float = 8.19        # motor speed / wheel speed (issue; the Leaf's single-speed reduction)
-    wheel_radius: float = 0.306     # m, dynamic rolling radius (issue; 205/55 R16: 316 mm free, ~3 % less under load)
-    driveline_efficiency: float = 0.97  # issue; single-stage helical reduction + differential, under load
+    gear_ratio: float = 8.19        # motor speed / wheel speed (the Leaf's single-speed reduction, 8.193)
+    wheel_radius: float = 0.306     # m, dynamic rolling radius (205/55 R16: 316 mm free, ~3 % less under load)
+    driveline_efficiency: float = 0.97  # assumed: single-stage helical reduction + differential, under load
     J_motor: float = J_MOTOR_DEFAULT    # kg m^2, rotor (and what turns at motor speed)
     J_wheels: float = 4 * J_WHEEL_DEFAULT  # kg m^2, all four wheels (the car on the road)
     tyre_road_friction: float = 0.8     # mu, dry asphalt (FASTSim `wheelCoefOfFric` default)
@@ -124,8 +126,8 @@ class Vehicle:
     """State (speed, distance, time) stepped by longitudinal_step; keeps the energy bookkeeping
     at the wheels: tractive work (positive and negative) and friction-brake work."""
 
-    def __init__(self, p: VehicleParams = VehicleParams(), v0: float = 0.0):
-        self.p = p
+    def __init__(self, p: VehicleParams | None = None, v0: float = 0.0):
+        self.p = p if p is not None else VehicleParams()
         self.v = float(v0)
         self.distance = 0.0
         self.t = 0.0

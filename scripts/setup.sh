@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up on a fresh Debian/Ubuntu machine: system packages, a Python venv with the
-# project's requirements, then CMake configure + build. Sourced by run.sh and test.sh.
+# project installed editable (pyproject.toml, through requirements.txt), then CMake configure +
+# build. Sourced by run.sh and test.sh: it takes no arguments (callers `set --` before sourcing).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
@@ -8,7 +9,8 @@ cd "$ROOT"
 say() { printf '\033[1m[setup]\033[0m %s\n' "$*"; }
 
 # --- system packages (Debian names) ---
-APT_PACKAGES=(build-essential cmake ninja-build libeigen3-dev libsundials-dev libgtest-dev valgrind maven)
+APT_PACKAGES=(build-essential cmake ninja-build libeigen3-dev libsundials-dev libgtest-dev valgrind maven
+              clang-format)  # clang-format: the lint step of test.sh
 missing=()
 for p in "${APT_PACKAGES[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -28,16 +30,19 @@ if [ ! -x .venv/bin/python ]; then
     rm -rf .venv; "$PY" -m venv .venv
   fi
 fi
-if ! cmp -s requirements.txt .venv/.requirements.installed; then
-  say "installing Python requirements"
+# reinstall when the declared dependencies change (pyproject.toml or requirements.txt)
+declared=$(cat requirements.txt pyproject.toml | sha256sum)
+if [ "$declared" != "$(cat .venv/.requirements.installed 2>/dev/null)" ]; then
+  say "installing the Python side (pip install -e .[test])"
   .venv/bin/python -m pip install -q --upgrade pip >/dev/null
   .venv/bin/python -m pip install -q -r requirements.txt
-  cp requirements.txt .venv/.requirements.installed
+  echo "$declared" > .venv/.requirements.installed
 fi
 export PATH="$ROOT/.venv/bin:$PATH"
 
 # --- VDMCheck2 (FMI 2.0 model-description checker, Maven Central) -> build-tools/, for the tests ---
-source scripts/install_vdmcheck2.sh
+# (an explicit empty argument: the default destination, whatever the caller's arguments are)
+source scripts/install_vdmcheck2.sh ""
 
 # --- build ---
 BUILD_TYPE=${BUILD_TYPE:-Release}

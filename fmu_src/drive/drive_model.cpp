@@ -38,13 +38,14 @@ V of_models(const char* name, T M::*member) {
     const auto* p = find<PlantModel>(name);
     const auto* c = find<ControllerModel>(name);
     if (p == nullptr && c == nullptr) throw std::logic_error(std::string("IpmsmDrive: no model has ") + name);
-    V v = p != nullptr ? V{p->name, member, p->causality, p->variability, p->unit, p->display_unit, p->description,
-                           p->min, p->max, p->min_exclusive}
-                       : V{c->name, member, c->causality, c->variability, c->unit, c->display_unit, c->description,
-                           c->min, c->max, c->min_exclusive};
+    V v = p != nullptr ? V{p->name,         member,         p->causality, p->variability, p->unit,
+                           p->display_unit, p->description, p->min,       p->max,         p->min_exclusive}
+                       : V{c->name,         member,         c->causality, c->variability, c->unit,
+                           c->display_unit, c->description, c->min,       c->max,         c->min_exclusive};
     if (p != nullptr && c != nullptr) {
-        v.min_exclusive = (c->min > p->min) ? c->min_exclusive : (p->min > c->min ? p->min_exclusive
-                                                                                 : (p->min_exclusive || c->min_exclusive));
+        v.min_exclusive = (c->min > p->min)
+                              ? c->min_exclusive
+                              : (p->min > c->min ? p->min_exclusive : (p->min_exclusive || c->min_exclusive));
         v.min = std::max(p->min, c->min);
         v.max = std::min(p->max, c->max);
         if (c->variability == Variability::fixed) v.variability = Variability::fixed;
@@ -69,7 +70,8 @@ const std::vector<Binding<Sub>>& bindings() {
         for (const auto& d : DriveModel::variables()) {
             if (d.causality != Causality::parameter) continue;
             for (const auto& s : Sub::variables())
-                if (s.causality == Causality::parameter && std::string(s.name) == d.name && s.member.index() == d.member.index())
+                if (s.causality == Causality::parameter && std::string(s.name) == d.name &&
+                    s.member.index() == d.member.index())
                     b.push_back({d.member, s.member, d.variability == Variability::tunable});
         }
         return b;
@@ -81,20 +83,24 @@ template <class Sub>
 void copy_to(const DriveModel& d, Sub& s, bool tunable_only) {
     for (const auto& b : bindings<Sub>()) {
         if (tunable_only && !b.tunable) continue;
-        std::visit([&](auto dp) {
-            using T = std::decay_t<decltype(d.*dp)>;
-            s.*std::get<T Sub::*>(b.sub) = d.*dp;
-        }, b.drive);
+        std::visit(
+            [&](auto dp) {
+                using T = std::decay_t<decltype(d.*dp)>;
+                s.*std::get<T Sub::*>(b.sub) = d.*dp;
+            },
+            b.drive);
     }
 }
 
 template <class Sub>
 void copy_from(DriveModel& d, const Sub& s) {
     for (const auto& b : bindings<Sub>())
-        std::visit([&](auto dp) {
-            using T = std::decay_t<decltype(d.*dp)>;
-            d.*dp = s.*std::get<T Sub::*>(b.sub);
-        }, b.drive);
+        std::visit(
+            [&](auto dp) {
+                using T = std::decay_t<decltype(d.*dp)>;
+                d.*dp = s.*std::get<T Sub::*>(b.sub);
+            },
+            b.drive);
 }
 
 // A sub-model's log lines say which model wrote them.
@@ -116,43 +122,74 @@ const std::vector<V>& DriveModel::variables() {
         of_models("T_magnet", &M::T_magnet),
         of_models("T_winding", &M::T_winding),
         // outputs: means over the last communication step
-        {"T_shaft", &M::T_shaft, Causality::output, Variability::discrete, "N.m", "", "Shaft torque (T_e less the iron-loss drag), mean over the last communication step"},
-        {"T_e", &M::T_e, Causality::output, Variability::discrete, "N.m", "", "Electromagnetic torque, mean over the last communication step"},
-        {"i_dc", &M::i_dc, Causality::output, Variability::discrete, "A", "", "DC-link current drawn by the inverter, losses included (+ motoring), mean over the last communication step"},
-        {"P_dc", &M::P_dc, Causality::output, Variability::discrete, "W", "kW", "DC power drawn by the inverter (machine input + inverter loss), mean over the last communication step"},
-        {"P_mech", &M::P_mech, Causality::output, Variability::discrete, "W", "kW", "Shaft power, mean over the last communication step"},
-        {"P_cu", &M::P_cu, Causality::output, Variability::discrete, "W", "kW", "Copper loss, mean over the last communication step"},
-        {"P_fe", &M::P_fe, Causality::output, Variability::discrete, "W", "kW", "Iron loss, mean over the last communication step"},
-        {"P_elec", &M::P_elec, Causality::output, Variability::discrete, "W", "kW", "Electrical input power of the machine 1.5 (u_d i_d + u_q i_q) = P_dc - P_inv, mean over the last communication step"},
-        {"P_inv", &M::P_inv, Causality::output, Variability::discrete, "W", "kW", "Inverter conduction and switching loss, mean over the last communication step"},
+        {"T_shaft", &M::T_shaft, Causality::output, Variability::discrete, "N.m", "",
+         "Shaft torque (T_e less the iron-loss drag), mean over the last communication step"},
+        {"T_e", &M::T_e, Causality::output, Variability::discrete, "N.m", "",
+         "Electromagnetic torque, mean over the last communication step"},
+        {"i_dc", &M::i_dc, Causality::output, Variability::discrete, "A", "",
+         "DC-link current drawn by the inverter, losses included (+ motoring), mean over the last communication step"},
+        {"P_dc", &M::P_dc, Causality::output, Variability::discrete, "W", "kW",
+         "DC power drawn by the inverter (machine input + inverter loss), mean over the last communication step"},
+        {"P_mech", &M::P_mech, Causality::output, Variability::discrete, "W", "kW",
+         "Shaft power, mean over the last communication step"},
+        {"P_cu", &M::P_cu, Causality::output, Variability::discrete, "W", "kW",
+         "Copper loss, mean over the last communication step"},
+        {"P_fe", &M::P_fe, Causality::output, Variability::discrete, "W", "kW",
+         "Iron loss, mean over the last communication step"},
+        {"P_elec", &M::P_elec, Causality::output, Variability::discrete, "W", "kW",
+         "Electrical input power of the machine 1.5 (u_d i_d + u_q i_q) = P_dc - P_inv, mean over the last "
+         "communication step"},
+        {"P_inv", &M::P_inv, Causality::output, Variability::discrete, "W", "kW",
+         "Inverter conduction and switching loss, mean over the last communication step"},
         // outputs: integrals since the start
-        {"E_dc", &M::E_dc, Causality::output, Variability::discrete, "J", "Wh", "DC energy drawn since the start (sum of P_dc sample_time over the inner steps)"},
+        {"E_dc", &M::E_dc, Causality::output, Variability::discrete, "J", "Wh",
+         "DC energy drawn since the start (sum of P_dc sample_time over the inner steps)"},
         {"E_mech", &M::E_mech, Causality::output, Variability::discrete, "J", "Wh", "Shaft energy since the start"},
         {"E_cu", &M::E_cu, Causality::output, Variability::discrete, "J", "Wh", "Copper-loss energy since the start"},
         {"E_fe", &M::E_fe, Causality::output, Variability::discrete, "J", "Wh", "Iron-loss energy since the start"},
-        {"E_inv", &M::E_inv, Causality::output, Variability::discrete, "J", "Wh", "Inverter-loss energy since the start"},
+        {"E_inv", &M::E_inv, Causality::output, Variability::discrete, "J", "Wh",
+         "Inverter-loss energy since the start"},
         // outputs: at the end of the step
-        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "", "Torque commanded by the controller (T_ref clamped to the limits), at the end of the step"},
-        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "", "Largest torque magnitude reachable, with the sign of T_ref, at the end of the step"},
-        {"i_d", &M::i_d, Causality::output, Variability::discrete, "A", "", "d-axis stator current, at the end of the step"},
-        {"i_q", &M::i_q, Causality::output, Variability::discrete, "A", "", "q-axis stator current, at the end of the step"},
-        {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "", "d-axis current command, at the end of the step"},
-        {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "", "q-axis current command, at the end of the step"},
-        {"region", &M::region, Causality::output, Variability::discrete, "", "", "The controller's operating region at the end of the step (as IpmsmController.region)"},
-        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "", "The controller's voltage command relative to the inverter's linear range u_dc/sqrt(3), at the end of the step (1: voltage-limited)"},
+        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "",
+         "Torque commanded by the controller (T_ref clamped to the limits), at the end of the step"},
+        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "",
+         "Largest torque magnitude reachable, with the sign of T_ref, at the end of the step"},
+        {"i_d", &M::i_d, Causality::output, Variability::discrete, "A", "",
+         "d-axis stator current, at the end of the step"},
+        {"i_q", &M::i_q, Causality::output, Variability::discrete, "A", "",
+         "q-axis stator current, at the end of the step"},
+        {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "",
+         "d-axis current command, at the end of the step"},
+        {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "",
+         "q-axis current command, at the end of the step"},
+        {"region", &M::region, Causality::output, Variability::discrete, "", "",
+         "The controller's operating region at the end of the step (as IpmsmController.region)"},
+        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "",
+         "The controller's voltage command relative to the inverter's linear range u_dc/sqrt(3), at the end of the "
+         "step (1: voltage-limited)"},
         // the drive's parameters
-        {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms", "Sample time of the controller, and step of the inner coupling; a communication step must be a whole multiple of it", 1e-7, 1.0},
-        {"f_sw", &M::f_sw, Causality::parameter, Variability::fixed, "Hz", "", "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
+        {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms",
+         "Sample time of the controller, and step of the inner coupling; a communication step must be a whole multiple "
+         "of it",
+         1e-7, 1.0},
+        {"f_sw", &M::f_sw, Causality::parameter, Variability::fixed, "Hz", "",
+         "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
         {"V_T0", &M::V_T0, Causality::parameter, Variability::fixed, "V", "", "IGBT threshold voltage", 0.0, 10.0},
         {"r_T", &M::r_T, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "IGBT slope resistance", 0.0, 1.0},
         {"V_D0", &M::V_D0, Causality::parameter, Variability::fixed, "V", "", "Diode threshold voltage", 0.0, 10.0},
         {"r_D", &M::r_D, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "Diode slope resistance", 0.0, 1.0},
-        {"E_on", &M::E_on, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-on energy at I_ref, V_ref", 0.0, 100.0},
-        {"E_off", &M::E_off, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-off energy at I_ref, V_ref", 0.0, 100.0},
-        {"E_rec", &M::E_rec, Causality::parameter, Variability::fixed, "J", "", "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
-        {"I_ref", &M::I_ref, Causality::parameter, Variability::fixed, "A", "", "Test current of the switching energies", 0.0, kInf, true},
-        {"V_ref", &M::V_ref, Causality::parameter, Variability::fixed, "V", "", "Test DC voltage of the switching energies", 0.0, kInf, true},
-        {"k_v", &M::k_v, Causality::parameter, Variability::fixed, "1", "", "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
+        {"E_on", &M::E_on, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-on energy at I_ref, V_ref",
+         0.0, 100.0},
+        {"E_off", &M::E_off, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-off energy at I_ref, V_ref",
+         0.0, 100.0},
+        {"E_rec", &M::E_rec, Causality::parameter, Variability::fixed, "J", "",
+         "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
+        {"I_ref", &M::I_ref, Causality::parameter, Variability::fixed, "A", "",
+         "Test current of the switching energies", 0.0, kInf, true},
+        {"V_ref", &M::V_ref, Causality::parameter, Variability::fixed, "V", "",
+         "Test DC voltage of the switching energies", 0.0, kInf, true},
+        {"k_v", &M::k_v, Causality::parameter, Variability::fixed, "1", "",
+         "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
         // the controller's and the plant's parameters, once each
         of_models("method", &M::method),
         of_models("recursion", &M::recursion),
@@ -213,9 +250,13 @@ coupling::CoupledModels& DriveModel::coupled() {
         const coupling::Coupling& c = drive_coupling();
         std::vector<coupling::ModelUnit> units;
         for (const coupling::Unit& u : c.units) {
-            if (u.model_identifier == PlantModel::model_identifier) units.push_back(coupling::model_unit(plant_));
-            else if (u.model_identifier == ControllerModel::model_identifier) units.push_back(coupling::model_unit(controller_));
-            else throw fmi::Error("the drive's coupling description has a unit " + u.model_identifier + " it does not hold");
+            if (u.model_identifier == PlantModel::model_identifier)
+                units.push_back(coupling::model_unit(plant_));
+            else if (u.model_identifier == ControllerModel::model_identifier)
+                units.push_back(coupling::model_unit(controller_));
+            else
+                throw fmi::Error("the drive's coupling description has a unit " + u.model_identifier +
+                                 " it does not hold");
         }
         coupled_.models = std::make_unique<coupling::CoupledModels>(c, std::move(units), sample_time);
     }
@@ -266,11 +307,13 @@ void DriveModel::do_step(double t, double h) {
     // h = n sample_time; the tolerance covers a master's h = t_{k+1} - t_k at large t.
     const double n_real = h / sample_time;
     const long long n = std::llround(n_real);
-    const double tolerance = std::max(1e-9 * sample_time, 8.0 * std::numeric_limits<double>::epsilon() * (std::abs(t) + h));
+    const double tolerance =
+        std::max(1e-9 * sample_time, 8.0 * std::numeric_limits<double>::epsilon() * (std::abs(t) + h));
     if (n < 1 || std::abs(static_cast<double>(n) * sample_time - h) > tolerance) {
         std::ostringstream os;
-        os << "the communication step " << fmi::number_text(h) << " s is not a whole multiple of sample_time = "
-           << fmi::number_text(sample_time) << " s (" << fmi::number_text(n_real)
+        os << "the communication step " << fmi::number_text(h)
+           << " s is not a whole multiple of sample_time = " << fmi::number_text(sample_time) << " s ("
+           << fmi::number_text(n_real)
            << " sample times): the controller runs at sample_time; use a step of n sample_time";
         throw fmi::Error(os.str());
     }

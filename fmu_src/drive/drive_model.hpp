@@ -55,15 +55,15 @@ public:
     // --- inputs (held over the communication step)
     double T_ref = 0.0, w_m = 0.0, u_dc = 0.0, T_magnet = 0.0, T_winding = 0.0;
     // --- outputs: means over the last communication step
-    double T_shaft = 0.0, T_e = 0.0, i_dc = 0.0;                              // N.m, N.m, A
-    double P_dc = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0, P_inv = 0.0;     // W
+    double T_shaft = 0.0, T_e = 0.0, i_dc = 0.0;                           // N.m, N.m, A
+    double P_dc = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0, P_inv = 0.0;  // W
     double P_elec = 0.0;  // W, the machine's electrical input (P_dc - P_inv)
     // --- outputs: integrals since the start
-    double E_dc = 0.0, E_mech = 0.0, E_cu = 0.0, E_fe = 0.0, E_inv = 0.0;     // J
+    double E_dc = 0.0, E_mech = 0.0, E_cu = 0.0, E_fe = 0.0, E_inv = 0.0;  // J
     // --- outputs: at the end of the step
-    double T_cmd = 0.0, T_max = 0.0;           // N.m
-    double i_d = 0.0, i_q = 0.0;               // A, the plant's
-    double i_d_ref = 0.0, i_q_ref = 0.0;       // A, the controller's
+    double T_cmd = 0.0, T_max = 0.0;      // N.m
+    double i_d = 0.0, i_q = 0.0;          // A, the plant's
+    double i_d_ref = 0.0, i_q_ref = 0.0;  // A, the controller's
     int region = 0;
     double u_ratio = 0.0;  // the controller's voltage use, at the end of the step
     // --- parameters: the drive's own

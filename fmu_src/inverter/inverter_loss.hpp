@@ -55,8 +55,8 @@ struct InverterLoss {
 // + motoring) at DC voltage u_dc (V); or their means over an interval.
 inline InverterLoss inverter_loss(double I, double I2, double u_dc, double P_ac, const InverterParams& p) {
     if (!(I >= 0.0) || !(I2 >= 0.0) || !(u_dc > 0.0))
-        throw std::invalid_argument("inverter loss: bad operating point |i| = " + std::to_string(I) +
-                                    " A, |i|^2 = " + std::to_string(I2) + " A^2, u_dc = " + std::to_string(u_dc) + " V");
+        throw std::invalid_argument("inverter loss: bad operating point |i| = " + std::to_string(I) + " A, |i|^2 = " +
+                                    std::to_string(I2) + " A^2, u_dc = " + std::to_string(u_dc) + " V");
     constexpr double kPi = 3.14159265358979323846;
     InverterLoss l;
     l.P_cond = (3.0 / kPi) * (p.V_T0 + p.V_D0) * I + 0.75 * (p.r_T + p.r_D) * I2 + (p.V_T0 - p.V_D0) * P_ac / u_dc;

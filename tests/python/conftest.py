@@ -1,15 +1,23 @@
+"""Fixtures of the system tests. The code under test comes from the installed package
+(`pip install -e .`, scripts/setup.sh); the helpers beside the tests (fmi2_raw, brute_force,
+drive_step) import as top-level modules because pytest puts this folder on sys.path.
+
+The tests' one FMU wrapper is fmi2_raw.Instance (every FMI 2.0 function, the raw status, a
+log); `unzipped` and `fmu_instances` below hand out FMUs and instances of it."""
 import os
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-SHARED = ROOT.parent / "shared"
-BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", ROOT / "build" / "fmu"))
+from scenarios import paths
+from scenarios.flux_map import DEFAULT_MAP
+
+import fmi2_raw as raw
+
+ROOT = paths.ROOT
+SHARED = paths.SHARED_DIR
+BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", paths.BUILD_DIR / "fmu"))
 
 
 def same(a, b) -> bool:
@@ -36,7 +44,7 @@ def plant_fmu() -> Path:
 
 @pytest.fixture(scope="session")
 def default_map_path() -> Path:
-    return ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
+    return DEFAULT_MAP
 
 
 @pytest.fixture(scope="session")
@@ -44,5 +52,30 @@ def measured_map_path() -> Path:
     return SHARED / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
 
 
-def pytest_configure(config):
-    config.addinivalue_line("markers", "slow: long runs (full drive cycles, big sweeps); run with -m slow")
+@pytest.fixture(scope="session")
+def unzipped(tmp_path_factory):
+    """unzipped(name) -> fmi2_raw.Unzipped of $IPMSM_FMU_DIR/<name>.fmu, extracted once a session."""
+    cache = {}
+
+    def get(name: str) -> raw.Unzipped:
+        if name not in cache:
+            cache[name] = raw.Unzipped(fmu_path(name), tmp_path_factory.mktemp(name))
+        return cache[name]
+
+    return get
+
+
+@pytest.fixture
+def fmu_instances(unzipped):
+    """fmu_instances(name, instance_name="instance", **Instance options) -> an fmi2_raw.Instance
+    of that FMU, freed after the test."""
+    made = []
+
+    def new(name: str, instance_name: str = "instance", **options) -> raw.Instance:
+        inst = raw.Instance(unzipped(name), instance_name, **options)
+        made.append(inst)
+        return inst
+
+    yield new
+    for inst in made:
+        inst.free()

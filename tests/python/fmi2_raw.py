@@ -1,7 +1,9 @@
-"""Direct ctypes access to an FMU's FMI 2.0 C API, for the conformance and hostile-input tests
-(test_conformance.py, test_hostile.py): every function with its C signature and no checks of our
-own, so that a test can pass NULL pointers, zero lengths, wrong value references and calls out of
-sequence, and read the raw status. fmpy's FMU2Slave (scenarios/fmu.py) is the friendly way."""
+"""The tests' FMU wrapper: direct ctypes access to an FMU's FMI 2.0 C API. Every function with its
+C signature and no checks of our own, so that a test can pass NULL pointers, zero lengths, wrong
+value references and calls out of sequence, and read the raw status (Unzipped, the fmi2XXX
+functions); and an instance with its log and values by name (Instance: set/get assert fmi2OK,
+setup/enter/exit/step/reset return the status; refused() for the calls that must fail).
+The scenarios' own wrapper, on fmpy, is scenarios/fmu.py."""
 from __future__ import annotations
 
 import ctypes as C
@@ -270,6 +272,19 @@ class Instance:
 
     def __exit__(self, *exc):
         self.free()
+
+
+def refused(inst: Instance, call, *args, status: int = ERROR, match: str | None = None, **kwargs) -> str:
+    """Assert that call(*args, **kwargs), a function returning an fmi2Status (an Instance method
+    such as set_status, exit, step), returns `status` and that the instance's log then says
+    `match`; returns that log."""
+    inst.log.clear()
+    got = call(*args, **kwargs)
+    text = inst.log.text()
+    assert got == status, f"returned {STATUS.get(got, got)}, expected {STATUS[status]}\n{text}"
+    if match is not None:
+        assert match in text, f"the log lacks {match!r}:\n{text}"
+    return text
 
 
 def resource_uri_of(path: Path) -> str:

@@ -31,26 +31,14 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from conftest import BUILD_FMU, ROOT, SHARED, fmu_path
 import fmi2_raw as raw
+from conftest import ROOT, SHARED, fmu_path
 
 REAL_FMUS = ["IpmsmController", "IpmsmPlant", "IpmsmDrive"]
 ALL_FMUS = REAL_FMUS + ["ToyLag"]  # ToyLag: the glue's test FMU, built by the same add_fmu()
 GLIBC_BASELINE = (2, 28)  # RHEL 8 (Ubuntu 20.04 has 2.31)
 ALLOWED_LIBRARIES = {"libc.so.6", "libm.so.6", "libgcc_s.so.1", "ld-linux-x86-64.so.2"}
 VDMCHECK2 = Path(os.environ.get("IPMSM_VDMCHECK2_JAR", ROOT / "build-tools" / "vdmcheck2-1.1.3" / "vdmcheck2.jar"))
-
-
-@pytest.fixture(scope="module")
-def unzipped(tmp_path_factory):
-    cache = {}
-
-    def get(name):
-        if name not in cache:
-            cache[name] = raw.Unzipped(fmu_path(name), tmp_path_factory.mktemp(name))
-        return cache[name]
-
-    return get
 
 
 def _library(name, unzipped) -> Path:
@@ -277,7 +265,8 @@ def test_declared_capabilities(name):
     assert md.description and md.generationTool == "ipmsm-fmu" and md.version
     de = md.defaultExperiment
     # the drive's default is a vehicle tool's step (any multiple of its sample_time)
-    assert de is not None and float(de.startTime) == 0.0 and float(de.stepSize) == (1e-3 if name == "IpmsmDrive" else 1e-4)
+    step = 1e-3 if name == "IpmsmDrive" else 1e-4
+    assert de is not None and float(de.startTime) == 0.0 and float(de.stepSize) == step
     assert float(de.stopTime) > float(de.stepSize)
     units = {u.name: u for u in md.unitDefinitions}
     for v in md.modelVariables:

@@ -6,15 +6,15 @@ from __future__ import annotations
 
 import csv
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.interpolate import RectBivariateSpline
 
-ROOT = Path(__file__).resolve().parents[2]
-CSV = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
+from scenarios.constants import T_REFERENCE_K, U_DC_NOMINAL_V
+from scenarios.flux_map import DEFAULT_MAP
+
+CSV = DEFAULT_MAP
 RPM = 30 / math.pi
 
 REQUIRED_KEYS = [
@@ -69,7 +69,10 @@ def test_metadata_and_grid(fmap):
     assert int(meta["pole_pairs"]) == 4
     assert float(meta["alpha_cu_per_K"]) == pytest.approx(0.00393)
     assert float(meta["k_psi_T_per_K"]) == pytest.approx(-0.0012)
-    assert I <= 500 and float(meta["u_dc_V"]) == 355
+    assert I <= 500
+    # the scenarios' constants are the default motor's design point (scenarios/constants.py)
+    assert float(meta["u_dc_V"]) == U_DC_NOMINAL_V
+    assert float(meta["T_winding_ref_K"]) == float(meta["T_magnet_ref_K"]) == T_REFERENCE_K
     assert float(meta["w_m_max_rad_s"]) * RPM == pytest.approx(12000, rel=1e-6)
     assert 0.010 <= float(meta["R_s_ohm"]) <= 0.020
     i_d, i_q = fmap["i_d"], fmap["i_q"]
@@ -156,7 +159,8 @@ class CoarseDrive:
     def iron_loss(self, n_rpm):
         f = self.p * n_rpm / 60
         b = np.hypot(self.psi_d, self.psi_q) / self.meta["fe_psi_ref_Wb"]
-        return self.meta["fe_k_h_W_per_Hz"] * f * b ** self.meta["fe_alpha"] + self.meta["fe_k_e_W_per_Hz2"] * f**2 * b**2
+        hysteresis = self.meta["fe_k_h_W_per_Hz"] * f * b ** self.meta["fe_alpha"]
+        return hysteresis + self.meta["fe_k_e_W_per_Hz2"] * f**2 * b**2
 
     def max_shaft_power(self, n_rpm):
         ok = self.feasible(n_rpm)
@@ -194,7 +198,6 @@ def test_iron_loss_at_top_speed(drive):
 
 
 def test_regenerated_map_matches_shipped():
-    sys.path.insert(0, str(ROOT))
     from tools.default_motor.make_default_map import csv_text
 
     c_new, meta_new, h_new, rows_new = read_map(csv_text())
@@ -209,7 +212,6 @@ def test_regenerated_map_matches_shipped():
 def test_model_is_reciprocal_and_convex():
     """The model itself: incremental inductances from the Hessian match finite differences of
     psi(i), and the Hessian is positive definite over the whole map (unique, invertible map)."""
-    sys.path.insert(0, str(ROOT))
     from tools.default_motor import saturation as sat
 
     rng = np.random.default_rng(1)

@@ -9,17 +9,16 @@ a speed ramp through every region.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Error, fmi2OK
 
-from conftest import fmu_path
-from scenarios.drive_fmu import DriveFmu, DriveStep
+from scenarios.drive_fmu import DriveFmu
 from scenarios.inverter import inverter_loss
 from scenarios.master import DriveCosim, DriveInputs
+
+from conftest import fmu_path
 
 H = 1e-4  # s, sample_time and the master's step
 BLOCK = 0.01  # s, the inputs change only at multiples of it (the coarsest step tested)

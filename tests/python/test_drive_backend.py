@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import fmu_path
 from scenarios.cycles import load_cycle, segment
 from scenarios.simulate import RunSpec, simulate
+
+from conftest import fmu_path
 
 ENERGIES = ("energy_battery_Wh", "motor_electric_Wh", "shaft_Wh", "copper_loss_Wh", "iron_loss_Wh",
             "inverter_loss_Wh")
@@ -19,7 +20,7 @@ TORQUE = ("torque_rmse_Nm", "torque_error_max_Nm")
 def _runs(cycle, backends):
     fmus = (fmu_path("IpmsmController"), fmu_path("IpmsmPlant"))
     fmu_path("IpmsmDrive")
-    return {b: simulate(cycle, RunSpec(backend=b), fmus=fmus, progress=False) for b in backends}
+    return {b: simulate(cycle, RunSpec(backend=b), fmus=fmus, progress=False).to_dict() for b in backends}
 
 
 def _agree(runs):

@@ -20,38 +20,32 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import fmi2_raw as raw
-from conftest import BUILD_FMU, fmu_path, same
-from fmi2_raw import ERROR, OK, WARNING
+from scenarios.constants import U_DC_NOMINAL_V
 from scenarios.flux_map import linear_flux_map, write_flux_map
+
+import fmi2_raw as raw
+from conftest import BUILD_FMU, same
+from fmi2_raw import ERROR, OK, WARNING
 
 FMUS = ["IpmsmController", "IpmsmPlant"]
 # inputs of a normal operating point
 NORMAL = {
-    "IpmsmController": dict(T_ref=100.0, w_m=300.0, u_dc=355.0, i_d=-50.0, i_q=150.0, T_magnet=330.0),
+    "IpmsmController": dict(T_ref=100.0, w_m=300.0, u_dc=U_DC_NOMINAL_V, i_d=-50.0, i_q=150.0, T_magnet=330.0),
     "IpmsmPlant": dict(u_d=-20.0, u_q=60.0, w_m=300.0, T_magnet=330.0, T_winding=350.0),
 }
 FUZZ_BIN = BUILD_FMU.parent / "bin" / "fmu_fuzz"
 FUZZ_SKIP = ["--skip", "lut_n_torque", "--skip", "lut_n_speed"]  # a 1001 x 1001 table takes minutes to build
 
 
-@pytest.fixture(scope="module")
-def unzipped(tmp_path_factory):
-    return {name: raw.Unzipped(fmu_path(name), tmp_path_factory.mktemp(name)) for name in FMUS}
-
-
 @pytest.fixture
-def make(unzipped):
-    made = []
+def make(fmu_instances):
+    """make(name, instance_name=..., **Instance options): a fresh instance, freed after the test."""
+    count = iter(range(1 << 30))
 
     def new(name, **kw):
-        inst = raw.Instance(unzipped[name], kw.pop("instance_name", f"{name}{len(made)}"), **kw)
-        made.append(inst)
-        return inst
+        return fmu_instances(name, kw.pop("instance_name", f"{name}{next(count)}"), **kw)
 
-    yield new
-    for inst in made:
-        inst.free()
+    return new
 
 
 def run(inst, n, inputs, k0=0):
@@ -134,7 +128,7 @@ def test_wrong_value_references_change_nothing(make, name):
 
 @pytest.mark.parametrize("name", FMUS)
 def test_null_pointers_and_zero_lengths(make, unzipped, name):
-    f = unzipped[name]
+    f = unzipped(name)
     a, ref = twins(make, name)
     null = None
     vr = raw.vrs([0])
@@ -223,7 +217,7 @@ def test_double_reset_then_again(make, name):
 @pytest.mark.parametrize("name", FMUS)
 @pytest.mark.parametrize("callbacks", ["NULL logger", "NULL callbacks"])
 def test_null_logger(make, unzipped, name, callbacks):
-    f = unzipped[name]
+    f = unzipped(name)
     if callbacks == "NULL logger":
         a = make(name, logger=raw.Logger(with_logger=False), logging_on=True)
     else:
@@ -246,7 +240,7 @@ def test_null_resource_location(make, unzipped, name):
     assert a.setup() == OK and a.enter() == OK
     assert a.exit() == ERROR
     assert "resources/ folder is unknown" in a.log.text()
-    a.set(flux_map=str(unzipped[name].dir / "resources" / "ev_ipmsm_default.csv"))
+    a.set(flux_map=str(unzipped(name).dir / "resources" / "ev_ipmsm_default.csv"))
     assert a.exit() == OK
     ref = make(name)
     ref.init()
@@ -255,7 +249,7 @@ def test_null_resource_location(make, unzipped, name):
 
 @pytest.mark.parametrize("name", FMUS)
 def test_percent_encoded_resource_location(make, unzipped, tmp_path, name):
-    odd = unzipped[name].copy_to(tmp_path / "a dir with spaces, 100% ü & #hash" / name)
+    odd = unzipped(name).copy_to(tmp_path / "a dir with spaces, 100% ü & #hash" / name)
     uri = raw.resource_uri_of(odd / "resources")
     assert "%20" in uri and "%25" in uri and "%C3%BC" in uri
     a = make(name, resource_uri=uri, logging_on=True)
@@ -332,20 +326,18 @@ def test_zero_and_reversing_speed(make, name):
 def test_coupled_drive_through_zero_speed(controller_fmu, plant_fmu):
     """Controller and plant, a motoring torque while the speed reverses from +3000 to -3000 r/min:
     the drive stays within the current limit and follows the command through standstill."""
-    from scenarios.fmu import Fmu
-    H, n = 1e-4, 400
-    w = lambda k: (3000 - 6000 * k / n) * math.pi / 30
-    with Fmu(controller_fmu, w_m=w(0)) as c, Fmu(plant_fmu, w_m=w(0)) as p:
-        u_d, u_q = c.get("u_d_ref", "u_q_ref")
-        rows = []
+    from scenarios.master import DriveCosim
+    n = 400
+
+    def w(k):
+        return (3000 - 6000 * k / n) * math.pi / 30
+
+    rows = []
+    # the fmpy backend: every FMI call from Python, on whatever build the FMUs come from (ASan too)
+    with DriveCosim(controller_fmu, plant_fmu, backend="fmpy", w_m=w(0)) as cosim:
         for k in range(n):
-            i_d, i_q = p.get("i_d", "i_q")
-            p.set(u_d=u_d, u_q=u_q, w_m=w(k))
-            c.set(T_ref=150.0, w_m=w(k), i_d=i_d, i_q=i_q)
-            p.step(k * H, H)
-            c.step(k * H, H)
-            u_d, u_q = c.get("u_d_ref", "u_q_ref")
-            rows.append((c.get("T_cmd"), p.get("T_e"), math.hypot(*p.get("i_d", "i_q"))))
+            e = cosim.advance(1, T_ref=150.0, w_m=w(k)).end
+            rows.append((e.T_cmd, e.T_e, e.i_abs))
     r = np.array(rows)
     assert np.all(np.isfinite(r))
     assert np.max(r[:, 2]) < 500 * 1.05
@@ -538,7 +530,7 @@ FUZZ_SEQUENCES = ({"IpmsmController": 1000, "IpmsmPlant": 300} if UNDER_SANITIZE
 
 def _fuzz(unzipped, name, args, wrapper=(), timeout=600):
     assert FUZZ_BIN.is_file(), f"{FUZZ_BIN} is missing: build the fmu_fuzz target"
-    cmd = [*wrapper, str(FUZZ_BIN), str(unzipped[name].dir), *args]
+    cmd = [*wrapper, str(FUZZ_BIN), str(unzipped(name).dir), *args]
     if name == "IpmsmController":
         cmd += FUZZ_SKIP
     env = None

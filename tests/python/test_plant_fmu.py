@@ -10,27 +10,17 @@ missing FMU fails the tests.
 import math
 import struct
 import zipfile
-from pathlib import Path
 
-import fmpy
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description
-from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-    fmi2Error,
-)
+from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 from scenarios.flux_map import linear_flux_map, read_flux_map, write_flux_map
-from scenarios.fmu import get_values, set_values
 
-ROOT = Path(__file__).resolve().parents[2]
+from conftest import ROOT
+from fmi2_raw import OK, WARNING, refused
+
 OUTPUTS = ("i_d", "i_q", "psi_d", "psi_q", "T_e", "T_shaft", "P_elec", "P_mech", "P_cu", "P_fe")
 
 # The contract (../shared/spec/INTERFACE.md): name -> (causality, type, unit).
@@ -49,74 +39,29 @@ CONTRACT = {
 }
 
 
-class Log:
-    """Logger callback keeping (status, category, message)."""
-
-    def __init__(self):
-        self.records = []
-        self.callbacks = fmi2CallbackFunctions()
-        self._logger = fmi2CallbackLoggerTYPE(self._log)
-        self.callbacks.logger = self._logger
-        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(fmpy.calloc)
-        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(fmpy.free)
-
-    def _log(self, env, instance, status, category, message):
-        self.records.append((status, category.decode(), message.decode().replace("%%", "%")))
-
-    def text(self, status=None):
-        return "\n".join(m for s, c, m in self.records if status is None or s == status)
+def outputs(p):
+    return tuple(p.get(*OUTPUTS))
 
 
-class Plant:
-    """One IpmsmPlant instance on fmpy's FMU2Slave, with a log."""
+def step(p, h=1e-4):
+    """One step that must succeed (fmi2Warning included: leaving the map's grid warns)."""
+    status = p.step(h)
+    assert status in (OK, WARNING), p.log.text()
 
-    def __init__(self, md, unzipdir, name="plant", logging_on=True):
-        self.vars = {v.name: v for v in md.modelVariables}
-        self.log = Log()
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(unzipdir),
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-        self.fmu.instantiate(callbacks=self.log.callbacks, loggingOn=logging_on)
-        self.t = 0.0
-        self.freed = False
 
-    def set(self, **values):
-        set_values(self.fmu, self.vars, **values)
-
-    def get(self, *names):
-        return get_values(self.fmu, self.vars, *names)
-
-    def init(self, t0=0.0, **values):
-        self.fmu.setupExperiment(startTime=t0)
-        self.fmu.enterInitializationMode()
-        self.set(**values)
-        self.fmu.exitInitializationMode()
-        self.t = t0
-
-    def step(self, h=1e-4):
-        self.fmu.doStep(currentCommunicationPoint=self.t, communicationStepSize=h)
-        self.t += h
-
-    def outputs(self):
-        return tuple(self.fmu.getReal([self.vars[n].valueReference for n in OUTPUTS]))
-
-    def run(self, n, w_m=900.0, h=1e-4, k0=0):
-        """n steps of a voltage pattern around the back-EMF; returns the outputs after each."""
-        rows = []
-        for k in range(k0, k0 + n):
-            self.set(w_m=w_m, u_d=-10.0 if (k // 20) % 2 == 0 else -25.0,
-                     u_q=(8.0 if (k // 20) % 2 == 0 else -4.0) + 0.312 * w_m)
-            self.step(h)
-            rows.append(self.outputs())
-        return rows
-
-    def free(self):
-        if not self.freed:
-            self.fmu.freeInstance()
-            self.freed = True
+def run(p, n, w_m=900.0, h=1e-4, k0=0):
+    """n steps of a voltage pattern around the back-EMF; returns the outputs after each."""
+    rows = []
+    for k in range(k0, k0 + n):
+        p.set(w_m=w_m, u_d=-10.0 if (k // 20) % 2 == 0 else -25.0,
+              u_q=(8.0 if (k // 20) % 2 == 0 else -4.0) + 0.312 * w_m)
+        step(p, h)
+        rows.append(outputs(p))
+    return rows
 
 
 def bits(rows):
-    return [struct.pack("<%dd" % len(r), *r) for r in rows]
+    return [struct.pack(f"<{len(r)}d", *r) for r in rows]
 
 
 @pytest.fixture(scope="module")
@@ -124,33 +69,12 @@ def md(plant_fmu):
     return read_model_description(str(plant_fmu))
 
 
-@pytest.fixture(scope="module")
-def unzipdir(plant_fmu, tmp_path_factory):
-    return Path(extract(str(plant_fmu), unzipdir=str(tmp_path_factory.mktemp("IpmsmPlant"))))
-
-
 @pytest.fixture
-def plants(md, unzipdir):
-    made = []
+def plants(fmu_instances):
+    def make(name="plant"):
+        return fmu_instances("IpmsmPlant", name, logging_on=True)
 
-    def make(**kw):
-        p = Plant(md, unzipdir, **kw)
-        made.append(p)
-        return p
-
-    yield make
-    for p in made:
-        p.free()
-
-
-def refused(plant, call, *args, match=None, **kwargs):
-    plant.log.records.clear()
-    with pytest.raises(FMICallException) as e:
-        call(*args, **kwargs)
-    assert e.value.status == fmi2Error
-    if match is not None:
-        assert match in plant.log.text(fmi2Error), plant.log.text()
-    return plant.log.text(fmi2Error)
+    return make
 
 
 # --- the FMU as a file -------------------------------------------------------------------------
@@ -208,7 +132,7 @@ def test_initial_outputs_are_consistent(plants, default_map_path):
     psi_m = read_flux_map(default_map_path).psi_m
     p = plants()
     p.init(T_magnet=353.15, T_winding=333.15)
-    i_d, i_q, psi_d, psi_q, T_e, T_shaft, P_elec, P_mech, P_cu, P_fe = p.outputs()
+    i_d, i_q, psi_d, psi_q, T_e, T_shaft, P_elec, P_mech, P_cu, P_fe = outputs(p)
     assert psi_d == pytest.approx(psi_m * (1 - 0.0012 * 60), rel=1e-9)
     assert psi_q == 0.0
     assert i_d == 0.0 and i_q == 0.0 and T_e == 0.0  # the start values exactly (issue 12 item 7)
@@ -217,7 +141,7 @@ def test_initial_outputs_are_consistent(plants, default_map_path):
 
     q = plants(name="loaded")
     q.init(i_d_start=-200.0, i_q_start=300.0, w_m=600.0)
-    i_d, i_q, psi_d, psi_q, T_e, T_shaft, P_elec, P_mech, P_cu, P_fe = q.outputs()
+    i_d, i_q, psi_d, psi_q, T_e, T_shaft, P_elec, P_mech, P_cu, P_fe = outputs(q)
     assert (i_d, i_q) == (-200.0, 300.0)
     assert T_e > 100 and P_fe > 0 and T_shaft == pytest.approx(T_e - P_fe / 600.0, rel=1e-12)
     assert P_mech == pytest.approx(T_shaft * 600.0, rel=1e-12)
@@ -226,13 +150,13 @@ def test_initial_outputs_are_consistent(plants, default_map_path):
 
 def test_start_currents_outside_the_grid_are_refused(plants):
     p = plants()
-    p.fmu.setupExperiment(startTime=0.0)
-    p.fmu.enterInitializationMode()
+    assert p.setup() == OK
+    assert p.enter() == OK
     p.set(i_d_start=-2000.0)
-    text = refused(p, p.fmu.exitInitializationMode, match="outside the flux map's grid")
+    text = refused(p, p.exit, match="outside the flux map's grid")
     assert "i_d_start = -2000 A" in text
     p.set(i_d_start=-200.0)  # usable, and a start inside the grid loads
-    p.fmu.exitInitializationMode()
+    assert p.exit() == OK
     assert p.get("i_d") == -200.0
 
 
@@ -242,8 +166,10 @@ def test_results_do_not_depend_on_the_start_time(plants):
     runs = []
     for t0 in (0.0, 1.7e9):
         p = plants(name=f"t0={t0}")
-        p.init(t0=t0, i_d_start=-100.0, i_q_start=150.0)
-        runs.append(np.array(p.run(400, w_m=1256.6)))
+        assert p.setup(start=t0) == OK and p.enter() == OK
+        p.set(i_d_start=-100.0, i_q_start=150.0)
+        assert p.exit() == OK
+        runs.append(np.array(run(p, 400, w_m=1256.6)))
     a, b = runs
     err = np.abs(a - b) / np.maximum(np.abs(a), 1e-300)
     print(f"start time 0 vs 1.7e9 s: largest relative difference {err.max():.2e}")
@@ -255,10 +181,10 @@ def test_results_do_not_depend_on_the_start_time(plants):
 def test_nonfinite_inputs_refused_and_instance_stays_usable(plants, value):
     p = plants()
     p.init()
-    before = p.run(5)
+    before = run(p, 5)
     for name in ("u_d", "u_q", "w_m", "T_magnet", "T_winding"):
-        refused(p, p.set, match=f"{name} = ", **{name: value})
-    after = p.run(5, k0=5)
+        refused(p, p.set_status, name, value, match=f"{name} = ")
+    after = run(p, 5, k0=5)
     assert np.all(np.isfinite(after)) and bits(before) != bits(after)
 
 
@@ -266,7 +192,7 @@ def test_nonfinite_inputs_refused_and_instance_stays_usable(plants, value):
 def test_absurd_inputs_refused(plants, name, value):
     p = plants()
     p.init()
-    refused(p, p.set, match="out of range", **{name: value})
+    refused(p, p.set_status, name, value, match="out of range")
 
 
 @pytest.mark.parametrize("name, value", [
@@ -275,22 +201,22 @@ def test_absurd_inputs_refused(plants, name, value):
 ])
 def test_absurd_parameters_refused(plants, name, value):
     p = plants()
-    p.fmu.setupExperiment(startTime=0.0)
-    p.fmu.enterInitializationMode()
-    refused(p, p.set, match="out of range", **{name: value})
-    p.fmu.exitInitializationMode()  # still the defaults: fine
-    assert np.all(np.isfinite(p.run(3)))
+    assert p.setup() == OK
+    assert p.enter() == OK
+    refused(p, p.set_status, name, value, match="out of range")
+    assert p.exit() == OK  # still the defaults: fine
+    assert np.all(np.isfinite(run(p, 3)))
 
 
 def test_absurd_parameter_combinations_refused_at_initialisation(plants):
     p = plants()
-    p.fmu.setupExperiment(startTime=0.0)
-    p.fmu.enterInitializationMode()
+    assert p.setup() == OK
+    assert p.enter() == OK
     p.set(cvode_method=2, cvode_max_order=7)
-    refused(p, p.fmu.exitInitializationMode, match="cvode_max_order")
+    refused(p, p.exit, match="cvode_max_order")
     p.set(cvode_max_order=5)
-    p.fmu.exitInitializationMode()
-    assert np.all(np.isfinite(p.run(3)))
+    assert p.exit() == OK
+    assert np.all(np.isfinite(run(p, 3)))
 
 
 def _write(path, text):
@@ -310,22 +236,23 @@ def test_bad_flux_maps_are_refused(plants, tmp_path):
     cases = {
         "missing": (str(tmp_path / "nope.csv"), "nope.csv"),
         "empty": (_write(tmp_path / "empty.csv", ""), "empty.csv"),
-        "malformed": (_write(tmp_path / "malformed.csv", "\n".join(lines[:header + 3] + ["1,2,abc,4"] + lines[header + 4:])), "malformed.csv"),
+        "malformed": (_write(tmp_path / "malformed.csv",
+                             "\n".join(lines[:header + 3] + ["1,2,abc,4"] + lines[header + 4:])), "malformed.csv"),
         "not a grid": (_write(tmp_path / "holes.csv", "\n".join(lines[:-3])), "holes.csv"),
         "not invertible": (_write(tmp_path / "folded.csv", "\n".join(folded)), "folded.csv"),
         "a directory": (str(tmp_path), str(tmp_path)),
     }
     for what, (path, match) in cases.items():
         p = plants(name=what.replace(" ", "_"))
-        p.fmu.setupExperiment(startTime=0.0)
-        p.fmu.enterInitializationMode()
+        assert p.setup() == OK
+        assert p.enter() == OK
         p.set(flux_map=path)
-        text = refused(p, p.fmu.exitInitializationMode, match=match)
+        text = refused(p, p.exit, match=match)
         assert "flux map" in text, (what, text)
         # usable after correcting the parameter
         p.set(flux_map=str(lin))
-        p.fmu.exitInitializationMode()
-        assert np.all(np.isfinite(p.run(3)))
+        assert p.exit() == OK
+        assert np.all(np.isfinite(run(p, 3)))
 
 
 def test_measured_non_reciprocal_map_loads(plants, measured_map_path):
@@ -334,8 +261,8 @@ def test_measured_non_reciprocal_map_loads(plants, measured_map_path):
     assert p.get("psi_d") == pytest.approx(read_flux_map(measured_map_path).psi_m, rel=1e-9)
     p.set(w_m=150.0, u_d=3.0, u_q=0.15 * 2 * 150 * 0.44)
     for _ in range(20):
-        p.step()
-    assert np.all(np.isfinite(p.outputs()))
+        step(p)
+    assert np.all(np.isfinite(outputs(p)))
     # the map's metadata (pole_pairs 2, R_s 0.63) agrees with the parameters: no warning about them
     assert "says pole_pairs" not in p.log.text()
 
@@ -349,63 +276,64 @@ def test_map_metadata_disagreeing_with_parameters_is_a_warning(plants, measured_
 def test_cvode_failure_is_fmi2error_with_cvodes_message(plants):
     p = plants()
     p.init()
-    p.run(3)
-    before = p.outputs()
+    run(p, 3)
+    before = outputs(p)
     # rtol, atol at their floor: more than one internal step even for the small remainder of the
     # step's linearisation that CVODE integrates
     p.set(cvode_max_steps=1, rtol=1e-14, atol=1e-15, u_q=500.0, w_m=1256.6)
     text = refused(p, p.step, match="mxstep steps taken before reaching tout")
     assert "CVODE" in text and "CV_TOO_MUCH_WORK" in text
-    assert p.outputs() == before  # undone
+    assert outputs(p) == before  # undone
     p.set(cvode_max_steps=20000, rtol=1e-6, atol=1e-6)
-    p.step()
-    assert np.all(np.isfinite(p.outputs()))
+    step(p)
+    assert np.all(np.isfinite(outputs(p)))
 
 
 def test_get_set_fmu_state_is_bit_identical(plants):
     p = plants()
     p.init()
-    p.run(30, w_m=1256.6)
-    s = p.fmu.getFMUstate()
+    run(p, 30, w_m=1256.6)
+    s = p.get_state()
     t = p.t
-    a = p.run(50, w_m=1256.6, k0=30)
-    p.fmu.setFMUstate(s)
+    a = run(p, 50, w_m=1256.6, k0=30)
+    assert p.set_state(s) == OK
     p.t = t
-    b = p.run(50, w_m=1256.6, k0=30)
+    b = run(p, 50, w_m=1256.6, k0=30)
     assert bits(a) == bits(b)
-    p.fmu.freeFMUstate(s)
+    assert p.free_state(s) == OK
 
 
 def test_serialised_state_into_a_fresh_instance_is_bit_identical(plants):
     p = plants()
     p.init(rtol=1e-7)
-    p.run(30, w_m=700.0)
-    s = p.fmu.getFMUstate()
-    data = p.fmu.serializeFMUstate(s)
-    p.fmu.freeFMUstate(s)
+    run(p, 30, w_m=700.0)
+    s = p.get_state()
+    data = p.serialize(s)
+    assert p.free_state(s) == OK
     t = p.t
-    a = p.run(60, w_m=700.0, k0=30)
+    a = run(p, 60, w_m=700.0, k0=30)
 
     q = plants(name="fresh")  # not initialised; same fixed parameter (rtol is tunable anyway)
-    q.fmu.setupExperiment(startTime=0.0)
-    s2 = q.fmu.deSerializeFMUstate(data)
-    q.fmu.setFMUstate(s2)
+    assert q.setup() == OK
+    status, s2 = q.deserialize_status(data)
+    assert status == OK, q.log.text()
+    assert q.set_state(s2) == OK
     q.t = t
     assert q.get("rtol") == 1e-7
-    b = q.run(60, w_m=700.0, k0=30)
+    b = run(q, 60, w_m=700.0, k0=30)
     assert bits(a) == bits(b)
-    q.fmu.freeFMUstate(s2)
+    assert q.free_state(s2) == OK
 
 
 def test_reset_then_run_again_reproduces(plants):
     p = plants()
     p.init()
-    a = p.run(40, w_m=1256.6)
-    p.fmu.reset()
+    a = run(p, 40, w_m=1256.6)
+    assert p.reset() == OK
     p.init()
-    b = p.run(40, w_m=1256.6)
+    b = run(p, 40, w_m=1256.6)
     assert bits(a) == bits(b)
-    p.fmu.terminate()
+    assert p.terminate() == OK
 
 
 def test_two_instances_interleaved_are_identical(plants):
@@ -414,8 +342,8 @@ def test_two_instances_interleaved_are_identical(plants):
     b.init(T_magnet=340.0)
     ra, rb = [], []
     for k in range(60):
-        ra += a.run(1, w_m=1000.0, k0=k)
-        rb += b.run(1, w_m=1000.0, k0=k)
+        ra += run(a, 1, w_m=1000.0, k0=k)
+        rb += run(b, 1, w_m=1000.0, k0=k)
     assert bits(ra) == bits(rb)
 
 
@@ -424,8 +352,8 @@ def test_variable_step_sizes_and_tiny_steps(plants):
     p.init()
     p.set(w_m=500.0, u_d=-20.0, u_q=0.312 * 500.0)
     for h in (1e-4, 1e-3, 1e-6, 1e-12, 3e-5):
-        p.step(h)
-        assert np.all(np.isfinite(p.outputs()))
+        step(p, h)
+        assert np.all(np.isfinite(outputs(p)))
     assert p.get("cvode_steps") >= 1
 
 
@@ -434,7 +362,7 @@ def test_currents_leaving_the_map_warn_once(plants):
     p.init()
     p.set(w_m=0.0, u_d=-40.0, u_q=0.0)  # drives i_d below the grid's -700 A
     for _ in range(100):
-        p.step()
+        step(p)
     warnings = [m for s, c, m in p.log.records if c == "logStatusWarning" and "left the flux map" in m]
     assert len(warnings) == 1, p.log.text()
     assert p.get("i_d") < -700

@@ -24,7 +24,8 @@ def test_plant_fmu_is_clean_under_valgrind(plant_fmu, tmp_path):
     unzipped = Path(extract(str(plant_fmu), unzipdir=str(tmp_path / "IpmsmPlant")))
     # memcheck is ~50x slower: 60 steps per phase are plenty to exercise every path.
     r = subprocess.run([valgrind, "--error-exitcode=99", "--leak-check=full",
-                        "--errors-for-leak-kinds=definite,indirect,possible", "--show-leak-kinds=definite,indirect,possible",
+                        "--errors-for-leak-kinds=definite,indirect,possible",
+                        "--show-leak-kinds=definite,indirect,possible",
                         str(harness), str(unzipped), "60"],
                        capture_output=True, text=True, timeout=600)
     report = r.stdout[-4000:] + "\n" + r.stderr[-6000:]

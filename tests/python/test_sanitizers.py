@@ -47,7 +47,8 @@ def _need(*paths: Path):
 
 
 def _runtime(name: str) -> str:
-    path = subprocess.run(["gcc", f"-print-file-name={name}"], capture_output=True, text=True, check=True).stdout.strip()
+    path = subprocess.run(["gcc", f"-print-file-name={name}"], capture_output=True, text=True,
+                          check=True).stdout.strip()
     assert os.path.isabs(path), f"gcc does not know {name}"
     return path
 

@@ -11,8 +11,9 @@ import pytest
 from fmpy import read_model_description
 from fmpy.ssp.ssd import read_ssd
 
-from conftest import BUILD_FMU, fmu_path
 from scenarios.coupling import DRIVE
+
+from conftest import BUILD_FMU, fmu_path
 
 SSP = BUILD_FMU.parent / "ssp" / "IpmsmControllerPlant.ssp"
 

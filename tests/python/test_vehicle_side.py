@@ -8,13 +8,22 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from scenarios.battery import Battery, BatteryParams, OCV_CSV
-from scenarios.cycles import load_cycle, segment, cycle_stats, read_cycle_csv
+from scenarios.battery import OCV_CSV, Battery, BatteryParams
+from scenarios.constants import U_DC_NOMINAL_V
+from scenarios.cycles import cycle_stats, load_cycle, read_cycle_csv, segment
 from scenarios.driver import Driver, DriverParams, blend, simulate_ideal
-from scenarios.inverter import InverterParams, inverter_loss, dc_power
-from scenarios.vehicle import (VehicleParams, Vehicle, coastdown_speed, coastdown_time,
-                               longitudinal_step, motor_speed, road_load, shaft_torque,
-                               wheel_force)
+from scenarios.inverter import InverterParams, dc_power, inverter_loss
+from scenarios.vehicle import (
+    Vehicle,
+    VehicleParams,
+    coastdown_speed,
+    coastdown_time,
+    longitudinal_step,
+    motor_speed,
+    road_load,
+    shaft_torque,
+    wheel_force,
+)
 
 KMH = 1 / 3.6
 VP = VehicleParams()
@@ -65,7 +74,9 @@ def test_steady_speed_force_balance():
 def test_coastdown_from_100_kmh_against_ode_and_closed_form():
     v0 = 100 * KMH
     # independent reference: scipy's ODE solution of m_eff dv/dt = -(A + B v + C v^2)
-    stop = lambda t, y: y[0]
+    def stop(t, y):
+        return y[0]
+
     stop.terminal = True
     sol = solve_ivp(lambda t, y: [-road_load(y[0], VP) / VP.m_eff], (0, 500), [v0], events=stop,
                     rtol=1e-11, atol=1e-12, dense_output=True, method="DOP853")
@@ -190,13 +201,13 @@ def test_blend_traction_regen_and_friction():
 
 def test_ideal_drive_energy_balance_closes():
     r = simulate_ideal(segment(load_cycle("UDDS"), 0.0, 300.0))
-    lhs = r["energy_battery_Wh"]
-    rhs = r["shaft_motoring_Wh"] + r["shaft_regen_Wh"] + r["motor_loss_Wh"] + r["inverter_loss_Wh"] + r["aux_Wh"]
+    lhs = r.energy_battery_Wh
+    rhs = r.shaft_motoring_Wh + r.shaft_regen_Wh + r.motor_loss_Wh + r.inverter_loss_Wh + r.aux_Wh
     assert lhs == pytest.approx(rhs, rel=1e-9)
     # the wheels' work uses the step's mean speed (it is what changes the kinetic energy), the
     # shaft's the speed held over the step (what the drive sees): they differ by F a dt^2 / 2 a step
-    assert r["wheel_traction_Wh"] == pytest.approx(0.97 * r["shaft_motoring_Wh"], rel=1e-3)
-    assert r["speed_rmse_kmh"] < 1e-6
+    assert r.wheel_traction_Wh == pytest.approx(0.97 * r.shaft_motoring_Wh, rel=1e-3)
+    assert r.speed_rmse_kmh < 1e-6
 
 
 # -- battery ------------------------------------------------------------------------------
@@ -250,7 +261,7 @@ def _rc_reference(currents, dt, p: BatteryParams):
     step by step with the current held (rtol 1e-11)."""
     u, E = 0.0, 0.0
     for i in currents:
-        s = solve_ivp(lambda t, y: [(i - y[0] / p.R1) / p.C1, y[0] * i], (0, dt), [u, E],
+        s = solve_ivp(lambda t, y, i=i: [(i - y[0] / p.R1) / p.C1, y[0] * i], (0, dt), [u, E],
                       rtol=1e-11, atol=1e-9, method="DOP853")
         u, E = s.y[0, -1], s.y[1, -1]
     return u, E
@@ -328,10 +339,11 @@ def _brute_force_inverter(I, M, phi, u_dc, p: InverterParams, n=20000):
     return P_cond, P_sw, P_ac
 
 
-@pytest.mark.parametrize("I,M,phi", [(200.0, 0.9, 0.5), (400.0, 1.0, 0.2), (80.0, 0.3, 1.2), (300.0, 0.8, math.pi - 0.4)])
+@pytest.mark.parametrize("I,M,phi", [(200.0, 0.9, 0.5), (400.0, 1.0, 0.2), (80.0, 0.3, 1.2),
+                                     (300.0, 0.8, math.pi - 0.4)])
 def test_inverter_loss_formula_against_brute_force(I, M, phi):
     p = InverterParams()
-    u_dc = 355.0
+    u_dc = U_DC_NOMINAL_V
     Pc, Ps, Pac = _brute_force_inverter(I, M, phi, u_dc, p)
     assert Pac == pytest.approx(0.75 * u_dc * M * I * math.cos(phi), rel=1e-6)
     loss = inverter_loss(I, I * I, u_dc, P_ac_mean=Pac)
@@ -343,20 +355,21 @@ def test_inverter_loss_formula_against_brute_force(I, M, phi):
 def test_inverter_efficiency_plausible():
     # mid load: 40 kW at 200 A peak, 355 V (~114 N m at the base speed): 97-98.5 %
     P = 40e3
-    loss = inverter_loss(200.0, 200.0 ** 2, 355.0, P_ac_mean=P)
+    loss = inverter_loss(200.0, 200.0 ** 2, U_DC_NOMINAL_V, P_ac_mean=P)
     assert 0.97 < P / (P + loss.P) < 0.985
     assert 0.3 < loss.P_sw / loss.P < 0.7        # conduction and switching of similar size at 10 kHz
     # near peak: 100 kW at 450 A: still above 98 %; light load 3 kW at 30 A: ~97 %
-    assert 100e3 / (100e3 + inverter_loss(450, 450 ** 2, 355.0, P_ac_mean=100e3).P) > 0.98
-    l3 = inverter_loss(30.0, 900.0, 355.0, P_ac_mean=3e3).P
+    assert 100e3 / (100e3 + inverter_loss(450, 450 ** 2, U_DC_NOMINAL_V, P_ac_mean=100e3).P) > 0.98
+    l3 = inverter_loss(30.0, 900.0, U_DC_NOMINAL_V, P_ac_mean=3e3).P
     assert 0.95 < 3e3 / (3e3 + l3) < 0.98
     # regen: the loss comes out of the returned power
-    assert dc_power(-40e3, 200.0, 4e4, 355.0) == pytest.approx(-40e3 + inverter_loss(200, 4e4, 355.0, P_ac_mean=-40e3).P)
+    regen_loss = inverter_loss(200, 4e4, U_DC_NOMINAL_V, P_ac_mean=-40e3).P
+    assert dc_power(-40e3, 200.0, 4e4, U_DC_NOMINAL_V) == pytest.approx(-40e3 + regen_loss)
     # switching loss scales with f_sw and u_dc, conduction not
     a, b = inverter_loss(100, 1e4, 300.0, 5e3), inverter_loss(100, 1e4, 400.0, 10e3)
     assert b.P_sw == pytest.approx(a.P_sw * 2 * 400 / 300)
     assert b.P_cond == pytest.approx(a.P_cond)
-    assert inverter_loss(0.0, 0.0, 355.0).P == 0.0
+    assert inverter_loss(0.0, 0.0, U_DC_NOMINAL_V).P == 0.0
     with pytest.raises(ValueError):
         inverter_loss(10.0, 100.0, 0.0)
 

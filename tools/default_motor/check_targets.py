@@ -250,12 +250,15 @@ def _print(r):
         ("peak torque (electromagnetic)", f"{r['peak_torque_Nm']:.1f} N.m", ">= 250 N.m"),
         ("peak shaft torque", f"{r['peak_shaft_torque_Nm']:.1f} N.m", ""),
         ("base speed", f"{r['base_speed_rpm']:.0f} r/min", ""),
-        ("peak shaft power", f"{r['peak_shaft_power_kW']:.1f} kW at {r['peak_power_speed_rpm']:.0f} r/min", ">= 100 kW"),
+        ("peak shaft power", f"{r['peak_shaft_power_kW']:.1f} kW at {r['peak_power_speed_rpm']:.0f} r/min",
+         ">= 100 kW"),
         ("max speed", f"{r['max_speed_rpm']:.0f} r/min, {r['torque_at_max_speed_Nm']:.1f} N.m, "
                       f"{r['shaft_power_at_max_speed_kW']:.1f} kW", "12000 r/min, T > 0"),
         ("psi_m", f"{m['psi_m_Wb'] * 1e3:.2f} mWb", ""),
-        ("L_d, L_q at i = 0 (incremental)", f"{m['L_d_incremental_at_0_mH']:.3f} mH, {m['L_q_incremental_at_0_mH']:.3f} mH", ""),
-        ("L_q at (0, I_max), secant / L_q0", f"{m['L_q_secant_at_I_max_mH']:.3f} mH = {m['L_q_secant_ratio'] * 100:.1f} %",
+        ("L_d, L_q at i = 0 (incremental)",
+         f"{m['L_d_incremental_at_0_mH']:.3f} mH, {m['L_q_incremental_at_0_mH']:.3f} mH", ""),
+        ("L_q at (0, I_max), secant / L_q0",
+         f"{m['L_q_secant_at_I_max_mH']:.3f} mH = {m['L_q_secant_ratio'] * 100:.1f} %",
          "<= 60 %"),
         ("L_q at (0, I_max), incremental / L_q0", f"{m['L_q_incremental_at_I_max_mH']:.3f} mH = "
                                                   f"{m['L_q_incremental_ratio'] * 100:.1f} %", ""),

@@ -58,7 +58,7 @@ class Lamination:
     alpha: float
 
     @classmethod
-    def fit_two_points(cls, p1, b1, f1, p2, b2, f2, alpha: float) -> "Lamination":
+    def fit_two_points(cls, p1, b1, f1, p2, b2, f2, alpha: float) -> Lamination:
         """Fit k_h, k_e to two catalogue points p (W/kg) at (B in T, f in Hz), alpha given."""
         a = np.array([[f1 * b1**alpha, f1**2 * b1**2], [f2 * b2**alpha, f2**2 * b2**2]])
         k_h, k_e = np.linalg.solve(a, [p1, p2])

@@ -65,7 +65,8 @@ class SaturationParams:
     U: float = 2.0  # first cross exponent (0 or > 1 for C2)
     V: float = 0.0  # second cross exponent (>= 0)
     # permanent magnet as an equivalent d-axis current (MMF source)
-    i_f: float = 360.0  # A: psi_d(-i_f, 0) = 0, i.e. the characteristic current, 0.72 I_max (field weakening to any speed)
+    # A: psi_d(-i_f, 0) = 0, i.e. the characteristic current, 0.72 I_max (field weakening to any speed)
+    i_f: float = 360.0
 
     def __post_init__(self) -> None:
         if min(self.a_d0, self.a_q0) <= 0 or min(self.a_dd, self.a_qq, self.a_dq) < 0:

@@ -90,8 +90,9 @@ def system_structure(coupling: Coupling, fmus: dict[str, Path]) -> str:
               '                <ssv:Parameters>']
         for v in params:
             x.append(f'                  <ssv:Parameter name={quoteattr(v.name)}>{_value(v)}</ssv:Parameter>')
-        x += ['                </ssv:Parameters>', '              </ssv:ParameterSet>', '            </ssd:ParameterValues>',
-              '          </ssd:ParameterBinding>', '        </ssd:ParameterBindings>', '      </ssd:Component>']
+        x += ['                </ssv:Parameters>', '              </ssv:ParameterSet>',
+              '            </ssd:ParameterValues>', '          </ssd:ParameterBinding>',
+              '        </ssd:ParameterBindings>', '      </ssd:Component>']
     x += ['    </ssd:Elements>', '    <ssd:Connections>']
     for e in coupling.inputs:
         for t in e.targets:

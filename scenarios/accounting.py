@@ -1,0 +1,100 @@
+"""The run's accounts, kept step by step from the vehicle steps' signals: the drive's energies
+(J), the tracking errors (sums of squares) and the time spent at the voltage limits (s).
+`RunAccounts.summary` turns them, with the vehicle's and the battery's own bookkeeping, into the
+RunSummary."""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from .results import RunSummary, VehicleStep
+
+WH = 1 / 3600.0  # Wh per J
+
+#: u_ratio above k_u by more than this counts as above the planned V_max (the regulator's
+#: voltage is a sample, the plan a bound: a relative margin keeps rounding out of the count)
+V_MAX_MARGIN = 1e-3
+
+#: u_ratio at or above 1 within this counts as voltage-limited (the regulator's clamp)
+U_LIMIT_TOLERANCE = 1e-9
+
+#: A, below this the current excess is not counted (near zero torque its ratio means nothing)
+I_EXCESS_MIN = 1.0
+
+
+@dataclass
+class RunAccounts:
+    """Sums over the vehicle steps. k_u: the planned voltage reserve, V_max = k_u u_dc / sqrt 3;
+    reference: the steps carry the optimum's current and copper loss."""
+
+    dt: float
+    k_u: float
+    reference: bool
+    E_elec: float = 0.0       # J, motor electric input
+    E_mech: float = 0.0       # J, shaft
+    E_cu: float = 0.0         # J, copper loss
+    E_fe: float = 0.0         # J, iron loss
+    E_inv: float = 0.0        # J, inverter loss
+    E_cu_opt: float = 0.0     # J, the optimum's copper loss
+    T_err2: float = 0.0       # N^2 m^2, sum of (T_e - T_cmd)^2
+    T_err_max: float = 0.0    # N m
+    T_cmd2: float = 0.0       # N^2 m^2, sum of T_cmd^2
+    n_T: int = 0
+    speed_err2: float = 0.0   # m^2/s^2, sum of (v - v_ref)^2
+    I_excess2: float = 0.0    # A^2, sum of (I - I_opt)^2 where I > I_EXCESS_MIN
+    n_I: int = 0
+    t_over: float = 0.0       # s above the planned V_max
+    t_sat: float = 0.0        # s at the inverter's linear range
+
+    def observe(self, s: VehicleStep) -> None:
+        """One vehicle step has ended."""
+        dt, m, e = self.dt, s.drive.mean, s.drive.end
+        # Voltage use, sampled at the vehicle step: above the planned V_max = k_u u_dc / sqrt 3
+        # (the optimum's reserve for the regulator), and at the inverter's limit u_dc / sqrt 3.
+        if e.u_ratio > self.k_u * (1.0 + V_MAX_MARGIN):
+            self.t_over += dt
+        if e.u_ratio >= 1.0 - U_LIMIT_TOLERANCE:
+            self.t_sat += dt
+        self.E_elec += m.P_elec * dt
+        self.E_mech += m.P_mech * dt
+        self.E_cu += m.P_cu * dt
+        self.E_fe += m.P_fe * dt
+        self.E_inv += s.P_inverter * dt
+        # Torque error: delivered (mean T_e) against the command within reach.
+        T_err = m.T_e - m.T_cmd
+        self.T_err2 += T_err * T_err
+        self.T_cmd2 += m.T_cmd * m.T_cmd
+        self.T_err_max = max(self.T_err_max, abs(T_err))
+        self.n_T += 1
+        self.speed_err2 += (s.v - s.v_ref) ** 2
+        if self.reference:
+            self.E_cu_opt += s.P_cu_opt * dt
+            if s.I > I_EXCESS_MIN:
+                self.I_excess2 += (s.I - s.I_opt) ** 2
+                self.n_I += 1
+
+    def summary(self, *, cycle: str, method: str, recursion: int, conditions, vehicle, battery, P_aux: float,
+                n: int, n_inner: int, h: float, wall: float, backend: str) -> RunSummary:
+        """The summary of n vehicle steps of n_inner co-simulation steps h each. vehicle, battery:
+        scenarios.vehicle.Vehicle and scenarios.battery.Battery after the run."""
+        dt = self.dt
+        km = vehicle.distance / 1000.0
+        n_T = max(self.n_T, 1)
+        return RunSummary(
+            cycle=cycle, method=method, recursion=recursion, conditions=asdict(conditions),
+            distance_km=km, energy_battery_Wh=battery.E_terminal * WH, Wh_per_km=battery.E_terminal * WH / km,
+            speed_rmse_mps=math.sqrt(self.speed_err2 / n),
+            torque_rmse_Nm=math.sqrt(self.T_err2 / n_T), torque_error_max_Nm=self.T_err_max,
+            torque_cmd_rms_Nm=math.sqrt(self.T_cmd2 / n_T),
+            copper_loss_Wh=self.E_cu * WH, copper_loss_optimal_Wh=self.E_cu_opt * WH if self.reference else None,
+            time_above_V_max_pct=100.0 * self.t_over / (n * dt), time_voltage_limited_s=self.t_sat,
+            time_voltage_limited_pct=100.0 * self.t_sat / (n * dt),
+            current_excess_rms_A=math.sqrt(self.I_excess2 / self.n_I) if self.n_I else 0.0,
+            iron_loss_Wh=self.E_fe * WH, motor_electric_Wh=self.E_elec * WH, shaft_Wh=self.E_mech * WH,
+            battery_internal_loss_Wh=(battery.E_loss_R0 + battery.E_loss_R1) * WH,
+            battery_energy_residual_Wh=battery.energy_residual() * WH, inverter_loss_Wh=self.E_inv * WH,
+            aux_Wh=P_aux * n * dt * WH, friction_brake_Wh=vehicle.E_brake * WH,
+            regen_curtailed_Wh=battery.E_curtailed * WH, soc_end=battery.soc,
+            steps=n * n_inner, vehicle_steps=n, h_s=h, dt_s=dt, wall_s=wall, real_time_factor=n * dt / wall,
+            backend=backend,
+        )

@@ -1,0 +1,142 @@
+"""What a drive-cycle run produces (../shared/spec/INTERFACE.md, "Scenario results"): the signals
+of each vehicle step (`VehicleStep`), the trace sampled from them (`Trace`, trace.csv) and the
+run's summary (`RunSummary`, summary.json). SI units; energies in Wh, as the contract names them.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import asdict, astuple, dataclass, field, fields
+from pathlib import Path
+
+from .master import AdvanceResult
+
+
+@dataclass(frozen=True)
+class VehicleStep:
+    """The signals of one vehicle step (dt): the vehicle side's and the drive's, as the loop of
+    scenarios.simulate produces them. Speeds and SOC at the end of the step; w_m, u_dc, T_ref
+    and F_brake held over it; powers and the currents I, I_opt are the step's."""
+
+    t: float           # s, end of the step
+    v_ref: float       # m/s, the cycle's speed at t
+    v: float           # m/s, the vehicle's speed at t
+    w_m: float         # rad/s, rotor speed (held)
+    u_dc: float        # V, DC-link voltage the drive sees (held)
+    T_ref: float       # N m, torque command of the brake blending (held)
+    F_brake: float     # N, friction-brake force (held)
+    drive: AdvanceResult  # the co-simulated drive's outputs: means over the step and values at t
+    P_inverter: float  # W, inverter loss
+    P_dc: float        # W, DC-side power of the drive: P_elec + P_inverter
+    I: float           # A, current magnitude, sqrt of the step's mean of i_d^2 + i_q^2
+    I_opt: float       # A, the optimum's current at the delivered torque (NaN without the reference)
+    P_cu_opt: float    # W, the optimum's copper loss (0 without the reference)
+    soc: float         # battery state of charge at t
+
+
+@dataclass(frozen=True)
+class TracePoint:
+    """One row of trace.csv; the field names are its columns."""
+
+    time_s: float
+    v_ref_mps: float
+    v_mps: float
+    w_m_rad_s: float
+    T_ref_Nm: float
+    T_cmd_Nm: float
+    T_max_Nm: float
+    T_e_Nm: float
+    T_shaft_Nm: float
+    i_d_A: float
+    i_q_A: float
+    I_A: float
+    I_opt_A: float
+    u_dc_V: float
+    P_elec_W: float
+    P_dc_W: float
+    F_brake_N: float
+    soc: float
+    region: int
+
+    @classmethod
+    def of(cls, s: VehicleStep) -> TracePoint:
+        m, e = s.drive.mean, s.drive.end
+        return cls(s.t, s.v_ref, s.v, s.w_m, s.T_ref, e.T_cmd, e.T_max, m.T_e, m.T_shaft, e.i_d, e.i_q, s.I, s.I_opt,
+                   s.u_dc, m.P_elec, s.P_dc, s.F_brake, s.soc, int(e.region))
+
+
+TRACE_COLUMNS = tuple(f.name for f in fields(TracePoint))
+
+
+@dataclass
+class Trace:
+    """trace.csv: every `every`-th vehicle step (every = trace_dt / dt)."""
+
+    every: int = 1
+    points: list[TracePoint] = field(default_factory=list)
+
+    def observe(self, k: int, step: VehicleStep) -> None:
+        """Vehicle step k (from 0) has ended."""
+        if (k + 1) % self.every == 0:
+            self.points.append(TracePoint.of(step))
+
+    def write_csv(self, path: Path) -> None:
+        with open(path, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(TRACE_COLUMNS)
+            w.writerows(astuple(p) for p in self.points)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """summary.json: the contract's keys (cycle, method, distance_km, energy_battery_Wh, Wh_per_km,
+    speed_rmse_mps, torque_rmse_Nm, torque_error_max_Nm, copper_loss_Wh, iron_loss_Wh, steps,
+    wall_s) and the energy balance and accuracy figures around them, in this order."""
+
+    cycle: str
+    method: str
+    recursion: int
+    conditions: dict                  # scenarios.simulate.Conditions as a dict
+    distance_km: float
+    energy_battery_Wh: float          # at the battery's terminals
+    Wh_per_km: float
+    speed_rmse_mps: float             # vehicle against the cycle, at the vehicle steps
+    torque_rmse_Nm: float             # delivered (step mean of T_e) against the command T_cmd
+    torque_error_max_Nm: float
+    torque_cmd_rms_Nm: float
+    copper_loss_Wh: float
+    copper_loss_optimal_Wh: float | None  # the exact optimum's at the delivered torque (None: no reference)
+    time_above_V_max_pct: float       # voltage command above the planned V_max = k_u u_dc / sqrt 3
+    time_voltage_limited_s: float     # ... at the inverter's linear range u_dc / sqrt 3
+    time_voltage_limited_pct: float
+    current_excess_rms_A: float       # |i| above the optimum's, RMS over the steps with |i| > 1 A
+    iron_loss_Wh: float
+    motor_electric_Wh: float
+    shaft_Wh: float
+    battery_internal_loss_Wh: float
+    battery_energy_residual_Wh: float  # the battery's energy balance, zero up to rounding
+    inverter_loss_Wh: float
+    aux_Wh: float
+    friction_brake_Wh: float
+    regen_curtailed_Wh: float
+    soc_end: float
+    steps: int                        # co-simulation steps (h)
+    vehicle_steps: int                # vehicle steps (dt)
+    h_s: float
+    dt_s: float
+    wall_s: float
+    real_time_factor: float
+    backend: str                      # the co-simulation master's backend: native or fmpy
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2)
+
+
+def write_results(out: Path, summary: RunSummary, trace: Trace) -> None:
+    """summary.json and trace.csv in `out`."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "summary.json").write_text(summary.to_json())
+    trace.write_csv(out / "trace.csv")
