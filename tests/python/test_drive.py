@@ -118,18 +118,36 @@ def test_the_run_visits_every_region_and_regenerates(runs):
     assert min(row["P_dc"] for row in ref) < -10e3 and max(row["P_dc"] for row in ref) > 50e3
 
 
+def magnetic_energy(i_d: float, i_q: float) -> float:
+    """W (J) stored in the machine's field at the currents (i_d, i_q) from zero current, on the
+    default map: 1.5 (psi . i - co-energy), the co-energy integrated along the straight path
+    (Gauss-Legendre, 24 points; the map is reciprocal, so any path gives it). The magnet's
+    temperature shift of psi_d is a constant: it stores nothing."""
+    from scenarios.flux_map import DEFAULT_MAP, read_flux_map
+    fmap = read_flux_map(DEFAULT_MAP)
+    x, w = np.polynomial.legendre.leggauss(24)
+    s = 0.5 * (x + 1.0)
+    psi_d, psi_q = fmap.flux(s * i_d, s * i_q)
+    co_energy = 0.5 * np.sum(w * (psi_d * i_d + psi_q * i_q))
+    end_d, end_q = fmap.flux(i_d, i_q)
+    return 1.5 * (float(end_d) * i_d + float(end_q) * i_q - co_energy)
+
+
 def test_energy_balance(runs):
-    """E_dc = E_mech + E_cu + E_fe + E_inv + Delta W_magnetic, to the accuracy the outputs allow:
-    the integrals are sums of the powers after each inner step (the masters' means), whose error
-    in the transients and the unmodelled Delta W_magnetic (the run ends at -200 N.m) leave a
-    residual of 6.6e-4 of the energy throughput on this run. A term left out of the balance
-    (E_inv is ~1 % of it, E_fe ~2 %) fails. The issue's 1e-6 needs the plant to integrate its
-    powers exactly (CVODE quadratures) and to report its magnetic energy: not done."""
+    """E_dc = E_mech + E_cu + E_fe + E_inv + Delta W_magnetic, from the drive's integrals (the
+    run starts at zero current, Delta W = W at the end currents, 2.6e-4 of the throughput). The
+    integrals are sums of the powers after each inner step (the masters' means): a rectangle
+    rule whose error at every voltage step of the controller does not cancel, 3.7e-4 of the energy
+    throughput on this run. A term left out of the balance (E_inv is ~1 % of it, E_fe ~2 %)
+    fails. The issue's 1e-6 needs the plant to integrate its powers exactly (CVODE quadratures
+    of P_elec, P_cu, P_fe: the plant's code) and the masters to report those: not done."""
     _, _, drive = runs
     last = drive[1e-2][-1]
-    residual = last.E_dc - (last.E_mech + last.E_cu + last.E_fe + last.E_inv)
+    dW = magnetic_energy(last.i_d, last.i_q)
+    residual = last.E_dc - (last.E_mech + last.E_cu + last.E_fe + last.E_inv + dW)
     throughput = sum(abs(s.P_dc) * 1e-2 for s in drive[1e-2])
-    print(f"\nenergy residual {residual:.6g} J of {throughput:.6g} J throughput ({residual / throughput:.3g})")
+    print(f"\nenergy residual {residual:.6g} J (Delta W {dW:.6g} J) of {throughput:.6g} J throughput "
+          f"({residual / throughput:.3g})")
     assert abs(residual) <= 1e-3 * throughput
 
 
