@@ -6,7 +6,7 @@
 #                                       # reference generated from the variable table put at
 #                                       # its <!-- ipmsm-fmu:variables --> marker (required)
 #
-# Builds an FMI 2.0 co-simulation FMU for Linux x86-64:
+# Builds an FMI 2.0 co-simulation FMU for Linux x86-64 (and for Windows x86-64, see below):
 #   <NAME>                    the shared library <NAME>.so: hidden visibility, only the fmi2* functions
 #                             exported (fmu_src/fmi/exports.map), no undefined symbols, unused
 #                             sections dropped; libstdc++ linked statically, libgcc_s dynamically
@@ -16,15 +16,21 @@
 #                             glibc 2.17 or later (tests/python/test_conformance.py)
 #   <NAME>_modelDescription   the generator: the same SOURCES compiled with IPMSM_FMI2_GENERATOR
 #   <NAME>_fmu (ALL)          runs the generator and assembles ${CMAKE_BINARY_DIR}/fmu/<NAME>/
-#                             (modelDescription.xml, binaries/linux64/<NAME>.so, resources/,
-#                             documentation/) and zips it to ${CMAKE_BINARY_DIR}/fmu/<NAME>.fmu,
-#                             again whenever the library, the generator, a resource, the
-#                             documentation or this file changes.
+#                             (modelDescription.xml, binaries/linux64/<NAME>.so, with IPMSM_WIN64
+#                             also binaries/win64/<NAME>.dll, resources/, documentation/) and zips
+#                             it to ${CMAKE_BINARY_DIR}/fmu/<NAME>.fmu, again whenever a library,
+#                             the generator, a resource, the documentation or this file changes.
+#
+# With IPMSM_WIN64=ON, every FMU's Windows DLL comes from the cross build in
+# ${CMAKE_BINARY_DIR}/win64 (cmake/win64.cmake: the same sources, configured with
+# cmake/mingw-w64-x86_64.cmake). There, add_fmu() builds only <NAME>.dll: linked with -static (it
+# imports only KERNEL32 and msvcrt), exporting exactly the fmi2* functions that fmi2Functions.h
+# declares __declspec(dllexport) (tests/python/test_conformance.py checks both).
 #
 # This file is also the assembly script: `cmake -DFMU_CONFIG=<file> -P add_fmu.cmake`.
 
 if(CMAKE_SCRIPT_MODE_FILE)
-  include(${FMU_CONFIG})  # NAME, DIR, FMU, LIBRARY, GENERATOR, RESOURCES, DOCUMENTATION
+  include(${FMU_CONFIG})  # NAME, DIR, FMU, LIBRARY, WIN64_LIBRARY, GENERATOR, RESOURCES, DOCUMENTATION
   file(REMOVE_RECURSE ${DIR})
   file(MAKE_DIRECTORY ${DIR}/binaries/linux64 ${DIR}/resources)
   set(html_args)
@@ -36,6 +42,10 @@ if(CMAKE_SCRIPT_MODE_FILE)
     message(FATAL_ERROR "${NAME}: the modelDescription.xml generator failed (${rc})")
   endif()
   file(COPY_FILE ${LIBRARY} ${DIR}/binaries/linux64/${NAME}.so)
+  if(WIN64_LIBRARY)
+    file(MAKE_DIRECTORY ${DIR}/binaries/win64)
+    file(COPY_FILE ${WIN64_LIBRARY} ${DIR}/binaries/win64/${NAME}.dll)
+  endif()
   foreach(r IN LISTS RESOURCES)
     get_filename_component(r_name ${r} NAME)
     file(COPY_FILE ${r} ${DIR}/resources/${r_name})
@@ -86,6 +96,27 @@ function(add_fmu)
     get_filename_component(documentation ${FMU_DOCUMENTATION} ABSOLUTE)
   endif()
 
+  if(WIN32)  # the win64 cross build: the DLL only, packed by the Linux build
+    add_library(${name} SHARED ${FMU_SOURCES})
+    target_link_libraries(${name} PRIVATE fmi2_glue ${FMU_LIBRARIES})
+    set_target_properties(${name} PROPERTIES PREFIX "" OUTPUT_NAME ${name} SUFFIX ".dll"
+      C_VISIBILITY_PRESET hidden CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)
+    target_compile_options(${name} PRIVATE -ffunction-sections -fdata-sections)
+    # -static: libstdc++, libgcc and winpthread inside (-static-libgcc -static-libstdc++ alone
+    # still leave libwinpthread-1.dll); --strip-debug: the mingw runtime's DWARF (half the DLL).
+    target_link_options(${name} PRIVATE -static "LINKER:--gc-sections" "LINKER:--no-undefined"
+      "LINKER:--strip-debug")
+    set_target_properties(${name} PROPERTIES IMPORT_PREFIX "" IMPORT_SUFFIX ".dll.a")
+    # The generator and <NAME>_fmu exist as in the Linux build (for CMake code that names them),
+    # but only the DLL is built: the Linux build writes modelDescription.xml and packs the FMU.
+    add_executable(${name}_modelDescription EXCLUDE_FROM_ALL ${FMU_SOURCES})
+    target_link_libraries(${name}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
+    target_compile_definitions(${name}_modelDescription PRIVATE
+      IPMSM_FMI2_GENERATOR IPMSM_FMU_VERSION="${PROJECT_VERSION}")
+    add_custom_target(${name}_fmu ALL DEPENDS ${name})
+    return()
+  endif()
+
   # The FMU's shared library.
   add_library(${name} SHARED ${FMU_SOURCES})
   target_link_libraries(${name} PRIVATE fmi2_glue ${FMU_LIBRARIES})
@@ -113,11 +144,17 @@ function(add_fmu)
   set(dir ${CMAKE_BINARY_DIR}/fmu/${name})
   set(fmu ${CMAKE_BINARY_DIR}/fmu/${name}.fmu)
   set(config ${CMAKE_CURRENT_BINARY_DIR}/${name}_fmu_config.cmake)
+  set(win64_library "")
+  if(IPMSM_WIN64)
+    set(win64_library ${IPMSM_WIN64_BINARY_DIR}/bin/${name}.dll)
+    set_property(GLOBAL APPEND PROPERTY IPMSM_WIN64_FMUS ${name})
+  endif()
   file(GENERATE OUTPUT ${config} CONTENT
 "set(NAME \"${name}\")
 set(DIR \"${dir}\")
 set(FMU \"${fmu}\")
 set(LIBRARY \"$<TARGET_FILE:${name}>\")
+set(WIN64_LIBRARY \"${win64_library}\")
 set(GENERATOR \"$<TARGET_FILE:${name}_modelDescription>\")
 set(RESOURCES \"${resources}\")
 set(DOCUMENTATION \"${documentation}\")
@@ -125,7 +162,7 @@ set(DOCUMENTATION \"${documentation}\")
   add_custom_command(
     OUTPUT ${fmu}
     COMMAND ${CMAKE_COMMAND} -DFMU_CONFIG=${config} -P ${IPMSM_ADD_FMU_SCRIPT}
-    DEPENDS ${name} ${name}_modelDescription ${resources} ${documentation} ${config} ${IPMSM_ADD_FMU_SCRIPT}
+    DEPENDS ${name} ${name}_modelDescription ${win64_library} ${resources} ${documentation} ${config} ${IPMSM_ADD_FMU_SCRIPT}
     COMMENT "Packaging FMU ${fmu}"
     VERBATIM)
   add_custom_target(${name}_fmu ALL DEPENDS ${fmu})

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Idempotent set-up on a fresh Debian/Ubuntu machine: system packages, a Python venv with the
-# project installed editable (pyproject.toml, through requirements.txt), then CMake configure +
-# build. Sourced by run.sh and test.sh: it takes no arguments (callers `set --` before sourcing).
+# project installed editable (pyproject.toml, through requirements.txt), the win64 cross toolchain
+# and wine (scripts/setup_win64.sh; skipped with IPMSM_WIN64=OFF), then CMake configure + build.
+# Sourced by run.sh and test.sh: it takes no arguments (callers `set --` before sourcing).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
@@ -44,11 +45,24 @@ export PATH="$ROOT/.venv/bin:$PATH"
 # (an explicit empty argument: the default destination, whatever the caller's arguments are)
 source scripts/install_vdmcheck2.sh ""
 
+# --- win64: mingw-w64, wine, the Windows SUNDIALS (scripts/setup_win64.sh); IPMSM_WIN64=OFF skips ---
+case "${IPMSM_WIN64:-ON}" in OFF|off|0|NO|no|FALSE|false) IPMSM_WIN64=OFF ;; *) IPMSM_WIN64=ON ;; esac
+export IPMSM_WIN64
+WIN64_ARGS=(-DIPMSM_WIN64="$IPMSM_WIN64")
+if [ "$IPMSM_WIN64" = ON ]; then
+  source scripts/setup_win64.sh
+  WIN64_ARGS+=(-DIPMSM_WIN64_SUNDIALS_DIR="$IPMSM_WIN64_SUNDIALS_DIR")
+fi
+
 # --- build ---
 BUILD_TYPE=${BUILD_TYPE:-Release}
 if [ ! -f build/CMakeCache.txt ]; then
   say "configuring (CMake, $BUILD_TYPE)"
-  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DPython3_EXECUTABLE="$ROOT/.venv/bin/python" >/dev/null
+  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DPython3_EXECUTABLE="$ROOT/.venv/bin/python" \
+    "${WIN64_ARGS[@]}" >/dev/null
+elif ! grep -qx "IPMSM_WIN64:BOOL=$IPMSM_WIN64" build/CMakeCache.txt; then
+  say "reconfiguring with IPMSM_WIN64=$IPMSM_WIN64"
+  cmake -B build "${WIN64_ARGS[@]}" >/dev/null
 fi
 say "building"
 cmake --build build --parallel "$(nproc)"
