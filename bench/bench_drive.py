@@ -9,14 +9,9 @@ comparison) is left out unless --reference.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
-
-# numpy's OpenBLAS threads busy-wait between the vehicle side's small calls: on 2 cores they took
-# a third of the wall time of a run (40.5 s wall against 26.6 s with one thread, same CPU time).
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
