@@ -12,6 +12,7 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cvode_integrator.hpp"
@@ -34,6 +35,19 @@ public:
     static constexpr double default_step_size = 1e-4;
     static constexpr double default_stop_time = 0.1;
     static const std::vector<fmi::Variable<PlantModel>>& variables();
+
+    // The inputs each output depends on at initialisation (fmi/model_description.hpp): the
+    // currents come from the start currents and the magnet's temperature, never from the
+    // voltages (so a master sees no loop with the controller at initialisation).
+    static std::vector<std::pair<std::string, std::vector<std::string>>> initial_inputs() {
+        const std::vector<std::string> magnet{"T_magnet"};
+        return {{"i_d", magnet},   {"i_q", magnet},   {"psi_d", magnet},
+                {"psi_q", magnet}, {"T_e", magnet},   {"psi_m_T", magnet},
+                {"T_shaft", {"w_m", "T_magnet"}},    {"P_mech", {"w_m", "T_magnet"}},
+                {"P_fe", {"w_m", "T_magnet"}},       {"P_cu", {"T_magnet", "T_winding"}},
+                {"P_elec", {"u_d", "u_q", "T_magnet"}}, {"R_s_T", {"T_winding"}},
+                {"cvode_steps", {}},                 {"cvode_rhs_evals", {}}};
+    }
 
     explicit PlantModel(const fmi::Context& context);
     void exit_initialization();

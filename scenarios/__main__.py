@@ -27,7 +27,9 @@ def main(argv=None) -> int:
     run.add_argument("cycle", help="WLTC3b, UDDS, HWFET, US06, NEDC, or a CSV of time_s,speed_mps")
     run.add_argument("--method", default="ferrari", choices=("ferrari", "lut_speed", "lut_flux"))
     run.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
-    run.add_argument("--backend", default="auto", choices=("auto", "native", "fmpy"))
+    run.add_argument("--backend", default="auto", choices=("auto", "native", "fmpy", "drive"),
+                     help="the two FMUs coupled at 100 us by the native or the fmpy master, or the IpmsmDrive FMU "
+                          "stepped at the vehicle's 10 ms through plain fmpy")
     run.add_argument("--u-dc-scale", type=float, default=1.0, help="DC voltage seen by the drive / battery's")
     run.add_argument("--magnet-degC", type=float, default=T_REFERENCE_K - ZERO_CELSIUS_K)
     run.add_argument("--out", type=Path, default=None)

@@ -16,7 +16,7 @@ import math
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import ExitStack
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,7 @@ from .accounting import RunAccounts
 from .battery import Battery, BatteryParams
 from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
 from .cycles import Cycle, load_cycle
+from .drive_fmu import DriveAdvanceResult, DriveAsCosim
 from .driver import P_AUX_DEFAULT, BlendParams, Driver, DriverParams, blend
 from .flux_map import DEFAULT_MAP, MotorData, read_flux_map
 from .fmu import Fmu
@@ -73,7 +74,7 @@ class RunSpec:
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
     trace_dt: float = 0.1     # s, trace.csv sampling
-    backend: str = "auto"     # master: native if built, else fmpy
+    backend: str = "auto"     # master: native if built, else fmpy; "drive": the IpmsmDrive FMU
     reference: bool = True    # evaluate the exact optimum per vehicle step
     P_aux: float = P_AUX_DEFAULT
     soc0: float | None = None
@@ -123,7 +124,7 @@ class OptimumReference:
         self.close()
 
 
-def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], cosim: DriveCosim,
+def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], cosim: DriveCosim | DriveAsCosim,
                   vehicle: Vehicle, driver: Driver, battery: Battery,
                   reference: OptimumReference | None) -> Iterator[VehicleStep]:
     """The vehicle-side loop (scenarios/driver.py describes one step) over the cycle sampled at
@@ -145,8 +146,10 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         F_w = wheel_force(m.T_shaft, vp)
         driver.applied(F_w - b.F_brake)
         vehicle.step(F_w, b.F_brake, dt)
-        loss = inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.inverter)
-        P_dc = m.P_elec + loss.P
+        # the drive FMU has the inverter inside; the two-FMU drive's loss from its means
+        P_inverter = (r.P_inverter if isinstance(r, DriveAdvanceResult) else
+                      inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.inverter).P)
+        P_dc = m.P_elec + P_inverter
         battery.step(P_dc + spec.P_aux, dt)
         I = math.sqrt(max(m.i_abs_sq, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
@@ -154,7 +157,7 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
             I_opt = reference.current(m.T_e, w_m, u_dc, cond.T_magnet, k * dt, dt)
             P_cu_opt = reference.copper_loss(I_opt)
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
-                          F_brake=b.F_brake, drive=r, P_inverter=loss.P, P_dc=P_dc, I=I, I_opt=I_opt,
+                          F_brake=b.F_brake, drive=r, P_inverter=P_inverter, P_dc=P_dc, I=I, I_opt=I_opt,
                           P_cu_opt=P_cu_opt, soc=battery.soc)
 
 
@@ -185,10 +188,14 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
         with ExitStack() as stack:
             reference = (stack.enter_context(OptimumReference(controller_fmu, motor, cond.T_winding))
                          if spec.reference else None)
+            start = dict(w_m=motor_speed(vehicle.v, vp), u_dc=battery.u * cond.u_dc_scale,
+                         T_magnet=cond.T_magnet, T_winding=cond.T_winding)
             cosim = stack.enter_context(
-                DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend,
-                           w_m=motor_speed(vehicle.v, vp), u_dc=battery.u * cond.u_dc_scale,
-                           T_magnet=cond.T_magnet, T_winding=cond.T_winding))
+                # the IpmsmDrive FMU (built next to the controller's) at the vehicle's step
+                DriveAsCosim(Path(controller_fmu).parent / "IpmsmDrive.fmu", c_params, {}, h=spec.h,
+                             inverter_params=asdict(spec.inverter), **start)
+                if spec.backend == "drive" else
+                DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend, **start))
             for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, cosim, vehicle, driver, battery, reference)):
                 accounts.observe(step)
                 trace.observe(k, step)

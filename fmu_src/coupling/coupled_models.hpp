@@ -91,6 +91,8 @@ public:
     }
 
     long long k() const { return k_; }
+    // Continues at step k (a copy of the models, or a restored FMU state, that had made k steps).
+    void resume_at(long long k) { k_ = k; }
 
 private:
     struct Link {

@@ -107,9 +107,10 @@ fmi2Status guarded(fmi2Component c, const char* fn, PhaseMask allowed, Body&& bo
                         " (allowed in: " + mask_text(allowed) + "); nothing was changed");
             return fmi2Error;
         }
-        in->warned = false;
-        const fmi2Status s = body(*in);
-        return (s == fmi2OK && in->warned) ? fmi2Warning : s;
+        // A call that completes returns fmi2OK even when the model logged a warning (status
+        // fmi2Warning, category logStatusWarning): strict importers (OMSimulator) end the run on
+        // fmi2Warning, and a recoverable condition must not stop a drive cycle.
+        return body(*in);
     } catch (const std::bad_alloc&) {
         in->phase = Phase::fatal;
         call_logger(in->logger, in->environment, in->name.c_str(), fmi2Fatal, LogCategory::fatal,

@@ -86,7 +86,6 @@ public:
     const fmi2CallbackLogger logger;
     const fmi2ComponentEnvironment environment;
     unsigned categories;  // enabled log categories, bit(LogCategory)
-    bool warned = false;  // the model logged a warning during the current call
 
     const Context context;  // what fresh models (fmi2Reset) are made with
     M model;
@@ -200,7 +199,6 @@ private:
         };
         c.log_warning = [this](const std::string& m) {
             if (quiet_) return;
-            warned = true;
             log(fmi2Warning, LogCategory::warning, m);
         };
         return c;

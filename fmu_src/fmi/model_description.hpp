@@ -23,6 +23,8 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "fmi2_support.hpp"
@@ -165,6 +167,40 @@ std::string start_text(const M& m, const Variable<M>& v) {
     return value_text(m, v);
 }
 
+// A model may declare, for some outputs, the only inputs its exit_initialization() computes them
+// from: static std::vector<std::pair<std::string, std::vector<std::string>>> initial_inputs()
+// ({output, {input, ...}}). An output it does not list depends on every input.
+template <class M, class = void>
+struct declares_initial_inputs : std::false_type {};
+template <class M>
+struct declares_initial_inputs<M, std::void_t<decltype(M::initial_inputs())>> : std::true_type {};
+
+// The 1-based indices, ascending, of the parameters and of the inputs `output` depends on in
+// Initialization Mode; throws for a declared name that is not an output or not an input.
+template <class M>
+std::vector<std::size_t> initial_dependencies(const std::string& output) {
+    const auto& vars = M::variables();
+    auto index_of = [&](const std::string& name, Causality c) -> std::size_t {
+        for (std::size_t i = 0; i < vars.size(); ++i)
+            if (name == vars[i].name && vars[i].causality == c) return i + 1;
+        throw std::runtime_error("initial_inputs(): \"" + name + "\" is not an " + causality_name(c));
+    };
+    std::vector<bool> inputs(vars.size(), true);  // default: every input
+    if constexpr (declares_initial_inputs<M>::value) {
+        for (const auto& [out, ins] : M::initial_inputs()) {
+            index_of(out, Causality::output);
+            if (out != output) continue;
+            inputs.assign(vars.size(), false);
+            for (const auto& in : ins) inputs[index_of(in, Causality::input) - 1] = true;
+        }
+    }
+    std::vector<std::size_t> deps;
+    for (std::size_t i = 0; i < vars.size(); ++i)
+        if (vars[i].causality == Causality::parameter || (vars[i].causality == Causality::input && inputs[i]))
+            deps.push_back(i + 1);
+    return deps;
+}
+
 }  // namespace detail
 
 // The modelDescription.xml of M; throws std::runtime_error listing the table's problems.
@@ -259,10 +295,23 @@ std::string model_description() {
 
     x << "  <ModelStructure>\n";
     if (!outputs.empty()) {
+        // Outputs: none depends on an input directly. The glue computes them in
+        // exit_initialization() and do_step() only, so an input set at a communication point
+        // reaches an output after the next step, never at once (no algebraic loop for a master).
         x << "    <Outputs>\n";
-        for (std::size_t k : outputs) x << "      <Unknown index=\"" << k << "\"/>\n";
+        for (std::size_t k : outputs) x << "      <Unknown index=\"" << k << "\" dependencies=\"\"/>\n";
+        // InitialUnknowns: an output read in Initialization Mode is what exit_initialization()
+        // computes from the parameters and inputs: all of them, or the inputs the model declares.
         x << "    </Outputs>\n    <InitialUnknowns>\n";
-        for (std::size_t k : outputs) x << "      <Unknown index=\"" << k << "\"/>\n";
+        for (std::size_t k : outputs) {
+            x << "      <Unknown index=\"" << k << "\" dependencies=\"";
+            const char* sep = "";
+            for (std::size_t i : detail::initial_dependencies<M>(vars[k - 1].name)) {
+                x << sep << i;
+                sep = " ";
+            }
+            x << "\"/>\n";
+        }
         x << "    </InitialUnknowns>\n";
     }
     x << "  </ModelStructure>\n</fmiModelDescription>\n";

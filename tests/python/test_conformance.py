@@ -40,7 +40,7 @@ from fmpy import read_model_description
 import fmi2_raw as raw
 from conftest import ROOT, SHARED, WIN64_BUILT, fmu_path
 
-REAL_FMUS = ["IpmsmController", "IpmsmPlant"]
+REAL_FMUS = ["IpmsmController", "IpmsmPlant", "IpmsmDrive"]
 ALL_FMUS = REAL_FMUS + ["ToyLag"]  # ToyLag: the glue's test FMU, built by the same add_fmu()
 GLIBC_BASELINE = (2, 28)  # RHEL 8 (Ubuntu 20.04 has 2.31)
 ALLOWED_LIBRARIES = {"libc.so.6", "libm.so.6", "libgcc_s.so.1", "ld-linux-x86-64.so.2"}
@@ -291,7 +291,8 @@ def test_initial_unknowns_follow_the_inputs_in_initialization_mode(name, unzippe
     that depend on what it set, identical to those after fmi2ExitInitializationMode."""
     fmu = unzipped(name)
     settings = {"IpmsmController": dict(w_m=600.0, i_d=-40.0, i_q=120.0, T_ref=80.0),
-                "IpmsmPlant": dict(T_magnet=353.15, w_m=300.0, i_d_start=-20.0)}[name]
+                "IpmsmPlant": dict(T_magnet=353.15, w_m=300.0, i_d_start=-20.0),
+                "IpmsmDrive": dict(T_magnet=353.15, w_m=300.0, i_d_start=-20.0, T_ref=80.0)}[name]
     with raw.Instance(fmu, "a") as a:
         assert a.setup() == raw.OK and a.enter() == raw.OK
         before = a.outputs()
@@ -313,7 +314,9 @@ def test_declared_capabilities(name):
     assert not cs.canInterpolateInputs and not cs.providesDirectionalDerivative and not cs.canRunAsynchronuously
     assert md.description and md.generationTool == "ipmsm-fmu" and md.version
     de = md.defaultExperiment
-    assert de is not None and float(de.startTime) == 0.0 and float(de.stepSize) == 1e-4
+    # the drive's default is a vehicle tool's step (any multiple of its sample_time)
+    step = 1e-3 if name == "IpmsmDrive" else 1e-4
+    assert de is not None and float(de.startTime) == 0.0 and float(de.stepSize) == step
     assert float(de.stopTime) > float(de.stepSize)
     units = {u.name: u for u in md.unitDefinitions}
     for v in md.modelVariables:
@@ -325,6 +328,30 @@ def test_declared_capabilities(name):
         if v.unit == "K":
             assert v.displayUnit == "degC", f"{v.name}: a temperature is shown in degC"
     assert md.modelVariables and md.outputs and md.initialUnknowns
+
+
+@pytest.mark.parametrize("name", REAL_FMUS)
+def test_every_output_declares_its_dependencies(name):
+    """Importers (OMSimulator) take an output without `dependencies` as depending on every input
+    and see an algebraic loop between the controller and the plant. Outputs are computed in
+    doStep only: none depends on an input at a communication point. At initialisation the plant's
+    currents do not depend on its voltages (so the plant -> controller -> plant chain has no loop)."""
+    md = read_model_description(str(fmu_path(name)))
+    outputs = [v for v in md.modelVariables if v.causality == "output"]
+    assert [u.variable for u in md.outputs] == outputs
+    for u in md.outputs:
+        assert u.dependencies == [], (u.variable.name, u.dependencies)
+    assert [u.variable for u in md.initialUnknowns] == outputs
+    for u in md.initialUnknowns:
+        assert u.dependencies is not None, u.variable.name
+        assert all(d.causality in ("input", "parameter") for d in u.dependencies), u.variable.name
+    if name == "IpmsmPlant":
+        deps = {u.variable.name: {d.name for d in u.dependencies if d.causality == "input"} for u in md.initialUnknowns}
+        assert deps["i_d"] == deps["i_q"] == {"T_magnet"}
+        assert deps["P_elec"] == {"u_d", "u_q", "T_magnet"}
+    if name == "IpmsmController":
+        deps = {u.variable.name: {d.name for d in u.dependencies if d.causality == "input"} for u in md.initialUnknowns}
+        assert {"i_d", "i_q"} <= deps["u_d_ref"]  # the flying start holds the measured current
 
 
 # --- the model description against the contract ---
@@ -370,6 +397,7 @@ def test_contract_names_causality_types_units(name):
 @pytest.mark.parametrize("name,method_words", [
     ("IpmsmController", ["Ferrari", "MTPA", "flux map", "current regulator"]),
     ("IpmsmPlant", ["CVODE", "flux map", "inverse"]),
+    ("IpmsmDrive", ["coupling description", "sample_time", "Inverter", "whole multiple", "means"]),
 ])
 def test_documentation_explains_method_and_every_variable(name, method_words):
     with zipfile.ZipFile(fmu_path(name)) as z:

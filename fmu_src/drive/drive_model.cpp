@@ -1,0 +1,357 @@
+#include "drive_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <utility>
+
+#include "coupling/drive_coupling_text.hpp"
+#include "fmi2_support.hpp"
+
+namespace ipmsm {
+
+using fmi::Causality;
+using fmi::Variability;
+using V = fmi::Variable<DriveModel>;
+using M = DriveModel;
+
+namespace {
+
+const coupling::Coupling& drive_coupling() {
+    static const coupling::Coupling c = coupling::parse(coupling::kDriveCouplingText);
+    return c;
+}
+
+template <class Sub>
+const fmi::Variable<Sub>* find(const char* name) {
+    for (const auto& v : Sub::variables())
+        if (std::string(name) == v.name) return &v;
+    return nullptr;
+}
+
+// The drive's entry for a variable of the plant and/or the controller: the plant's unit,
+// description and causality (the controller's where the plant has none), the range both accept,
+// fixed where either is fixed. One source: the models' tables.
+template <class T>
+V of_models(const char* name, T M::*member) {
+    const auto* p = find<PlantModel>(name);
+    const auto* c = find<ControllerModel>(name);
+    if (p == nullptr && c == nullptr) throw std::logic_error(std::string("IpmsmDrive: no model has ") + name);
+    V v = p != nullptr ? V{p->name,         member,         p->causality, p->variability, p->unit,
+                           p->display_unit, p->description, p->min,       p->max,         p->min_exclusive}
+                       : V{c->name,         member,         c->causality, c->variability, c->unit,
+                           c->display_unit, c->description, c->min,       c->max,         c->min_exclusive};
+    if (p != nullptr && c != nullptr) {
+        v.min_exclusive = (c->min > p->min)
+                              ? c->min_exclusive
+                              : (p->min > c->min ? p->min_exclusive : (p->min_exclusive || c->min_exclusive));
+        v.min = std::max(p->min, c->min);
+        v.max = std::min(p->max, c->max);
+        if (c->variability == Variability::fixed) v.variability = Variability::fixed;
+    }
+    return v;
+}
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// A drive parameter and the same-named parameter of a sub-model (same type).
+template <class Sub>
+struct Binding {
+    fmi::Member<DriveModel> drive;
+    fmi::Member<Sub> sub;
+    bool tunable;
+};
+
+template <class Sub>
+const std::vector<Binding<Sub>>& bindings() {
+    static const std::vector<Binding<Sub>> list = [] {
+        std::vector<Binding<Sub>> b;
+        for (const auto& d : DriveModel::variables()) {
+            if (d.causality != Causality::parameter) continue;
+            for (const auto& s : Sub::variables())
+                if (s.causality == Causality::parameter && std::string(s.name) == d.name &&
+                    s.member.index() == d.member.index())
+                    b.push_back({d.member, s.member, d.variability == Variability::tunable});
+        }
+        return b;
+    }();
+    return list;
+}
+
+template <class Sub>
+void copy_to(const DriveModel& d, Sub& s, bool tunable_only) {
+    for (const auto& b : bindings<Sub>()) {
+        if (tunable_only && !b.tunable) continue;
+        std::visit(
+            [&](auto dp) {
+                using T = std::decay_t<decltype(d.*dp)>;
+                s.*std::get<T Sub::*>(b.sub) = d.*dp;
+            },
+            b.drive);
+    }
+}
+
+template <class Sub>
+void copy_from(DriveModel& d, const Sub& s) {
+    for (const auto& b : bindings<Sub>())
+        std::visit(
+            [&](auto dp) {
+                using T = std::decay_t<decltype(d.*dp)>;
+                d.*dp = s.*std::get<T Sub::*>(b.sub);
+            },
+            b.drive);
+}
+
+// A sub-model's log lines say which model wrote them.
+fmi::Context prefixed(const fmi::Context& c, const std::string& who) {
+    fmi::Context s = c;
+    if (c.log_info) s.log_info = [f = c.log_info, who](const std::string& m) { f(who + ": " + m); };
+    if (c.log_warning) s.log_warning = [f = c.log_warning, who](const std::string& m) { f(who + ": " + m); };
+    return s;
+}
+
+}  // namespace
+
+const std::vector<V>& DriveModel::variables() {
+    static const std::vector<V> table = {
+        // inputs: those of the coupling description's external inputs
+        of_models("T_ref", &M::T_ref),
+        of_models("w_m", &M::w_m),
+        of_models("u_dc", &M::u_dc),
+        of_models("T_magnet", &M::T_magnet),
+        of_models("T_winding", &M::T_winding),
+        // outputs: means over the last communication step
+        {"T_shaft", &M::T_shaft, Causality::output, Variability::discrete, "N.m", "",
+         "Shaft torque (T_e less the iron-loss drag), mean over the last communication step"},
+        {"T_e", &M::T_e, Causality::output, Variability::discrete, "N.m", "",
+         "Electromagnetic torque, mean over the last communication step"},
+        {"i_dc", &M::i_dc, Causality::output, Variability::discrete, "A", "",
+         "DC-link current drawn by the inverter, losses included (+ motoring), mean over the last communication step"},
+        {"P_dc", &M::P_dc, Causality::output, Variability::discrete, "W", "kW",
+         "DC power drawn by the inverter (machine input + inverter loss), mean over the last communication step"},
+        {"P_mech", &M::P_mech, Causality::output, Variability::discrete, "W", "kW",
+         "Shaft power, mean over the last communication step"},
+        {"P_cu", &M::P_cu, Causality::output, Variability::discrete, "W", "kW",
+         "Copper loss, mean over the last communication step"},
+        {"P_fe", &M::P_fe, Causality::output, Variability::discrete, "W", "kW",
+         "Iron loss, mean over the last communication step"},
+        {"P_elec", &M::P_elec, Causality::output, Variability::discrete, "W", "kW",
+         "Electrical input power of the machine 1.5 (u_d i_d + u_q i_q) = P_dc - P_inv, mean over the last "
+         "communication step"},
+        {"P_inv", &M::P_inv, Causality::output, Variability::discrete, "W", "kW",
+         "Inverter conduction and switching loss, mean over the last communication step"},
+        // outputs: integrals since the start
+        {"E_dc", &M::E_dc, Causality::output, Variability::discrete, "J", "Wh",
+         "DC energy drawn since the start (sum of P_dc sample_time over the inner steps)"},
+        {"E_mech", &M::E_mech, Causality::output, Variability::discrete, "J", "Wh", "Shaft energy since the start"},
+        {"E_cu", &M::E_cu, Causality::output, Variability::discrete, "J", "Wh", "Copper-loss energy since the start"},
+        {"E_fe", &M::E_fe, Causality::output, Variability::discrete, "J", "Wh", "Iron-loss energy since the start"},
+        {"E_inv", &M::E_inv, Causality::output, Variability::discrete, "J", "Wh",
+         "Inverter-loss energy since the start"},
+        // outputs: at the end of the step
+        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "",
+         "Torque commanded by the controller (T_ref clamped to the limits), at the end of the step"},
+        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "",
+         "Largest torque magnitude reachable, with the sign of T_ref, at the end of the step"},
+        {"i_d", &M::i_d, Causality::output, Variability::discrete, "A", "",
+         "d-axis stator current, at the end of the step"},
+        {"i_q", &M::i_q, Causality::output, Variability::discrete, "A", "",
+         "q-axis stator current, at the end of the step"},
+        {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "",
+         "d-axis current command, at the end of the step"},
+        {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "",
+         "q-axis current command, at the end of the step"},
+        {"region", &M::region, Causality::output, Variability::discrete, "", "",
+         "The controller's operating region at the end of the step (as IpmsmController.region)"},
+        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "",
+         "The controller's voltage command relative to the inverter's linear range u_dc/sqrt(3), at the end of the "
+         "step (1: voltage-limited)"},
+        // the drive's parameters
+        {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms",
+         "Sample time of the controller, and step of the inner coupling; a communication step must be a whole multiple "
+         "of it",
+         1e-7, 1.0},
+        {"f_sw", &M::f_sw, Causality::parameter, Variability::fixed, "Hz", "",
+         "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
+        {"V_T0", &M::V_T0, Causality::parameter, Variability::fixed, "V", "", "IGBT threshold voltage", 0.0, 10.0},
+        {"r_T", &M::r_T, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "IGBT slope resistance", 0.0, 1.0},
+        {"V_D0", &M::V_D0, Causality::parameter, Variability::fixed, "V", "", "Diode threshold voltage", 0.0, 10.0},
+        {"r_D", &M::r_D, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "Diode slope resistance", 0.0, 1.0},
+        {"E_on", &M::E_on, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-on energy at I_ref, V_ref",
+         0.0, 100.0},
+        {"E_off", &M::E_off, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-off energy at I_ref, V_ref",
+         0.0, 100.0},
+        {"E_rec", &M::E_rec, Causality::parameter, Variability::fixed, "J", "",
+         "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
+        {"I_ref", &M::I_ref, Causality::parameter, Variability::fixed, "A", "",
+         "Test current of the switching energies", 0.0, kInf, true},
+        {"V_ref", &M::V_ref, Causality::parameter, Variability::fixed, "V", "",
+         "Test DC voltage of the switching energies", 0.0, kInf, true},
+        {"k_v", &M::k_v, Causality::parameter, Variability::fixed, "1", "",
+         "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
+        // the controller's and the plant's parameters, once each
+        of_models("method", &M::method),
+        of_models("recursion", &M::recursion),
+        of_models("flux_map", &M::flux_map),
+        of_models("pole_pairs", &M::pole_pairs),
+        of_models("R_s", &M::R_s),
+        of_models("I_max", &M::I_max),
+        of_models("k_u", &M::k_u),
+        of_models("T_magnet_ref", &M::T_magnet_ref),
+        of_models("k_psi_T", &M::k_psi_T),
+        of_models("lut_u_dc", &M::lut_u_dc),
+        of_models("lut_T_magnet", &M::lut_T_magnet),
+        of_models("lut_n_torque", &M::lut_n_torque),
+        of_models("lut_n_speed", &M::lut_n_speed),
+        of_models("w_m_max", &M::w_m_max),
+        of_models("current_bandwidth", &M::current_bandwidth),
+        of_models("T_winding_ref", &M::T_winding_ref),
+        of_models("alpha_cu", &M::alpha_cu),
+        of_models("fe_k_h", &M::fe_k_h),
+        of_models("fe_alpha", &M::fe_alpha),
+        of_models("fe_k_e", &M::fe_k_e),
+        of_models("fe_psi_ref", &M::fe_psi_ref),
+        of_models("i_d_start", &M::i_d_start),
+        of_models("i_q_start", &M::i_q_start),
+        of_models("rtol", &M::rtol),
+        of_models("atol", &M::atol),
+        of_models("cvode_method", &M::cvode_method),
+        of_models("cvode_max_order", &M::cvode_max_order),
+        of_models("cvode_max_steps", &M::cvode_max_steps),
+    };
+    return table;
+}
+
+DriveModel::DriveModel(const fmi::Context& context)
+    : controller_(prefixed(context, "controller")), plant_(prefixed(context, "plant")) {
+    // Start values: the models' own (the controller's first, then the plant's where both have one).
+    copy_from(*this, controller_);
+    copy_from(*this, plant_);
+    T_ref = controller_.T_ref;
+    u_dc = controller_.u_dc;
+    w_m = plant_.w_m;
+    T_magnet = plant_.T_magnet;
+    T_winding = plant_.T_winding;
+    const InverterParams inv;
+    V_T0 = inv.V_T0, r_T = inv.r_T, V_D0 = inv.V_D0, r_D = inv.r_D, E_on = inv.E_on, E_off = inv.E_off;
+    E_rec = inv.E_rec, I_ref = inv.I_ref, V_ref = inv.V_ref, k_v = inv.k_v, f_sw = inv.f_sw;
+}
+
+InverterParams DriveModel::inverter() const {
+    InverterParams p;
+    p.V_T0 = V_T0, p.r_T = r_T, p.V_D0 = V_D0, p.r_D = r_D, p.E_on = E_on, p.E_off = E_off, p.E_rec = E_rec;
+    p.I_ref = I_ref, p.V_ref = V_ref, p.k_v = k_v, p.f_sw = f_sw;
+    return p;
+}
+
+coupling::CoupledModels& DriveModel::coupled() {
+    if (!coupled_.models) {
+        const coupling::Coupling& c = drive_coupling();
+        std::vector<coupling::ModelUnit> units;
+        for (const coupling::Unit& u : c.units) {
+            if (u.model_identifier == PlantModel::model_identifier)
+                units.push_back(coupling::model_unit(plant_));
+            else if (u.model_identifier == ControllerModel::model_identifier)
+                units.push_back(coupling::model_unit(controller_));
+            else
+                throw fmi::Error("the drive's coupling description has a unit " + u.model_identifier +
+                                 " it does not hold");
+        }
+        coupled_.models = std::make_unique<coupling::CoupledModels>(c, std::move(units), sample_time);
+    }
+    coupled_.models->resume_at(k_);  // k_ is the state (a deserialised one too)
+    return *coupled_.models;
+}
+
+void DriveModel::hold_inputs() {
+    coupling::CoupledModels& cm = coupled();
+    cm.hold("T_ref", T_ref);
+    cm.hold("w_m", w_m);
+    cm.hold("u_dc", u_dc);
+    cm.hold("T_magnet", T_magnet);
+    cm.hold("T_winding", T_winding);
+}
+
+void DriveModel::publish_end() {
+    T_cmd = controller_.T_cmd;
+    T_max = controller_.T_max;
+    i_d = plant_.i_d;
+    i_q = plant_.i_q;
+    i_d_ref = controller_.i_d_ref;
+    i_q_ref = controller_.i_q_ref;
+    region = controller_.region;
+    u_ratio = controller_.u_ratio;
+}
+
+void DriveModel::exit_initialization() {
+    copy_to(*this, controller_, false);
+    copy_to(*this, plant_, false);
+    coupled_.models.reset();  // sample_time is final now
+    k_ = 0;
+    hold_inputs();
+    coupled().initialise();
+    k_ = coupled().k();
+    // The outputs before the first step: the plant's values at the start, nothing integrated.
+    const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
+    P_inv = inverter_loss(std::sqrt(I2), I2, u_dc, plant_.P_elec, inverter()).P();
+    T_shaft = plant_.T_shaft, T_e = plant_.T_e, P_mech = plant_.P_mech, P_cu = plant_.P_cu, P_fe = plant_.P_fe;
+    P_elec = plant_.P_elec;
+    P_dc = P_elec + P_inv;
+    i_dc = P_dc / u_dc;
+    E_dc = E_mech = E_cu = E_fe = E_inv = 0.0;
+    publish_end();
+}
+
+void DriveModel::do_step(double t, double h) {
+    // h = n sample_time; the tolerance covers a master's h = t_{k+1} - t_k at large t.
+    const double n_real = h / sample_time;
+    const long long n = std::llround(n_real);
+    const double tolerance =
+        std::max(1e-9 * sample_time, 8.0 * std::numeric_limits<double>::epsilon() * (std::abs(t) + h));
+    if (n < 1 || std::abs(static_cast<double>(n) * sample_time - h) > tolerance) {
+        std::ostringstream os;
+        os << "the communication step " << fmi::number_text(h)
+           << " s is not a whole multiple of sample_time = " << fmi::number_text(sample_time) << " s ("
+           << fmi::number_text(n_real)
+           << " sample times): the controller runs at sample_time; use a step of n sample_time";
+        throw fmi::Error(os.str());
+    }
+    copy_to(*this, controller_, true);  // tunable parameters may have changed
+    copy_to(*this, plant_, true);
+    hold_inputs();
+    coupling::CoupledModels& cm = coupled();
+    const InverterParams inv = inverter();
+    double s_T_shaft = 0, s_T_e = 0, s_P_elec = 0, s_P_mech = 0, s_P_cu = 0, s_P_fe = 0, s_P_inv = 0;
+    for (long long j = 0; j < n; ++j) {
+        cm.step();
+        const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
+        const double p_inv = inverter_loss(std::sqrt(I2), I2, u_dc, plant_.P_elec, inv).P();
+        s_T_shaft += plant_.T_shaft;
+        s_T_e += plant_.T_e;
+        s_P_elec += plant_.P_elec;
+        s_P_mech += plant_.P_mech;
+        s_P_cu += plant_.P_cu;
+        s_P_fe += plant_.P_fe;
+        s_P_inv += p_inv;
+        E_dc += (plant_.P_elec + p_inv) * sample_time;
+        E_mech += plant_.P_mech * sample_time;
+        E_cu += plant_.P_cu * sample_time;
+        E_fe += plant_.P_fe * sample_time;
+        E_inv += p_inv * sample_time;
+    }
+    k_ = cm.k();
+    const double nn = static_cast<double>(n);
+    T_shaft = s_T_shaft / nn;
+    T_e = s_T_e / nn;
+    P_mech = s_P_mech / nn;
+    P_cu = s_P_cu / nn;
+    P_fe = s_P_fe / nn;
+    P_inv = s_P_inv / nn;
+    P_elec = s_P_elec / nn;
+    P_dc = P_elec + P_inv;
+    i_dc = P_dc / u_dc;
+    publish_end();
+}
+
+}  // namespace ipmsm

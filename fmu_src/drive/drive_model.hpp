@@ -1,0 +1,119 @@
+// IpmsmDrive: the controller and the plant coupled inside one FMU at sample_time, for
+// vehicle-level tools that step at 1-10 ms. The model of the IpmsmDrive FMU, free of FMI types.
+//
+// It holds a ControllerModel and a PlantModel and runs them through the drive's one coupling
+// description (coupling/ipmsm_drive.coupling, by coupling/coupled_models.hpp): the same inner
+// sequence of calls as the two FMUs coupled by a master at sample_time. A communication step of
+// n sample times returns the means over its n inner steps of the plant's outputs after each
+// inner step (as the masters' Sample means), the inverter's loss (inverter/inverter_loss.hpp)
+// and DC current, and the powers integrated since the start (sum of P sample_time), so that a
+// master at 10 ms loses nothing between its samples.
+//
+// Parameters: every parameter of the two models, once, by the same name (value, unit, range and
+// description taken from the models' tables: one source), plus the inverter's and sample_time.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "controller_model.hpp"
+#include "coupling/coupled_models.hpp"
+#include "inverter/inverter_loss.hpp"
+#include "model.hpp"
+#include "plant_model.hpp"
+#include "variable.hpp"
+
+namespace ipmsm {
+
+class DriveModel {
+public:
+    static constexpr const char* model_identifier = "IpmsmDrive";
+    static constexpr const char* guid = "{5b0f6d2a-93c4-4e1b-8a77-0c2e9d4f6b13}";
+    static constexpr const char* description =
+        "IPMSM traction drive: the IpmsmController and the IpmsmPlant coupled inside at sample_time "
+        "(any whole multiple of it is a communication step), with the inverter's conduction and "
+        "switching losses; step means and integrals of the shaft torque, DC current, powers and losses.";
+    static constexpr double default_step_size = 1e-3;
+    static constexpr double default_stop_time = 1.0;
+    static const std::vector<fmi::Variable<DriveModel>>& variables();
+
+    explicit DriveModel(const fmi::Context& context);
+    void exit_initialization();
+    void do_step(double t, double h);
+    template <class Field>
+    void state_fields(Field&& field) {
+        double k = static_cast<double>(k_);  // exact below 2^53 steps; the stream has no 64-bit integers
+        field(k);
+        k_ = static_cast<long long>(k);
+        sub_model_fields(controller_, field);
+        sub_model_fields(plant_, field);
+        controller_.state_fields(field);
+        plant_.state_fields(field);
+    }
+
+    // --- inputs (held over the communication step)
+    double T_ref = 0.0, w_m = 0.0, u_dc = 0.0, T_magnet = 0.0, T_winding = 0.0;
+    // --- outputs: means over the last communication step
+    double T_shaft = 0.0, T_e = 0.0, i_dc = 0.0;                           // N.m, N.m, A
+    double P_dc = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0, P_inv = 0.0;  // W
+    double P_elec = 0.0;  // W, the machine's electrical input (P_dc - P_inv)
+    // --- outputs: integrals since the start
+    double E_dc = 0.0, E_mech = 0.0, E_cu = 0.0, E_fe = 0.0, E_inv = 0.0;  // J
+    // --- outputs: at the end of the step
+    double T_cmd = 0.0, T_max = 0.0;      // N.m
+    double i_d = 0.0, i_q = 0.0;          // A, the plant's
+    double i_d_ref = 0.0, i_q_ref = 0.0;  // A, the controller's
+    int region = 0;
+    double u_ratio = 0.0;  // the controller's voltage use, at the end of the step
+    // --- parameters: the drive's own
+    double sample_time = 1e-4;  // s
+    // the inverter's (inverter/inverter_loss.hpp; start values from InverterParams)
+    double V_T0 = 0, r_T = 0, V_D0 = 0, r_D = 0, E_on = 0, E_off = 0, E_rec = 0, I_ref = 0, V_ref = 0, k_v = 0;
+    double f_sw = 0;
+    // --- parameters of the controller and the plant (start values copied from them)
+    int method = 0, recursion = 0, lut_n_torque = 0, lut_n_speed = 0;
+    std::string flux_map;
+    int pole_pairs = 0;
+    double R_s = 0, I_max = 0, k_u = 0, T_magnet_ref = 0, k_psi_T = 0, lut_u_dc = 0, lut_T_magnet = 0;
+    double w_m_max = 0, current_bandwidth = 0;
+    double T_winding_ref = 0, alpha_cu = 0, fe_k_h = 0, fe_alpha = 0, fe_k_e = 0, fe_psi_ref = 0;
+    double i_d_start = 0, i_q_start = 0, rtol = 0, atol = 0;
+    int cvode_method = 0, cvode_max_order = 0, cvode_max_steps = 0;
+
+private:
+    // The sub-model's variables (its coupled inputs and outputs are not the drive's variables,
+    // but are state: the next inner step reads them).
+    template <class Sub, class Field>
+    static void sub_model_fields(Sub& sub, Field& field) {
+        for (const auto& v : Sub::variables())
+            std::visit(
+                [&](auto p) {
+                    if constexpr (!std::is_same_v<decltype(p), std::string Sub::*>) field(sub.*p);
+                },
+                v.member);
+    }
+    void copy_parameters(bool tunable_only);
+    coupling::CoupledModels& coupled();
+    void hold_inputs();
+    void publish_end();
+
+    InverterParams inverter() const;
+    ControllerModel controller_;
+    PlantModel plant_;
+    long long k_ = 0;  // inner steps since the start
+    // The coupled models point into this object: a copy of the drive (undo, FMU states) starts
+    // without them and builds its own on first use.
+    struct CouplingCache {
+        std::unique_ptr<coupling::CoupledModels> models;
+        CouplingCache() = default;
+        CouplingCache(const CouplingCache&) {}
+        CouplingCache& operator=(const CouplingCache&) {
+            models.reset();
+            return *this;
+        }
+    };
+    CouplingCache coupled_;
+};
+
+}  // namespace ipmsm

@@ -1,0 +1,67 @@
+// Traction-inverter losses: a two-level, three-phase IGBT bridge with anti-parallel diodes,
+// sinusoidal phase currents of peak I, continuous PWM at f_sw (every leg switches every period).
+// The one implementation (the IpmsmDrive FMU's; scenarios/inverter.py is checked against it).
+//
+// Conduction, each device a threshold voltage plus a slope resistance (V = V0 + r i), averaged
+// over the fundamental period and summed over the three legs:
+//
+//     P_cond = (3/pi)(V_T0 + V_D0) I + (3/4)(r_T + r_D) I^2 + (V_T0 - V_D0) P_ac / u_dc
+//
+// In each leg the phase current is always carried by one device (IGBT or the opposite diode),
+// which gives the first two terms whatever the modulation; the IGBT/diode share changes the
+// threshold-voltage term by exactly (V_T0 - V_D0) times the mean DC current P_ac / u_dc (the
+// legs' mean duty-weighted currents sum to it). The matching (r_T - r_D) term is left out
+// (< 1 % of the loss with the defaults).
+//
+// Switching, the datasheet energies scaled linearly with current and with DC voltage to the
+// power k_v, each leg hard-switching |i| once per period:
+//
+//     P_sw = (6/pi) f_sw (E_on + E_off + E_rec) (I / I_ref) (u_dc / V_ref)^k_v
+//
+// Every term is linear in I, I^2 or P_ac: the loss of the means over an interval is the mean of
+// the losses (at a held u_dc), so a caller may average either.
+#pragma once
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace ipmsm {
+
+// Datasheet-class values of a 750 V / 820 A automotive IGBT six-pack (Infineon HybridPACK Drive
+// FS820R08A6P2B class, EDT2 IGBT), typical at T_vj = 150 C; V0 and r from straight lines through
+// the output characteristic between ~1/4 and full nominal current (docs/vehicle.md).
+struct InverterParams {
+    double V_T0 = 0.70;    // V, IGBT threshold voltage (V_CE,sat ~ 1.2 V at 820 A)
+    double r_T = 0.60e-3;  // Ohm, IGBT slope resistance
+    double V_D0 = 0.80;    // V, diode threshold voltage (V_F ~ 1.37 V at 820 A)
+    double r_D = 0.70e-3;  // Ohm, diode slope resistance
+    double E_on = 28e-3;   // J per turn-on at I_ref, V_ref
+    double E_off = 42e-3;  // J per turn-off at I_ref, V_ref
+    double E_rec = 18e-3;  // J per diode reverse recovery at I_ref, V_ref
+    double I_ref = 820.0;  // A, test current of the switching energies
+    double V_ref = 400.0;  // V, test DC voltage of the switching energies
+    double k_v = 1.0;      // exponent of the voltage scaling
+    double f_sw = 10e3;    // Hz: one PWM period per controller sample (100 us)
+};
+
+struct InverterLoss {
+    double P_cond = 0.0;  // W
+    double P_sw = 0.0;    // W
+    double P() const { return P_cond + P_sw; }
+};
+
+// Loss (W) with the phase-current peak |i| = I (A), |i|^2 = I2 (A^2) and AC power P_ac (W,
+// + motoring) at DC voltage u_dc (V); or their means over an interval.
+inline InverterLoss inverter_loss(double I, double I2, double u_dc, double P_ac, const InverterParams& p) {
+    if (!(I >= 0.0) || !(I2 >= 0.0) || !(u_dc > 0.0))
+        throw std::invalid_argument("inverter loss: bad operating point |i| = " + std::to_string(I) + " A, |i|^2 = " +
+                                    std::to_string(I2) + " A^2, u_dc = " + std::to_string(u_dc) + " V");
+    constexpr double kPi = 3.14159265358979323846;
+    InverterLoss l;
+    l.P_cond = (3.0 / kPi) * (p.V_T0 + p.V_D0) * I + 0.75 * (p.r_T + p.r_D) * I2 + (p.V_T0 - p.V_D0) * P_ac / u_dc;
+    l.P_sw = (6.0 / kPi) * p.f_sw * (p.E_on + p.E_off + p.E_rec) * (I / p.I_ref) * std::pow(u_dc / p.V_ref, p.k_v);
+    return l;
+}
+
+}  // namespace ipmsm
