@@ -20,9 +20,9 @@
 
 #include "control/linear_optimal_current.hpp"
 #include "control/map_newton.hpp"
-#include "numerics/quartic.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
+#include "numerics/quartic.hpp"
 
 using namespace ipmsm;
 using Clock = std::chrono::steady_clock;
@@ -86,7 +86,8 @@ void row(const char* name, double ns, const char* note = "") { std::printf("%-58
 }  // namespace
 
 int main(int argc, char** argv) {
-    const std::string path = argc > 1 ? argv[1] : std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    const std::string path =
+        argc > 1 ? argv[1] : std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
     auto map = std::make_shared<const FluxMap>(read_flux_map(path));
     const int N = 200000, R = 5;
     const auto rnd = random_ops(N, 7);
@@ -105,7 +106,8 @@ int main(int argc, char** argv) {
         const auto c = linear::optimal_current(lin, kPolePairs, o.T, {kPolePairs * o.w_m, kVMax, kIMax});
         return c.i_d + c.i_q;
     };
-    row("Ferrari, linear machine (clamp + MTPA/Case ii), trajectory", ns_per_call(traj, R, linear_call), "budget <= 300 ns");
+    row("Ferrari, linear machine (clamp + MTPA/Case ii), trajectory", ns_per_call(traj, R, linear_call),
+        "budget <= 300 ns");
     row("Ferrari, linear machine (clamp + MTPA/Case ii), random", ns_per_call(rnd, R, linear_call), "budget <= 300 ns");
     // The same, split by where the operating point is.
     // The nominal (unsaturated) machine's base speed is about 2000 r/min at 500 A.
@@ -144,14 +146,16 @@ int main(int argc, char** argv) {
     row("one Case i quartic: Ferrari, depressed fast path (used online)", ns_per_call(rnd, R, ferrari_depressed));
     row("one Case i quartic: Eigen companion matrix (PolynomialSolver)", ns_per_call(rnd, R, eigen_quartic));
     row("  ... latency of the depressed fast path (calls chained)", ns_per_call<true>(rnd, R, ferrari_depressed));
-    row("  ... latency of the linear machine above 1500 r/min (calls chained)", ns_per_call<true>(high, R, linear_call));
+    row("  ... latency of the linear machine above 1500 r/min (calls chained)",
+        ns_per_call<true>(high, R, linear_call));
 
     // Newton-Lagrange on the linear machine from a fixed start (no Ferrari seed), MTPA only.
     const auto lin_map = std::make_shared<const FluxMap>(linear_flux_map(lin.L_d, lin.L_q, lin.psi_m, 900.0, 7));
     const MagnetFlux lin_flux(*lin_map, 0.0);
     int nl_fail = 0;
     auto newton_lagrange = [&](const Op& o) {
-        const map_newton::Problem P{map_newton::System::mtpa, 0.0, kRs, std::abs(o.T) / (1.5 * kPolePairs) + 1.0, kVMax, kIMax};
+        const map_newton::Problem P{
+            map_newton::System::mtpa, 0.0, kRs, std::abs(o.T) / (1.5 * kPolePairs) + 1.0, kVMax, kIMax};
         const auto r = map_newton::solve(lin_flux, P, -0.3 * kIMax, 0.6 * kIMax, 50, 1e-6, 50.0);
         nl_fail += !r.converged;
         return r.i_d + r.i_q;
@@ -182,7 +186,8 @@ int main(int argc, char** argv) {
             };
             const double ns = ns_per_call(*ops, R, call);
             char name[96], note[64];
-            std::snprintf(name, sizeof name, "Ferrari + recursion %d, %s, %s", static_cast<int>(k.mode), k.map_name, label);
+            std::snprintf(name, sizeof name, "Ferrari + recursion %d, %s, %s", static_cast<int>(k.mode), k.map_name,
+                          label);
             std::snprintf(note, sizeof note, "%.2f iterations/call%s", double(iters) / (R * ops->size()),
                           k.mode == Recursion::optimal ? ", budget <= 1500 ns" : "");
             row(name, ns, note);
@@ -193,7 +198,8 @@ int main(int argc, char** argv) {
         SaturatedOptimalCurrent solver(map, kPolePairs);
         int n = 0;
         auto call = [&](const Op& o) {
-            const auto c = solver.solve(o.T, {kPolePairs * o.w_m, kVMax, kIMax}, kRs, 1e-6 * (++n % 1000), Recursion::optimal);
+            const auto c =
+                solver.solve(o.T, {kPolePairs * o.w_m, kVMax, kIMax}, kRs, 1e-6 * (++n % 1000), Recursion::optimal);
             return c.i_d + c.i_q;
         };
         row("  ... recursion 2, default map, random, a new magnet temperature every call", ns_per_call(rnd, 1, call));

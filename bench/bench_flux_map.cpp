@@ -47,8 +47,8 @@ double time_ns(const Points& p, int reps, double& checksum, F&& f) {
         for (int r = 0; r < reps; ++r)
             for (std::size_t i = 0; i < n; ++i) checksum += f(p.x[i], p.y[i]);
         const auto t1 = std::chrono::steady_clock::now();
-        best = std::min(best, std::chrono::duration<double, std::nano>(t1 - t0).count() /
-                                  (static_cast<double>(n) * reps));
+        best =
+            std::min(best, std::chrono::duration<double, std::nano>(t1 - t0).count() / (static_cast<double>(n) * reps));
     }
     return best;
 }
@@ -62,12 +62,10 @@ void bench_map(const char* name, const FluxMap& m, bool with_inverse, double& ch
     });
     const double t2 = time_ns(p, reps, checksum, [&](double a, double b) {
         const FluxPoint2 f = m.eval2(a, b);
-        return f.psi_d + f.L_qq + f.psi_d_dd + f.psi_d_dq + f.psi_d_qq + f.psi_q_dd + f.psi_q_dq +
-               f.psi_q_qq;
+        return f.psi_d + f.L_qq + f.psi_d_dd + f.psi_d_dq + f.psi_d_qq + f.psi_q_dd + f.psi_q_dq + f.psi_q_qq;
     });
-    std::printf("%-34s %3zu x %3zu  uniform %d/%d  eval %6.1f ns  eval2 %6.1f ns\n", name,
-                m.table().i_d.size(), m.table().i_q.size(), m.spline().uniform_x(),
-                m.spline().uniform_y(), t1, t2);
+    std::printf("%-34s %3zu x %3zu  uniform %d/%d  eval %6.1f ns  eval2 %6.1f ns\n", name, m.table().i_d.size(),
+                m.table().i_q.size(), m.spline().uniform_x(), m.spline().uniform_y(), t1, t2);
     if (!with_inverse) return;
     const auto c0 = std::chrono::steady_clock::now();
     const InverseFluxMap inv(m);
@@ -90,16 +88,17 @@ void bench_map(const char* name, const FluxMap& m, bool with_inverse, double& ch
     std::printf("%-34s inverse %3d x %3d (%.1f MB, built in %.1f ms)  eval %6.1f ns  table %6.1f ns\n", "",
                 inv.n_psi_d(), inv.n_psi_q(), inv.memory_bytes() / 1e6,
                 std::chrono::duration<double, std::milli>(c1 - c0).count(), t3, t4);
-    std::printf("%-34s error at the grid-cell centres: eval %.2g A, table %.2g A; nodes beyond the grid %d, "
-                "unreachable %d\n", "", inv.max_error_A(), inv.max_table_error_A(), inv.outside_nodes(),
-                inv.unreachable_nodes());
+    std::printf(
+        "%-34s error at the grid-cell centres: eval %.2g A, table %.2g A; nodes beyond the grid %d, "
+        "unreachable %d\n",
+        "", inv.max_error_A(), inv.max_table_error_A(), inv.outside_nodes(), inv.unreachable_nodes());
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    const std::string path = std::string(IPMSM_SOURCE_DIR) +
-                             "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
+    const std::string path =
+        std::string(IPMSM_SOURCE_DIR) + "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
     double checksum = 0;
     try {
         if (argc > 1) bench_map(argv[1], FluxMap(read_flux_map(argv[1])), true, checksum);

@@ -283,14 +283,15 @@ int main(int argc, char** argv) {
     // Torque commands after 20 ms at the first value: 60 N.m held (the current regulator corrects
     // a little every step), 80 N.m held (about the maximum: the voltage is at its limit), a ramp
     // 20 -> 80 N.m over the 100 ms, and steps 80 / 40 N.m every 10 ms (current transients).
-    std::vector<Trace> traces = {record(
-                                     units, custom_map, "60Nm", [](int) { return 60.0; }, n),
-                                 record(
-                                     units, custom_map, "80Nm", [](int) { return 80.0; }, n),
-                                 record(
-                                     units, custom_map, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
-                                 record(
-                                     units, custom_map, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
+    std::vector<Trace> traces = {
+        record(
+            units, custom_map, "60Nm", [](int) { return 60.0; }, n),
+        record(
+            units, custom_map, "80Nm", [](int) { return 80.0; }, n),
+        record(
+            units, custom_map, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
+        record(
+            units, custom_map, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
     for (const Trace& tr : traces)
         std::printf("trace %-6s: 12000 r/min, %d steps of 100 us; at the end T_e = %.2f N.m, i = (%.1f, %.1f) A\n",
                     tr.name, n, tr.T_e_end, tr.i_d_end, tr.i_q_end);
@@ -320,7 +321,10 @@ int main(int argc, char** argv) {
     };
     std::vector<Variant> variants = {
         {"FMU choice: linearised, Adams, fixed point, reinit, h0 curvature, nlscoef 0.3, 1e-6/1e-8", chosen},
-        {"  direct (CVODE on dpsi/dt itself; the FMU's choice before, rtol atol 1e-6)", with([](auto& s) { s.linearised = false; s.atol = 1e-6; })},
+        {"  direct (CVODE on dpsi/dt itself; the FMU's choice before, rtol atol 1e-6)", with([](auto& s) {
+             s.linearised = false;
+             s.atol = 1e-6;
+         })},
         {"  linearised, rtol atol 1e-6 (the FMU's tolerances before)", with([](auto& s) { s.atol = 1e-6; })},
         {"  h0: CVODE's estimate", with([](auto& s) { s.init_step = CvodeInitStep::estimate; })},
         {"  h0: last step of the previous call", with([](auto& s) { s.init_step = CvodeInitStep::previous_last; })},
@@ -329,14 +333,27 @@ int main(int argc, char** argv) {
         {"  nlscoef 0.1 (CVODE's default)", with([](auto& s) { s.nonlin_conv_coef = 0; })},
         {"  nlscoef 0.5", with([](auto& s) { s.nonlin_conv_coef = 0.5; })},
         {"  max order 2", with([](auto& s) { s.max_order = 2; })},
-        {"  direct, history kept (no reinit)", with([](auto& s) { s.linearised = false; s.reinit_each_step = false; s.atol = 1e-6; })},
-        {"  direct, history kept (no reinit), rtol atol 1e-7", with([](auto& s) { s.linearised = false; s.reinit_each_step = false; s.rtol = s.atol = 1e-7; })},
+        {"  direct, history kept (no reinit)", with([](auto& s) {
+             s.linearised = false;
+             s.reinit_each_step = false;
+             s.atol = 1e-6;
+         })},
+        {"  direct, history kept (no reinit), rtol atol 1e-7", with([](auto& s) {
+             s.linearised = false;
+             s.reinit_each_step = false;
+             s.rtol = s.atol = 1e-7;
+         })},
         {"  Newton, analytic Jacobian", with([](auto& s) { s.nonlinear = CvodeNonlinear::newton_analytic; })},
     };
     for (auto [r, a] : {std::pair{1e-4, 1e-4}, {1e-5, 1e-5}, {3e-6, 3e-6}, {1e-6, 1e-7}, {1e-7, 1e-7}, {1e-8, 1e-8}})
-        variants.push_back({tol_name(" ", r, a), with([r = r, a = a](auto& s) { s.rtol = r; s.atol = a; })});
-    variants.push_back({"BDF, Newton, analytic J, reinit, h0 curvature (FMU cvode_method 2)",
-                        with([](auto& s) { s.method = CvodeMethod::bdf; s.nonlinear = CvodeNonlinear::newton_analytic; })});
+        variants.push_back({tol_name(" ", r, a), with([r = r, a = a](auto& s) {
+                                s.rtol = r;
+                                s.atol = a;
+                            })});
+    variants.push_back({"BDF, Newton, analytic J, reinit, h0 curvature (FMU cvode_method 2)", with([](auto& s) {
+                            s.method = CvodeMethod::bdf;
+                            s.nonlinear = CvodeNonlinear::newton_analytic;
+                        })});
     variants.push_back({"  direct, history kept (no reinit)", with([](auto& s) {
                             s.method = CvodeMethod::bdf;
                             s.nonlinear = CvodeNonlinear::newton_analytic;
@@ -377,7 +394,8 @@ int main(int argc, char** argv) {
                     (fmu_dir / "IpmsmPlant.fmu").c_str());
         double step_only = 0;
         double all = fmu_replay(plant, tr, {}, {}, rounds, &step_only);
-        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU defaults (linearised, Adams, rtol 1e-6, atol 1e-8)", all, step_only);
+        std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n",
+                    "FMU defaults (linearised, Adams, rtol 1e-6, atol 1e-8)", all, step_only);
         all = fmu_replay(plant, tr, {{"rtol", 3e-6}, {"atol", 3e-6}}, {}, rounds, &step_only);
         std::printf("%-72s %9.3f  (fmi2DoStep alone %.3f us)\n", "FMU rtol 3e-6, atol 3e-6", all, step_only);
         all = fmu_replay(plant, tr, {}, {{"cvode_method", 2}}, rounds, &step_only);

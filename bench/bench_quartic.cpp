@@ -38,10 +38,8 @@ std::vector<Quartic> make_set(int kind, int n, std::mt19937_64& rng) {
             case 1: {  // four real roots
                 const double r[4] = {u(rng), u(rng), u(rng), u(rng)};
                 const double s1 = r[0] + r[1] + r[2] + r[3];
-                const double s2 = r[0] * r[1] + r[0] * r[2] + r[0] * r[3] + r[1] * r[2] +
-                                  r[1] * r[3] + r[2] * r[3];
-                const double s3 = r[0] * r[1] * r[2] + r[0] * r[1] * r[3] + r[0] * r[2] * r[3] +
-                                  r[1] * r[2] * r[3];
+                const double s2 = r[0] * r[1] + r[0] * r[2] + r[0] * r[3] + r[1] * r[2] + r[1] * r[3] + r[2] * r[3];
+                const double s3 = r[0] * r[1] * r[2] + r[0] * r[1] * r[3] + r[0] * r[2] * r[3] + r[1] * r[2] * r[3];
                 const double s4 = r[0] * r[1] * r[2] * r[3];
                 q = Quartic{{1.0, -s1, s2, -s3, s4}};
                 break;
@@ -64,8 +62,7 @@ std::vector<Quartic> make_set(int kind, int n, std::mt19937_64& rng) {
 }
 
 template <class F>
-double time_per_call(const std::vector<Quartic>& set, int reps, F&& solve, double& checksum,
-                     double& median) {
+double time_per_call(const std::vector<Quartic>& set, int reps, F&& solve, double& checksum, double& median) {
     std::vector<double> t;
     for (int r = 0; r < reps; ++r) {
         double sum = 0.0;
@@ -73,8 +70,7 @@ double time_per_call(const std::vector<Quartic>& set, int reps, F&& solve, doubl
         for (const Quartic& q : set) sum += solve(q);
         const auto t1 = Clock::now();
         checksum += sum;
-        t.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() /
-                    static_cast<double>(set.size()));
+        t.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(set.size()));
     }
     std::sort(t.begin(), t.end());
     median = t[t.size() / 2];
@@ -87,11 +83,9 @@ int main(int argc, char** argv) {
     const int n = argc > 1 ? std::max(1, std::atoi(argv[1])) : 100000;
     const int reps = argc > 2 ? std::max(1, std::atoi(argv[2])) : 7;
     std::mt19937_64 rng(20240601);
-    const char* names[] = {"random coefficients", "4 real roots", "2 real + complex pair",
-                           "controller Case ii"};
+    const char* names[] = {"random coefficients", "4 real roots", "2 real + complex pair", "controller Case ii"};
     std::printf("%d quartics per set, %d repetitions; ns per call (best / median)\n", n, reps);
-    std::printf("%-24s %22s %22s %8s\n", "set", "ipmsm::solve_quartic", "Eigen PolynomialSolver",
-                "ratio");
+    std::printf("%-24s %22s %22s %8s\n", "set", "ipmsm::solve_quartic", "Eigen PolynomialSolver", "ratio");
     double checksum = 0.0;
     for (int kind = 0; kind < 4; ++kind) {
         const std::vector<Quartic> set = make_set(kind, n, rng);
@@ -119,8 +113,8 @@ int main(int argc, char** argv) {
                 return s;
             },
             checksum, med_e);
-        std::printf("%-24s %10.1f / %-9.1f %10.1f / %-9.1f %7.1fx\n", names[kind], best_f, med_f,
-                    best_e, med_e, best_e / best_f);
+        std::printf("%-24s %10.1f / %-9.1f %10.1f / %-9.1f %7.1fx\n", names[kind], best_f, med_f, best_e, med_e,
+                    best_e / best_f);
     }
     std::printf("checksum %.17g\n", checksum);
     return 0;

@@ -167,8 +167,7 @@ struct CvodeIntegrator::Workspace {
             if (!to.empty()) to += "; ";
             to += std::string(module != nullptr ? module : "CVODE") + "/" + (function != nullptr ? function : "?") +
                   ": " + (msg != nullptr ? msg : "");
-        } catch (...) {
-        }
+        } catch (...) {}
     }
 };
 
@@ -266,8 +265,7 @@ CvodeIntegrator::Workspace& CvodeIntegrator::workspace() {
 void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
     if (!(h > 0) || !std::isfinite(h))
         throw CvodeError("CvodeIntegrator::advance: the step h = " + number(h) + " s is not positive and finite");
-    if (!(settings_.rtol > 0) || !(settings_.atol > 0))
-        throw CvodeError("CvodeIntegrator: rtol and atol must be > 0");
+    if (!(settings_.rtol > 0) || !(settings_.atol > 0)) throw CvodeError("CvodeIntegrator: rtol and atol must be > 0");
     Workspace& w = workspace();
     w.ode = ode;
     w.error.clear();

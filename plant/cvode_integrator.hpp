@@ -68,12 +68,12 @@ enum class CvodeInitStep : int {
 struct CvodeSettings {
     CvodeMethod method = CvodeMethod::adams;
     CvodeNonlinear nonlinear = CvodeNonlinear::fixed_point;
-    int max_order = 0;          // 0: the method's maximum (Adams 12, BDF 5)
-    long max_steps = 10000;     // internal steps per advance() before CVODE gives up
-    double rtol = 1e-6;         // relative tolerance
-    double atol = 1e-6;         // absolute tolerance on the flux linkages, Wb
+    int max_order = 0;       // 0: the method's maximum (Adams 12, BDF 5)
+    long max_steps = 10000;  // internal steps per advance() before CVODE gives up
+    double rtol = 1e-6;      // relative tolerance
+    double atol = 1e-6;      // absolute tolerance on the flux linkages, Wb
     bool reinit_each_step = true;
-    bool linearised = true;     // integrate the remainder of the step's linearisation (above)
+    bool linearised = true;  // integrate the remainder of the step's linearisation (above)
     CvodeInitStep init_step = CvodeInitStep::previous_last;
     double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
     double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
@@ -109,8 +109,7 @@ struct CvodeState {
 
 // Counters of the last advance().
 struct CvodeStats {
-    long steps = 0, rhs_evals = 0, error_test_fails = 0, nonlinear_iterations = 0,
-         nonlinear_failures = 0;
+    long steps = 0, rhs_evals = 0, error_test_fails = 0, nonlinear_iterations = 0, nonlinear_failures = 0;
     int last_order = 0;
     double last_step = 0;
 };

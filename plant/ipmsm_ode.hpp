@@ -27,14 +27,12 @@ namespace ipmsm {
 // points). Plain data: the inverse map is borrowed, its owner keeps it alive.
 struct DqFluxOde {
     const InverseFluxMap* inverse = nullptr;
-    double u_d = 0, u_q = 0;   // V
-    double omega = 0;          // electrical speed p w_m, rad/s
-    double R = 0;              // stator resistance at the winding temperature, Ohm
-    double delta_psi_m = 0;    // PM flux change from magnet temperature, Wb
+    double u_d = 0, u_q = 0;  // V
+    double omega = 0;         // electrical speed p w_m, rad/s
+    double R = 0;             // stator resistance at the winding temperature, Ohm
+    double delta_psi_m = 0;   // PM flux change from magnet temperature, Wb
 
-    InverseFluxPoint currents(double psi_d, double psi_q) const {
-        return inverse->eval(psi_d - delta_psi_m, psi_q);
-    }
+    InverseFluxPoint currents(double psi_d, double psi_q) const { return inverse->eval(psi_d - delta_psi_m, psi_q); }
     void rhs(const double* psi, double* dpsi) const {
         const InverseFluxPoint c = currents(psi[0], psi[1]);
         dpsi[0] = u_d - R * c.i_d + omega * psi[1];
@@ -61,10 +59,10 @@ struct DqFluxOde {
 // Iron loss of the default motor's model (seed eq. 13, docs/motor/README.md):
 // P_fe = k_h f b^alpha + k_e f^2 b^2, f = p |w_m| / (2 pi), b = |psi| / psi_ref.
 struct IronLossModel {
-    double k_h = 0;        // W/Hz
-    double alpha = 2;      // 1
-    double k_e = 0;        // W/Hz^2
-    double psi_ref = 1;    // Wb
+    double k_h = 0;      // W/Hz
+    double alpha = 2;    // 1
+    double k_e = 0;      // W/Hz^2
+    double psi_ref = 1;  // Wb
 
     double power(int pole_pairs, double w_m, double psi_d, double psi_q) const {
         const double f = pole_pairs * std::abs(w_m) / (2.0 * 3.14159265358979323846);
@@ -77,10 +75,10 @@ struct IronLossModel {
 
 // Everything the plant reports at one instant.
 struct PlantOutputs {
-    double i_d, i_q;         // A
-    double T_e, T_shaft;     // N.m
-    double P_elec, P_mech;   // W
-    double P_cu, P_fe;       // W
+    double i_d, i_q;        // A
+    double T_e, T_shaft;    // N.m
+    double P_elec, P_mech;  // W
+    double P_cu, P_fe;      // W
 };
 
 // At flux linkages psi whose currents i are known (from the inverse map, or exactly).

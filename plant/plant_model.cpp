@@ -1,18 +1,18 @@
 #include "plant_model.hpp"
 
 #include <chrono>
-#include <deque>
-#include <mutex>
-#include <utility>
 #include <cmath>
+#include <deque>
 #include <limits>
+#include <mutex>
 #include <sstream>
+#include <utility>
 
 #include "machine/flux_map_cache.hpp"
 #include "machine/flux_map_metadata.hpp"
 #include "machine/machine.hpp"
-#include "machine/map_file.hpp"
 #include "machine/magnet_flux.hpp"
+#include "machine/map_file.hpp"
 
 namespace ipmsm {
 
@@ -55,51 +55,92 @@ std::shared_ptr<const InverseFluxMap> shared_inverse(const std::shared_ptr<const
 const std::vector<V>& PlantModel::variables() {
     static const std::vector<V> table = {
         // inputs
-        {"u_d", &M::u_d, Causality::input, Variability::continuous, "V", "", "d-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step", -kVoltageMax, kVoltageMax},
-        {"u_q", &M::u_q, Causality::input, Variability::continuous, "V", "", "q-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step", -kVoltageMax, kVoltageMax},
-        {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm", "Mechanical rotor speed, set by the vehicle side (either sign)", -kSpeedMax, kSpeedMax},
-        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC", "Magnet temperature: the PM flux is psi_m (1 + k_psi_T (T_magnet - T_magnet_ref))", kTemperatureMin_K, kTemperatureMax_K},
-        {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC", "Winding temperature: R = R_s (1 + alpha_cu (T_winding - T_winding_ref))", kTemperatureMin_K, kTemperatureMax_K},
+        {"u_d", &M::u_d, Causality::input, Variability::continuous, "V", "",
+         "d-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step",
+         -kVoltageMax, kVoltageMax},
+        {"u_q", &M::u_q, Causality::input, Variability::continuous, "V", "",
+         "q-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step",
+         -kVoltageMax, kVoltageMax},
+        {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm",
+         "Mechanical rotor speed, set by the vehicle side (either sign)", -kSpeedMax, kSpeedMax},
+        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC",
+         "Magnet temperature: the PM flux is psi_m (1 + k_psi_T (T_magnet - T_magnet_ref))", kTemperatureMin_K,
+         kTemperatureMax_K},
+        {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC",
+         "Winding temperature: R = R_s (1 + alpha_cu (T_winding - T_winding_ref))", kTemperatureMin_K,
+         kTemperatureMax_K},
         // outputs
-        {"i_d", &M::i_d, Causality::output, Variability::continuous, "A", "", "d-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
-        {"i_q", &M::i_q, Causality::output, Variability::continuous, "A", "", "q-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
-        {"psi_d", &M::psi_d, Causality::output, Variability::continuous, "Wb", "", "d-axis flux linkage (integrated state)"},
-        {"psi_q", &M::psi_q, Causality::output, Variability::continuous, "Wb", "", "q-axis flux linkage (integrated state)"},
-        {"T_e", &M::T_e, Causality::output, Variability::continuous, "N.m", "", "Electromagnetic torque 1.5 p (psi_d i_q - psi_q i_d)"},
-        {"T_shaft", &M::T_shaft, Causality::output, Variability::continuous, "N.m", "", "Shaft torque: T_e less the iron-loss drag P_fe / w_m"},
-        {"P_elec", &M::P_elec, Causality::output, Variability::continuous, "W", "", "Electrical input power 1.5 (u_d i_d + u_q i_q)"},
-        {"P_mech", &M::P_mech, Causality::output, Variability::continuous, "W", "", "Shaft power T_shaft w_m (= T_e w_m - P_fe)"},
-        {"P_cu", &M::P_cu, Causality::output, Variability::continuous, "W", "", "Copper loss 1.5 R (i_d^2 + i_q^2) at the winding temperature"},
-        {"P_fe", &M::P_fe, Causality::output, Variability::continuous, "W", "", "Iron loss fe_k_h f b^fe_alpha + fe_k_e f^2 b^2, f = p |w_m| / (2 pi), b = |psi| / fe_psi_ref"},
-        {"psi_m_T", &M::psi_m_T, Causality::output, Variability::continuous, "Wb", "", "PM flux linkage at the magnet temperature (the map's psi_d(0, 0) shifted)"},
-        {"R_s_T", &M::R_s_T, Causality::output, Variability::continuous, "Ohm", "", "Stator resistance at the winding temperature"},
-        {"cvode_steps", &M::cvode_steps, Causality::output, Variability::discrete, "", "", "CVODE's internal steps in the last communication step"},
-        {"cvode_rhs_evals", &M::cvode_rhs_evals, Causality::output, Variability::discrete, "", "", "Right-hand-side evaluations in the last communication step"},
+        {"i_d", &M::i_d, Causality::output, Variability::continuous, "A", "",
+         "d-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
+        {"i_q", &M::i_q, Causality::output, Variability::continuous, "A", "",
+         "q-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
+        {"psi_d", &M::psi_d, Causality::output, Variability::continuous, "Wb", "",
+         "d-axis flux linkage (integrated state)"},
+        {"psi_q", &M::psi_q, Causality::output, Variability::continuous, "Wb", "",
+         "q-axis flux linkage (integrated state)"},
+        {"T_e", &M::T_e, Causality::output, Variability::continuous, "N.m", "",
+         "Electromagnetic torque 1.5 p (psi_d i_q - psi_q i_d)"},
+        {"T_shaft", &M::T_shaft, Causality::output, Variability::continuous, "N.m", "",
+         "Shaft torque: T_e less the iron-loss drag P_fe / w_m"},
+        {"P_elec", &M::P_elec, Causality::output, Variability::continuous, "W", "",
+         "Electrical input power 1.5 (u_d i_d + u_q i_q)"},
+        {"P_mech", &M::P_mech, Causality::output, Variability::continuous, "W", "",
+         "Shaft power T_shaft w_m (= T_e w_m - P_fe)"},
+        {"P_cu", &M::P_cu, Causality::output, Variability::continuous, "W", "",
+         "Copper loss 1.5 R (i_d^2 + i_q^2) at the winding temperature"},
+        {"P_fe", &M::P_fe, Causality::output, Variability::continuous, "W", "",
+         "Iron loss fe_k_h f b^fe_alpha + fe_k_e f^2 b^2, f = p |w_m| / (2 pi), b = |psi| / fe_psi_ref"},
+        {"psi_m_T", &M::psi_m_T, Causality::output, Variability::continuous, "Wb", "",
+         "PM flux linkage at the magnet temperature (the map's psi_d(0, 0) shifted)"},
+        {"R_s_T", &M::R_s_T, Causality::output, Variability::continuous, "Ohm", "",
+         "Stator resistance at the winding temperature"},
+        {"cvode_steps", &M::cvode_steps, Causality::output, Variability::discrete, "", "",
+         "CVODE's internal steps in the last communication step"},
+        {"cvode_rhs_evals", &M::cvode_rhs_evals, Causality::output, Variability::discrete, "", "",
+         "Right-hand-side evaluations in the last communication step"},
         // parameters
-        {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "", "Path of a flux-map CSV (the contract's format); empty: the default map in resources/"},
-        {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)", 1, 100},
-        {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "Stator resistance at T_winding_ref", 0.0, 1e3},
-        {"T_winding_ref", &M::T_winding_ref, Causality::parameter, Variability::fixed, "K", "degC", "Winding temperature at which R_s holds", kTemperatureMin_K, kTemperatureMax_K},
-        {"alpha_cu", &M::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "", "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
-        {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "", "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
-        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
-        {"fe_k_h", &M::fe_k_h, Causality::parameter, Variability::fixed, "J", "", "Iron loss: hysteresis coefficient, W/Hz (0: no hysteresis loss)", 0.0, 1e6},
-        {"fe_alpha", &M::fe_alpha, Causality::parameter, Variability::fixed, "1", "", "Iron loss: exponent of b in the hysteresis term", 0.5, 4.0},
-        {"fe_k_e", &M::fe_k_e, Causality::parameter, Variability::fixed, "", "", "Iron loss: eddy-current coefficient, W/Hz^2 (0: no eddy-current loss)", 0.0, 1e3},
-        {"fe_psi_ref", &M::fe_psi_ref, Causality::parameter, Variability::fixed, "Wb", "", "Iron loss: flux linkage at which b = 1", 0.0, 1e3, true},
-        {"i_d_start", &M::i_d_start, Causality::parameter, Variability::fixed, "A", "", "Initial d-axis current (the initial fluxes are the map's at the initial currents)", -1e5, 1e5},
-        {"i_q_start", &M::i_q_start, Causality::parameter, Variability::fixed, "A", "", "Initial q-axis current", -1e5, 1e5},
+        {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "",
+         "Path of a flux-map CSV (the contract's format); empty: the default map in resources/"},
+        {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)",
+         1, 100},
+        {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "Stator resistance at T_winding_ref",
+         0.0, 1e3},
+        {"T_winding_ref", &M::T_winding_ref, Causality::parameter, Variability::fixed, "K", "degC",
+         "Winding temperature at which R_s holds", kTemperatureMin_K, kTemperatureMax_K},
+        {"alpha_cu", &M::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "",
+         "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
+        {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "",
+         "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
+        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC",
+         "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
+        {"fe_k_h", &M::fe_k_h, Causality::parameter, Variability::fixed, "J", "",
+         "Iron loss: hysteresis coefficient, W/Hz (0: no hysteresis loss)", 0.0, 1e6},
+        {"fe_alpha", &M::fe_alpha, Causality::parameter, Variability::fixed, "1", "",
+         "Iron loss: exponent of b in the hysteresis term", 0.5, 4.0},
+        {"fe_k_e", &M::fe_k_e, Causality::parameter, Variability::fixed, "", "",
+         "Iron loss: eddy-current coefficient, W/Hz^2 (0: no eddy-current loss)", 0.0, 1e3},
+        {"fe_psi_ref", &M::fe_psi_ref, Causality::parameter, Variability::fixed, "Wb", "",
+         "Iron loss: flux linkage at which b = 1", 0.0, 1e3, true},
+        {"i_d_start", &M::i_d_start, Causality::parameter, Variability::fixed, "A", "",
+         "Initial d-axis current (the initial fluxes are the map's at the initial currents)", -1e5, 1e5},
+        {"i_q_start", &M::i_q_start, Causality::parameter, Variability::fixed, "A", "", "Initial q-axis current", -1e5,
+         1e5},
         {"rtol", &M::rtol, Causality::parameter, Variability::tunable, "1", "", "CVODE relative tolerance", 1e-14, 0.1},
-        {"atol", &M::atol, Causality::parameter, Variability::tunable, "Wb", "", "CVODE absolute tolerance on the flux linkages (the local error per internal step, Wb)", 1e-15, 1.0},
-        {"cvode_method", &M::cvode_method, Causality::parameter, Variability::fixed, "", "", "1 Adams-Moulton with functional iteration (non-stiff; default), 2 BDF with Newton and the analytic Jacobian (stiff maps)", 1, 2},
-        {"cvode_max_order", &M::cvode_max_order, Causality::parameter, Variability::fixed, "", "", "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
-        {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "", "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
+        {"atol", &M::atol, Causality::parameter, Variability::tunable, "Wb", "",
+         "CVODE absolute tolerance on the flux linkages (the local error per internal step, Wb)", 1e-15, 1.0},
+        {"cvode_method", &M::cvode_method, Causality::parameter, Variability::fixed, "", "",
+         "1 Adams-Moulton with functional iteration (non-stiff; default), 2 BDF with Newton and the analytic Jacobian "
+         "(stiff maps)",
+         1, 2},
+        {"cvode_max_order", &M::cvode_max_order, Causality::parameter, Variability::fixed, "", "",
+         "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
+        {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
+         "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
     };
     return table;
 }
 
-PlantModel::PlantModel(const fmi::Context& context)
-    : context_(fmi::share(context)), integrator_(settings()) {}
+PlantModel::PlantModel(const fmi::Context& context) : context_(fmi::share(context)), integrator_(settings()) {}
 
 CvodeSettings PlantModel::settings() const {
     CvodeSettings s;
@@ -112,7 +153,7 @@ CvodeSettings PlantModel::settings() const {
     s.reinit_each_step = true;  // the exact-restore design: see cvode_integrator.hpp
     s.linearised = true;        // the step's linear flow exact, CVODE on the rest (ibid.)
     s.init_step = CvodeInitStep::curvature;
-    s.nonlin_conv_coef = 0.3;   // measured: 15-25 % fewer RHS evaluations, same error (bench_plant)
+    s.nonlin_conv_coef = 0.3;  // measured: 15-25 % fewer RHS evaluations, same error (bench_plant)
     return s;
 }
 
@@ -120,11 +161,13 @@ void PlantModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.
     const fmi::Context& ctx = *context_;
     if (flux_map.empty() && ctx.resource_dir.empty())
-        throw fmi::Error("flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
-                         "set flux_map to a flux-map CSV");
+        throw fmi::Error(
+            "flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
+            "set flux_map to a flux-map CSV");
     const std::string path = flux_map.empty() ? ctx.resource_dir + "/" + default_flux_map : flux_map;
     if (cvode_method == 2 && cvode_max_order > 5)
-        throw fmi::Error("cvode_max_order = " + std::to_string(cvode_max_order) + ": BDF (cvode_method 2) has orders 1 to 5");
+        throw fmi::Error("cvode_max_order = " + std::to_string(cvode_max_order) +
+                         ": BDF (cvode_method 2) has orders 1 to 5");
     if (alpha_cu * (kTemperatureMin_K - T_winding_ref) <= -1.0)
         throw fmi::Error("alpha_cu = " + num(alpha_cu) + " 1/K with T_winding_ref = " + num(T_winding_ref) +
                          " K makes the resistance negative at admissible winding temperatures");
@@ -147,16 +190,17 @@ void PlantModel::exit_initialization() {
     // The map's metadata describes its motor; the parameters rule, but say so when they differ.
     const FluxMapTable& t = map->table();
     if (ctx.log_warning)
-        for (const std::string& w : metadata_warnings(t, path, {{"pole_pairs", "pole_pairs", double(pole_pairs)},
-                                                                {"R_s_ohm", "R_s", R_s},
-                                                                {"T_winding_ref_K", "T_winding_ref", T_winding_ref},
-                                                                {"alpha_cu_per_K", "alpha_cu", alpha_cu},
-                                                                {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
-                                                                {"k_psi_T_per_K", "k_psi_T", k_psi_T},
-                                                                {"fe_k_h_W_per_Hz", "fe_k_h", fe_k_h},
-                                                                {"fe_alpha", "fe_alpha", fe_alpha},
-                                                                {"fe_k_e_W_per_Hz2", "fe_k_e", fe_k_e},
-                                                                {"fe_psi_ref_Wb", "fe_psi_ref", fe_psi_ref}}))
+        for (const std::string& w : metadata_warnings(t, path,
+                                                      {{"pole_pairs", "pole_pairs", double(pole_pairs)},
+                                                       {"R_s_ohm", "R_s", R_s},
+                                                       {"T_winding_ref_K", "T_winding_ref", T_winding_ref},
+                                                       {"alpha_cu_per_K", "alpha_cu", alpha_cu},
+                                                       {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
+                                                       {"k_psi_T_per_K", "k_psi_T", k_psi_T},
+                                                       {"fe_k_h_W_per_Hz", "fe_k_h", fe_k_h},
+                                                       {"fe_alpha", "fe_alpha", fe_alpha},
+                                                       {"fe_k_e_W_per_Hz2", "fe_k_e", fe_k_e},
+                                                       {"fe_psi_ref_Wb", "fe_psi_ref", fe_psi_ref}}))
             ctx.log_warning(w);
 
     // Initial state: the fluxes at the initial currents and the present magnet temperature.
@@ -184,12 +228,12 @@ void PlantModel::exit_initialization() {
 
     if (ctx.log_info) {
         std::ostringstream os;
-        os << "flux map " << quoted_excerpt(path) << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
-           << num(map_->psi_m()) << " Wb; inverse map " << inverse_->n_psi_d() << " x " << inverse_->n_psi_q()
-           << " (max residual " << inverse_->max_residual() << " Wb, " << inverse_->outside_nodes()
-           << " nodes on the extrapolated map) built in " << num(build_ms) << " ms; CVODE "
-           << (cvode_method == 2 ? "BDF/Newton" : "Adams/functional iteration") << ", rtol " << num(rtol)
-           << ", atol " << num(atol) << " Wb";
+        os << "flux map " << quoted_excerpt(path) << ": " << t.i_d.size() << " x " << t.i_q.size()
+           << " points, psi_m = " << num(map_->psi_m()) << " Wb; inverse map " << inverse_->n_psi_d() << " x "
+           << inverse_->n_psi_q() << " (max residual " << inverse_->max_residual() << " Wb, "
+           << inverse_->outside_nodes() << " nodes on the extrapolated map) built in " << num(build_ms) << " ms; CVODE "
+           << (cvode_method == 2 ? "BDF/Newton" : "Adams/functional iteration") << ", rtol " << num(rtol) << ", atol "
+           << num(atol) << " Wb";
         ctx.log_info(os.str());
     }
 }
@@ -245,13 +289,14 @@ void PlantModel::do_step(double t, double h) {
         const InverseFluxPoint c = o.currents(end.psi[0], end.psi[1]);
         if (!std::isfinite(c.i_d) || !std::isfinite(c.i_q))
             throw CvodeError("no current on the flux map or its linear continuation gives the flux linkages psi_d = " +
-                             num(end.psi[0]) + " Wb, psi_q = " + num(end.psi[1]) + " Wb reached at the end of the step");
+                             num(end.psi[0]) + " Wb, psi_q = " + num(end.psi[1]) +
+                             " Wb reached at the end of the step");
         update_outputs(o, c.i_d, c.i_q);
     } catch (const std::exception& e) {
         std::ostringstream os;
         os << e.what() << " [inputs u_d = " << num(u_d) << " V, u_q = " << num(u_q) << " V, w_m = " << num(w_m)
-           << " rad/s; state psi_d = " << num(start.psi[0]) << " Wb, psi_q = " << num(start.psi[1])
-           << " Wb; rtol " << num(rtol) << ", atol " << num(atol) << ", cvode_max_steps " << cvode_max_steps << "]";
+           << " rad/s; state psi_d = " << num(start.psi[0]) << " Wb, psi_q = " << num(start.psi[1]) << " Wb; rtol "
+           << num(rtol) << ", atol " << num(atol) << ", cvode_max_steps " << cvode_max_steps << "]";
         throw fmi::Error(os.str());
     }
     const CvodeStats& st = integrator_.stats();
@@ -261,7 +306,8 @@ void PlantModel::do_step(double t, double h) {
     const fmi::Context& ctx = *context_;
     if (!integrator_.warnings().empty() && ctx.log_warning)
         ctx.log_warning("CVODE at t = " + num(t) + " s: " + integrator_.warnings());
-    const bool outside = i_d < map_->i_d_min() || i_d > map_->i_d_max() || i_q < map_->i_q_min() || i_q > map_->i_q_max();
+    const bool outside =
+        i_d < map_->i_d_min() || i_d > map_->i_d_max() || i_q < map_->i_q_min() || i_q > map_->i_q_max();
     if (outside && !outside_warned_ && ctx.log_warning) {
         std::ostringstream os;
         os << "at t = " << num(t + h) << " s the currents i_d = " << num(i_d) << " A, i_q = " << num(i_q)

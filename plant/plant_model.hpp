@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "cvode_integrator.hpp"
+#include "ipmsm_ode.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
-#include "ipmsm_ode.hpp"
 #include "model.hpp"
 #include "variable.hpp"
 
@@ -41,12 +41,20 @@ public:
     // voltages (so a master sees no loop with the controller at initialisation).
     static std::vector<std::pair<std::string, std::vector<std::string>>> initial_inputs() {
         const std::vector<std::string> magnet{"T_magnet"};
-        return {{"i_d", magnet},   {"i_q", magnet},   {"psi_d", magnet},
-                {"psi_q", magnet}, {"T_e", magnet},   {"psi_m_T", magnet},
-                {"T_shaft", {"w_m", "T_magnet"}},    {"P_mech", {"w_m", "T_magnet"}},
-                {"P_fe", {"w_m", "T_magnet"}},       {"P_cu", {"T_magnet", "T_winding"}},
-                {"P_elec", {"u_d", "u_q", "T_magnet"}}, {"R_s_T", {"T_winding"}},
-                {"cvode_steps", {}},                 {"cvode_rhs_evals", {}}};
+        return {{"i_d", magnet},
+                {"i_q", magnet},
+                {"psi_d", magnet},
+                {"psi_q", magnet},
+                {"T_e", magnet},
+                {"psi_m_T", magnet},
+                {"T_shaft", {"w_m", "T_magnet"}},
+                {"P_mech", {"w_m", "T_magnet"}},
+                {"P_fe", {"w_m", "T_magnet"}},
+                {"P_cu", {"T_magnet", "T_winding"}},
+                {"P_elec", {"u_d", "u_q", "T_magnet"}},
+                {"R_s_T", {"T_winding"}},
+                {"cvode_steps", {}},
+                {"cvode_rhs_evals", {}}};
     }
 
     explicit PlantModel(const fmi::Context& context);
@@ -65,42 +73,42 @@ public:
     }
 
     // --- inputs
-    double u_d = 0.0, u_q = 0.0;   // V
-    double w_m = 0.0;              // rad/s
-    double T_magnet = 293.15;      // K
-    double T_winding = 293.15;     // K
+    double u_d = 0.0, u_q = 0.0;  // V
+    double w_m = 0.0;             // rad/s
+    double T_magnet = 293.15;     // K
+    double T_winding = 293.15;    // K
     // --- outputs
-    double i_d = 0.0, i_q = 0.0;   // A
-    double psi_d = 0.0, psi_q = 0.0;  // Wb
-    double T_e = 0.0, T_shaft = 0.0;  // N.m
+    double i_d = 0.0, i_q = 0.0;                                // A
+    double psi_d = 0.0, psi_q = 0.0;                            // Wb
+    double T_e = 0.0, T_shaft = 0.0;                            // N.m
     double P_elec = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0;  // W
-    double psi_m_T = 0.0;          // Wb, PM flux at T_magnet
-    double R_s_T = 0.0;            // Ohm, R_s at T_winding
-    int cvode_steps = 0;           // internal steps in the last step
-    int cvode_rhs_evals = 0;       // right-hand-side evaluations in the last step
+    double psi_m_T = 0.0;                                       // Wb, PM flux at T_magnet
+    double R_s_T = 0.0;                                         // Ohm, R_s at T_winding
+    int cvode_steps = 0;                                        // internal steps in the last step
+    int cvode_rhs_evals = 0;                                    // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
-    std::string flux_map;          // "" = resources/ev_ipmsm_default.csv
+    std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;
-    double R_s = 0.012;            // Ohm at T_winding_ref
+    double R_s = 0.012;             // Ohm at T_winding_ref
     double T_winding_ref = 293.15;  // K
-    double alpha_cu = 0.00393;     // 1/K
-    double k_psi_T = -0.0012;      // 1/K
-    double T_magnet_ref = 293.15;  // K
-    double fe_k_h = 1.06664735685;      // W/Hz
+    double alpha_cu = 0.00393;      // 1/K
+    double k_psi_T = -0.0012;       // 1/K
+    double T_magnet_ref = 293.15;   // K
+    double fe_k_h = 1.06664735685;  // W/Hz
     double fe_alpha = 2.0;
-    double fe_k_e = 0.00581807649193;   // W/Hz^2
-    double fe_psi_ref = 0.0780669432093;  // Wb
+    double fe_k_e = 0.00581807649193;         // W/Hz^2
+    double fe_psi_ref = 0.0780669432093;      // Wb
     double i_d_start = 0.0, i_q_start = 0.0;  // A
     double rtol = 1e-6;
-    double atol = 1e-8;            // Wb (what CVODE's error control sees: cvode_integrator.hpp)
-    int cvode_method = 1;          // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
-    int cvode_max_order = 0;       // 0: the method's maximum
-    int cvode_max_steps = 20000;   // per communication step
+    double atol = 1e-8;           // Wb (what CVODE's error control sees: cvode_integrator.hpp)
+    int cvode_method = 1;         // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
+    int cvode_max_order = 0;      // 0: the method's maximum
+    int cvode_max_steps = 20000;  // per communication step
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:
-    DqFluxOde ode() const;        // the right-hand side for the present inputs (throws if invalid)
+    DqFluxOde ode() const;  // the right-hand side for the present inputs (throws if invalid)
     void update_outputs(const DqFluxOde& ode);
     void update_outputs(const DqFluxOde& ode, double i_d, double i_q);  // at currents known exactly
     CvodeSettings settings() const;

@@ -33,7 +33,7 @@ finer one and refuses parameters that break it.
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass, field, asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np

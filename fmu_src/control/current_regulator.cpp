@@ -22,11 +22,11 @@ double sinc(double x) { return std::abs(x) < 1e-4 ? 1.0 - x * x / 6.0 : std::sin
 
 double CurrentRegulator::bandwidth_at(double h) const { return std::min(alpha_c_, kMaxBandwidthTimesStep / h); }
 
-VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega,
-                                      double u_dc, double h, const MagnetFlux& flux) {
+VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega, double u_dc,
+                                      double h, const MagnetFlux& flux) {
     const double theta = omega * h;  // electrical rotation within the sample, rad
     RegulatorState& s = state;
-    const double u_lim = u_dc / std::sqrt(3.0);  // the inverter's linear range (SVPWM)
+    const double u_lim = u_dc / std::sqrt(3.0);       // the inverter's linear range (SVPWM)
     auto limit = [u_lim](double& u_d, double& u_q) {  // to u_lim, keeping the angle
         const double mag = std::hypot(u_d, u_q);
         if (!(mag > u_lim)) return false;
@@ -47,9 +47,9 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
         s.u_q_prev = u_q;
         return {u_d, u_q, limited, true};
     }
-    const Rotation back{std::cos(theta), -std::sin(theta)};             // Phi = exp(-j omega h)
+    const Rotation back{std::cos(theta), -std::sin(theta)};               // Phi = exp(-j omega h)
     const Rotation half_back{std::cos(theta / 2), -std::sin(theta / 2)};  // in Gamma = h g
-    const Rotation half_ahead{half_back.c, -half_back.s};               // in g^-1
+    const Rotation half_ahead{half_back.c, -half_back.s};                 // in g^-1
     const double g_abs = sinc(theta / 2);
 
     // Gamma (a + j b) = h g (a + j b): the flux change a held voltage a + j b makes over the sample.
@@ -84,7 +84,7 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
     //    so that a change of T_magnet, which shifts both fluxes alike, is not a reference step).
     const double e_d = fr.psi_d - z_d, e_q = fr.psi_q - z_q;
     const double lambda = std::exp(-bandwidth_at(h) * h);  // both closed-loop poles
-    const double c = (1.0 - lambda) / h;                    // -> alpha_c as h -> 0
+    const double c = (1.0 - lambda) / h;                   // -> alpha_c as h -> 0
     if (s.primed) {
         s.v_d -= c * (r_d - s.psi_ref_d);
         s.v_q -= c * (r_q - s.psi_ref_q);

@@ -64,10 +64,10 @@ constexpr double kMaxRotationPerSample = 0.9 * 2.0 * 3.14159265358979323846;  //
 constexpr double kMaxBandwidthTimesStep = 3.14159265358979323846 / 2.0;
 
 struct RegulatorState {
-    double v_d = 0, v_q = 0;                // integrator, V
-    double u_d_prev = 0, u_q_prev = 0;      // voltage being applied now, V
-    double psi_ref_d = 0, psi_ref_q = 0;    // last reference flux (map at T_magnet_ref), Wb
-    bool primed = false;                    // psi_ref_* hold a previous reference
+    double v_d = 0, v_q = 0;              // integrator, V
+    double u_d_prev = 0, u_q_prev = 0;    // voltage being applied now, V
+    double psi_ref_d = 0, psi_ref_q = 0;  // last reference flux (map at T_magnet_ref), Wb
+    bool primed = false;                  // psi_ref_* hold a previous reference
 };
 
 struct VoltageCommand {
@@ -81,8 +81,8 @@ public:
     // bandwidth: closed-loop current bandwidth alpha_c, rad/s.
     CurrentRegulator(double bandwidth, double R_s) : alpha_c_(bandwidth), R_s_(R_s) {}
 
-    VoltageCommand step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega,
-                        double u_dc, double h, const MagnetFlux& flux);
+    VoltageCommand step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega, double u_dc, double h,
+                        const MagnetFlux& flux);
 
     // The bandwidth used at sample time h: alpha_c, or kMaxBandwidthTimesStep / h if lower.
     double bandwidth_at(double h) const;

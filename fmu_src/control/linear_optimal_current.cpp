@@ -166,8 +166,7 @@ bool mtpv(const LinearMachine& m, double omega, double V_max, Point& out) {
     return Q.valid && Q.point(roots_of(Q.c), out);
 }
 
-bool current_voltage_intersection(const LinearMachine& m, double omega, double V_max, double I,
-                                  Point& out) {
+bool current_voltage_intersection(const LinearMachine& m, double omega, double V_max, double I, Point& out) {
     const IntersectionQuartic Q(m, omega, V_max, I);
     return Q.point(roots_of(Q.c), out);
 }
@@ -196,7 +195,9 @@ struct LinearView {
         p = linear::mtpa(m, T_red);
         return true;
     }
-    bool voltage_limit(double T_red, Point& p) const { return linear::voltage_limit(m, lim.omega, lim.V_max, T_red, p); }
+    bool voltage_limit(double T_red, Point& p) const {
+        return linear::voltage_limit(m, lim.omega, lim.V_max, T_red, p);
+    }
     bool zero_torque(Point& p) const { return linear::zero_torque(m, lim.omega, lim.V_max, p); }
 };
 

@@ -32,8 +32,7 @@ bool zero_torque(const LinearMachine& m, double omega, double V_max, Point& out)
 // The maximum-torque point on the voltage ellipse (MTPV, with R_s).
 bool mtpv(const LinearMachine& m, double omega, double V_max, Point& out);
 // The current circle meets the voltage ellipse, i_q > 0, largest torque.
-bool current_voltage_intersection(const LinearMachine& m, double omega, double V_max, double I,
-                                  Point& out);
+bool current_voltage_intersection(const LinearMachine& m, double omega, double V_max, double I, Point& out);
 
 // The largest reduced torque reachable (T' >= 0 side) and the point giving it
 // (decision::max_torque on the linear machine).
@@ -57,7 +56,6 @@ private:
 };
 
 // The same with a solver built for the call.
-CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_ref,
-                               const OperatingLimits& lim);
+CurrentCommand optimal_current(const LinearMachine& m, int pole_pairs, double T_ref, const OperatingLimits& lim);
 
 }  // namespace ipmsm::linear

@@ -20,8 +20,10 @@ struct Fields {
 template <bool with_hessians = true>
 Fields fields_at(const MagnetFlux& flux, double w, double R, double i_d, double i_q) {
     std::conditional_t<with_hessians, FluxPoint2, FluxPoint> f;
-    if constexpr (with_hessians) f = flux.eval2(i_d, i_q);
-    else f = flux.eval(i_d, i_q);
+    if constexpr (with_hessians)
+        f = flux.eval2(i_d, i_q);
+    else
+        f = flux.eval(i_d, i_q);
     Fields F{};
     // T' = psi_d i_q - psi_q i_d
     F.T.v = f.psi_d * i_q - f.psi_q * i_d;
@@ -65,18 +67,32 @@ Eq level(const Field& f, double target) { return {f.v - target, f.d, f.q}; }
 // grad a x grad b = 0: the level curves of a and b touch.
 Eq tangency(const Field& a, const Field& b) {
     return {a.d * b.q - a.q * b.d,  //
-            a.dd * b.q + a.d * b.dq - a.dq * b.d - a.q * b.dd,
-            a.dq * b.q + a.d * b.qq - a.qq * b.d - a.q * b.dq};
+            a.dd * b.q + a.d * b.dq - a.dq * b.d - a.q * b.dd, a.dq * b.q + a.d * b.qq - a.qq * b.d - a.q * b.dq};
 }
 
 void equations(const Problem& P, const Fields& F, Eq& e1, Eq& e2) {
     const double V2 = P.V_max * P.V_max, I2 = P.I_max * P.I_max;
     switch (P.system) {
-        case System::mtpa: e1 = level(F.T, P.T_red); e2 = tangency(F.c, F.T); break;
-        case System::voltage_limit: e1 = level(F.T, P.T_red); e2 = level(F.g, V2); break;
-        case System::mtpa_at_current: e1 = level(F.c, I2); e2 = tangency(F.c, F.T); break;
-        case System::mtpv: e1 = level(F.g, V2); e2 = tangency(F.g, F.T); break;
-        case System::current_voltage: e1 = level(F.c, I2); e2 = level(F.g, V2); break;
+        case System::mtpa:
+            e1 = level(F.T, P.T_red);
+            e2 = tangency(F.c, F.T);
+            break;
+        case System::voltage_limit:
+            e1 = level(F.T, P.T_red);
+            e2 = level(F.g, V2);
+            break;
+        case System::mtpa_at_current:
+            e1 = level(F.c, I2);
+            e2 = tangency(F.c, F.T);
+            break;
+        case System::mtpv:
+            e1 = level(F.g, V2);
+            e2 = tangency(F.g, F.T);
+            break;
+        case System::current_voltage:
+            e1 = level(F.c, I2);
+            e2 = level(F.g, V2);
+            break;
     }
 }
 
@@ -94,12 +110,13 @@ bool voltage_limit_binds_on_circle(const MagnetFlux& flux, double omega, double 
     // Maximising T'' = torque_sign T' with both limits active (KKT): grad T'' = lambda grad c +
     // mu grad g. Crossing with grad c isolates mu: grad c x grad T'' = mu (grad c x grad g).
     // mu >= 0: along the circle, the way to more torque raises the voltage.
-    const double mu_sign = cross(F.c.d, F.c.q, torque_sign * F.T.d, torque_sign * F.T.q) * cross(F.c.d, F.c.q, F.g.d, F.g.q);
+    const double mu_sign =
+        cross(F.c.d, F.c.q, torque_sign * F.T.d, torque_sign * F.T.q) * cross(F.c.d, F.c.q, F.g.d, F.g.q);
     return mu_sign >= 0.0;
 }
 
-Result solve(const MagnetFlux& flux, const Problem& P, double i_d, double i_q, int max_iterations,
-             double tolerance_A, double max_step_A) {
+Result solve(const MagnetFlux& flux, const Problem& P, double i_d, double i_q, int max_iterations, double tolerance_A,
+             double max_step_A) {
     for (int k = 1; k <= max_iterations; ++k) {
         const Fields F = fields_at(flux, P.omega, P.R_s, i_d, i_q);
         Eq e1{}, e2{};

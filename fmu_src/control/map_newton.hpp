@@ -17,11 +17,11 @@ enum class System { mtpa, voltage_limit, mtpa_at_current, mtpv, current_voltage 
 
 struct Problem {
     System system;
-    double omega;   // electrical speed, rad/s
-    double R_s;     // Ohm
-    double T_red;   // torque target T / (1.5 p), for mtpa and voltage_limit
-    double V_max;   // V
-    double I_max;   // A
+    double omega;  // electrical speed, rad/s
+    double R_s;    // Ohm
+    double T_red;  // torque target T / (1.5 p), for mtpa and voltage_limit
+    double V_max;  // V
+    double I_max;  // A
 };
 
 struct Result {
@@ -33,8 +33,8 @@ struct Result {
 // From the seed (i_d, i_q), at most max_iterations steps; converged after a step below
 // tolerance_A (Newton converges quadratically: the error left after a step of size d is of the
 // order d^2 / (current scale), far below the 1e-3 A default). Steps are limited to max_step_A to keep Newton on the seed's branch.
-Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double i_q,
-             int max_iterations = 12, double tolerance_A = 1e-3, double max_step_A = 50.0);
+Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double i_q, int max_iterations = 12,
+             double tolerance_A = 1e-3, double max_step_A = 50.0);
 
 // At a point where the current circle meets the voltage limit: does moving along the circle towards
 // more torque (torque_sign +1: more T, -1: less) raise the voltage? Else a local maximum of the

@@ -52,14 +52,12 @@ LinearMachine SaturatedOptimalCurrent::apparent_machine(const MagnetFlux& flux, 
     return m;
 }
 
-CurrentCommand SaturatedOptimalCurrent::solve(double T_ref, const OperatingLimits& lim, double R_s,
-                                              double psi_d_shift, Recursion mode) {
+CurrentCommand SaturatedOptimalCurrent::solve(double T_ref, const OperatingLimits& lim, double R_s, double psi_d_shift,
+                                              Recursion mode) {
     const MagnetFlux flux(*map_, psi_d_shift);
     CurrentCommand cmd;
     switch (mode) {
-        case Recursion::nominal:
-            cmd = linear_(nominal_machine(R_s, psi_d_shift), T_ref, lim);
-            break;
+        case Recursion::nominal: cmd = linear_(nominal_machine(R_s, psi_d_shift), T_ref, lim); break;
         case Recursion::apparent: cmd = solve_recursive(T_ref, lim, R_s, flux); break;
         case Recursion::optimal: cmd = solve_optimal(T_ref, lim, R_s, flux); break;
     }
@@ -68,8 +66,8 @@ CurrentCommand SaturatedOptimalCurrent::solve(double T_ref, const OperatingLimit
     return cmd;
 }
 
-CurrentCommand SaturatedOptimalCurrent::solve_recursive(double T_ref, const OperatingLimits& lim,
-                                                        double R_s, const MagnetFlux& flux) {
+CurrentCommand SaturatedOptimalCurrent::solve_recursive(double T_ref, const OperatingLimits& lim, double R_s,
+                                                        const MagnetFlux& flux) {
     const double s = sign_of(T_ref);
     const double kT = torque_factor(pole_pairs_);
     int iterations = 0;
@@ -149,15 +147,27 @@ struct MapView {
 
     MapView(const SaturatedOptimalCurrent& solver, const MagnetFlux& flux, const CurrentCircles& circles,
             const CircleMaxima& maxima, const OperatingLimits& lim, double R_s, double s)
-        : solver(solver), flux(flux), circles(circles), all_maxima(maxima), maxima(maxima.side(s)), lim(lim), R_s(R_s), s(s),
-          w_pos(s * lim.omega), V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)),
-          I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)), exact_shift(maxima.shift == flux.shift()) {}
+        : solver(solver),
+          flux(flux),
+          circles(circles),
+          all_maxima(maxima),
+          maxima(maxima.side(s)),
+          lim(lim),
+          R_s(R_s),
+          s(s),
+          w_pos(s * lim.omega),
+          V2(lim.V_max * lim.V_max * (1.0 + kLimitSlack)),
+          I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)),
+          exact_shift(maxima.shift == flux.shift()) {}
 
     double torque(CurrentPoint p) const { return s * flux.reduced_torque(p.i_d, p.i_q); }
-    bool within_voltage(CurrentPoint p) const { return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2; }
+    bool within_voltage(CurrentPoint p) const {
+        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2;
+    }
     bool within_current(CurrentPoint p) const { return p.i_d * p.i_d + p.i_q * p.i_q <= I2; }
     bool within(CurrentPoint p, double V2_max, double I2_max) const {
-        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2_max && p.i_d * p.i_d + p.i_q * p.i_q <= I2_max;
+        return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2_max &&
+               p.i_d * p.i_d + p.i_q * p.i_q <= I2_max;
     }
 
     // The global maximum of the torque along the current circle (CircleMaxima).
@@ -168,7 +178,8 @@ struct MapView {
             p = maxima.mtpa[K];
             return true;
         }
-        return solve_from(System::mtpa_at_current, 0.0, maxima.mtpa[K], p) && torque(p) >= maxima.T[K] * (1.0 - kLimitSlack);
+        return solve_from(System::mtpa_at_current, 0.0, maxima.mtpa[K], p) &&
+               torque(p) >= maxima.T[K] * (1.0 - kLimitSlack);
     }
     // The most torque on the voltage limit: Newton from Ferrari's MTPV point of the machine
     // linearised where the current circle's best sample within the voltage limit is (near the
@@ -190,14 +201,16 @@ struct MapView {
         // The global one: from the sampled maxima at the two flux levels about V_max / |omega|.
         CurrentPoint q;
         const double level = lim.V_max / std::abs(lim.omega);
-        const double x = (level - all_maxima.psi_min) / (all_maxima.psi_max - all_maxima.psi_min) * (CircleMaxima::kFluxLevels - 1);
+        const double x =
+            (level - all_maxima.psi_min) / (all_maxima.psi_max - all_maxima.psi_min) * (CircleMaxima::kFluxLevels - 1);
         if (std::isfinite(x) && x >= 0 && x <= CircleMaxima::kFluxLevels - 1) {
             const int l = std::min(static_cast<int>(x), CircleMaxima::kFluxLevels - 2);
             for (int ll : {l, l + 1})
                 if (maxima.has_mtpv[ll] && solve_from(System::mtpv, 0.0, maxima.mtpv[ll], q)) consider(q);
         }
         linear::Point seed;
-        if (!found_inside && linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q))
+        if (!found_inside && linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) &&
+            solve(System::mtpv, 0.0, seed, q))
             consider(q);
         if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
         return found && !(found_inside && on_arc && arc.c[0].T > torque(p));
@@ -241,8 +254,11 @@ struct MapView {
         const double r = circles.radius(k - 1) + t * (circles.radius(k) - circles.radius(k - 1));
         // One maximum: the two points are less than two samples apart in angle (the origin is on every one).
         const double sample_angle = 2.0 * kPi / CurrentCircles::kAngles;
-        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * kPi)) < 2.0 * sample_angle;
-        auto scaled = [&](CurrentPoint x, double radius) { return CurrentPoint{x.i_d * r / radius, x.i_q * r / radius}; };
+        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d),
+                                                                  2.0 * kPi)) < 2.0 * sample_angle;
+        auto scaled = [&](CurrentPoint x, double radius) {
+            return CurrentPoint{x.i_d * r / radius, x.i_q * r / radius};
+        };
         CurrentPoint seeds[2] = {{a.i_d + t * (b.i_d - a.i_d), a.i_q + t * (b.i_q - a.i_q)}, {}};
         int n_seeds = 1;
         if (!one_branch) {
@@ -310,7 +326,8 @@ struct MapView {
             if (!(g[j] <= 0)) continue;
             const int prev = (j + N - 1) % N, next = (j + 1) % N;
             const CircleSample& x = circles.at(K, j);
-            if (g[prev] <= 0 && g[next] <= 0 && T[j] >= T[prev] && T[j] >= T[next]) arc.add({{x.i_d, x.i_q}, T[j], true});
+            if (g[prev] <= 0 && g[next] <= 0 && T[j] >= T[prev] && T[j] >= T[next])
+                arc.add({{x.i_d, x.i_q}, T[j], true});
             for (int o : {prev, next}) {
                 if (g[o] <= 0) continue;
                 const CircleSample& y = circles.at(K, o);
@@ -334,8 +351,8 @@ struct MapView {
     // Newton on `sys` from a point of the map; T_target signed like the torque.
     bool solve_from(System sys, double T_target, CurrentPoint seed, CurrentPoint& p) {
         const map_newton::Problem P{sys, lim.omega, R_s, T_target, lim.V_max, lim.I_max};
-        const auto r = map_newton::solve(flux, P, seed.i_d, seed.i_q, kNewtonMaxIterations,
-                                         kNewtonStepTolerance * lim.I_max);
+        const auto r =
+            map_newton::solve(flux, P, seed.i_d, seed.i_q, kNewtonMaxIterations, kNewtonStepTolerance * lim.I_max);
         iterations += r.iterations;
         p = {r.i_d, r.i_q};
         return r.converged;
@@ -348,7 +365,7 @@ struct MapView {
     const CircleMaxima::Side& maxima;
     const OperatingLimits& lim;
     const double R_s, s, w_pos;
-    const double V2, I2;  // squared limits with slack, for points computed on a limit
+    const double V2, I2;     // squared limits with slack, for points computed on a limit
     const bool exact_shift;  // the circles' maxima were found at this magnet shift
     int iterations = 0;
     bool arc_scanned = false;
@@ -380,8 +397,8 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
             // maximum's basin far wider.
             const CurrentCircles::Sample& x = circles_.at(k, circles_.best_angle(k, s, shift));
             const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, circles_.radius(k)};
-            const auto r = map_newton::solve(rounded, P, x.i_d, x.i_q, kNewtonMaxIterations,
-                                             kNewtonStepTolerance * I_max);
+            const auto r =
+                map_newton::solve(rounded, P, x.i_d, x.i_q, kNewtonMaxIterations, kNewtonStepTolerance * I_max);
             const double T = s * rounded.reduced_torque(r.i_d, r.i_q), T_sample = s * x.torque(shift);
             m.converged[k] = r.converged && T >= T_sample;
             m.mtpa[k] = m.converged[k] ? CurrentPoint{r.i_d, r.i_q} : CurrentPoint{x.i_d, x.i_q};
@@ -414,15 +431,16 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
                 const double T = x.torque(shift) + t * (y.torque(shift) - x.torque(shift));
                 for (int side = 0; side < 2; ++side) {
                     const double sT = side == 0 ? T : -T;
-                    if (sT > best[side][l]) best[side][l] = sT, maxima_.sides[side].mtpv[l] = p, maxima_.sides[side].has_mtpv[l] = true;
+                    if (sT > best[side][l])
+                        best[side][l] = sT, maxima_.sides[side].mtpv[l] = p, maxima_.sides[side].has_mtpv[l] = true;
                 }
             }
         }
     return maxima_;
 }
 
-CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const OperatingLimits& lim,
-                                                      double R_s, const MagnetFlux& flux) {
+CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const OperatingLimits& lim, double R_s,
+                                                      const MagnetFlux& flux) {
     const double s = sign_of(T_ref);
     const double kT = torque_factor(pole_pairs_);
     MapView view(*this, flux, circles_, circle_maxima(flux, lim.I_max), lim, R_s, s);

@@ -15,9 +15,9 @@
 #include <cmath>
 #include <memory>
 
-#include "machine/flux_map.hpp"
 #include "control/current_circles.hpp"
 #include "control/linear_optimal_current.hpp"
+#include "machine/flux_map.hpp"
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
 
@@ -36,9 +36,9 @@ struct CircleMaxima {
     // the sampled point of most torque where a circle crosses that level.
     static constexpr int kFluxLevels = 48;
     struct Side {
-        double T[CurrentCircles::kRadii + 1];         // s T' at MTPA on circle k (k = 0: the origin)
+        double T[CurrentCircles::kRadii + 1];  // s T' at MTPA on circle k (k = 0: the origin)
         CurrentPoint mtpa[CurrentCircles::kRadii + 1];
-        bool converged[CurrentCircles::kRadii + 1];   // Newton converged to at least the best sample's torque
+        bool converged[CurrentCircles::kRadii + 1];  // Newton converged to at least the best sample's torque
         CurrentPoint mtpv[kFluxLevels];
         bool has_mtpv[kFluxLevels];
     };
@@ -66,8 +66,7 @@ public:
     SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs);
 
     // psi_d_shift: magnet-temperature shift of psi_d (magnet_flux_shift()).
-    CurrentCommand solve(double T_ref, const OperatingLimits& lim, double R_s, double psi_d_shift,
-                         Recursion mode);
+    CurrentCommand solve(double T_ref, const OperatingLimits& lim, double R_s, double psi_d_shift, Recursion mode);
 
     // The linear model a recursion step would use at (i_d, i_q).
     LinearMachine apparent_machine(const MagnetFlux& flux, double i_d, double i_q, double R_s) const;
@@ -82,10 +81,8 @@ public:
     static constexpr int recursion_max_iterations = 30;
 
 private:
-    CurrentCommand solve_recursive(double T_ref, const OperatingLimits& lim, double R_s,
-                                   const MagnetFlux& flux);
-    CurrentCommand solve_optimal(double T_ref, const OperatingLimits& lim, double R_s,
-                                 const MagnetFlux& flux);
+    CurrentCommand solve_recursive(double T_ref, const OperatingLimits& lim, double R_s, const MagnetFlux& flux);
+    CurrentCommand solve_optimal(double T_ref, const OperatingLimits& lim, double R_s, const MagnetFlux& flux);
 
     // The circles and their maxima for the last I_max and magnet shift (recursion 2): computed
     // again when either changes, so the answer depends on the inputs only.
@@ -96,7 +93,7 @@ private:
     std::shared_ptr<const FluxMap> map_;
     int pole_pairs_;
     double nominal_L_d_, nominal_L_q_;  // incremental inductances at i = 0
-    linear::CommandSolver linear_;       // Ferrari on a linear machine (recursions 0 and 1)
+    linear::CommandSolver linear_;      // Ferrari on a linear machine (recursions 0 and 1)
 };
 
 }  // namespace ipmsm

@@ -17,8 +17,16 @@ double v_max_of(const TableSpec& s) { return s.k_u * s.u_dc / std::sqrt(3.0); }
 void locate(const std::vector<double>& axis, double x, int& i, double& w) {
     const int n = static_cast<int>(axis.size());
     const double t = (x - axis.front()) / (axis.back() - axis.front()) * (n - 1);
-    if (!(t > 0)) { i = 0; w = 0; return; }
-    if (t >= n - 1) { i = n - 2; w = 1; return; }
+    if (!(t > 0)) {
+        i = 0;
+        w = 0;
+        return;
+    }
+    if (t >= n - 1) {
+        i = n - 2;
+        w = 1;
+        return;
+    }
     i = static_cast<int>(t);
     w = t - i;
 }
@@ -34,7 +42,8 @@ TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec)
     const int p = pole_pairs_;
 
     // Torque axis from the zero-speed peak (MTPA at I_max).
-    const CurrentCommand peak = solver.solve(1e12, {0.0, V_max, spec.I_max}, spec.R_s, spec.psi_d_shift, Recursion::optimal);
+    const CurrentCommand peak =
+        solver.solve(1e12, {0.0, V_max, spec.I_max}, spec.R_s, spec.psi_d_shift, Recursion::optimal);
     T_peak_ = peak.torque_max;
 
     // Second axis.

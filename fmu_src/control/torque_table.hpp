@@ -10,8 +10,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "machine/machine.hpp"
 #include "control/saturated_optimal_current.hpp"
+#include "machine/machine.hpp"
 
 namespace ipmsm {
 
@@ -19,14 +19,14 @@ enum class TableAxis { speed, flux };
 
 struct TableSpec {
     TableAxis axis = TableAxis::speed;
-    int n_torque = 41;    // grid points along torque (odd: includes T = 0)
-    int n_second = 41;    // grid points along speed or psi_s
-    double u_dc = 0;      // V, the DC voltage the table is built for
-    double k_u = 0.95;    // V_max = k_u u_dc / sqrt(3)
-    double I_max = 0;     // A
-    double R_s = 0;       // Ohm
+    int n_torque = 41;       // grid points along torque (odd: includes T = 0)
+    int n_second = 41;       // grid points along speed or psi_s
+    double u_dc = 0;         // V, the DC voltage the table is built for
+    double k_u = 0.95;       // V_max = k_u u_dc / sqrt(3)
+    double I_max = 0;        // A
+    double R_s = 0;          // Ohm
     double psi_d_shift = 0;  // magnet temperature the table is built for (magnet_flux_shift)
-    double w_m_max = 0;   // rad/s, top of the speed axis
+    double w_m_max = 0;      // rad/s, top of the speed axis
 };
 
 class TorqueTable {

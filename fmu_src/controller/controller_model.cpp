@@ -6,8 +6,8 @@
 #include "machine/flux_map_cache.hpp"
 #include "machine/flux_map_metadata.hpp"
 #include "machine/machine.hpp"
-#include "machine/map_file.hpp"
 #include "machine/magnet_flux.hpp"
+#include "machine/map_file.hpp"
 
 namespace ipmsm {
 
@@ -25,40 +25,68 @@ const std::vector<V>& ControllerModel::variables() {
     static const std::vector<V> table = {
         // inputs
         {"T_ref", &M::T_ref, Causality::input, Variability::continuous, "N.m", "", "Torque command (either sign)"},
-        {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm", "Mechanical rotor speed (either sign)"},
-        {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "", "Measured DC-link voltage", 0.0, kInf, true},
-        {"i_d", &M::i_d, Causality::input, Variability::continuous, "A", "", "Measured d-axis current (peak, amplitude-invariant)"},
-        {"i_q", &M::i_q, Causality::input, Variability::continuous, "A", "", "Measured q-axis current (peak, amplitude-invariant)"},
-        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC", "Magnet temperature (estimate)", kTemperatureMin_K, kTemperatureMax_K},
+        {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm",
+         "Mechanical rotor speed (either sign)"},
+        {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "", "Measured DC-link voltage", 0.0, kInf,
+         true},
+        {"i_d", &M::i_d, Causality::input, Variability::continuous, "A", "",
+         "Measured d-axis current (peak, amplitude-invariant)"},
+        {"i_q", &M::i_q, Causality::input, Variability::continuous, "A", "",
+         "Measured q-axis current (peak, amplitude-invariant)"},
+        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC",
+         "Magnet temperature (estimate)", kTemperatureMin_K, kTemperatureMax_K},
         // outputs
         {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "", "d-axis current command"},
         {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "", "q-axis current command"},
-        {"u_d_ref", &M::u_d_ref, Causality::output, Variability::discrete, "V", "", "d-axis voltage command, within the inverter's linear range; to be applied over the next step"},
-        {"u_q_ref", &M::u_q_ref, Causality::output, Variability::discrete, "V", "", "q-axis voltage command, within the inverter's linear range; to be applied over the next step"},
-        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "", "Torque actually commanded: T_ref clamped to what the limits allow now"},
-        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "", "Largest torque magnitude reachable now, with the sign of T_ref"},
-        {"T_est", &M::T_est, Causality::output, Variability::discrete, "N.m", "", "Torque estimated from the measured currents and the flux map"},
-        {"region", &M::region, Causality::output, Variability::discrete, "", "", "0 zero torque, 1 MTPA, 2 voltage limit (Case ii), 3 current and voltage limit, 4 MTPV"},
-        {"iterations", &M::iterations, Causality::output, Variability::discrete, "", "", "Inductance-recursion (recursion 1) or Newton (recursion 2) iterations used this step"},
-        {"voltage_saturated", &M::voltage_saturated, Causality::output, Variability::discrete, "", "", "The current regulator's voltage was limited to the inverter's linear range this step"},
-        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "", "Voltage command relative to the inverter's linear range u_dc/sqrt(3) (1: the regulator is voltage-limited)"},
-        {"table_bytes", &M::table_bytes, Causality::output, Variability::discrete, "", "", "Memory of the 2-D tables (methods 2, 3), bytes; 0 for Ferrari"},
+        {"u_d_ref", &M::u_d_ref, Causality::output, Variability::discrete, "V", "",
+         "d-axis voltage command, within the inverter's linear range; to be applied over the next step"},
+        {"u_q_ref", &M::u_q_ref, Causality::output, Variability::discrete, "V", "",
+         "q-axis voltage command, within the inverter's linear range; to be applied over the next step"},
+        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "",
+         "Torque actually commanded: T_ref clamped to what the limits allow now"},
+        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "",
+         "Largest torque magnitude reachable now, with the sign of T_ref"},
+        {"T_est", &M::T_est, Causality::output, Variability::discrete, "N.m", "",
+         "Torque estimated from the measured currents and the flux map"},
+        {"region", &M::region, Causality::output, Variability::discrete, "", "",
+         "0 zero torque, 1 MTPA, 2 voltage limit (Case ii), 3 current and voltage limit, 4 MTPV"},
+        {"iterations", &M::iterations, Causality::output, Variability::discrete, "", "",
+         "Inductance-recursion (recursion 1) or Newton (recursion 2) iterations used this step"},
+        {"voltage_saturated", &M::voltage_saturated, Causality::output, Variability::discrete, "", "",
+         "The current regulator's voltage was limited to the inverter's linear range this step"},
+        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "",
+         "Voltage command relative to the inverter's linear range u_dc/sqrt(3) (1: the regulator is voltage-limited)"},
+        {"table_bytes", &M::table_bytes, Causality::output, Variability::discrete, "", "",
+         "Memory of the 2-D tables (methods 2, 3), bytes; 0 for Ferrari"},
         // parameters
-        {"method", &M::method, Causality::parameter, Variability::fixed, "", "", "1 Ferrari (online), 2 2-D table over torque x speed, 3 2-D table over torque x V_max/omega", 1, 3},
-        {"recursion", &M::recursion, Causality::parameter, Variability::fixed, "", "", "0 nominal inductances, 1 apparent-inductance recursion (the paper), 2 optimal on the flux map", 0, 2},
-        {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "", "Path of a flux-map CSV; empty: the default map in resources/"},
-        {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)", 1, 100},
+        {"method", &M::method, Causality::parameter, Variability::fixed, "", "",
+         "1 Ferrari (online), 2 2-D table over torque x speed, 3 2-D table over torque x V_max/omega", 1, 3},
+        {"recursion", &M::recursion, Causality::parameter, Variability::fixed, "", "",
+         "0 nominal inductances, 1 apparent-inductance recursion (the paper), 2 optimal on the flux map", 0, 2},
+        {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "",
+         "Path of a flux-map CSV; empty: the default map in resources/"},
+        {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)",
+         1, 100},
         {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "", "Stator resistance", 0.0, kInf},
         {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "", "Peak current limit", 0.0, kInf, true},
-        {"k_u", &M::k_u, Causality::parameter, Variability::fixed, "1", "", "Voltage utilisation of the current commands: V_max = k_u u_dc / sqrt(3)", 0.0, 1.0, true},
-        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
-        {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "", "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
-        {"lut_u_dc", &M::lut_u_dc, Causality::parameter, Variability::fixed, "V", "", "DC voltage the 2-D tables are built for (methods 2, 3)", 0.0, kInf, true},
-        {"lut_T_magnet", &M::lut_T_magnet, Causality::parameter, Variability::fixed, "K", "degC", "Magnet temperature the 2-D tables are built for (methods 2, 3)", kTemperatureMin_K, kTemperatureMax_K},
-        {"lut_n_torque", &M::lut_n_torque, Causality::parameter, Variability::fixed, "", "", "2-D table grid points along torque", 3, 1001},
-        {"lut_n_speed", &M::lut_n_speed, Causality::parameter, Variability::fixed, "", "", "2-D table grid points along speed (method 2) or V_max/omega (method 3)", 3, 1001},
-        {"w_m_max", &M::w_m_max, Causality::parameter, Variability::fixed, "rad/s", "rpm", "Top of the 2-D tables' speed axis", 0.0, kInf, true},
-        {"current_bandwidth", &M::current_bandwidth, Causality::parameter, Variability::fixed, "rad/s", "", "Closed-loop bandwidth of the current regulator", 0.0, kInf, true},
+        {"k_u", &M::k_u, Causality::parameter, Variability::fixed, "1", "",
+         "Voltage utilisation of the current commands: V_max = k_u u_dc / sqrt(3)", 0.0, 1.0, true},
+        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC",
+         "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
+        {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "",
+         "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
+        {"lut_u_dc", &M::lut_u_dc, Causality::parameter, Variability::fixed, "V", "",
+         "DC voltage the 2-D tables are built for (methods 2, 3)", 0.0, kInf, true},
+        {"lut_T_magnet", &M::lut_T_magnet, Causality::parameter, Variability::fixed, "K", "degC",
+         "Magnet temperature the 2-D tables are built for (methods 2, 3)", kTemperatureMin_K, kTemperatureMax_K},
+        {"lut_n_torque", &M::lut_n_torque, Causality::parameter, Variability::fixed, "", "",
+         "2-D table grid points along torque", 3, 1001},
+        {"lut_n_speed", &M::lut_n_speed, Causality::parameter, Variability::fixed, "", "",
+         "2-D table grid points along speed (method 2) or V_max/omega (method 3)", 3, 1001},
+        {"w_m_max", &M::w_m_max, Causality::parameter, Variability::fixed, "rad/s", "rpm",
+         "Top of the 2-D tables' speed axis", 0.0, kInf, true},
+        {"current_bandwidth", &M::current_bandwidth, Causality::parameter, Variability::fixed, "rad/s", "",
+         "Closed-loop bandwidth of the current regulator", 0.0, kInf, true},
     };
     return table;
 }
@@ -69,17 +97,19 @@ void ControllerModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.
     const std::string path = flux_map.empty() ? context_->resource_dir + "/" + default_flux_map : flux_map;
     if (flux_map.empty() && context_->resource_dir.empty())
-        throw fmi::Error("flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
-                         "set flux_map to a flux-map CSV");
+        throw fmi::Error(
+            "flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
+            "set flux_map to a flux-map CSV");
     // Parsed once per content (flux_map_cache.hpp): Initialization Mode's previews do not parse it again.
     std::shared_ptr<const FluxMap> map = shared_flux_map(path);  // FluxMapError: says file and line
 
     const FluxMapTable& t = map->table();
     if (context_->log_warning)
-        for (const std::string& w : metadata_warnings(t, path, {{"pole_pairs", "pole_pairs", double(pole_pairs)},
-                                                                {"R_s_ohm", "R_s", R_s},
-                                                                {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
-                                                                {"k_psi_T_per_K", "k_psi_T", k_psi_T}}))
+        for (const std::string& w : metadata_warnings(t, path,
+                                                      {{"pole_pairs", "pole_pairs", double(pole_pairs)},
+                                                       {"R_s_ohm", "R_s", R_s},
+                                                       {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
+                                                       {"k_psi_T_per_K", "k_psi_T", k_psi_T}}))
             context_->log_warning(w);
     check_current_limit_within_map(*map, I_max);
     SaturatedOptimalCurrent solver(map, pole_pairs);
@@ -105,8 +135,8 @@ void ControllerModel::exit_initialization() {
     initial_outputs();
     if (context_->log_info) {
         std::ostringstream os;
-        os << "flux map " << quoted_excerpt(path) << ": " << t.i_d.size() << " x " << t.i_q.size() << " points, psi_m = "
-           << map_->psi_m() << " Wb; method " << method << ", recursion " << recursion;
+        os << "flux map " << quoted_excerpt(path) << ": " << t.i_d.size() << " x " << t.i_q.size()
+           << " points, psi_m = " << map_->psi_m() << " Wb; method " << method << ", recursion " << recursion;
         if (table_) os << ", 2-D table " << lut_n_torque << " x " << lut_n_speed << " (" << table_bytes << " bytes)";
         context_->log_info(os.str());
     }
@@ -176,8 +206,8 @@ void ControllerModel::do_step(double /*t*/, double h) {
     warned_unreachable_ = !cmd.feasible;
     if (regulator_.first_lowered_bandwidth(h) && context_->log_warning) {
         std::ostringstream os;
-        os << "current_bandwidth = " << regulator_.bandwidth() << " rad/s is more than the communication step h = "
-           << h << " s can carry (a quarter of its sampling rate, (pi/2) / h = " << regulator_.bandwidth_at(h)
+        os << "current_bandwidth = " << regulator_.bandwidth() << " rad/s is more than the communication step h = " << h
+           << " s can carry (a quarter of its sampling rate, (pi/2) / h = " << regulator_.bandwidth_at(h)
            << " rad/s): the current loop runs at " << regulator_.bandwidth_at(h) << " rad/s";
         context_->log_warning(os.str());
     }

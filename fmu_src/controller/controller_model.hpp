@@ -8,9 +8,9 @@
 #include <vector>
 
 #include "control/current_regulator.hpp"
-#include "model.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
+#include "model.hpp"
 #include "variable.hpp"
 
 namespace ipmsm {
@@ -50,14 +50,14 @@ public:
     }
 
     // --- inputs
-    double T_ref = 0.0;         // N.m
-    double w_m = 0.0;           // rad/s
-    double u_dc = 355.0;        // V
+    double T_ref = 0.0;           // N.m
+    double w_m = 0.0;             // rad/s
+    double u_dc = 355.0;          // V
     double i_d = 0.0, i_q = 0.0;  // A, measured
-    double T_magnet = 293.15;   // K
+    double T_magnet = 293.15;     // K
     // --- outputs
-    double i_d_ref = 0.0, i_q_ref = 0.0;  // A
-    double u_d_ref = 0.0, u_q_ref = 0.0;  // V
+    double i_d_ref = 0.0, i_q_ref = 0.0;           // A
+    double u_d_ref = 0.0, u_q_ref = 0.0;           // V
     double T_cmd = 0.0, T_max = 0.0, T_est = 0.0;  // N.m
     int region = 0;
     int iterations = 0;
@@ -65,20 +65,20 @@ public:
     double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
-    int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
-    int recursion = 2;  // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
+    int method = 1;        // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
+    int recursion = 2;     // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
     std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;
-    double R_s = 0.012;         // Ohm
-    double I_max = 500.0;       // A
+    double R_s = 0.012;    // Ohm
+    double I_max = 500.0;  // A
     double k_u = 0.95;
     double T_magnet_ref = 293.15;  // K
-    double k_psi_T = -0.0012;   // 1/K
-    double lut_u_dc = 355.0;    // V
+    double k_psi_T = -0.0012;      // 1/K
+    double lut_u_dc = 355.0;       // V
     double lut_T_magnet = 293.15;  // K
     int lut_n_torque = 41;
     int lut_n_speed = 41;
-    double w_m_max = 1256.6370614359173;  // rad/s (12 000 r/min): top of the tables' speed axis
+    double w_m_max = 1256.6370614359173;            // rad/s (12 000 r/min): top of the tables' speed axis
     double current_bandwidth = 3141.5926535897932;  // rad/s (500 Hz)
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
@@ -89,7 +89,7 @@ private:
         double omega, V_max, shift;
     };
     Conditions conditions() const;
-    CurrentCommand current_command(const Conditions& c);  // reuses the cache while it holds
+    CurrentCommand current_command(const Conditions& c);              // reuses the cache while it holds
     void publish(const CurrentCommand& cmd, const MagnetFlux& flux);  // the command outputs (u_*_ref set)
     void initial_outputs();
 

@@ -41,8 +41,8 @@ Instance<M>* instance_of(fmi2Component c) {
 }
 
 // Phases in which each group of functions may be called (FMI 2.0, section 4.2.4).
-inline constexpr PhaseMask kAnyButFatal = mask(Phase::instantiated, Phase::initialization_mode,
-                                               Phase::step_complete, Phase::terminated, Phase::error);
+inline constexpr PhaseMask kAnyButFatal =
+    mask(Phase::instantiated, Phase::initialization_mode, Phase::step_complete, Phase::terminated, Phase::error);
 inline constexpr PhaseMask kGet =
     mask(Phase::initialization_mode, Phase::step_complete, Phase::terminated, Phase::error);
 inline constexpr PhaseMask kSet = mask(Phase::instantiated, Phase::initialization_mode, Phase::step_complete);
@@ -72,7 +72,8 @@ void check_settable(const Variable<M>& v, Phase p) {
             if (v.variability == Variability::fixed && p != Phase::instantiated && p != Phase::initialization_mode)
                 throw Error(std::string(v.name) +
                             " is a fixed parameter: it can be set only before fmi2ExitInitializationMode"
-                            " (the instance is in state " + phase_name(p) + ")");
+                            " (the instance is in state " +
+                            phase_name(p) + ")");
             return;
         case Causality::output:
         case Causality::local:
@@ -100,7 +101,8 @@ fmi2Status guarded(fmi2Component c, const char* fn, PhaseMask allowed, Body&& bo
     Instance<M>* in = instance_of<M>(c);
     if (in == nullptr) return fmi2Error;  // NULL or not an instance of this FMU: nobody to log to
     try {
-        if (in->tracing()) in->log(fmi2OK, LogCategory::all, std::string(fn) + " (state " + phase_name(in->phase) + ")");
+        if (in->tracing())
+            in->log(fmi2OK, LogCategory::all, std::string(fn) + " (state " + phase_name(in->phase) + ")");
         if (!(mask(in->phase) & allowed)) {
             in->log(fmi2Error, LogCategory::error,
                     std::string(fn) + " is not allowed in state " + phase_name(in->phase) +
@@ -146,15 +148,17 @@ struct Fmi2 {
                 return refuse(std::string(M::model_identifier) +
                               " is a co-simulation FMU: fmuType must be fmi2CoSimulation");
             if (guid == nullptr || std::strcmp(guid, M::guid) != 0)
-                return refuse("GUID " + std::string(guid != nullptr ? guid : "(NULL)") + " does not match " +
-                              M::guid + " of this binary: use the modelDescription.xml that came with it");
+                return refuse("GUID " + std::string(guid != nullptr ? guid : "(NULL)") + " does not match " + M::guid +
+                              " of this binary: use the modelDescription.xml that came with it");
             std::string resources = resource_dir_from_uri(resource_location);
             auto in = std::make_unique<In>(instance_name, logger, env, logging_on != fmi2False, resources);
             if (resources.empty())
-                in->log(fmi2Warning, LogCategory::warning,
-                        "fmi2Instantiate: fmuResourceLocation " +
-                            std::string(resource_location != nullptr ? "\"" + utf8_excerpt(resource_location, 300) + "\"" : "NULL") +
-                            " is not a local file URI: the model has no resources directory");
+                in->log(
+                    fmi2Warning, LogCategory::warning,
+                    "fmi2Instantiate: fmuResourceLocation " +
+                        std::string(resource_location != nullptr ? "\"" + utf8_excerpt(resource_location, 300) + "\""
+                                                                 : "NULL") +
+                        " is not a local file URI: the model has no resources directory");
             else
                 in->log(fmi2OK, LogCategory::events, "fmi2Instantiate: resources in " + utf8_excerpt(resources, 300));
             return in.release();
@@ -175,7 +179,8 @@ struct Fmi2 {
             for (std::size_t i = 0; i < n; ++i) {
                 const char* name = categories[i];
                 unsigned k = 0;
-                while (k < log_categories.size() && (name == nullptr || std::strcmp(name, log_categories[k].name) != 0)) ++k;
+                while (k < log_categories.size() && (name == nullptr || std::strcmp(name, log_categories[k].name) != 0))
+                    ++k;
                 if (k == log_categories.size()) {
                     std::string known;
                     for (const auto& lc : log_categories) known += std::string(known.empty() ? "" : ", ") + lc.name;
@@ -194,7 +199,8 @@ struct Fmi2 {
         return guarded<M>(c, "fmi2SetupExperiment", mask(Phase::instantiated), [&](In& in) {
             if (!std::isfinite(start)) throw Error("startTime = " + number_text(start) + " is not finite");
             if (stop_defined != fmi2False && !(std::isfinite(stop) && stop >= start))
-                throw Error("stopTime = " + number_text(stop) + " must be finite and >= startTime = " + number_text(start));
+                throw Error("stopTime = " + number_text(stop) +
+                            " must be finite and >= startTime = " + number_text(start));
             in.start_time = start;
             in.time = start;
             return fmi2OK;
@@ -255,14 +261,18 @@ struct Fmi2 {
             const auto& vars = variables<M>();
             if constexpr (std::is_same_v<C, fmi2String>) {
                 in.strings.resize(nvr);
-                for (std::size_t i = 0; i < nvr; ++i) in.strings[i] = model.*std::get<std::string M::*>(vars[vr[i]].member);
+                for (std::size_t i = 0; i < nvr; ++i)
+                    in.strings[i] = model.*std::get<std::string M::*>(vars[vr[i]].member);
                 for (std::size_t i = 0; i < nvr; ++i) value[i] = in.strings[i].c_str();
             } else {
                 for (std::size_t i = 0; i < nvr; ++i) {
                     const auto& m = vars[vr[i]].member;
-                    if constexpr (std::is_same_v<C, fmi2Real>) value[i] = model.*std::get<double M::*>(m);
-                    else if (type == Type::Integer) value[i] = model.*std::get<int M::*>(m);
-                    else value[i] = model.*std::get<bool M::*>(m) ? fmi2True : fmi2False;
+                    if constexpr (std::is_same_v<C, fmi2Real>)
+                        value[i] = model.*std::get<double M::*>(m);
+                    else if (type == Type::Integer)
+                        value[i] = model.*std::get<int M::*>(m);
+                    else
+                        value[i] = model.*std::get<bool M::*>(m) ? fmi2True : fmi2False;
                 }
             }
             return fmi2OK;
@@ -288,18 +298,24 @@ struct Fmi2 {
                                     value_text(in.model, v));
                     if (!in_range(v, x)) {
                         // built only for the message: this loop runs for every input of every fmi2SetReal
-                        const std::string unit = (v.unit != nullptr && v.unit[0] != '\0') ? std::string(" ") + v.unit : "";
-                        throw Error(std::string(v.name) + " = " + number_text(x) + unit + " is out of range: it must be " +
-                                    range_text(v) + "; kept " + value_text(in.model, v));
+                        const std::string unit =
+                            (v.unit != nullptr && v.unit[0] != '\0') ? std::string(" ") + v.unit : "";
+                        throw Error(std::string(v.name) + " = " + number_text(x) + unit +
+                                    " is out of range: it must be " + range_text(v) + "; kept " +
+                                    value_text(in.model, v));
                     }
                 }
             }
             for (std::size_t i = 0; i < nvr; ++i) {
                 const auto& m = vars[vr[i]].member;
-                if constexpr (std::is_same_v<C, fmi2String>) in.model.*std::get<std::string M::*>(m) = value[i];
-                else if constexpr (std::is_same_v<C, fmi2Real>) in.model.*std::get<double M::*>(m) = value[i];
-                else if (type == Type::Integer) in.model.*std::get<int M::*>(m) = value[i];
-                else in.model.*std::get<bool M::*>(m) = value[i] != fmi2False;
+                if constexpr (std::is_same_v<C, fmi2String>)
+                    in.model.*std::get<std::string M::*>(m) = value[i];
+                else if constexpr (std::is_same_v<C, fmi2Real>)
+                    in.model.*std::get<double M::*>(m) = value[i];
+                else if (type == Type::Integer)
+                    in.model.*std::get<int M::*>(m) = value[i];
+                else
+                    in.model.*std::get<bool M::*>(m) = value[i] != fmi2False;
             }
             in.initial.reset();
             return fmi2OK;
@@ -367,7 +383,8 @@ struct Fmi2 {
         });
     }
 
-    static fmi2Status serialize_fmu_state(fmi2Component c, fmi2FMUstate state, fmi2Byte out[], std::size_t size) noexcept {
+    static fmi2Status serialize_fmu_state(fmi2Component c, fmi2FMUstate state, fmi2Byte out[],
+                                          std::size_t size) noexcept {
         return guarded<M>(c, "fmi2SerializeFMUstate", kAnyButFatal, [&](In& in) {
             const auto& bytes = bytes_of(snapshot(in, state));
             if (out == nullptr) throw Error("serializedState is NULL");
@@ -452,14 +469,17 @@ struct Fmi2 {
                 kind != fmi2Terminated)
                 throw Error("unknown status kind " + std::to_string(kind));
             if (kind == answers) {
-                if constexpr (std::is_same_v<V, fmi2Real>) *value = in.time;
-                else if constexpr (std::is_same_v<V, fmi2Boolean>) *value = fmi2False;
+                if constexpr (std::is_same_v<V, fmi2Real>)
+                    *value = in.time;
+                else if constexpr (std::is_same_v<V, fmi2Boolean>)
+                    *value = fmi2False;
                 return fmi2OK;
             }
             const char* why = (kind == fmi2DoStepStatus || kind == fmi2PendingStatus)
                                   ? "fmi2DoStep computes synchronously and never returns fmi2Pending"
-                              : kind == fmi2LastSuccessfulTime ? "fmi2LastSuccessfulTime is a Real: use fmi2GetRealStatus"
-                                                               : "fmi2Terminated is a Boolean: use fmi2GetBooleanStatus";
+                              : kind == fmi2LastSuccessfulTime
+                                  ? "fmi2LastSuccessfulTime is a Real: use fmi2GetRealStatus"
+                                  : "fmi2Terminated is a Boolean: use fmi2GetBooleanStatus";
             in.log(fmi2Discard, LogCategory::discard, std::string(fn) + ": " + why);
             return fmi2Discard;
         });

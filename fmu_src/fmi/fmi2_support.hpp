@@ -41,12 +41,14 @@ inline const char* phase_name(Phase p) {
 using PhaseMask = unsigned;
 constexpr PhaseMask mask(Phase p) { return 1u << static_cast<unsigned>(p); }
 template <class... P>
-constexpr PhaseMask mask(Phase p, P... rest) { return mask(p) | mask(rest...); }
+constexpr PhaseMask mask(Phase p, P... rest) {
+    return mask(p) | mask(rest...);
+}
 
 inline std::string mask_text(PhaseMask m) {
     std::string s;
-    for (Phase p : {Phase::instantiated, Phase::initialization_mode, Phase::step_complete,
-                    Phase::terminated, Phase::error, Phase::fatal})
+    for (Phase p : {Phase::instantiated, Phase::initialization_mode, Phase::step_complete, Phase::terminated,
+                    Phase::error, Phase::fatal})
         if (m & mask(p)) s += (s.empty() ? "" : ", ") + std::string(phase_name(p));
     return s.empty() ? "none" : s;
 }

@@ -35,10 +35,14 @@ void write_variables(StateWriter& w, const M& m) {
         std::visit(
             [&](auto p) {
                 using T = std::decay_t<decltype(m.*p)>;
-                if constexpr (std::is_same_v<T, std::string>) w.put_string(m.*p);
-                else if constexpr (std::is_same_v<T, bool>) w.put<std::uint8_t>(m.*p ? 1 : 0);
-                else if constexpr (std::is_same_v<T, int>) w.put<std::int32_t>(m.*p);
-                else w.put<double>(m.*p);
+                if constexpr (std::is_same_v<T, std::string>)
+                    w.put_string(m.*p);
+                else if constexpr (std::is_same_v<T, bool>)
+                    w.put<std::uint8_t>(m.*p ? 1 : 0);
+                else if constexpr (std::is_same_v<T, int>)
+                    w.put<std::int32_t>(m.*p);
+                else
+                    w.put<double>(m.*p);
             },
             v.member);
     }
@@ -57,12 +61,16 @@ void read_variables(StateReader& r, M& m, const char* what) {
         std::visit(
             [&](auto p) {
                 using T = std::decay_t<decltype(m.*p)>;
-                if constexpr (std::is_same_v<T, std::string>) m.*p = r.get_string();
-                else if constexpr (std::is_same_v<T, bool>) m.*p = r.get<std::uint8_t>() != 0;
-                else if constexpr (std::is_same_v<T, int>) m.*p = r.get<std::int32_t>();
+                if constexpr (std::is_same_v<T, std::string>)
+                    m.*p = r.get_string();
+                else if constexpr (std::is_same_v<T, bool>)
+                    m.*p = r.get<std::uint8_t>() != 0;
+                else if constexpr (std::is_same_v<T, int>)
+                    m.*p = r.get<std::int32_t>();
                 else {
                     m.*p = r.get<double>();
-                    if (!std::isfinite(m.*p)) throw Error(std::string(what) + ": variable " + v.name + " is not finite");
+                    if (!std::isfinite(m.*p))
+                        throw Error(std::string(what) + ": variable " + v.name + " is not finite");
                 }
             },
             v.member);
@@ -105,8 +113,7 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
     const std::string id = r.get_string(), guid = r.get_string();
     if (id != M::model_identifier || guid != M::guid)
         throw Error(std::string(what) + " belongs to " + utf8_excerpt(id, 100) + " " + utf8_excerpt(guid, 100) +
-                    ", not to " + M::model_identifier +
-                    " " + M::guid);
+                    ", not to " + M::model_identifier + " " + M::guid);
     const auto phase_value = r.get<std::uint8_t>();
     if (phase_value < static_cast<std::uint8_t>(Phase::instantiated) ||
         phase_value > static_cast<std::uint8_t>(Phase::terminated))
@@ -133,11 +140,12 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
         if (v.causality != Causality::parameter || v.variability != Variability::fixed) continue;
         const std::string there = value_text(m, v), here = value_text(in.model, v);
         if (there != here)
-            mismatch += std::string(mismatch.empty() ? "" : ", ") + v.name + " = " + there + " there, " + here + " here";
+            mismatch +=
+                std::string(mismatch.empty() ? "" : ", ") + v.name + " = " + there + " there, " + here + " here";
     }
     if (!mismatch.empty())
-        throw Error(std::string(what) + " was saved with other fixed parameters than this instance has (" +
-                    mismatch + "); set the same parameters before fmi2DeSerializeFMUstate");
+        throw Error(std::string(what) + " was saved with other fixed parameters than this instance has (" + mismatch +
+                    "); set the same parameters before fmi2DeSerializeFMUstate");
 
     const bool saved_initialised = phase == Phase::step_complete || phase == Phase::terminated;
     const bool here_initialised = in.phase == Phase::step_complete || in.phase == Phase::terminated;

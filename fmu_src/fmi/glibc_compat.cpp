@@ -19,8 +19,8 @@
 #include <pthread.h>
 #include <sys/stat.h>
 
-#include <atomic>
 #include <sched.h>
+#include <atomic>
 
 #define IPMSM_COMPAT_HIDDEN __attribute__((visibility("hidden")))
 
@@ -60,7 +60,9 @@ IPMSM_COMPAT_HIDDEN double __wrap_pow(double x, double y) { return ipmsm_compat_
 
 // _STAT_VER of x86-64 Linux: the kernel's struct stat layout, which is glibc's.
 constexpr int kStatVer = 1;
-IPMSM_COMPAT_HIDDEN int __wrap_stat(const char* path, struct stat* buf) { return ipmsm_compat_xstat(kStatVer, path, buf); }
+IPMSM_COMPAT_HIDDEN int __wrap_stat(const char* path, struct stat* buf) {
+    return ipmsm_compat_xstat(kStatVer, path, buf);
+}
 IPMSM_COMPAT_HIDDEN int __wrap_fstat64(int fd, struct stat64* buf) { return ipmsm_compat_fxstat64(kStatVer, fd, buf); }
 
 IPMSM_COMPAT_HIDDEN int __wrap_pthread_once(pthread_once_t* once, void (*init)(void)) {

@@ -59,10 +59,9 @@ inline void call_logger(fmi2CallbackLogger logger, fmi2ComponentEnvironment env,
             text += ch;
             if (ch == '%') text += '%';
         }
-        logger(env, instance != nullptr ? instance : "", status,
-               log_categories[static_cast<unsigned>(category)].name, text.c_str());
-    } catch (...) {
-    }
+        logger(env, instance != nullptr ? instance : "", status, log_categories[static_cast<unsigned>(category)].name,
+               text.c_str());
+    } catch (...) {}
 }
 
 // An FMU state (fmi2FMUstate): a copy of the model plus where the instance was.
@@ -94,11 +93,11 @@ public:
     double time = 0.0;        // where the next step starts
 
     std::vector<std::string> strings;  // what fmi2GetString returned last
-    std::unique_ptr<M> initial;  // Initialization Mode: the model as exit_initialization() leaves it
+    std::unique_ptr<M> initial;        // Initialization Mode: the model as exit_initialization() leaves it
     std::unordered_set<Snapshot<M>*> snapshots;
 
-    Instance(const char* instance_name, fmi2CallbackLogger log, fmi2ComponentEnvironment env,
-             bool logging_on, std::string resource_dir)
+    Instance(const char* instance_name, fmi2CallbackLogger log, fmi2ComponentEnvironment env, bool logging_on,
+             std::string resource_dir)
         : name(instance_name),
           logger(log),
           environment(env),
@@ -146,9 +145,10 @@ public:
             // failure, the instance stays usable; fatal only if the undo itself fails.
             restore();
             if (phase == Phase::error) throw;
-            throw Error(undone("out of memory (the model asked for more memory than the process can get: "
-                               "a parameter or data file asks for too large a table or map)",
-                               what()));
+            throw Error(
+                undone("out of memory (the model asked for more memory than the process can get: "
+                       "a parameter or data file asks for too large a table or map)",
+                       what()));
         } catch (const std::exception& e) {
             restore();
             throw Error(undone(e.what(), what()));

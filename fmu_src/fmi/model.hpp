@@ -59,7 +59,7 @@ struct Error : std::runtime_error {
 // made outside an instance (tests, benchmarks) refer to a context that lives as long as they do.
 struct Context {
     std::string instance_name;
-    std::string resource_dir;  // local path of the FMU's resources/ folder, "" if unknown
+    std::string resource_dir;                             // local path of the FMU's resources/ folder, "" if unknown
     std::function<void(const std::string&)> log_info;     // category logEvents
     std::function<void(const std::string&)> log_warning;  // category logStatusWarning
 };

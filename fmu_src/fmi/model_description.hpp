@@ -130,13 +130,16 @@ std::string table_problems(const M& defaults) {
         if (type != Type::Real && (has_unit || has_display)) p << where << "only Reals have units in FMI 2.0\n";
         if (has_unit) {
             const UnitInfo* u = find_unit(v.unit);
-            if (u == nullptr) p << where << "unit \"" << v.unit << "\" is not in model_description.hpp's unit_table()\n";
+            if (u == nullptr)
+                p << where << "unit \"" << v.unit << "\" is not in model_description.hpp's unit_table()\n";
             else if (has_display) {
                 bool found = false;
                 for (const auto& d : u->display) found = found || std::string(d.name) == v.display_unit;
-                if (!found) p << where << "display unit \"" << v.display_unit << "\" is not defined for " << v.unit << "\n";
+                if (!found)
+                    p << where << "display unit \"" << v.display_unit << "\" is not defined for " << v.unit << "\n";
             }
-        } else if (has_display) p << where << "a display unit needs a unit\n";
+        } else if (has_display)
+            p << where << "a display unit needs a unit\n";
         const bool has_min = v.min != -std::numeric_limits<double>::infinity();
         const bool has_max = v.max != std::numeric_limits<double>::infinity();
         if ((type == Type::Boolean || type == Type::String) && (has_min || has_max || v.min_exclusive))
@@ -152,9 +155,10 @@ std::string table_problems(const M& defaults) {
             if (!std::isfinite(x)) p << where << "the default-constructed model has " << number_text(x) << "\n";
         }
         if ((c == Causality::parameter || c == Causality::input) && (type == Type::Real || type == Type::Integer)) {
-            const double x = type == Type::Real ? defaults.*std::get<double M::*>(v.member)
-                                                : defaults.*std::get<int M::*>(v.member);
-            if (!in_range(v, x)) p << where << "start value " << number_text(x) << " is outside " << range_text(v) << "\n";
+            const double x =
+                type == Type::Real ? defaults.*std::get<double M::*>(v.member) : defaults.*std::get<int M::*>(v.member);
+            if (!in_range(v, x))
+                p << where << "start value " << number_text(x) << " is outside " << range_text(v) << "\n";
         }
     }
     return p.str();
@@ -208,7 +212,8 @@ template <class M>
 std::string model_description() {
     const M defaults{Context{}};
     if (const std::string problems = detail::table_problems(defaults); !problems.empty())
-        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier + " breaks FMI 2.0 rules:\n" + problems);
+        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier +
+                                 " breaks FMI 2.0 rules:\n" + problems);
     const auto& vars = M::variables();
     std::ostringstream x;
     x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
@@ -253,7 +258,8 @@ std::string model_description() {
                 if (e != 0) x << ' ' << n << "=\"" << e << '"';
             x << "/>\n";
             for (const auto& d : u->display) {
-                x << "      <DisplayUnit name=\"" << xml_escape(d.name) << "\" factor=\"" << number_text(d.factor) << '"';
+                x << "      <DisplayUnit name=\"" << xml_escape(d.name) << "\" factor=\"" << number_text(d.factor)
+                  << '"';
                 if (d.offset != 0.0) x << " offset=\"" << number_text(d.offset) << '"';
                 x << "/>\n";
             }
@@ -284,7 +290,9 @@ std::string model_description() {
         if (!detail::empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
         if (!detail::empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
         if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
-            auto bound = [&](double b) { return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b)); };
+            auto bound = [&](double b) {
+                return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));
+            };
             if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
             if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
         }
@@ -343,8 +351,9 @@ std::string variables_html() {
             range = range_text(v);
             if (range == "any finite value") range = type == Type::Real ? "finite" : "";
         }
-        const std::string start = computed ? "" : (type == Type::String ? "\"" + detail::start_text(defaults, v) + "\""
-                                                                          : detail::start_text(defaults, v));
+        const std::string start = computed ? ""
+                                           : (type == Type::String ? "\"" + detail::start_text(defaults, v) + "\""
+                                                                   : detail::start_text(defaults, v));
         h << "<tr><td><code>" << xml_escape(v.name) << "</code></td><td>" << i << "</td><td>"
           << causality_name(v.causality) << "</td><td>" << variability_name(v.variability) << "</td><td>"
           << type_name(type) << "</td><td>" << xml_escape(unit) << "</td><td>" << start << "</td><td>"
@@ -372,9 +381,12 @@ int model_description_main(int argc, char** argv) {
         std::string xml_path, html_path;
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
-            if (a == "--html" && i + 1 < argc) html_path = argv[++i];
-            else if (xml_path.empty() && a.rfind("--", 0) != 0) xml_path = a;
-            else throw std::runtime_error("usage: " + std::string(argv[0]) + " [out.xml] [--html variables.html]");
+            if (a == "--html" && i + 1 < argc)
+                html_path = argv[++i];
+            else if (xml_path.empty() && a.rfind("--", 0) != 0)
+                xml_path = a;
+            else
+                throw std::runtime_error("usage: " + std::string(argv[0]) + " [out.xml] [--html variables.html]");
         }
         const std::string xml = model_description<M>();
         if (!html_path.empty()) write_file_atomically(html_path, variables_html<M>());

@@ -102,10 +102,14 @@ std::string value_text(const M& m, const Variable<M>& v) {
     return std::visit(
         [&](auto p) -> std::string {
             using T = std::decay_t<decltype(m.*p)>;
-            if constexpr (std::is_same_v<T, double>) return number_text(m.*p);
-            else if constexpr (std::is_same_v<T, int>) return std::to_string(m.*p);
-            else if constexpr (std::is_same_v<T, bool>) return m.*p ? "true" : "false";
-            else return "\"" + m.*p + "\"";
+            if constexpr (std::is_same_v<T, double>)
+                return number_text(m.*p);
+            else if constexpr (std::is_same_v<T, int>)
+                return std::to_string(m.*p);
+            else if constexpr (std::is_same_v<T, bool>)
+                return m.*p ? "true" : "false";
+            else
+                return "\"" + m.*p + "\"";
         },
         v.member);
 }

@@ -391,7 +391,8 @@ FluxMapTable saturating_flux_map(double L_d, double L_q, double psi_m, double I_
     for (int k = 0; k < n; ++k)
         for (int j = 0; j < n; ++j) {
             const double y = t.i_q[k] / I_ref, z = t.i_q[k] / I_s;
-            t.psi_d[static_cast<std::size_t>(k) * n + j] = psi_m * (1.0 - cross * y * y / (1.0 + y * y)) + L_d * t.i_d[j];
+            t.psi_d[static_cast<std::size_t>(k) * n + j] =
+                psi_m * (1.0 - cross * y * y / (1.0 + y * y)) + L_d * t.i_d[j];
             t.psi_q[static_cast<std::size_t>(k) * n + j] = L_q * t.i_q[k] / std::sqrt(1.0 + z * z);
         }
     return t;

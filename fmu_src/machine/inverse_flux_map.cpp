@@ -20,8 +20,8 @@ constexpr double kMaxTableCells = 150.0;
 
 }  // namespace
 
-bool InverseFluxMap::invert(const FluxMap& map, double psi_d, double psi_q, double& i_d,
-                            double& i_q, double tol, int* iterations) {
+bool InverseFluxMap::invert(const FluxMap& map, double psi_d, double psi_q, double& i_d, double& i_q, double tol,
+                            int* iterations) {
     // Damped Newton on r(i) = psi(i) - psi*, backtracking on the max-norm of r. The step size
     // is also capped at a quarter of the grid's extent so that a poor start cannot throw the
     // iterate far into the extrapolated region in one step.
@@ -103,8 +103,8 @@ void InverseFluxMap::nearest_node(double psi_d, double psi_q, double& i_d, doubl
 }
 
 double InverseFluxMap::outside_grid(double i_d, double i_q) const {
-    return std::max({forward_.i_d_min() - i_d, i_d - forward_.i_d_max(), forward_.i_q_min() - i_q,
-                     i_q - forward_.i_q_max(), 0.0});
+    return std::max(
+        {forward_.i_d_min() - i_d, i_d - forward_.i_d_max(), forward_.i_q_min() - i_q, i_q - forward_.i_q_max(), 0.0});
 }
 
 InverseFluxPoint InverseFluxMap::search(double psi_d, double psi_q, const double* fast) const {
@@ -300,7 +300,8 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
             const InverseFluxPoint e = eval(p.psi_d, p.psi_q), g = table(p.psi_d, p.psi_q);
             const double err = max_abs(e.i_d - id, e.i_q - iq), gerr = max_abs(g.i_d - id, g.i_q - iq);
             max_error_ = std::isfinite(err) ? std::max(max_error_, err) : std::numeric_limits<double>::infinity();
-            max_table_error_ = std::isfinite(gerr) ? std::max(max_table_error_, gerr) : std::numeric_limits<double>::infinity();
+            max_table_error_ =
+                std::isfinite(gerr) ? std::max(max_table_error_, gerr) : std::numeric_limits<double>::infinity();
         }
 }
 

@@ -32,8 +32,8 @@
 #include <cmath>
 #include <vector>
 
-#include "numerics/bicubic_spline.hpp"
 #include "machine/flux_map.hpp"
+#include "numerics/bicubic_spline.hpp"
 
 namespace ipmsm {
 
@@ -97,8 +97,8 @@ public:
     // One exact inversion of the forward map: finds i with map.eval(i) = psi by damped Newton
     // from (i_d, i_q) (updated in place). Returns false if it did not converge. tol: max-norm
     // residual in Wb. iterations (optional): Newton steps taken.
-    static bool invert(const FluxMap& map, double psi_d, double psi_q, double& i_d, double& i_q,
-                       double tol, int* iterations = nullptr);
+    static bool invert(const FluxMap& map, double psi_d, double psi_q, double& i_d, double& i_q, double tol,
+                       int* iterations = nullptr);
 
 private:
     static constexpr int kNewtonSteps = 8;  // from the table's guess, before the damped search
@@ -109,8 +109,8 @@ private:
 
     FluxMap forward_;
     BicubicSpline2D spline_;
-    double step_tol_ = 0;  // A: a Newton correction this small leaves rounding-level error
-    double flux_tol_ = 0;  // Wb: the damped search's residual
+    double step_tol_ = 0;           // A: a Newton correction this small leaves rounding-level error
+    double flux_tol_ = 0;           // Wb: the damped search's residual
     double psi_width_[2] = {1, 1};  // Wb: the image's extent, to compare flux distances
     int outside_nodes_ = 0, unreachable_nodes_ = 0;
     double max_outside_ = 0;

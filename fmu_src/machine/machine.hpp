@@ -10,11 +10,11 @@ constexpr double kPi = 3.14159265358979323846;
 
 // Which constraints shape the current command (the contract's `region` output).
 enum class Region : int {
-    zero_torque = 0,    // T = 0 (with i_d < 0 if the back-EMF alone exceeds V_max)
-    mtpa = 1,           // minimum current for the torque; voltage not limiting
-    voltage_limit = 2,  // torque curve meets the voltage ellipse (Case ii)
+    zero_torque = 0,                // T = 0 (with i_d < 0 if the back-EMF alone exceeds V_max)
+    mtpa = 1,                       // minimum current for the torque; voltage not limiting
+    voltage_limit = 2,              // torque curve meets the voltage ellipse (Case ii)
     current_and_voltage_limit = 3,  // T_max where the current circle meets the voltage ellipse
-    mtpv = 4,           // T_max at the maximum-torque-per-voltage point
+    mtpv = 4,                       // T_max at the maximum-torque-per-voltage point
 };
 
 // A constant-inductance machine (or the local linearisation of a saturated one).
@@ -39,13 +39,13 @@ struct CurrentPoint {
 
 // A current command and what it achieves.
 struct CurrentCommand {
-    double i_d = 0, i_q = 0;   // A
-    double torque = 0;         // torque the command produces (model), N.m
-    double torque_max = 0;     // largest |T| reachable at this speed, N.m (>= 0)
+    double i_d = 0, i_q = 0;  // A
+    double torque = 0;        // torque the command produces (model), N.m
+    double torque_max = 0;    // largest |T| reachable at this speed, N.m (>= 0)
     Region region = Region::zero_torque;
-    int iterations = 0;        // inductance-recursion / Newton iterations used
-    bool feasible = true;      // false: no current satisfies both limits (above maximum speed)
-    bool converged = true;     // false: an iteration did not converge (a fallback was used)
+    int iterations = 0;     // inductance-recursion / Newton iterations used
+    bool feasible = true;   // false: no current satisfies both limits (above maximum speed)
+    bool converged = true;  // false: an iteration did not converge (a fallback was used)
 };
 
 inline double torque_factor(int pole_pairs) { return 1.5 * pole_pairs; }

@@ -12,11 +12,9 @@ void BicubicSpline2D::Axis::init(const std::vector<double>& values) {
     const int n = static_cast<int>(values.size());
     if (n < 2) throw std::invalid_argument("BicubicSpline2D: an axis needs at least 2 nodes");
     for (int i = 0; i < n; ++i) {
-        if (!std::isfinite(values[i]))
-            throw std::invalid_argument("BicubicSpline2D: non-finite axis value");
+        if (!std::isfinite(values[i])) throw std::invalid_argument("BicubicSpline2D: non-finite axis value");
         if (i > 0 && !(values[i] > values[i - 1]))
-            throw std::invalid_argument("BicubicSpline2D: axis not strictly ascending at node " +
-                                        std::to_string(i));
+            throw std::invalid_argument("BicubicSpline2D: axis not strictly ascending at node " + std::to_string(i));
     }
     v = values;
     n_cells = n - 1;
@@ -26,14 +24,12 @@ void BicubicSpline2D::Axis::init(const std::vector<double>& values) {
     // offset is always taken from the stored node, so the tolerance only decides which of two
     // C2-joined patches evaluates a point within 1e-10 h of a node.
     uniform = true;
-    for (int i = 1; i < n - 1 && uniform; ++i)
-        uniform = std::abs(v[i] - (v[0] + i * h)) <= 1e-10 * h;
+    for (int i = 1; i < n - 1 && uniform; ++i) uniform = std::abs(v[i] - (v[0] + i * h)) <= 1e-10 * h;
     v0 = v[0];
     inv_h = 1.0 / h;
 }
 
-void BicubicSpline2D::spline_slopes(const double* x, int n, const double* f, int stride,
-                                    double* s) {
+void BicubicSpline2D::spline_slopes(const double* x, int n, const double* f, int stride, double* s) {
     if (n < 2) throw std::invalid_argument("spline_slopes: n < 2");
     auto F = [&](int i) { return f[static_cast<std::ptrdiff_t>(i) * stride]; };
     auto S = [&](int i) -> double& { return s[static_cast<std::ptrdiff_t>(i) * stride]; };
@@ -112,8 +108,7 @@ BicubicSpline2D::BicubicSpline2D(const std::vector<double>& x, const std::vector
         const double* F = fields[f];
         for (std::size_t i = 0; i < N; ++i)
             if (!std::isfinite(F[i]))
-                throw std::invalid_argument("BicubicSpline2D: non-finite value in field " +
-                                            std::to_string(f));
+                throw std::invalid_argument("BicubicSpline2D: non-finite value in field " + std::to_string(f));
         for (int k = 0; k < ny; ++k)  // d/dx along each grid line y = y[k]
             spline_slopes(x.data(), nx, F + static_cast<std::size_t>(k) * nx, 1,
                           fx.data() + static_cast<std::size_t>(k) * nx);
@@ -125,8 +120,8 @@ BicubicSpline2D::BicubicSpline2D(const std::vector<double>& x, const std::vector
             const double hy = y[k + 1] - y[k];
             for (int j = 0; j < cx; ++j) {
                 const double hx = x[j + 1] - x[j];
-                const std::size_t i00 = static_cast<std::size_t>(k) * nx + j, i10 = i00 + 1,
-                                  i01 = i00 + nx, i11 = i01 + 1;
+                const std::size_t i00 = static_cast<std::size_t>(k) * nx + j, i10 = i00 + 1, i01 = i00 + nx,
+                                  i11 = i01 + 1;
                 // G[r][s]: r = (f at x0, f at x1, d/dx at x0, d/dx at x1), s likewise in y.
                 const double G[4][4] = {
                     {F[i00], F[i01], fy[i00], fy[i01]},

@@ -58,9 +58,7 @@ public:
     const std::vector<double>& y() const { return ay_.v; }
     bool uniform_x() const { return ax_.uniform; }
     bool uniform_y() const { return ay_.uniform; }
-    std::size_t memory_bytes() const {
-        return (coef_.size() + ax_.v.size() + ay_.v.size()) * sizeof(double);
-    }
+    std::size_t memory_bytes() const { return (coef_.size() + ax_.v.size() + ay_.v.size()) * sizeof(double); }
 
     // All NF fields (NF must equal num_fields()) at (x, y).
     template <int NF>
@@ -119,8 +117,7 @@ inline int BicubicSpline2D::Axis::locate(double t, double& u) const {
     return j;
 }
 
-inline void BicubicSpline2D::basis(double u, double h_last, int side, double b[4], double d[4],
-                                   double dd[4]) {
+inline void BicubicSpline2D::basis(double u, double h_last, int side, double b[4], double d[4], double dd[4]) {
     b[0] = 1.0;
     d[0] = 0.0;
     dd[0] = 0.0;

@@ -144,8 +144,7 @@ inline bool leading_negligible(const int (&ex)[N + 1], bool small) {
 
 // p(y) and p'(y) of sum_k q[k] y^k (degree N) by Horner's rule, unrolled.
 template <int N, std::size_t... I>
-inline void horner_pd(const double (&q)[N + 1], double y, double& p, double& dp,
-                      std::index_sequence<I...>) {
+inline void horner_pd(const double (&q)[N + 1], double y, double& p, double& dp, std::index_sequence<I...>) {
     p = q[N];
     dp = 0.0;
     ((dp = dp * y + p, p = p * y + q[N - 1 - I]), ...);
@@ -227,8 +226,7 @@ inline bool root_to_rounding(const MonicPoly& p, double y) {
 // with a tiny imaginary part. So, if `whole` is given and the discriminant is negative but
 // small (relative < kNearDoubleDisc), the double root -al/2 is accepted when it is a root of
 // the whole polynomial to within rounding.
-inline int quadratic_roots(double al, double be, double* out, int n,
-                           const MonicPoly* whole = nullptr) {
+inline int quadratic_roots(double al, double be, double* out, int n, const MonicPoly* whole = nullptr) {
     const double al2 = al * al;
     double disc = al2 - 4.0 * be;
     if (disc < 0.0) {
@@ -293,8 +291,8 @@ inline DepressedCubic depressed_cubic(double p, double q) {
     const double sp = std::sqrt(std::max(0.0, (1.0 - cp) * (1.0 + cp)));
     constexpr double kHalfSqrt3 = 0.86602540378443864676;
     r.count = 3;
-    r.t[0] = 2.0 * rr * cp;                        // 2 r cos(phi),          cos in [1/2, 1]
-    r.t[1] = -rr * (cp + 2.0 * kHalfSqrt3 * sp);   // 2 r cos(phi + 2 pi/3), cos in [-1, -1/2]
+    r.t[0] = 2.0 * rr * cp;                       // 2 r cos(phi),          cos in [1/2, 1]
+    r.t[1] = -rr * (cp + 2.0 * kHalfSqrt3 * sp);  // 2 r cos(phi + 2 pi/3), cos in [-1, -1/2]
     return r;
 }
 
@@ -309,8 +307,7 @@ inline DepressedCubic depressed_cubic(double p, double q) {
 // cancel. A double root that rounding moved to the one-real-root side is recovered by the
 // discriminant clamp of the quadratic. When Cardano's single real root is small next to the
 // complex pair, it is recomputed from the product, r = -a0 / P with P = a1 + r (a2 + r).
-inline int cubic_roots(double a2, double a1, double a0, double* x,
-                       const MonicPoly* whole = nullptr) {
+inline int cubic_roots(double a2, double a1, double a0, double* x, const MonicPoly* whole = nullptr) {
     const double sh = a2 * (1.0 / 3.0);
     const double p = a1 - a2 * sh;
     const double q = (2.0 / 27.0) * a2 * a2 * a2 - sh * a1 + a0;
@@ -443,9 +440,9 @@ int ferrari_monic(double B, double C, double D, double E, double* y, const Monic
         const double nc = std::fabs(C) + abi + std::fabs(bj);
         const double nd = std::fabs(D) + aai * std::fabs(bj);
         const double e1 = aai;
-        const bool c_beats_1 = nc < e1 * aai;             // e2 < e1
-        const bool d_beats_1 = nd < e1 * abi;             // e3 < e1
-        const bool d_beats_c = nd * aai < nc * abi;       // e3 < e2
+        const bool c_beats_1 = nc < e1 * aai;        // e2 < e1
+        const bool d_beats_1 = nd < e1 * abi;        // e3 < e1
+        const bool d_beats_c = nd * aai < nc * abi;  // e3 < e2
         if (d_beats_1 && (d_beats_c || !c_beats_1)) {
             al[j] = (D - ai * bj) / bi;
         } else if (c_beats_1) {
@@ -542,8 +539,7 @@ RealRoots solve_cubic(double a, double b, double c, double d) {
     if (d == 0.0) return with_zero_root(solve_quadratic(a, b, c));
     const int m = root_scale_exponent<3>(ex);
     const int t = -ex[3];
-    const double q[4] = {scale2(d, t - 3 * m), scale2(c, t - 2 * m), scale2(b, t - m),
-                         scale2(a, t)};
+    const double q[4] = {scale2(d, t - 3 * m), scale2(c, t - 2 * m), scale2(b, t - m), scale2(a, t)};
     const double inv = 1.0 / q[3];
     double y[3];
     const double mc[3] = {q[0] * inv, q[1] * inv, q[2] * inv};
@@ -554,10 +550,8 @@ RealRoots solve_cubic(double a, double b, double c, double d) {
 
 RealRoots solve_quartic(double a, double b, double c, double d, double e) {
     if (!all_finite(a, b, c, d, e)) return RealRoots{};
-    const int ex[5] = {exponent_of(e), exponent_of(d), exponent_of(c), exponent_of(b),
-                       exponent_of(a)};
-    const double rest =
-        std::max(std::max(std::fabs(b), std::fabs(c)), std::max(std::fabs(d), std::fabs(e)));
+    const int ex[5] = {exponent_of(e), exponent_of(d), exponent_of(c), exponent_of(b), exponent_of(a)};
+    const double rest = std::max(std::max(std::fabs(b), std::fabs(c)), std::max(std::fabs(d), std::fabs(e)));
     if (leading_negligible<4>(ex, std::fabs(a) <= kSmallLead * rest)) return solve_cubic(b, c, d, e);
     if (e == 0.0) return with_zero_root(solve_cubic(a, b, c, d));
     const int m = root_scale_exponent<4>(ex);
@@ -604,6 +598,5 @@ RealRoots solve_quartic(double a, double b, double c, double d, double e) {
     }
     return finish<4>(q, y, n, m);
 }
-
 
 }  // namespace ipmsm

@@ -23,7 +23,7 @@
 namespace ipmsm {
 
 struct RealRoots {
-    int count = 0;             // number of real roots found, 0..4
+    int count = 0;                  // number of real roots found, 0..4
     double root[4] = {0, 0, 0, 0};  // ascending; a double root appears twice
 };
 

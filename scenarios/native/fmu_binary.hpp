@@ -81,16 +81,41 @@ inline std::string library_path(const std::string& dir, const std::string& model
 }
 
 // Every FMI 2.0 function a co-simulation FMU exports, each named as in the standard.
-#define FMU_BINARY_FUNCTIONS(X)                                                                                        \
-    X(fmi2GetTypesPlatform)                                                                                            \
-    X(fmi2GetVersion) X(fmi2SetDebugLogging) X(fmi2Instantiate) X(fmi2FreeInstance) X(fmi2SetupExperiment)             \
-        X(fmi2EnterInitializationMode) X(fmi2ExitInitializationMode) X(fmi2Terminate) X(fmi2Reset) X(fmi2GetReal)      \
-            X(fmi2GetInteger) X(fmi2GetBoolean) X(fmi2GetString) X(fmi2SetReal) X(fmi2SetInteger) X(fmi2SetBoolean)    \
-                X(fmi2SetString) X(fmi2GetFMUstate) X(fmi2SetFMUstate) X(fmi2FreeFMUstate)                             \
-                    X(fmi2SerializedFMUstateSize) X(fmi2SerializeFMUstate) X(fmi2DeSerializeFMUstate)                  \
-                        X(fmi2GetDirectionalDerivative) X(fmi2SetRealInputDerivatives) X(fmi2GetRealOutputDerivatives) \
-                            X(fmi2DoStep) X(fmi2CancelStep) X(fmi2GetStatus) X(fmi2GetRealStatus)                      \
-                                X(fmi2GetIntegerStatus) X(fmi2GetBooleanStatus) X(fmi2GetStringStatus)
+#define FMU_BINARY_FUNCTIONS(X)     \
+    X(fmi2GetTypesPlatform)         \
+    X(fmi2GetVersion)               \
+    X(fmi2SetDebugLogging)          \
+    X(fmi2Instantiate)              \
+    X(fmi2FreeInstance)             \
+    X(fmi2SetupExperiment)          \
+    X(fmi2EnterInitializationMode)  \
+    X(fmi2ExitInitializationMode)   \
+    X(fmi2Terminate)                \
+    X(fmi2Reset)                    \
+    X(fmi2GetReal)                  \
+    X(fmi2GetInteger)               \
+    X(fmi2GetBoolean)               \
+    X(fmi2GetString)                \
+    X(fmi2SetReal)                  \
+    X(fmi2SetInteger)               \
+    X(fmi2SetBoolean)               \
+    X(fmi2SetString)                \
+    X(fmi2GetFMUstate)              \
+    X(fmi2SetFMUstate)              \
+    X(fmi2FreeFMUstate)             \
+    X(fmi2SerializedFMUstateSize)   \
+    X(fmi2SerializeFMUstate)        \
+    X(fmi2DeSerializeFMUstate)      \
+    X(fmi2GetDirectionalDerivative) \
+    X(fmi2SetRealInputDerivatives)  \
+    X(fmi2GetRealOutputDerivatives) \
+    X(fmi2DoStep)                   \
+    X(fmi2CancelStep)               \
+    X(fmi2GetStatus)                \
+    X(fmi2GetRealStatus)            \
+    X(fmi2GetIntegerStatus)         \
+    X(fmi2GetBooleanStatus)         \
+    X(fmi2GetStringStatus)
 
 // An FMU's binary, dlopened (RTLD_LOCAL: two FMUs' identical symbol names do not clash), with
 // all its functions; closed when destroyed. Not copyable.

@@ -31,6 +31,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cinttypes>
 #include <climits>
 #include <cmath>
@@ -39,7 +40,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <chrono>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -97,7 +97,8 @@ ModelInfo read_model_description(const std::string& path) {
     m.guid = attr(xml.substr(0, xml.find("<CoSimulation")), "guid");
     const auto cs = xml.find("<CoSimulation");
     m.id = attr(xml.substr(cs, xml.find('>', cs) - cs), "modelIdentifier");
-    for (std::size_t at = xml.find("<ScalarVariable"); at != std::string::npos; at = xml.find("<ScalarVariable", at + 1)) {
+    for (std::size_t at = xml.find("<ScalarVariable"); at != std::string::npos;
+         at = xml.find("<ScalarVariable", at + 1)) {
         const std::string head = xml.substr(at, xml.find('>', at) - at);
         const auto end = xml.find("</ScalarVariable>", at);
         const std::string body = xml.substr(at, end - at);
@@ -132,8 +133,8 @@ using Api = fmu_binary::Functions;
 std::atomic<long> log_messages{0}, log_violations{0};
 bool verbose = false;
 
-void logger(fmi2ComponentEnvironment, fmi2String instance, fmi2Status status, fmi2String category,
-            fmi2String message, ...) {
+void logger(fmi2ComponentEnvironment, fmi2String instance, fmi2Status status, fmi2String category, fmi2String message,
+            ...) {
     ++log_messages;
     if (instance == nullptr || category == nullptr || message == nullptr || status < fmi2OK || status > fmi2Pending) {
         ++log_violations;
@@ -369,14 +370,16 @@ private:
     void violation(const std::string& what) {
         ++violations;
         if (violations > 20) return;
-        std::printf("VIOLATION (seed %" PRIu64 ", state %s): %s\n  last calls:\n", seed_, phase_name(phase_), what.c_str());
+        std::printf("VIOLATION (seed %" PRIu64 ", state %s): %s\n  last calls:\n", seed_, phase_name(phase_),
+                    what.c_str());
         for (const auto& s : trace_) std::printf("    %s\n", s.c_str());
     }
 
     int status(const std::string& call, int s) {
         ++calls;
         note(call + " -> " + status_name(s));
-        if (s < 0 || s > 5) violation(call + " returned " + std::to_string(s));
+        if (s < 0 || s > 5)
+            violation(call + " returned " + std::to_string(s));
         else {
             ++statuses[s];
             const std::string fn = call.substr(0, call.find_first_of("( "));
@@ -432,7 +435,8 @@ private:
         const Phase phase_before = phase_;
         start_clock();
         const int s = status(call, f());
-        if (!allowed(fn) && s != fmi2Error) violation(call + " is not allowed in state " + phase_name(phase_) + " but returned " + status_name(s));
+        if (!allowed(fn) && s != fmi2Error)
+            violation(call + " is not allowed in state " + phase_name(phase_) + " but returned " + status_name(s));
         if (s == fmi2Error) {
             if (!(snapshot(c_) == before)) violation(call + " returned Error but changed variables");
             phase_ = phase_before;
@@ -460,9 +464,18 @@ private:
         const fmi2CallbackFunctions* callbacks = &cb_;
         int type = fmi2CoSimulation;
         switch (pick(16)) {
-            case 0: valid = false; guid = "{00000000-0000-0000-0000-000000000000}"; break;
-            case 1: valid = false; type = fmi2ModelExchange; break;
-            case 2: valid = false; name = ""; break;
+            case 0:
+                valid = false;
+                guid = "{00000000-0000-0000-0000-000000000000}";
+                break;
+            case 1:
+                valid = false;
+                type = fmi2ModelExchange;
+                break;
+            case 2:
+                valid = false;
+                name = "";
+                break;
             case 3: callbacks = nullptr; break;
             case 4: callbacks = &cb_no_logger_; break;
             case 5: uri = nullptr; break;
@@ -474,13 +487,15 @@ private:
                                                    callbacks, fmi2False, pick(2) ? fmi2True : fmi2False);
         ++calls;
         note("fmi2Instantiate(" + std::string(valid ? "valid" : "invalid") + ") -> " + (c ? "instance" : "NULL"));
-        if (valid != (c != nullptr)) violation(std::string("fmi2Instantiate ") + (valid ? "refused valid" : "accepted invalid") + " arguments");
+        if (valid != (c != nullptr))
+            violation(std::string("fmi2Instantiate ") + (valid ? "refused valid" : "accepted invalid") + " arguments");
         c_ = c;
         phase_ = c ? Phase::instantiated : Phase::none;
         t_ = 0.0;
         if (c_) small_map();
         if (c_ && chance(0.05) && other_ == nullptr)  // a second instance, for foreign FMU states
-            other_ = f_.fmi2Instantiate("other", fmi2CoSimulation, m_.guid.c_str(), resource_uri_.c_str(), &cb_, fmi2False, fmi2False);
+            other_ = f_.fmi2Instantiate("other", fmi2CoSimulation, m_.guid.c_str(), resource_uri_.c_str(), &cb_,
+                                        fmi2False, fmi2False);
     }
 
     // Mostly the small map (fast initialisation), also after a reset; else the default map.
@@ -521,19 +536,32 @@ private:
             }
         }
         const int op = pick(100);
-        if (op < 6) setup();
-        else if (op < 14) enter();
-        else if (op < 24) exit_init();
-        else if (op < 44) do_step();
-        else if (op < 56) set_values();
-        else if (op < 66) get_values();
-        else if (op < 70) terminate();
-        else if (op < 73) reset();
-        else if (op < 75) free_instance();
-        else if (op < 90) fmu_state();
-        else if (op < 94) status_queries();
-        else if (op < 96) debug_logging();
-        else unsupported();
+        if (op < 6)
+            setup();
+        else if (op < 14)
+            enter();
+        else if (op < 24)
+            exit_init();
+        else if (op < 44)
+            do_step();
+        else if (op < 56)
+            set_values();
+        else if (op < 66)
+            get_values();
+        else if (op < 70)
+            terminate();
+        else if (op < 73)
+            reset();
+        else if (op < 75)
+            free_instance();
+        else if (op < 90)
+            fmu_state();
+        else if (op < 94)
+            status_queries();
+        else if (op < 96)
+            debug_logging();
+        else
+            unsupported();
     }
 
     void setup() {
@@ -545,12 +573,14 @@ private:
             return f_.fmi2SetupExperiment(c_, chance(0.5), 1e-6, start, stop_defined, stop);
         });
         if (s == fmi2OK) t_ = start;
-        if (allowed("setup") && std::isfinite(start) && !stop_defined && s != fmi2OK) violation("a valid fmi2SetupExperiment failed");
+        if (allowed("setup") && std::isfinite(start) && !stop_defined && s != fmi2OK)
+            violation("a valid fmi2SetupExperiment failed");
     }
 
     void enter() {
         const bool ok_expected = allowed("enter");
-        const int s = mutating("fmi2EnterInitializationMode", "enter", [&] { return f_.fmi2EnterInitializationMode(c_); });
+        const int s =
+            mutating("fmi2EnterInitializationMode", "enter", [&] { return f_.fmi2EnterInitializationMode(c_); });
         if (ok_expected && s != fmi2OK) violation("fmi2EnterInitializationMode failed in state instantiated");
         if (s == fmi2OK) phase_ = Phase::init;
     }
@@ -567,7 +597,7 @@ private:
         const double hs[] = {1e-4, 1e-4, 1e-4, 1e-5, 1e-3, 1e-2, 1.0, 0.0, -1e-4, NAN, INFINITY, 1e-12};
         const double h = hs[pick(12)];
         double t = t_;
-        if (chance(0.05)) t = t_ + 1.0;      // not where the last step ended
+        if (chance(0.05)) t = t_ + 1.0;  // not where the last step ended
         if (chance(0.02)) t = NAN;
         std::ostringstream call;
         call << "fmi2DoStep(t " << t << ", h " << h << ")";
@@ -593,21 +623,30 @@ private:
         for (int i = 0; i < n; ++i) {
             const Var* v = random_var(type, chance(0.9));
             const int r = pick(20);
-            if (v == nullptr || r == 0) vr[i] = r == 0 && chance(0.5) ? 0xffffffffu : static_cast<fmi2ValueReference>(m_.vars.size());
-            else if (r == 1) vr[i] = m_.vars[pick(static_cast<int>(m_.vars.size()))].vr;  // maybe another type
-            else vr[i] = v->vr;
+            if (v == nullptr || r == 0)
+                vr[i] = r == 0 && chance(0.5) ? 0xffffffffu : static_cast<fmi2ValueReference>(m_.vars.size());
+            else if (r == 1)
+                vr[i] = m_.vars[pick(static_cast<int>(m_.vars.size()))].vr;  // maybe another type
+            else
+                vr[i] = v->vr;
             const Var& info = vr[i] < m_.vars.size() ? m_.vars[vr[i]] : m_.vars[0];
-            if (type == 'R') rv[i] = real_value(info);
-            else if (type == 'I') iv[i] = int_value(info);
-            else if (type == 'B') iv[i] = pick(4) - 1;
+            if (type == 'R')
+                rv[i] = real_value(info);
+            else if (type == 'I')
+                iv[i] = int_value(info);
+            else if (type == 'B')
+                iv[i] = pick(4) - 1;
             else {
                 sv[i] = string_value();
                 sp[i] = (chance(0.05)) ? nullptr : sv[i].c_str();
             }
             call << (i ? ", " : "") << vr[i] << "=";
-            if (type == 'R') call << rv[i];
-            else if (type == 'S') call << (sp[i] ? "\"" + sv[i].substr(0, 60) + "\"" : "NULL");
-            else call << iv[i];
+            if (type == 'R')
+                call << rv[i];
+            else if (type == 'S')
+                call << (sp[i] ? "\"" + sv[i].substr(0, 60) + "\"" : "NULL");
+            else
+                call << iv[i];
         }
         call << ")";
         const bool null_vr = n > 0 && chance(0.03), null_values = n > 0 && chance(0.03);
@@ -636,8 +675,8 @@ private:
         fmi2String s = nullptr;
         const fmi2ValueReference* vrp = (mode == 0 || mode == 1) ? nullptr : &vr;
         const bool null_value = mode == 0 || mode == 2;
-        const std::string call = std::string("fmi2Get") + kTypeName[kind] +
-                                 "(vr " + std::to_string(vr) + ", mode " + std::to_string(mode) + ")";
+        const std::string call = std::string("fmi2Get") + kTypeName[kind] + "(vr " + std::to_string(vr) + ", mode " +
+                                 std::to_string(mode) + ")";
         int st = 0;
         switch (kind) {
             case 0: st = f_.fmi2GetReal(c_, vrp, n, null_value ? nullptr : &r); break;
@@ -648,13 +687,16 @@ private:
         status(call, st);
         if (!allowed("get") && st != fmi2Error) violation(call + " not allowed but returned " + status_name(st));
         if (allowed("get") && mode == 0 && st != fmi2OK) violation(call + ": nvr = 0 must succeed");
-        if (allowed("get") && (mode == 1 || mode == 2 || mode == 3) && st != fmi2Error) violation(call + ": must be refused");
+        if (allowed("get") && (mode == 1 || mode == 2 || mode == 3) && st != fmi2Error)
+            violation(call + ": must be refused");
         const bool right_type = vr < m_.vars.size() && m_.vars[vr].type == type;
-        if (allowed("get") && mode == 4 && !right_type && st != fmi2Error) violation(call + ": wrong type must be refused");
+        if (allowed("get") && mode == 4 && !right_type && st != fmi2Error)
+            violation(call + ": wrong type must be refused");
         // valid arguments: must succeed (outputs in Initialization Mode may fail: their initial
         // values need a valid set of parameters)
         const bool computed_in_init = phase_ == Phase::init && vr < m_.vars.size() && m_.vars[vr].computed();
-        if (allowed("get") && mode > 4 && v != nullptr && !computed_in_init && st != fmi2OK) violation(call + " failed with valid arguments");
+        if (allowed("get") && mode > 4 && v != nullptr && !computed_in_init && st != fmi2OK)
+            violation(call + " failed with valid arguments");
         if (st == fmi2OK && kind == 3 && n == 1 && s == nullptr) violation(call + " returned a NULL string");
     }
 
@@ -667,7 +709,8 @@ private:
 
     void reset() {
         const int s = status("fmi2Reset", f_.fmi2Reset(c_));
-        if (s != fmi2OK) violation("fmi2Reset failed");
+        if (s != fmi2OK)
+            violation("fmi2Reset failed");
         else {
             phase_ = Phase::instantiated;
             t_ = 0.0;
@@ -708,8 +751,9 @@ private:
                 s = states_[reuse].state;
             }
             const bool null_arg = chance(0.03);
-            const int st = status("fmi2GetFMUstate" + std::string(reuse >= 0 ? " (reuse)" : "") + (null_arg ? " NULL" : ""),
-                                  f_.fmi2GetFMUstate(c_, null_arg ? nullptr : &s));
+            const int st =
+                status("fmi2GetFMUstate" + std::string(reuse >= 0 ? " (reuse)" : "") + (null_arg ? " NULL" : ""),
+                       f_.fmi2GetFMUstate(c_, null_arg ? nullptr : &s));
             if (null_arg) {
                 if (st != fmi2Error) violation("fmi2GetFMUstate(NULL) must be refused");
                 return;
@@ -719,8 +763,10 @@ private:
                 return;
             }
             Saved saved{s, snapshot(c_), phase_, t_};
-            if (reuse >= 0) states_[reuse] = saved;
-            else states_.push_back(saved);
+            if (reuse >= 0)
+                states_[reuse] = saved;
+            else
+                states_.push_back(saved);
         } else if (op <= 3) {  // set one of ours
             const Saved& s = states_[pick(static_cast<int>(states_.size()))];
             const int st = status("fmi2SetFMUstate", f_.fmi2SetFMUstate(c_, s.state));
@@ -736,19 +782,24 @@ private:
             std::string what = "NULL";
             // a freed state's address, unless an allocation since has reused it for a live one
             if (!freed_states_.empty() && chance(0.5) &&
-                std::none_of(states_.begin(), states_.end(), [&](const Saved& x) { return x.state == freed_states_.back(); })) {
+                std::none_of(states_.begin(), states_.end(),
+                             [&](const Saved& x) { return x.state == freed_states_.back(); })) {
                 bogus = freed_states_.back();
                 what = "a freed state";
-            }
-            else if (other_ != nullptr && chance(0.5)) {
+            } else if (other_ != nullptr && chance(0.5)) {
                 fmi2FMUstate foreign = nullptr;
                 if (f_.fmi2GetFMUstate(other_, &foreign) == fmi2OK) {
-                    mutating("fmi2SetFMUstate(another instance's state)", "any", [&] { return f_.fmi2SetFMUstate(c_, foreign); });
+                    mutating("fmi2SetFMUstate(another instance's state)", "any",
+                             [&] { return f_.fmi2SetFMUstate(c_, foreign); });
                     f_.fmi2FreeFMUstate(other_, &foreign);
                 }
                 return;
-            } else if (chance(0.5)) { bogus = reinterpret_cast<fmi2FMUstate>(static_cast<std::uintptr_t>(0x1000)); what = "a wild pointer"; }
-            const int st = mutating("fmi2SetFMUstate(" + what + ")", "any", [&] { return f_.fmi2SetFMUstate(c_, bogus); });
+            } else if (chance(0.5)) {
+                bogus = reinterpret_cast<fmi2FMUstate>(static_cast<std::uintptr_t>(0x1000));
+                what = "a wild pointer";
+            }
+            const int st =
+                mutating("fmi2SetFMUstate(" + what + ")", "any", [&] { return f_.fmi2SetFMUstate(c_, bogus); });
             if (st != fmi2Error) violation("fmi2SetFMUstate(" + what + ") must be refused");
         } else if (op == 5) {  // free one (sometimes twice)
             const int k = pick(static_cast<int>(states_.size()));
@@ -773,12 +824,14 @@ private:
                 return;
             }
             if (chance(0.1)) {
-                if (status("fmi2SerializedFMUstateSize(size NULL)", f_.fmi2SerializedFMUstateSize(c_, s.state, nullptr)) != fmi2Error)
+                if (status("fmi2SerializedFMUstateSize(size NULL)",
+                           f_.fmi2SerializedFMUstateSize(c_, s.state, nullptr)) != fmi2Error)
                     violation("fmi2SerializedFMUstateSize(NULL) must be refused");
             }
             std::vector<char> bytes(size + 16);
             if (chance(0.1) && size > 0) {
-                if (status("fmi2SerializeFMUstate(short buffer)", f_.fmi2SerializeFMUstate(c_, s.state, bytes.data(), size - 1)) != fmi2Error)
+                if (status("fmi2SerializeFMUstate(short buffer)",
+                           f_.fmi2SerializeFMUstate(c_, s.state, bytes.data(), size - 1)) != fmi2Error)
                     violation("fmi2SerializeFMUstate into a short buffer must be refused");
             }
             if (status("fmi2SerializeFMUstate", f_.fmi2SerializeFMUstate(c_, s.state, bytes.data(), size)) != fmi2OK) {
@@ -793,32 +846,47 @@ private:
             std::string what = "intact";
             if (blob) bytes = blob->bytes;
             const int how = blob ? pick(6) : 3;
-            if (how == 1 && !bytes.empty()) { bytes[pick(static_cast<int>(bytes.size()))] ^= static_cast<char>(1 + pick(255)); what = "a flipped byte"; }
-            else if (how == 2 && !bytes.empty()) { bytes.resize(pick(static_cast<int>(bytes.size()))); what = "truncated"; }
-            else if (how == 3) { bytes.resize(pick(300)); for (auto& b : bytes) b = static_cast<char>(pick(256)); what = "random bytes"; }
-            else if (how == 5 && bytes.size() > 8 && chance(0.5)) {
+            if (how == 1 && !bytes.empty()) {
+                bytes[pick(static_cast<int>(bytes.size()))] ^= static_cast<char>(1 + pick(255));
+                what = "a flipped byte";
+            } else if (how == 2 && !bytes.empty()) {
+                bytes.resize(pick(static_cast<int>(bytes.size())));
+                what = "truncated";
+            } else if (how == 3) {
+                bytes.resize(pick(300));
+                for (auto& b : bytes) b = static_cast<char>(pick(256));
+                what = "random bytes";
+            } else if (how == 5 && bytes.size() > 8 && chance(0.5)) {
                 // an edited state with a valid checksum (FNV-1a is no MAC): validated, not trusted
                 bytes[pick(static_cast<int>(bytes.size() - 8))] ^= static_cast<char>(1 + pick(255));
                 std::uint64_t h = 0xcbf29ce484222325ull;
-                for (std::size_t i = 0; i + 8 < bytes.size(); ++i) h = (h ^ static_cast<unsigned char>(bytes[i])) * 0x100000001b3ull;
+                for (std::size_t i = 0; i + 8 < bytes.size(); ++i)
+                    h = (h ^ static_cast<unsigned char>(bytes[i])) * 0x100000001b3ull;
                 std::memcpy(bytes.data() + bytes.size() - 8, &h, 8);
                 what = "edited, checksum recomputed";
             }
             fmi2FMUstate s = nullptr;
             const bool null_data = how == 4;
             if (null_data) what = "NULL data";
-            const int st = status("fmi2DeSerializeFMUstate(" + what + ")",
-                                  f_.fmi2DeSerializeFMUstate(c_, null_data ? nullptr : bytes.data(), null_data ? 7 : bytes.size(), &s));
+            const int st = status(
+                "fmi2DeSerializeFMUstate(" + what + ")",
+                f_.fmi2DeSerializeFMUstate(c_, null_data ? nullptr : bytes.data(), null_data ? 7 : bytes.size(), &s));
             if (what == "edited, checksum recomputed") {  // may be valid: refused or a state, never a crash
-                if (st == fmi2OK) f_.fmi2FreeFMUstate(c_, &s);
-                else if (st != fmi2Error) violation("fmi2DeSerializeFMUstate(" + what + ") returned " + std::to_string(st));
+                if (st == fmi2OK)
+                    f_.fmi2FreeFMUstate(c_, &s);
+                else if (st != fmi2Error)
+                    violation("fmi2DeSerializeFMUstate(" + what + ") returned " + std::to_string(st));
                 return;
             }
             if (what != "intact" && st != fmi2Error) violation("fmi2DeSerializeFMUstate accepted " + what);
             if (st == fmi2OK) {
-                if (s == nullptr) { violation("fmi2DeSerializeFMUstate returned OK and no state"); return; }
+                if (s == nullptr) {
+                    violation("fmi2DeSerializeFMUstate returned OK and no state");
+                    return;
+                }
                 const int st2 = status("fmi2SetFMUstate(deserialised)", f_.fmi2SetFMUstate(c_, s));
-                if (st2 != fmi2OK) violation("fmi2SetFMUstate of a deserialised state failed");
+                if (st2 != fmi2OK)
+                    violation("fmi2SetFMUstate of a deserialised state failed");
                 else {
                     phase_ = blob->phase;
                     t_ = blob->t;
@@ -848,13 +916,15 @@ private:
             case 3: st = f_.fmi2GetBooleanStatus(c_, k, null_value ? nullptr : &bv); break;
             default: st = f_.fmi2GetStringStatus(c_, k, null_value ? nullptr : &strv); break;
         }
-        const std::string call = "fmi2Get*Status(" + std::to_string(which) + ", kind " + std::to_string(kind) + (null_value ? ", NULL" : "") + ")";
+        const std::string call = "fmi2Get*Status(" + std::to_string(which) + ", kind " + std::to_string(kind) +
+                                 (null_value ? ", NULL" : "") + ")";
         status(call, st);
         if ((!allowed("status") || null_value || kind > 3 || kind < 0) && st != fmi2Error)
             violation(call + " must be refused");
         if (allowed("status") && !null_value && kind >= 0 && kind <= 3 && st != fmi2OK && st != fmi2Discard)
             violation(call + " must answer OK or Discard");
-        if (which == 1 && kind == 2 && st == fmi2OK && rv != t_) violation("fmi2LastSuccessfulTime is not the time reached");
+        if (which == 1 && kind == 2 && st == fmi2OK && rv != t_)
+            violation("fmi2LastSuccessfulTime is not the time reached");
     }
 
     void debug_logging() {
@@ -862,12 +932,17 @@ private:
         const char* bad[] = {"logEvents", "noSuchCategory"};
         const int mode = pick(4);
         int st = 0;
-        if (mode == 0) st = f_.fmi2SetDebugLogging(c_, fmi2True, 0, nullptr);
-        else if (mode == 1) st = f_.fmi2SetDebugLogging(c_, fmi2True, 3, good);
-        else if (mode == 2) st = f_.fmi2SetDebugLogging(c_, fmi2True, 2, bad);
-        else st = f_.fmi2SetDebugLogging(c_, fmi2True, 2, nullptr);
+        if (mode == 0)
+            st = f_.fmi2SetDebugLogging(c_, fmi2True, 0, nullptr);
+        else if (mode == 1)
+            st = f_.fmi2SetDebugLogging(c_, fmi2True, 3, good);
+        else if (mode == 2)
+            st = f_.fmi2SetDebugLogging(c_, fmi2True, 2, bad);
+        else
+            st = f_.fmi2SetDebugLogging(c_, fmi2True, 2, nullptr);
         status("fmi2SetDebugLogging(mode " + std::to_string(mode) + ")", st);
-        if ((mode <= 1) != (st == fmi2OK)) violation("fmi2SetDebugLogging mode " + std::to_string(mode) + " answered " + status_name(st));
+        if ((mode <= 1) != (st == fmi2OK))
+            violation("fmi2SetDebugLogging mode " + std::to_string(mode) + " answered " + status_name(st));
         if (chance(0.5)) f_.fmi2SetDebugLogging(c_, fmi2False, 0, nullptr);
     }
 
@@ -878,9 +953,17 @@ private:
         int st = 0;
         switch (pick(4)) {
             case 0: st = status("fmi2CancelStep", f_.fmi2CancelStep(c_)); break;
-            case 1: st = status("fmi2GetDirectionalDerivative", f_.fmi2GetDirectionalDerivative(c_, &vr, 1, &vr, 1, &r, &r)); break;
-            case 2: st = mutating("fmi2SetRealInputDerivatives", "any", [&] { return f_.fmi2SetRealInputDerivatives(c_, &vr, 1, &order, &r); }); break;
-            default: st = status("fmi2GetRealOutputDerivatives", f_.fmi2GetRealOutputDerivatives(c_, &vr, 1, &order, &r)); break;
+            case 1:
+                st =
+                    status("fmi2GetDirectionalDerivative", f_.fmi2GetDirectionalDerivative(c_, &vr, 1, &vr, 1, &r, &r));
+                break;
+            case 2:
+                st = mutating("fmi2SetRealInputDerivatives", "any",
+                              [&] { return f_.fmi2SetRealInputDerivatives(c_, &vr, 1, &order, &r); });
+                break;
+            default:
+                st = status("fmi2GetRealOutputDerivatives", f_.fmi2GetRealOutputDerivatives(c_, &vr, 1, &order, &r));
+                break;
         }
         if (st != fmi2Error) violation("an unsupported function did not return fmi2Error");
     }
@@ -910,7 +993,8 @@ std::vector<double> drive(const Api& f, const ModelInfo& m, const std::string& u
     fmi2CallbackFunctions cb{};
     cb.logger = logger;
     const std::string name = "thread" + std::to_string(instance);
-    fmi2Component c = f.fmi2Instantiate(name.c_str(), fmi2CoSimulation, m.guid.c_str(), uri.c_str(), &cb, fmi2False, fmi2False);
+    fmi2Component c =
+        f.fmi2Instantiate(name.c_str(), fmi2CoSimulation, m.guid.c_str(), uri.c_str(), &cb, fmi2False, fmi2False);
     std::vector<double> out;
     if (c == nullptr) return out;
     std::vector<fmi2ValueReference> inputs, outputs;
@@ -929,7 +1013,8 @@ std::vector<double> drive(const Api& f, const ModelInfo& m, const std::string& u
     f.fmi2GetReal(c, inputs.data(), inputs.size(), start.data());
     for (int k = 0; k < steps; ++k) {
         std::vector<double> u(start);
-        for (std::size_t i = 0; i < u.size(); ++i) u[i] = start[i] + 0.05 * (std::abs(start[i]) + 1) * std::sin(0.1 * k + i);
+        for (std::size_t i = 0; i < u.size(); ++i)
+            u[i] = start[i] + 0.05 * (std::abs(start[i]) + 1) * std::sin(0.1 * k + i);
         f.fmi2SetReal(c, inputs.data(), inputs.size(), u.data());
         if (f.fmi2DoStep(c, k * 1e-4, 1e-4, fmi2True) > fmi2Warning) break;
         f.fmi2GetReal(c, outputs.data(), outputs.size(), y.data());
@@ -970,16 +1055,25 @@ int main(int argc, char** argv) {
             }
             return argv[++i];
         };
-        if (a == "--sequences") o.sequences = std::stol(next());
-        else if (a == "--calls") o.calls = std::stoi(next());
-        else if (a == "--seed") o.seed = std::stoull(next());
-        else if (a == "--skip") o.skip.insert(next());
-        else if (a == "--threads") o.threads = true;
-        else if (a == "--verbose") verbose = true;
-        else if (o.dir.empty() && a[0] != '-') o.dir = a;
+        if (a == "--sequences")
+            o.sequences = std::stol(next());
+        else if (a == "--calls")
+            o.calls = std::stoi(next());
+        else if (a == "--seed")
+            o.seed = std::stoull(next());
+        else if (a == "--skip")
+            o.skip.insert(next());
+        else if (a == "--threads")
+            o.threads = true;
+        else if (a == "--verbose")
+            verbose = true;
+        else if (o.dir.empty() && a[0] != '-')
+            o.dir = a;
         else {
-            std::fprintf(stderr, "usage: %s <unzipped fmu dir> [--sequences N] [--calls M] [--seed S] [--skip NAME]... "
-                                 "[--threads] [--verbose]\n", argv[0]);
+            std::fprintf(stderr,
+                         "usage: %s <unzipped fmu dir> [--sequences N] [--calls M] [--seed S] [--skip NAME]... "
+                         "[--threads] [--verbose]\n",
+                         argv[0]);
             return 2;
         }
     }
@@ -1009,7 +1103,8 @@ int main(int argc, char** argv) {
     std::printf("%-30s %8s %8s %8s %8s %9s\n", "function", "OK", "Warning", "Discard", "Error", "seconds");
     for (const auto& [fn, st] : fuzz.per_function)
         std::printf("%-30s %8ld %8ld %8ld %8ld %9.3f\n", fn.c_str(), st[0], st[1], st[2], st[3], fuzz.seconds[fn]);
-    std::printf("fuzz %s: %ld sequences (seeds %" PRIu64 "..%" PRIu64 "), %ld calls: %ld OK, %ld Warning, %ld Discard, "
+    std::printf("fuzz %s: %ld sequences (seeds %" PRIu64 "..%" PRIu64
+                "), %ld calls: %ld OK, %ld Warning, %ld Discard, "
                 "%ld Error; %ld log messages; %d violations\n",
                 m.id.c_str(), o.sequences, o.seed, o.seed + o.sequences - 1, fuzz.calls, fuzz.statuses[0],
                 fuzz.statuses[1], fuzz.statuses[2], fuzz.statuses[3], log_messages.load(), bad);

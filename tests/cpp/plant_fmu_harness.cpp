@@ -26,12 +26,12 @@
 namespace {
 
 int failures = 0;
-#define CHECK(cond)                                                                  \
-    do {                                                                             \
-        if (!(cond)) {                                                               \
+#define CHECK(cond)                                                                 \
+    do {                                                                            \
+        if (!(cond)) {                                                              \
             std::fprintf(stderr, "CHECK failed at line %d: %s\n", __LINE__, #cond); \
-            ++failures;                                                              \
-        }                                                                            \
+            ++failures;                                                             \
+        }                                                                           \
     } while (0)
 
 std::string last_log;
@@ -63,12 +63,14 @@ int main(int argc, char** argv) {
     const std::string resources = "file://" + dir + "/resources";
     fmi2CallbackFunctions cb{logger, nullptr, nullptr, nullptr, nullptr};
     const fmi2Real h = 1e-4;
-    const std::vector<std::string> outs = {"i_d", "i_q", "psi_d", "psi_q", "T_e", "T_shaft", "P_elec", "P_mech", "P_cu", "P_fe"};
+    const std::vector<std::string> outs = {"i_d",     "i_q",    "psi_d",  "psi_q", "T_e",
+                                           "T_shaft", "P_elec", "P_mech", "P_cu",  "P_fe"};
     std::vector<fmi2ValueReference> out_vr;
     for (const auto& n : outs) out_vr.push_back(vr.at(n));
 
     auto make = [&](const char* name) {
-        fmi2Component c = api.fmi2Instantiate(name, fmi2CoSimulation, guid.c_str(), resources.c_str(), &cb, fmi2False, fmi2True);
+        fmi2Component c =
+            api.fmi2Instantiate(name, fmi2CoSimulation, guid.c_str(), resources.c_str(), &cb, fmi2False, fmi2True);
         CHECK(c != nullptr);
         return c;
     };

@@ -17,16 +17,15 @@
 
 #include <unistd.h>
 
-#include "numerics/bicubic_spline.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
+#include "numerics/bicubic_spline.hpp"
 
 using namespace ipmsm;
 
 namespace {
 
-const std::string kBaldor =
-    std::string(IPMSM_SOURCE_DIR) + "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
+const std::string kBaldor = std::string(IPMSM_SOURCE_DIR) + "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
 
 std::string temp_dir() {
     static const std::string dir = [] {
@@ -49,8 +48,7 @@ std::string write_file(const std::string& name, const std::string& content) {
 
 // A small valid map of a linear machine: '#' lines 1-2, header on line 3, rows from line 4
 // (i_q outer, i_d inner). edit(row_index, fields) may change a row; returning false drops it.
-std::string make_csv(int nd, int nq,
-                     const std::function<bool(int, std::vector<std::string>&)>& edit = nullptr) {
+std::string make_csv(int nd, int nq, const std::function<bool(int, std::vector<std::string>&)>& edit = nullptr) {
     std::ostringstream s;
     s << "# test map\n# pole_pairs: 4\ni_d,i_q,psi_d,psi_q\n";
     int r = 0;
@@ -71,8 +69,7 @@ std::string make_csv(int nd, int nq,
 }
 
 // Reading `content` must throw FluxMapError whose message has the file name and every needle.
-void expect_error(const std::string& name, const std::string& content,
-                  const std::vector<std::string>& needles) {
+void expect_error(const std::string& name, const std::string& content, const std::vector<std::string>& needles) {
     const std::string path = write_file(name, content);
     try {
         read_flux_map(path);
@@ -114,8 +111,8 @@ struct SaturatingMachine {
     }
     FluxMapTable table(double h) const {  // i_d in [-400, 200], i_q in [-400, 400]
         FluxMapTable tab;
-        for (int j = 0; -400 + j * h <= 200 + 1e-9; ++j) tab.i_d.push_back(-400 + j * h);
-        for (int k = 0; -400 + k * h <= 400 + 1e-9; ++k) tab.i_q.push_back(-400 + k * h);
+        for (int j = 0; - 400 + j * h <= 200 + 1e-9; ++j) tab.i_d.push_back(-400 + j * h);
+        for (int k = 0; - 400 + k * h <= 400 + 1e-9; ++k) tab.i_q.push_back(-400 + k * h);
         for (double iq : tab.i_q)
             for (double id : tab.i_d) {
                 const FluxPoint p = eval(id, iq);
@@ -154,7 +151,8 @@ TEST(FluxMapReader, EmptyHeaderlessAndHeaderOnly) {
     expect_error("empty.csv", "", {"empty"});
     expect_error("blank.csv", "\n  \r\n\n", {"empty"});
     expect_error("comments_only.csv", "# a map\n# pole_pairs: 4\n", {"no header"});
-    expect_error("no_header.csv", "# a map\n-100,-100,0.08,-0.05\n", {"line 2", "header missing", "i_d,i_q,psi_d,psi_q"});
+    expect_error("no_header.csv", "# a map\n-100,-100,0.08,-0.05\n",
+                 {"line 2", "header missing", "i_d,i_q,psi_d,psi_q"});
     expect_error("wrong_header.csv", "id,iq,psid,psiq\n1,2,3,4\n", {"line 1", "wrong header"});
     expect_error("short_header.csv", "i_d,i_q,psi_d\n", {"line 1", "wrong header"});
     expect_error("header_only.csv", "# x\n\ni_d,i_q,psi_d,psi_q\n\n", {"line 3", "no data rows"});
@@ -178,15 +176,19 @@ TEST(FluxMapReader, BadNumbers) {
 }
 
 TEST(FluxMapReader, WrongColumnCount) {
-    expect_error("three.csv", make_csv(5, 5, [](int r, std::vector<std::string>& f) {
-                     if (r == 3) f.pop_back();
-                     return true;
-                 }),
+    expect_error("three.csv",
+                 make_csv(5, 5,
+                          [](int r, std::vector<std::string>& f) {
+                              if (r == 3) f.pop_back();
+                              return true;
+                          }),
                  {"line 7", "expected 4", "found 3"});
-    expect_error("five.csv", make_csv(5, 5, [](int r, std::vector<std::string>& f) {
-                     if (r == 3) f.push_back("1");
-                     return true;
-                 }),
+    expect_error("five.csv",
+                 make_csv(5, 5,
+                          [](int r, std::vector<std::string>& f) {
+                              if (r == 3) f.push_back("1");
+                              return true;
+                          }),
                  {"line 7", "found 5"});
     expect_error("semicolons.csv", "i_d,i_q,psi_d,psi_q\n1;2;3;4\n", {"line 2", "found 1"});
 }
@@ -203,21 +205,26 @@ TEST(FluxMapReader, DuplicateMissingAndSmallGrids) {
 
 TEST(FluxMapReader, NonMonotone) {
     // Row 7 = (j 2, k 1): psi_d there below its left neighbour's.
-    expect_error("psi_d.csv", make_csv(5, 5, [](int r, std::vector<std::string>& f) {
-                     if (r == 7) f[2] = "0.05";
-                     return true;
-                 }),
+    expect_error("psi_d.csv",
+                 make_csv(5, 5,
+                          [](int r, std::vector<std::string>& f) {
+                              if (r == 7) f[2] = "0.05";
+                              return true;
+                          }),
                  {"line 11", "psi_d not strictly increasing in i_d", "i_q = -80"});
     // Flat psi_q between rows (j 3, k 2) and (j 3, k 3): equal is rejected too.
-    expect_error("psi_q.csv", make_csv(5, 5, [](int r, std::vector<std::string>& f) {
-                     if (r == 18) f[3] = "-0.030000";
-                     return true;
-                 }),
+    expect_error("psi_q.csv",
+                 make_csv(5, 5,
+                          [](int r, std::vector<std::string>& f) {
+                              if (r == 18) f[3] = "-0.030000";
+                              return true;
+                          }),
                  {"line 22", "psi_q not strictly increasing in i_q", "i_d = -40", "line 17"});
 }
 
 TEST(FluxMapReader, MetadataNumbers) {
-    const FluxMapTable t = read_flux_map(write_file("meta.csv", "# pole_pairs: 4\n# R_s_ohm: 0.0123\n# name: two\n" + make_csv(4, 4)));
+    const FluxMapTable t =
+        read_flux_map(write_file("meta.csv", "# pole_pairs: 4\n# R_s_ohm: 0.0123\n# name: two\n" + make_csv(4, 4)));
     EXPECT_EQ(t.metadata_number("pole_pairs", 0), 4);
     EXPECT_EQ(t.metadata_number("R_s_ohm", 0), 0.0123);
     EXPECT_EQ(t.metadata_number("absent", 7.5), 7.5);
@@ -258,15 +265,16 @@ TEST(FluxMapReader, TolerantFormatting) {
     EXPECT_EQ(a.i_d[1], -80.0);
     EXPECT_EQ(a.psi_d[1], 0.084);
     // Leading '+', exponents, upper case: the same numbers.
-    const FluxMapTable c = read_flux_map(write_file("plus.csv", make_csv(5, 6, [](int r, std::vector<std::string>& f) {
-        if (r == 6) {  // (j 1, k 1): i_d = -80, i_q = -80, psi_d = 0.084, psi_q = -0.04
-            f[0] = "-0.8E+2";
-            f[1] = "-8000e-2";
-            f[2] = "+0.084";
-            f[3] = "-4.0e-2";
-        }
-        return true;
-    })));
+    const FluxMapTable c =
+        read_flux_map(write_file("plus.csv", make_csv(5, 6, [](int r, std::vector<std::string>& f) {
+                                     if (r == 6) {  // (j 1, k 1): i_d = -80, i_q = -80, psi_d = 0.084, psi_q = -0.04
+                                         f[0] = "-0.8E+2";
+                                         f[1] = "-8000e-2";
+                                         f[2] = "+0.084";
+                                         f[3] = "-4.0e-2";
+                                     }
+                                     return true;
+                                 })));
     EXPECT_EQ(a.i_d, c.i_d);
     EXPECT_EQ(a.i_q, c.i_q);
     EXPECT_EQ(a.psi_d, c.psi_d);
@@ -417,7 +425,9 @@ TEST(FluxMapSpline, LinearMapIsExact) {
 
 // A bicubic polynomial is in the spline space with not-a-knot ends: reproduced exactly.
 TEST(FluxMapSpline, BicubicIsExact) {
-    auto f = [](double x, double y) { return 0.3 + 1e-3 * x - 2e-3 * y + 1e-6 * x * x * y - 3e-9 * x * x * x + 2e-9 * y * y * y * x / 50; };
+    auto f = [](double x, double y) {
+        return 0.3 + 1e-3 * x - 2e-3 * y + 1e-6 * x * x * y - 3e-9 * x * x * x + 2e-9 * y * y * y * x / 50;
+    };
     FluxMapTable t;
     t.i_d = {-50, -31, -20, 0, 5, 17, 40, 50};
     t.i_q = {-30, -10, 0, 12, 13, 30};
@@ -442,8 +452,7 @@ void check_derivatives(const FluxMap& m, double id, double iq, double h, double 
     const FluxPoint q = m.eval(id, iq);
     EXPECT_EQ(p.psi_d, q.psi_d);
     EXPECT_EQ(p.L_qd, q.L_qd);
-    const FluxPoint a = m.eval(id + h, iq), b = m.eval(id - h, iq), c = m.eval(id, iq + h),
-                    d = m.eval(id, iq - h);
+    const FluxPoint a = m.eval(id + h, iq), b = m.eval(id - h, iq), c = m.eval(id, iq + h), d = m.eval(id, iq - h);
     const std::string at = "at (" + std::to_string(id) + ", " + std::to_string(iq) + ")";
     EXPECT_NEAR(p.L_dd, (a.psi_d - b.psi_d) / (2 * h), tol1) << at;
     EXPECT_NEAR(p.L_qd, (a.psi_q - b.psi_q) / (2 * h), tol1) << at;
@@ -489,9 +498,8 @@ TEST(FluxMapSpline, ContinuityAcrossCellsAndEdges) {
     const double e = 1e-9;
     auto jump = [&](double x0, double y0, double x1, double y1, bool second) {
         const FluxPoint2 a = m.eval2(x0, y0), b = m.eval2(x1, y1);
-        double j = std::max({std::abs(a.psi_d - b.psi_d), std::abs(a.psi_q - b.psi_q),
-                             std::abs(a.L_dd - b.L_dd), std::abs(a.L_dq - b.L_dq),
-                             std::abs(a.L_qd - b.L_qd), std::abs(a.L_qq - b.L_qq)});
+        double j = std::max({std::abs(a.psi_d - b.psi_d), std::abs(a.psi_q - b.psi_q), std::abs(a.L_dd - b.L_dd),
+                             std::abs(a.L_dq - b.L_dq), std::abs(a.L_qd - b.L_qd), std::abs(a.L_qq - b.L_qq)});
         if (second)
             j = std::max({j, std::abs(a.psi_d_dd - b.psi_d_dd), std::abs(a.psi_d_dq - b.psi_d_dq),
                           std::abs(a.psi_d_qq - b.psi_d_qq), std::abs(a.psi_q_dd - b.psi_q_dd),
@@ -505,7 +513,8 @@ TEST(FluxMapSpline, ContinuityAcrossCellsAndEdges) {
             const bool edge = j == 0 || j + 1 == t.i_d.size();
             const double jv = jump(x - e, iq, x + e, iq, !edge);
             (edge ? worst_edge : worst_inner) = std::max(edge ? worst_edge : worst_inner, jv);
-            if (edge && std::abs(iq) < 26) edge_d2 = std::max(edge_d2, std::abs(m.eval2(x - e, iq).psi_d_dd - m.eval2(x + e, iq).psi_d_dd));
+            if (edge && std::abs(iq) < 26)
+                edge_d2 = std::max(edge_d2, std::abs(m.eval2(x - e, iq).psi_d_dd - m.eval2(x + e, iq).psi_d_dd));
         }
     for (std::size_t k = 0; k < t.i_q.size(); ++k)
         for (double id = -24; id <= 24; id += 0.77) {
@@ -542,8 +551,8 @@ TEST(FluxMapSpline, SmoothSaturatingMapAccuracy) {
         for (double iq = -400; iq <= 400; iq += 1.7) {
             const FluxPoint p = m.eval(id, iq), x = mach.eval(id, iq);
             e_psi = std::max({e_psi, std::abs(p.psi_d - x.psi_d), std::abs(p.psi_q - x.psi_q)});
-            e_L = std::max({e_L, std::abs(p.L_dd - x.L_dd), std::abs(p.L_dq - x.L_dq),
-                            std::abs(p.L_qd - x.L_qd), std::abs(p.L_qq - x.L_qq)});
+            e_L = std::max({e_L, std::abs(p.L_dd - x.L_dd), std::abs(p.L_dq - x.L_dq), std::abs(p.L_qd - x.L_qd),
+                            std::abs(p.L_qq - x.L_qq)});
             // bilinear interpolation of the same nodes, for comparison
             const double fj = std::floor((id + 400) / 20), fk = std::floor((iq + 400) / 20);
             const double j0 = std::min(fj, 29.0), k0 = std::min(fk, 39.0);
@@ -554,8 +563,8 @@ TEST(FluxMapSpline, SmoothSaturatingMapAccuracy) {
         }
     RecordProperty("max_psi_error_Wb", std::to_string(e_psi));
     RecordProperty("max_L_error_H", std::to_string(e_L));
-    std::printf("  smooth map, 20-A grid: max |psi error| %.3g Wb (bilinear %.3g Wb), max |L error| %.3g H\n",
-                e_psi, e_psi_lin, e_L);
+    std::printf("  smooth map, 20-A grid: max |psi error| %.3g Wb (bilinear %.3g Wb), max |L error| %.3g H\n", e_psi,
+                e_psi_lin, e_L);
     // Flux scale ~0.1 Wb, L 0.1-0.8 mH. Measured: 5.5e-7 Wb and 2.6e-7 H.
     EXPECT_LT(e_psi, 1e-6);
     EXPECT_LT(e_L, 5e-7);
@@ -626,8 +635,7 @@ RoundTrip round_trip(const FluxMap& m, const InverseFluxMap& inv, int n, bool ta
         r.max_err = std::max(r.max_err, e);
         r.rms += e * e;
         r.max_jac = std::max({r.max_jac, std::abs(q.G_dd * p.L_dd + q.G_dq * p.L_qd - 1),
-                              std::abs(q.G_dd * p.L_dq + q.G_dq * p.L_qq),
-                              std::abs(q.G_qd * p.L_dd + q.G_qq * p.L_qd),
+                              std::abs(q.G_dd * p.L_dq + q.G_dq * p.L_qq), std::abs(q.G_qd * p.L_dd + q.G_qq * p.L_qd),
                               std::abs(q.G_qd * p.L_dq + q.G_qq * p.L_qq - 1)});
     }
     r.rms = std::sqrt(r.rms / n);
@@ -660,12 +668,12 @@ TEST(InverseFluxMap, RoundTripSmoothSaturatingMap) {
     const InverseFluxMap inv(m);
     const RoundTrip r = round_trip(m, inv, 100000);
     const RoundTrip g = round_trip(m, inv, 100000, true);
-    std::printf("  saturating map (31 x 41 -> psi grid %d x %d, %.1f MB, %d nodes outside the current grid, up to %.0f A): "
-                "round trip max %.3g A, rms %.3g A, |G L - I| max %.3g, Newton residual %.2g Wb; the table alone "
-                "max %.3g A; measured at construction %.3g A (table %.3g A)\n",
-                inv.n_psi_d(), inv.n_psi_q(), inv.memory_bytes() / 1e6, inv.outside_nodes(),
-                inv.max_outside_A(), r.max_err, r.rms, r.max_jac, inv.max_residual(), g.max_err, inv.max_error_A(),
-                inv.max_table_error_A());
+    std::printf(
+        "  saturating map (31 x 41 -> psi grid %d x %d, %.1f MB, %d nodes outside the current grid, up to %.0f A): "
+        "round trip max %.3g A, rms %.3g A, |G L - I| max %.3g, Newton residual %.2g Wb; the table alone "
+        "max %.3g A; measured at construction %.3g A (table %.3g A)\n",
+        inv.n_psi_d(), inv.n_psi_q(), inv.memory_bytes() / 1e6, inv.outside_nodes(), inv.max_outside_A(), r.max_err,
+        r.rms, r.max_jac, inv.max_residual(), g.max_err, inv.max_error_A(), inv.max_table_error_A());
     EXPECT_LT(inv.max_residual(), 1e-13);
     EXPECT_GT(inv.outside_nodes(), 0);  // a curved image: the psi box's corners are extrapolated
     EXPECT_LT(r.max_err, 1e-9);         // A, of +-400 A: exact (the table alone: 0.031 A at 301 cells)
@@ -685,10 +693,11 @@ TEST(InverseFluxMap, RoundTripBaldor) {
     const FluxMap& m = baldor();
     const InverseFluxMap inv(m);
     const RoundTrip r = round_trip(m, inv, 100000);
-    std::printf("  Baldor (21 x 27 -> psi grid %d x %d, %.1f MB, %d nodes outside the current grid, up to %.1f A): "
-                "round trip max %.3g A, rms %.3g A, |G L - I| max %.3g\n",
-                inv.n_psi_d(), inv.n_psi_q(), inv.memory_bytes() / 1e6, inv.outside_nodes(),
-                inv.max_outside_A(), r.max_err, r.rms, r.max_jac);
+    std::printf(
+        "  Baldor (21 x 27 -> psi grid %d x %d, %.1f MB, %d nodes outside the current grid, up to %.1f A): "
+        "round trip max %.3g A, rms %.3g A, |G L - I| max %.3g\n",
+        inv.n_psi_d(), inv.n_psi_q(), inv.memory_bytes() / 1e6, inv.outside_nodes(), inv.max_outside_A(), r.max_err,
+        r.rms, r.max_jac);
     EXPECT_LT(inv.max_residual(), 1e-13);
     EXPECT_LT(r.max_err, 1e-10);  // A, of 20-26 A (the table alone: 0.004 A)
     EXPECT_LT(r.max_jac, 1e-7);

@@ -43,7 +43,6 @@ bool feasible(const Case& c, double i_d, double i_q) {
            linear::voltage_sq(c.m, c.lim.omega, i_d, i_q) <= c.lim.V_max * c.lim.V_max;
 }
 
-
 // T' max (this side: T' >= 0 on the mirrored problem) by sampling the boundary of the feasible set,
 // independently of the solver's quartics: the current circle i = I (cos a, sin a) within the
 // voltage limit, and the voltage ellipse v = V (cos b, sin b), i = M^-1 (v - (0, omega psi_m)),
@@ -75,7 +74,10 @@ double sampled_max_torque(const LinearMachine& m, const OperatingLimits& lim) {
         double a = x_best - 2 * kPi / kSamples, b = x_best + 2 * kPi / kSamples;
         for (int it = 0; it < 80; ++it) {
             const double x1 = b - kGolden * (b - a), x2 = a + kGolden * (b - a);
-            if (T(x1) >= T(x2)) b = x2; else a = x1;
+            if (T(x1) >= T(x2))
+                b = x2;
+            else
+                a = x1;
             T_best = std::max({T_best, T(x1), T(x2)});
         }
         best = std::max(best, T_best);
@@ -113,7 +115,11 @@ TEST(LinearOptimalCurrent, MeetsLimitsTorqueAndBeatsEverySample) {
                     const double i_d = d0 + half * (2.0 * a / n_grid - 1), i_q = q0 + half * (2.0 * b / n_grid - 1);
                     if (!feasible(c, i_d, i_q)) continue;
                     const double T = s * 1.5 * kPolePairs * linear::reduced_torque(c.m, i_d, i_q);
-                    if (T > T_best) { T_best = T; cd = i_d; cq = i_q; }
+                    if (T > T_best) {
+                        T_best = T;
+                        cd = i_d;
+                        cq = i_q;
+                    }
                 }
             half *= 0.3;  // the zoom keeps a wide window: along a limit the torque is flat near the optimum
         }
@@ -254,7 +260,9 @@ TEST(LinearOptimalCurrent, NearlyNonSalientMachines) {
         ASSERT_LE(std::sqrt(linear::voltage_sq(c.m, c.lim.omega, cmd.i_d, cmd.i_q)), c.lim.V_max * (1 + 1e-9)) << n;
         const double T_cmd = std::copysign(std::min(std::abs(c.T_ref), cmd.torque_max), c.T_ref);
         ASSERT_NEAR(cmd.torque, T_cmd, 1e-9 * std::max(1.0, cmd.torque_max)) << n;
-        ASSERT_NEAR(1.5 * kPolePairs * linear::reduced_torque(c.m, cmd.i_d, cmd.i_q), T_cmd, 1e-9 * std::max(1.0, cmd.torque_max)) << n;
+        ASSERT_NEAR(1.5 * kPolePairs * linear::reduced_torque(c.m, cmd.i_d, cmd.i_q), T_cmd,
+                    1e-9 * std::max(1.0, cmd.torque_max))
+            << n;
         if (n % 10 != 0 || std::abs(T_cmd) < 1e-9) continue;  // the sampling on every tenth case
         const double Tr = T_cmd / (1.5 * kPolePairs), dL = c.m.L_d - c.m.L_q;
         double I_best = INFINITY;
@@ -283,7 +291,8 @@ TEST(LinearOptimalCurrent, ReluctanceMachineInFieldWeakening) {
             ASSERT_LE(std::sqrt(linear::voltage_sq(m, w, c.i_d, c.i_q)), V_max * (1 + 1e-9)) << w << " " << T;
             const double T_cmd = std::copysign(std::min(std::abs(T), c.torque_max), T);
             ASSERT_NEAR(c.torque, T_cmd, 1e-9 * c.torque_max) << w << " " << T;
-            ASSERT_NEAR(1.5 * kPolePairs * linear::reduced_torque(m, c.i_d, c.i_q), T_cmd, 1e-9 * c.torque_max) << w << " " << T;
+            ASSERT_NEAR(1.5 * kPolePairs * linear::reduced_torque(m, c.i_d, c.i_q), T_cmd, 1e-9 * c.torque_max)
+                << w << " " << T;
         }
     }
     EXPECT_GT(voltage_limited, 4);
@@ -336,7 +345,8 @@ TEST(LinearOptimalCurrent, KeptSolverMatchesAFreshOneAsTheMachineAndCurrentLimit
         if (u(rng) < 0.5) c.m = first.m;                  // runs of one machine, and changes
         if (u(rng) < 0.5) c.lim.I_max = first.lim.I_max;  // runs of one limit, and changes
         if (u(rng) < 0.01) first = c;
-        const CurrentCommand a = kept(c.m, c.T_ref, c.lim), b = linear::optimal_current(c.m, kPolePairs, c.T_ref, c.lim);
+        const CurrentCommand a = kept(c.m, c.T_ref, c.lim),
+                             b = linear::optimal_current(c.m, kPolePairs, c.T_ref, c.lim);
         ASSERT_EQ(a.i_d, b.i_d) << n;
         ASSERT_EQ(a.i_q, b.i_q) << n;
         ASSERT_EQ(a.torque_max, b.torque_max) << n;

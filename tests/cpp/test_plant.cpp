@@ -18,10 +18,10 @@
 #include <unistd.h>
 
 #include "cvode_integrator.hpp"
+#include "ipmsm_ode.hpp"
 #include "linear_flow.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
-#include "ipmsm_ode.hpp"
 #include "plant_model.hpp"
 #include "state_stream.hpp"
 
@@ -105,8 +105,8 @@ TEST(LinearFlow, MatchesTheAugmentedMatrixExponential) {
     struct Case {
         double R, omega;
     };
-    for (const Case c : {Case{0.012, 5026.5}, Case{0.05, 0.0}, Case{0.0, 0.0}, Case{0.0, 1e-3}, Case{3.0, 200.0},
-                         Case{0.012, 1.3}}) {
+    for (const Case c :
+         {Case{0.012, 5026.5}, Case{0.05, 0.0}, Case{0.0, 0.0}, Case{0.0, 1e-3}, Case{3.0, 200.0}, Case{0.012, 1.3}}) {
         const double A[4] = {-c.R * G[0], -c.R * G[1] + c.omega, -c.R * G[2] - c.omega, -c.R * G[3]};
         const LinearFlow flow(A);
         for (double tau : {1e-12, 1e-7, 3e-5, 1e-4, 1e-3, 1e-2}) {
@@ -115,7 +115,8 @@ TEST(LinearFlow, MatchesTheAugmentedMatrixExponential) {
                 for (int k = 0; k < 2; ++k) M(r, k) = static_cast<long double>(A[2 * r + k]) * tau;
                 M(r, 2 + r) = tau;
             }
-            const Eigen::Matrix<long double, 4, 4> X = M.exp();
+            const Eigen::Matrix<long double, 4, 4> X
+            = M.exp();
             double E[4], Ei[4], P[4];
             flow.exp(tau, E, Ei);
             flow.integral(tau, E, P);
@@ -169,8 +170,8 @@ TEST(PlantOde, LinearMapMatchesClosedForm) {
                 err = std::max({err, std::abs(c.i_d - id), std::abs(c.i_q - iq)});
                 imax = std::max({imax, std::abs(id), std::abs(iq)});
             }
-            EXPECT_LT(err, 1e-6 * imax) << "R = " << R << ", w_m = " << w_m << ": max error " << err << " A of "
-                                        << imax << " A";
+            EXPECT_LT(err, 1e-6 * imax) << "R = " << R << ", w_m = " << w_m << ": max error " << err << " A of " << imax
+                                        << " A";
             EXPECT_GT(imax, 50.0);  // the run is not trivial
         }
     }
@@ -359,8 +360,16 @@ TEST(PlantModel, BadMapsAndParametersAreRefusedAndChangeNothing) {
         {[&](PlantModel& m) { m.flux_map = malformed; }, "malformed.csv"},
         {[&](PlantModel& m) { m.flux_map = missing_row; }, "missing_row.csv"},
         {[&](PlantModel& m) { m.flux_map = not_monotone; }, "not_monotone.csv"},
-        {[](PlantModel& m) { m.cvode_method = 2; m.cvode_max_order = 7; }, "cvode_max_order"},
-        {[](PlantModel& m) { m.alpha_cu = 0.009; m.T_winding_ref = 573.15; }, "negative"},
+        {[](PlantModel& m) {
+             m.cvode_method = 2;
+             m.cvode_max_order = 7;
+         },
+         "cvode_max_order"},
+        {[](PlantModel& m) {
+             m.alpha_cu = 0.009;
+             m.T_winding_ref = 573.15;
+         },
+         "negative"},
     };
     for (const auto& [change, expected] : cases) {
         PlantModel m(context_with());

@@ -67,11 +67,13 @@ struct Quartic {
 
 // p(x) and sum |c_i| |x|^i in long double.
 void eval_ld(const Quartic& q, double x, LD& p, LD& s) {
-    const LD X = x, ax = std::fabs(X);
+    const LD X
+    = x, ax = std::fabs(X);
     p = 0;
     s = 0;
     for (double c : q.c) {
-        p = p * X + c;
+        p = p * X
+        +c;
         s = s * ax + std::fabs(static_cast<LD>(c));
     }
 }
@@ -154,9 +156,9 @@ std::vector<cplx> eigen_roots(const Quartic& q) {
 
 // What the generator knows about a quartic.
 struct Truth {
-    std::vector<double> real;     // real roots with multiplicity
-    std::vector<cplx> complex;    // one of each conjugate pair
-    bool exact = false;           // coefficients exact (dyadic roots): multiplicities are exact
+    std::vector<double> real;   // real roots with multiplicity
+    std::vector<cplx> complex;  // one of each conjugate pair
+    bool exact = false;         // coefficients exact (dyadic roots): multiplicities are exact
 };
 
 // The monic quartic with the roots of t.
@@ -175,18 +177,18 @@ struct Stats {
     std::string name;
     long polys = 0, roots = 0;
     double worst_residual = 0;
-    double worst_forward = 0;       // max over checked true roots of error / cond_tol
+    double worst_forward = 0;  // max over checked true roots of error / cond_tol
     long known_checked = 0, known_skipped = 0, known_count_checked = 0;
     long eigen_compared = 0, eigen_skipped = 0;
-    double eigen_worst_dev = 0;     // max |ours - Eigen| / tolerance (see check_eigen)
+    double eigen_worst_dev = 0;  // max |ours - Eigen| / tolerance (see check_eigen)
     long failures = 0;
     Quartic worst_q{};
 
     void fail(const Quartic& q, const std::string& what) {
         if (failures < 5) {
             char buf[256];
-            std::snprintf(buf, sizeof buf, "{%.17g, %.17g, %.17g, %.17g, %.17g}", q.c[0], q.c[1],
-                          q.c[2], q.c[3], q.c[4]);
+            std::snprintf(buf, sizeof buf, "{%.17g, %.17g, %.17g, %.17g, %.17g}", q.c[0], q.c[1], q.c[2], q.c[3],
+                          q.c[4]);
             ADD_FAILURE() << name << ": " << what << " for coefficients " << buf;
         }
         ++failures;
@@ -197,8 +199,8 @@ struct Stats {
             "[quartic] %-22s polys %7ld roots %8ld | worst residual %.2e | known roots: checked "
             "%7ld skipped %6ld, worst err/cond %.2f | Eigen: compared %7ld skipped %6ld, worst "
             "dev %.2e of tolerance\n",
-            name.c_str(), polys, roots, worst_residual, known_checked, known_skipped,
-            worst_forward, eigen_compared, eigen_skipped, eigen_worst_dev);
+            name.c_str(), polys, roots, worst_residual, known_checked, known_skipped, worst_forward, eigen_compared,
+            eigen_skipped, eigen_worst_dev);
         std::fflush(stdout);
     }
 };
@@ -264,8 +266,7 @@ void check_known(const Quartic& q, const RealRoots& r, const Truth& t, Stats& st
         const double ratio = err / (tol + DBL_MIN);
         if (std::isfinite(ratio)) st.worst_forward = std::max(st.worst_forward, ratio);
         if (!(err <= kForwardFactor * tol + DBL_MIN)) {
-            st.fail(q, "true root " + std::to_string(x) + " not matched (err/cond " +
-                           std::to_string(ratio) + ")");
+            st.fail(q, "true root " + std::to_string(x) + " not matched (err/cond " + std::to_string(ratio) + ")");
         } else if (t.exact) {
             const int mult = static_cast<int>(std::count(t.real.begin(), t.real.end(), x));
             if (near < mult) st.fail(q, "multiple root " + std::to_string(x) + " found too few times");
@@ -273,15 +274,13 @@ void check_known(const Quartic& q, const RealRoots& r, const Truth& t, Stats& st
     }
     for (cplx z : t.complex) {
         // A pair close to the real axis may legitimately come out as real roots.
-        if (!(std::fabs(z.imag()) > 100.0 * cond_tol(q, z.real()) &&
-              std::fabs(z.imag()) > 1e-6 * std::abs(z)))
+        if (!(std::fabs(z.imag()) > 100.0 * cond_tol(q, z.real()) && std::fabs(z.imag()) > 1e-6 * std::abs(z)))
             all_resolved = false;
     }
     if (all_resolved) {
         ++st.known_count_checked;
         if (r.count != static_cast<int>(t.real.size()))
-            st.fail(q, "count " + std::to_string(r.count) + ", expected " +
-                           std::to_string(t.real.size()));
+            st.fail(q, "count " + std::to_string(r.count) + ", expected " + std::to_string(t.real.size()));
     }
 }
 
@@ -297,8 +296,7 @@ void check_known(const Quartic& q, const RealRoots& r, const Truth& t, Stats& st
 void check_eigen(const Quartic& q, const RealRoots& r, Stats& st, double max_mag = HUGE_VAL,
                  const Quartic* reference = nullptr) {
     std::vector<cplx> z = eigen_roots(reference ? *reference : q);
-    z.erase(std::remove_if(z.begin(), z.end(), [&](cplx v) { return !(std::abs(v) <= max_mag); }),
-            z.end());
+    z.erase(std::remove_if(z.begin(), z.end(), [&](cplx v) { return !(std::abs(v) <= max_mag); }), z.end());
     double scale = 0;
     for (cplx v : z) scale = std::max(scale, std::abs(v));
     const double floor = 1e-3 * scale;
@@ -323,8 +321,7 @@ void check_eigen(const Quartic& q, const RealRoots& r, Stats& st, double max_mag
     for (int k = 0; k < r.count; ++k)
         if (std::fabs(r.root[k]) <= max_mag) ours.push_back(r.root[k]);
     if (ours.size() != eig_real.size()) {
-        st.fail(q, "real root count " + std::to_string(ours.size()) + ", Eigen " +
-                       std::to_string(eig_real.size()));
+        st.fail(q, "real root count " + std::to_string(ours.size()) + ", Eigen " + std::to_string(eig_real.size()));
         return;
     }
     std::sort(eig_real.begin(), eig_real.end());
@@ -337,7 +334,8 @@ void check_eigen(const Quartic& q, const RealRoots& r, Stats& st, double max_mag
         }
         const double dev = std::min(diff / (1e-9 * scale), diff / (1e3 * cond_tol(q, ours[k])));
         st.eigen_worst_dev = std::max(st.eigen_worst_dev, dev);
-        if (!(dev <= 1.0)) st.fail(q, "root " + std::to_string(ours[k]) + " differs from Eigen's by " + std::to_string(diff));
+        if (!(dev <= 1.0))
+            st.fail(q, "root " + std::to_string(ours[k]) + " differs from Eigen's by " + std::to_string(diff));
     }
 }
 
@@ -516,8 +514,8 @@ TEST_F(QuarticClasses, TinyOrZeroLeadingCoefficient) {
         if (far > 1 || (far == 1 && q.c[0] == 0.0)) st.fail(q, "spurious far root");
         if (q.c[0] != 0.0) (far ? far_kept : far_dropped) += 1;
     }
-    std::printf("[quartic] tiny/zero leading coef: far root returned %ld times, dropped %ld times\n",
-                far_kept, far_dropped);
+    std::printf("[quartic] tiny/zero leading coef: far root returned %ld times, dropped %ld times\n", far_kept,
+                far_dropped);
     finish(st);
     EXPECT_GT(far_kept, 0);
     EXPECT_GT(far_dropped, 0);
@@ -552,8 +550,8 @@ TEST(QuarticAdversarial, NoNanOrInfOnExtremeCoefficients) {
     Stats st{"adversarial"};
     std::mt19937_64 rng(99);
     auto U = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
-    const double specials[] = {0.0, -0.0, 1e-150, -1e150, 1e150, DBL_MIN, DBL_TRUE_MIN, DBL_MAX,
-                               -DBL_MAX, 1.0, -1.0, 1e-300, 1e300, 4.9e-324};
+    const double specials[] = {0.0,     -0.0,     1e-150, -1e150, 1e150,  DBL_MIN, DBL_TRUE_MIN,
+                               DBL_MAX, -DBL_MAX, 1.0,    -1.0,   1e-300, 1e300,   4.9e-324};
     const int nspecial = sizeof specials / sizeof specials[0];
     long residual_checked = 0;
     for (long i = 0; i < 200000 / kScale; ++i) {
@@ -565,7 +563,8 @@ TEST(QuarticAdversarial, NoNanOrInfOnExtremeCoefficients) {
                 c = specials[rng() % nspecial];
             } else {
                 const int z = static_cast<int>(rng() % 5);
-                c = z == 0 ? 0.0 : (rng() & 1 ? 1 : -1) * std::pow(10.0, U(mode == 1 ? -150 : -300, mode == 1 ? 150 : 300));
+                c = z == 0 ? 0.0
+                           : (rng() & 1 ? 1 : -1) * std::pow(10.0, U(mode == 1 ? -150 : -300, mode == 1 ? 150 : 300));
             }
             if (c != 0.0 && !(std::fabs(c) >= 1e-150 && std::fabs(c) <= 1e150)) moderate = false;
         }
@@ -874,8 +873,10 @@ TEST(Cubic, RandomAgainstEigenAndKnownRoots) {
         int nreal = 0;
         for (int k = 0; k < 3; ++k) {
             const cplx z = solver.roots()[k];
-            if (std::fabs(z.imag()) <= 1e-12 * std::abs(z)) ++nreal;
-            else if (std::fabs(z.imag()) < 1e-3 * std::abs(z)) ok = false;
+            if (std::fabs(z.imag()) <= 1e-12 * std::abs(z))
+                ++nreal;
+            else if (std::fabs(z.imag()) < 1e-3 * std::abs(z))
+                ok = false;
             for (int j = 0; j < k; ++j)
                 if (std::abs(z - cplx(solver.roots()[j])) < 1e-3 * std::abs(z)) ok = false;
         }
@@ -884,8 +885,10 @@ TEST(Cubic, RandomAgainstEigenAndKnownRoots) {
             if (nreal != r.count) ++mismatched;
         }
     }
-    std::printf("[quartic] cubic: worst residual %.2e, worst err/cond %.2f, Eigen count compared "
-                "%ld, mismatched %ld\n", worst_res, worst_fwd, compared, mismatched);
+    std::printf(
+        "[quartic] cubic: worst residual %.2e, worst err/cond %.2f, Eigen count compared "
+        "%ld, mismatched %ld\n",
+        worst_res, worst_fwd, compared, mismatched);
     EXPECT_LE(worst_res, kResidualBound);
     EXPECT_LE(worst_fwd, kForwardFactor);
     EXPECT_EQ(mismatched, 0);

@@ -129,7 +129,9 @@ TEST(CentredQuartic, MatchesTheRobustSolverAfterOnePolish) {
         for (int k = 0; k < fast.count; ++k) {
             const double y = polished[k], ay = std::abs(y);
             const double f = quartic_value(c, y).f;
-            const double scale = (((std::abs(c[0]) * ay + std::abs(c[1])) * ay + std::abs(c[2])) * ay + std::abs(c[3])) * ay + std::abs(c[4]);
+            const double scale =
+                (((std::abs(c[0]) * ay + std::abs(c[1])) * ay + std::abs(c[2])) * ay + std::abs(c[3])) * ay +
+                std::abs(c[4]);
             worst = std::max(worst, std::abs(f) / scale);
             worst_root = std::max(worst_root, std::abs(y - robust.root[k]) / std::max(1.0, std::abs(robust.root[k])));
         }

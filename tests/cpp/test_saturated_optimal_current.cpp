@@ -111,15 +111,18 @@ TEST(SaturatedOptimalCurrent, GlobalOptimumOnStronglySaturatingMaps) {
                 const double s = T_ref < 0 ? -1 : 1, kT = 1.5 * kPolePairs;
                 const double T_cmd_red = std::min(std::abs(T_ref), c.torque_max) / kT;
                 const Sampled ref = sample(flux, lim, s, T_cmd_red * (1 + 1e-9));
-                const std::string ctx = "I_s " + std::to_string(I_s_rel) + " cross " + std::to_string(cross) +
-                                        " w " + std::to_string(w) + " T " + std::to_string(T_ref);
+                const std::string ctx = "I_s " + std::to_string(I_s_rel) + " cross " + std::to_string(cross) + " w " +
+                                        std::to_string(w) + " T " + std::to_string(T_ref);
                 // The T_max point is feasible and gives T_max.
                 const CurrentCommand top = solver.solve(s * 1e9, lim, kRs, 0.0, Recursion::optimal);
                 const FluxPoint ft = flux.eval(top.i_d, top.i_q);
                 ASSERT_LE(std::hypot(top.i_d, top.i_q), kIMax * (1 + 1e-6)) << ctx;
-                ASSERT_LE(std::hypot(kRs * top.i_d - w * ft.psi_q, kRs * top.i_q + w * ft.psi_d), V_max * (1 + 1e-6)) << ctx;
+                ASSERT_LE(std::hypot(kRs * top.i_d - w * ft.psi_q, kRs * top.i_q + w * ft.psi_d), V_max * (1 + 1e-6))
+                    << ctx;
                 ASSERT_NEAR(s * flux.reduced_torque(top.i_d, top.i_q), c.torque_max / kT, 1e-9 * c.torque_max) << ctx;
-                ASSERT_GE(c.torque_max / kT, ref.T_max * (1 - 1e-9)) << "a sample beats T_max: " << ctx << " region " << int(c.region) << " at " << c.i_d << ", " << c.i_q << " conv " << c.converged << "; best sample at " << ref.i_d << ", " << ref.i_q;
+                ASSERT_GE(c.torque_max / kT, ref.T_max * (1 - 1e-9))
+                    << "a sample beats T_max: " << ctx << " region " << int(c.region) << " at " << c.i_d << ", "
+                    << c.i_q << " conv " << c.converged << "; best sample at " << ref.i_d << ", " << ref.i_q;
                 // The samples approach a maximum on the voltage limit only to (angle step)^2 (a lower bound
                 // of T_max; the solver's T_max point is checked feasible above).
                 ASSERT_LE(c.torque_max / kT - ref.T_max, 1e-3 * ref.T_max) << ctx;

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
 
-from brute_force import Drive, max_torque, min_current
 from scenarios.flux_map import linear_flux_map, read_flux_map, write_flux_map
 from scenarios.fmu import Fmu
+
+from brute_force import Drive, max_torque, min_current
 
 H = 1e-4  # communication step, s
 
@@ -70,7 +71,8 @@ def check(rows, I_max, current_tol, torque_tol, label, T_max_shortfall=None, lim
     print(f"\n[{label}] {len(rows)} points, regions {dict(sorted(regions.items()))}; "
           f"current vs optimum: max {max(excess):+.3e}, mean {np.mean(excess):+.3e}; "
           f"torque error / T_max: max {max(t_err):.3e}; "
-          f"I/I_max max {max(r['I'] for r in rows) / I_max:.6f}; V/V_max max {max(r['V'] / r['V_max'] for r in rows):.6f}")
+          f"I/I_max max {max(r['I'] for r in rows) / I_max:.6f}; "
+          f"V/V_max max {max(r['V'] / r['V_max'] for r in rows):.6f}")
     for r in rows:
         ctx = f"{label} at {r['op']}: {r}"
         assert np.isfinite([r["i_d"], r["i_q"], r["T_cmd"], r["T_max"]]).all(), ctx

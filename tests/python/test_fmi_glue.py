@@ -12,10 +12,9 @@ import pathlib
 import shutil
 import zipfile
 
+import fmpy
 import numpy as np
 import pytest
-
-import fmpy
 from fmpy import extract, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
@@ -40,8 +39,9 @@ from fmpy.fmi2 import (
 )
 from fmpy.validation import validate_fmu
 
-from conftest import same
 from scenarios.fmu import get_values, set_values
+
+from conftest import same
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 FMU_DIR = pathlib.Path(os.environ.get("IPMSM_FMU_DIR", REPO / "build" / "fmu"))
@@ -81,7 +81,8 @@ class Log:
         self.records.append((status, category.decode(), self.raw.replace("%%", "%")))
 
     def messages(self, status=None, category=None):
-        return [m for s, c, m in self.records if (status is None or s == status) and (category is None or c == category)]
+        return [m for s, c, m in self.records
+                if (status is None or s == status) and (category is None or c == category)]
 
     def errors(self):
         return "\n".join(self.messages(fmi2Error))

@@ -237,7 +237,8 @@ def energy_balance(plant_fmu, fm, w_m, i0, targets, offsets, duration, h, **para
     i = r[:, 6:8]
     # u is constant over each step: P_elec = 1.5 u . i(t) there, trapezoid on i; the rest trapezoid
     E_elec = h * np.sum(1.5 * (U[:, 0] * (i[:-1, 0] + i[1:, 0]) + U[:, 1] * (i[:-1, 1] + i[1:, 1])) / 2)
-    trap = lambda y: h * np.sum(y[:-1] + y[1:]) / 2
+    def trap(y):
+        return h * np.sum(y[:-1] + y[1:]) / 2
     E_mech, E_cu, E_fe = trap(r[:, 1]), trap(r[:, 2]), trap(r[:, 3])
     dW = magnetic_energy_change(fm, shift, r[0, 4:6], r[-1, 4:6], r[0, 6:8])
     residual = E_elec - (E_mech + E_fe) - E_cu - dW
@@ -287,9 +288,12 @@ def spiral_targets(m, n=40):
 def exact_currents(fm, psi, start):
     """i with scipy's spline of the map at psi: scipy's root finding, independent of the FMU."""
     from scipy.optimize import root
-    f = lambda i: [fm._sd.ev(i[0], i[1]) - psi[0], fm._sq.ev(i[0], i[1]) - psi[1]]
-    jac = lambda i: [[fm._sd.ev(i[0], i[1], dx=1), fm._sd.ev(i[0], i[1], dy=1)],
-                     [fm._sq.ev(i[0], i[1], dx=1), fm._sq.ev(i[0], i[1], dy=1)]]
+    def f(i):
+        return [fm._sd.ev(i[0], i[1]) - psi[0], fm._sq.ev(i[0], i[1]) - psi[1]]
+
+    def jac(i):
+        return [[fm._sd.ev(i[0], i[1], dx=1), fm._sd.ev(i[0], i[1], dy=1)],
+                [fm._sq.ev(i[0], i[1], dx=1), fm._sq.ev(i[0], i[1], dy=1)]]
     sol = root(f, start, jac=jac, method="hybr", tol=1e-13)
     assert np.abs(f(sol.x)).max() < 1e-12, sol.message  # Wb: converged (hybr may still say "no progress")
     return sol.x

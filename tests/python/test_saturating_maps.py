@@ -20,9 +20,10 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from brute_force import Drive, max_torque, min_current
 from scenarios.flux_map import read_flux_map
-from tools.saturating_map import K_U, SaturatingMachine, U_DC, W_M_MAX, write_map
+from tools.saturating_map import K_U, U_DC, W_M_MAX, SaturatingMachine, write_map
+
+from brute_force import Drive, max_torque, min_current
 
 H = 1e-4                 # s, communication step
 EXCESS_CURRENT = 1e-3    # relative to the optimum's current (issue 12)
@@ -176,7 +177,8 @@ def deviations(m, answer, ref) -> dict:
     return dict(
         T_max=(abs(T_max) - ref["T_max"]) / scale,
         torque=(float(d.torque(i_d, i_q)) - ref["T_cmd"]) / scale,
-        excess=(I - ref["I_min"]) / ref["I_min"] if np.isfinite(ref["I_min"]) and ref["I_min"] > 0.02 * m.I_max else 0.0,
+        excess=((I - ref["I_min"]) / ref["I_min"]
+                if np.isfinite(ref["I_min"]) and ref["I_min"] > 0.02 * m.I_max else 0.0),
         I=I / m.I_max, V=float(d.voltage(i_d, i_q)) / d.V_max)
 
 
@@ -359,7 +361,8 @@ def table_nodes(m, fmap, method, fresh, rng, n_speeds=3):
             for w_sign in (1, -1):
                 op = dict(T_ref=T_sign * T_peak, w_m=w_sign * speeds[j], u_dc=U_DC, T_magnet=T_MAGNET_REF)
                 T_max = max_torque(drive_at(m, fmap, op), T_sign)[0]
-                below = [k for k in range(LUT_N // 2 + 1, LUT_N) if T_peak * (2.0 * k / (LUT_N - 1) - 1.0) < 0.999 * T_max]
+                below = [k for k in range(LUT_N // 2 + 1, LUT_N)
+                         if T_peak * (2.0 * k / (LUT_N - 1) - 1.0) < 0.999 * T_max]
                 if below:
                     k = int(rng.choice(below))
                     op["T_ref"] = T_sign * T_peak * (2.0 * k / (LUT_N - 1) - 1.0)

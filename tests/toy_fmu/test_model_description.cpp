@@ -106,7 +106,9 @@ TEST(ModelDescription, WritesValidAttributes) {
     EXPECT_TRUE(has("<Real unit=\"V\" min=\"0\" max=\"2000\" start=\"400\"/>"));
     EXPECT_TRUE(has("<Integer min=\"1\" max=\"10000000\" start=\"10000000\"/>"));  // xs:int, no 1e+07
     EXPECT_TRUE(has("<String start=\"a&lt;b&gt;&amp;&quot;c&quot;\"/>"));
-    EXPECT_TRUE(has("causality=\"output\" variability=\"continuous\" initial=\"calculated\">\n      <Real unit=\"K\" displayUnit=\"degC\"/>"));
+    EXPECT_TRUE(
+        has("causality=\"output\" variability=\"continuous\" initial=\"calculated\">\n      <Real unit=\"K\" "
+            "displayUnit=\"degC\"/>"));
     EXPECT_TRUE(has("<DisplayUnit name=\"degC\" factor=\"1\" offset=\"-273.15\"/>"));
     EXPECT_TRUE(has("<DisplayUnit name=\"rpm\" factor=\"9.549296585513721\"/>"));
     EXPECT_TRUE(has("<DefaultExperiment startTime=\"0\" stopTime=\"0.1\" stepSize=\"1e-04\"/>"));

@@ -27,14 +27,16 @@ public:
         static const std::vector<fmi::Variable<ToyLag>> v = {
             {"u", &ToyLag::u, Causality::input, Variability::continuous, "V", "", "Input of the lag", -100, 100},
             {"w", &ToyLag::w, Causality::input, Variability::continuous, "rad/s", "rpm", "Speed integrated into angle"},
-            {"hold", &ToyLag::hold, Causality::input, Variability::discrete, "", "", "true: y keeps its value this step"},
+            {"hold", &ToyLag::hold, Causality::input, Variability::discrete, "", "",
+             "true: y keeps its value this step"},
             {"fault", &ToyLag::fault, Causality::input, Variability::discrete, "", "",
-             "Test hook: 1 throw fmi::Error, 2 throw std::runtime_error, 3 throw an int, 4 NaN output, 5 bad_alloc",
-             0, 5},
+             "Test hook: 1 throw fmi::Error, 2 throw std::runtime_error, 3 throw an int, 4 NaN output, 5 bad_alloc", 0,
+             5},
             {"tau", &ToyLag::tau, Causality::parameter, Variability::fixed, "s", "", "Time constant", 0, 1e6, true},
             {"k", &ToyLag::k, Causality::parameter, Variability::tunable, "1", "", "Gain", -10, 10},
             {"y0", &ToyLag::y0, Causality::parameter, Variability::fixed, "V", "", "Initial state", -100, 100},
-            {"n_sub", &ToyLag::n_sub, Causality::parameter, Variability::fixed, "", "", "Sub-steps per step", 1, 10000000},
+            {"n_sub", &ToyLag::n_sub, Causality::parameter, Variability::fixed, "", "", "Sub-steps per step", 1,
+             10000000},
             {"offset_file", &ToyLag::offset_file, Causality::parameter, Variability::fixed, "", "",
              "Resource file holding a number added to y; empty: none"},
             {"T_amb", &ToyLag::T_amb, Causality::parameter, Variability::tunable, "K", "degC",
@@ -54,7 +56,8 @@ public:
     void exit_initialization() {
         offset_ = 0.0;
         if (!offset_file.empty()) {
-            if (context_->resource_dir.empty()) throw fmi::Error("offset_file is set but the FMU has no resources directory");
+            if (context_->resource_dir.empty())
+                throw fmi::Error("offset_file is set but the FMU has no resources directory");
             const std::string path = context_->resource_dir + "/" + offset_file;
             std::ifstream f(path);
             if (!(f >> offset_)) throw fmi::Error("cannot read a number from " + path);
