@@ -3,6 +3,7 @@ with scipy: an implementation independent of the FMUs' C++ one, used by the scen
 the reference in the tests."""
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,12 +41,19 @@ class FluxMap:
         return self._sd.ev(i_d, i_q, dx=dx, dy=dy) + shift, self._sq.ev(i_d, i_q, dx=dx, dy=dy)
 
     def number(self, key: str, default: float | None = None) -> float:
+        """The leading number of a '# key: value' line; trailing words ('4 (8 poles)') are ignored,
+        as the FMUs' reader does (fmu_src/machine/flux_map_metadata)."""
         if key in self.metadata:
-            return float(self.metadata[key])
+            match = _LEADING_NUMBER.match(self.metadata[key])
+            if match is None:
+                raise ValueError(f"flux map metadata '{key}: {self.metadata[key][:80]}' does not start with a number")
+            return float(match.group(0))
         if default is None:
             raise KeyError(f"flux map has no metadata '{key}'")
         return default
 
+
+_LEADING_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 #: the default motor's flux map (tools/default_motor/ makes it); its metadata is the motor's data sheet
 DEFAULT_MAP = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"

@@ -205,13 +205,20 @@ def test_metadata_trailing_words_are_a_comment(make, tmp_path, good_map, name):
     assert a.exit() == OK, a.log.text()
 
 
+def test_metadata_trailing_words_in_python_as_in_the_fmus():
+    fmap = linear_flux_map(1e-4, 3e-4, 0.05, 100.0, pole_pairs="4 (8 poles)", R_s_ohm="0.012 Ohm")
+    assert fmap.number("pole_pairs") == 4.0 and fmap.number("R_s_ohm") == 0.012
+    with pytest.raises(ValueError, match="does not start with a number"):
+        linear_flux_map(1e-4, 3e-4, 0.05, 100.0, pole_pairs="four").number("pole_pairs")
+
+
 @pytest.mark.parametrize("name", FMUS)
 def test_metadata_in_another_unit_is_a_warning_naming_it(make, tmp_path, good_map, name):
     path = _with_metadata(good_map, tmp_path, "R_s_ohm: 12 mOhm")
     a = make(name, logging_on=True)
     assert a.setup() == OK and a.enter() == OK
     a.set(flux_map=str(path))
-    assert a.exit() == WARNING, a.log.text()
+    assert a.exit() == OK, a.log.text()  # completed: fmi2OK, the warning goes to the logger
     warnings = [m for s, _, m in a.log.records if s == WARNING]
     assert any("'mOhm' is not the contract's SI unit Ohm" in w for w in warnings), a.log.text()
 
@@ -223,7 +230,7 @@ def test_metadata_warnings_are_the_same_in_both_fmus(make, tmp_path, good_map):
         a = make(name, logging_on=True)
         assert a.setup() == OK and a.enter() == OK
         a.set(flux_map=str(path))
-        assert a.exit() == WARNING, a.log.text()
+        assert a.exit() == OK, a.log.text()  # completed: fmi2OK, the warning goes to the logger
         said.append([m for s, _, m in a.log.records if s == WARNING and "R_s_ohm" in m])
     assert said[0] == said[1] and len(said[0]) == 1
 
