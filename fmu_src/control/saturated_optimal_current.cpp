@@ -137,9 +137,15 @@ struct MapView {
     struct CircleCandidates {
         int n = 0;
         CircleCandidate c[kMaxCandidates];
+        // Kept sorted by estimated torque, best first; when full, x replaces the weakest if better.
         void add(const CircleCandidate& x) {
-            int i = n < kMaxCandidates ? n++ : kMaxCandidates - 1;
-            if (i == kMaxCandidates - 1 && n == kMaxCandidates && !(x.T > c[i].T)) return;
+            int i;
+            if (n < kMaxCandidates)
+                i = n++;
+            else if (x.T > c[kMaxCandidates - 1].T)
+                i = kMaxCandidates - 1;
+            else
+                return;
             for (; i > 0 && c[i - 1].T < x.T; --i) c[i] = c[i - 1];
             c[i] = x;
         }

@@ -13,19 +13,11 @@
 #include <string>
 #include <vector>
 
+#include "check.hpp"
 #include "cosim.h"
 #include "fmu_description.hpp"
 
 namespace {
-
-int failures = 0;
-#define CHECK(cond)                                                                 \
-    do {                                                                            \
-        if (!(cond)) {                                                              \
-            std::fprintf(stderr, "CHECK failed at line %d: %s\n", __LINE__, #cond); \
-            ++failures;                                                             \
-        }                                                                           \
-    } while (0)
 
 using cosim_tools::Description;
 using cosim_tools::read_description;
@@ -171,6 +163,6 @@ int main(int argc, char** argv) {
         ipmsm_cosim_free(f);
     }
 
-    std::printf("%s (%d log messages)\n", failures == 0 ? "all checks passed" : "FAILED", logged);
-    return failures == 0 ? 0 : 1;
+    std::printf("%s (%d log messages)\n", check::failures == 0 ? "all checks passed" : "FAILED", logged);
+    return check::failures == 0 ? 0 : 1;
 }

@@ -20,19 +20,11 @@
 #include <string>
 #include <vector>
 
+#include "check.hpp"
 #include "fmi2Functions.h"
 #include "fmu_binary.hpp"
 
 namespace {
-
-int failures = 0;
-#define CHECK(cond)                                                                 \
-    do {                                                                            \
-        if (!(cond)) {                                                              \
-            std::fprintf(stderr, "CHECK failed at line %d: %s\n", __LINE__, #cond); \
-            ++failures;                                                             \
-        }                                                                           \
-    } while (0)
 
 std::string last_log;
 void logger(fmi2ComponentEnvironment, fmi2String, fmi2Status status, fmi2String category, fmi2String message, ...) {
@@ -197,6 +189,6 @@ int main(int argc, char** argv) {
     // No dlclose: the FMU links libstdc++ statically, whose emergency exception-handling pool
     // (72 704 bytes, allocated once when the library is loaded) would then be reported as
     // "definitely lost" although it belongs to no instance. Loaded, it is "still reachable".
-    std::printf("%s (%d failed checks)\n", failures == 0 ? "OK" : "FAILED", failures);
-    return failures == 0 ? 0 : 1;
+    std::printf("%s (%d failed checks)\n", check::failures == 0 ? "OK" : "FAILED", check::failures);
+    return check::failures == 0 ? 0 : 1;
 }

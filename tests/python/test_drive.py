@@ -15,6 +15,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Error, fmi2OK
 
 from scenarios.drive_fmu import DriveFmu
+from scenarios.flux_map import linear_flux_map, write_flux_map
 from scenarios.inverter import inverter_loss
 from scenarios.master import DriveCosim, DriveInputs
 
@@ -171,17 +172,24 @@ def test_a_step_not_a_multiple_of_sample_time_is_refused_and_the_instance_stays_
         assert ra == rb  # bit for bit: the refused steps changed nothing
 
 
-def test_leaving_the_flux_map_grid_returns_ok_at_every_step_and_logs_the_warning():
-    """The plant's currents leave the map's grid (I_max above the grid's 700 A): every step is
+def test_leaving_the_flux_map_grid_returns_ok_at_every_step_and_logs_the_warning(tmp_path):
+    """The plant's currents leave the map's grid: a linear machine whose grid ends at I_max,
+    spun far above its corner speed on a low DC voltage, so that the regulator cannot hold the
+    current and it runs towards the short-circuit current psi_m / L_d (800 A). Every step is
     fmi2OK (OMSimulator ends a run on fmi2Warning), the warning is in the log with its status and
     category."""
-    with DriveFmu(fmu_path("IpmsmDrive"), params={"I_max": 1000.0}, w_m=50.0, logging_on=True) as d:
+    I_max, psi_m, L_d = 300.0, 0.08, 1e-4
+    path = tmp_path / "small_grid.csv"
+    write_flux_map(path, linear_flux_map(L_d, 2e-4, psi_m, I_max))
+    w_m, u_dc = 1000.0, 20.0  # back-EMF p psi_m w_m = 320 V against V_max of about 11 V
+    params = {"flux_map": str(path), "I_max": I_max, "pole_pairs": 4, "R_s": 0.01}
+    with DriveFmu(fmu_path("IpmsmDrive"), params=params, w_m=w_m, logging_on=True) as d:
         fmu, c = _raw(d)
         statuses = []
         for _ in range(50):
+            fmu.setReal(d._input_vrs, [0.0, w_m, u_dc, 293.15, 293.15])
             statuses.append(fmu.fmi2DoStep(c, d.t, 1e-3, 1))
             d.t += 1e-3
-            fmu.setReal(d._input_vrs, [600.0, 50.0, U_DC, 293.15, 293.15])
         warnings = [(s, cat, m) for s, cat, m in d.messages if "left the flux map" in m]
         assert statuses == [fmi2OK] * 50
         assert warnings and all(s == 1 and cat == "logStatusWarning" for s, cat, _ in warnings), list(d.messages)
