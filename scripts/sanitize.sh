@@ -2,7 +2,7 @@
 # The AddressSanitizer + UBSan build (issue 5): a second build tree, build-asan/, with
 # IPMSM_SANITIZE=ON at -O1 (the sanitizers' usual level: quick to build, still fast to run).
 #
-#   scripts/sanitize.sh          the FMUs (IpmsmController, IpmsmPlant, ToyLag) and the fuzz
+#   scripts/sanitize.sh          the FMUs (IpmsmController, IpmsmPlant, IpmsmDrive, ToyLag) and the fuzz
 #                                harness: what tests/python/test_sanitizers.py runs by default
 #   scripts/sanitize.sh --full   everything, the C++ unit tests too (the slow full pass)
 #
@@ -29,5 +29,5 @@ if [ "${1:-}" = "--full" ]; then
   cmake --build "$_build" --parallel "$(nproc)"
 else
   echo "[sanitize] building the FMUs and the fuzz harness in $_build"
-  cmake --build "$_build" --parallel "$(nproc)" --target IpmsmController_fmu IpmsmPlant_fmu ToyLag_fmu fmu_fuzz
+  cmake --build "$_build" --parallel "$(nproc)" --target IpmsmController_fmu IpmsmPlant_fmu IpmsmDrive_fmu ToyLag_fmu fmu_fuzz
 fi

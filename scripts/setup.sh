@@ -50,7 +50,7 @@ case "${IPMSM_WIN64:-ON}" in OFF|off|0|NO|no|FALSE|false) IPMSM_WIN64=OFF ;; *) 
 export IPMSM_WIN64
 WIN64_ARGS=(-DIPMSM_WIN64="$IPMSM_WIN64")
 if [ "$IPMSM_WIN64" = ON ]; then
-  source scripts/setup_win64.sh
+  source scripts/setup_win64.sh ""  # explicit (empty) arguments: it never sees a caller's
   WIN64_ARGS+=(-DIPMSM_WIN64_SUNDIALS_DIR="$IPMSM_WIN64_SUNDIALS_DIR")
 fi
 
