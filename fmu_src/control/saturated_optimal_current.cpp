@@ -384,8 +384,8 @@ struct MapView {
 }  // namespace
 
 const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flux, double I_max) {
-    if (!(circles_.I_max() == I_max)) {
-        circles_ = CurrentCircles(*map_, I_max);
+    if (!circles_ || !(circles_->I_max() == I_max)) {
+        circles_ = std::make_shared<const CurrentCircles>(*map_, I_max);
         maxima_.shift = NAN;
     }
     const double shift = CircleMaxima::kShiftStep * std::round(flux.shift() / CircleMaxima::kShiftStep);
@@ -401,8 +401,8 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
         for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
             // Newton stays on the best sample's maximum: the samples are 2.8 degrees apart, each
             // maximum's basin far wider.
-            const CurrentCircles::Sample& x = circles_.at(k, circles_.best_angle(k, s, shift));
-            const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, circles_.radius(k)};
+            const CurrentCircles::Sample& x = circles_->at(k, circles_->best_angle(k, s, shift));
+            const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, circles_->radius(k)};
             const auto r =
                 map_newton::solve(rounded, P, x.i_d, x.i_q, kNewtonMaxIterations, kNewtonStepTolerance * I_max);
             const double T = s * rounded.reduced_torque(r.i_d, r.i_q), T_sample = s * x.torque(shift);
@@ -417,7 +417,7 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
     maxima_.psi_min = INFINITY, maxima_.psi_max = 0.0;
     for (int k = 1; k <= K; ++k)
         for (int j = 0; j < N; ++j) {
-            const double psi = psi_of(circles_.at(k, j));
+            const double psi = psi_of(circles_->at(k, j));
             maxima_.psi_min = std::min(maxima_.psi_min, psi), maxima_.psi_max = std::max(maxima_.psi_max, psi);
         }
     double best[2][L];
@@ -425,7 +425,7 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
         for (int l = 0; l < L; ++l) best[side][l] = -INFINITY, maxima_.sides[side].has_mtpv[l] = false;
     for (int k = 1; k <= K; ++k)
         for (int j = 0; j < N; ++j) {
-            const CurrentCircles::Sample &x = circles_.at(k, j), &y = circles_.at(k, j + 1);
+            const CurrentCircles::Sample &x = circles_->at(k, j), &y = circles_->at(k, j + 1);
             const double a = psi_of(x), b = psi_of(y);
             const double lo = std::min(a, b), hi = std::max(a, b);
             const double step = (maxima_.psi_max - maxima_.psi_min) / (L - 1);
@@ -449,7 +449,8 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
                                                       const MagnetFlux& flux) {
     const double s = sign_of(T_ref);
     const double kT = torque_factor(pole_pairs_);
-    MapView view(*this, flux, circles_, circle_maxima(flux, lim.I_max), lim, R_s, s);
+    const CircleMaxima& maxima = circle_maxima(flux, lim.I_max);  // makes circles_ on the first call
+    MapView view(*this, flux, *circles_, maxima, lim, R_s, s);
 
     // 1. The largest torque reachable now (this torque sign), on the map.
     const decision::Choice top = decision::max_torque(view);

@@ -87,7 +87,9 @@ private:
     // The circles and their maxima for the last I_max and magnet shift (recursion 2): computed
     // again when either changes, so the answer depends on the inputs only.
     const CircleMaxima& circle_maxima(const MagnetFlux& flux, double I_max);
-    CurrentCircles circles_;
+    // Shared, not copied: the samples (128 kB) never change once made, and the FMI glue copies
+    // the whole model at every step to undo a failed one.
+    std::shared_ptr<const CurrentCircles> circles_;
     CircleMaxima maxima_;
 
     std::shared_ptr<const FluxMap> map_;
