@@ -15,11 +15,14 @@ def get_values(fmu: FMU2Slave, variables: dict, *names):
     return out[0] if len(out) == 1 else out
 
 
+_AS_TYPE = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
+
+
 def set_values(fmu: FMU2Slave, variables: dict, **values) -> None:
-    """Set variables by name, each through its type's setter, the values passed as they are."""
+    """Set variables by name, each through its type's setter, the value converted to that type."""
     for name, value in values.items():
         v = variables[name]
-        getattr(fmu, "set" + v.type)([v.valueReference], [value])
+        getattr(fmu, "set" + v.type)([v.valueReference], [_AS_TYPE.get(v.type, lambda x: x)(value)])
 
 
 class Fmu:
@@ -44,16 +47,7 @@ class Fmu:
         return self.vars[name].valueReference
 
     def set(self, **values) -> None:
-        for name, value in values.items():
-            v = self.vars[name]
-            if v.type == "Real":
-                self.fmu.setReal([v.valueReference], [float(value)])
-            elif v.type == "Integer":
-                self.fmu.setInteger([v.valueReference], [int(value)])
-            elif v.type == "Boolean":
-                self.fmu.setBoolean([v.valueReference], [bool(value)])
-            else:
-                self.fmu.setString([v.valueReference], [str(value)])
+        set_values(self.fmu, self.vars, **values)
 
     def get(self, *names):
         return get_values(self.fmu, self.vars, *names)

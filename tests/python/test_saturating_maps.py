@@ -21,6 +21,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from scenarios.flux_map import read_flux_map
+from scenarios.fmu import set_values
 from tools.saturating_map import K_U, U_DC, W_M_MAX, SaturatingMachine, write_map
 
 from brute_force import Drive, max_torque, min_current
@@ -78,14 +79,7 @@ class FreshController:
         self.parameters = parameters
 
     def _set(self, **values):
-        for name, value in values.items():
-            v = self.vars[name]
-            if v.type == "Real":
-                self.slave.setReal([v.valueReference], [float(value)])
-            elif v.type == "Integer":
-                self.slave.setInteger([v.valueReference], [int(value)])
-            else:
-                self.slave.setString([v.valueReference], [str(value)])
+        set_values(self.slave, self.vars, **values)
 
     def answer(self, op: dict) -> tuple:
         # freeInstance unloads the library (fmpy): a new slave each time.
