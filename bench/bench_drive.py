@@ -9,13 +9,12 @@ comparison) is left out unless --reference.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
+from scenarios.simulate import RunSpec, fmu_paths, simulate
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-from scenarios.simulate import RunSpec, fmu_paths, simulate  # noqa: E402
 
 
 def main(argv=None) -> int:
