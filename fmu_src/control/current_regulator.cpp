@@ -34,17 +34,21 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
         u_q *= u_lim / mag;
         return true;
     };
+    // What the next sample needs of this one: the reference flux and the voltage it applies.
+    auto remember = [&s](double psi_ref_d, double psi_ref_q, double u_d, double u_q) {
+        s.psi_ref_d = psi_ref_d;
+        s.psi_ref_q = psi_ref_q;
+        s.primed = true;
+        s.u_d_prev = u_d;
+        s.u_q_prev = u_q;
+    };
     const FluxPoint fr = flux.eval(i_d_ref, i_q_ref);
     const double r_d = fr.psi_d - flux.shift(), r_q = fr.psi_q;  // at the reference magnet temperature
     if (!(std::abs(theta) < kMaxRotationPerSample)) {
         // Open loop: the reference's steady-state voltage; the integrator held.
         double u_d = R_s_ * i_d_ref - omega * fr.psi_q, u_q = R_s_ * i_q_ref + omega * fr.psi_d;
         const bool limited = limit(u_d, u_q);
-        s.psi_ref_d = r_d;
-        s.psi_ref_q = r_q;
-        s.primed = true;
-        s.u_d_prev = u_d;
-        s.u_q_prev = u_q;
+        remember(r_d, r_q, u_d, u_q);
         return {u_d, u_q, limited, true};
     }
     const Rotation back{std::cos(theta), -std::sin(theta)};               // Phi = exp(-j omega h)
@@ -116,11 +120,7 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
         s.v_d += wr_d - w_d;
         s.v_q += wr_q - w_q;
     }
-    s.psi_ref_d = r_d;
-    s.psi_ref_q = r_q;
-    s.primed = true;
-    s.u_d_prev = u_d_out;
-    s.u_q_prev = u_q_out;
+    remember(r_d, r_q, u_d_out, u_q_out);
     return {u_d_out, u_q_out, limited, false};
 }
 
