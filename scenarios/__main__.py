@@ -5,6 +5,7 @@ import argparse
 import json
 from pathlib import Path
 
+from . import map_cli
 from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
 from .paths import BUILD_DIR, ROOT
 
@@ -38,6 +39,7 @@ def main(argv=None) -> int:
     cmp_.add_argument("--cycles", nargs="+", default=["WLTC3b"])
     cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
+    map_cli.add_parser(sub)
     args = ap.parse_args(argv)
 
     if args.cmd == "sweep":
@@ -63,6 +65,8 @@ def main(argv=None) -> int:
         from .compare import run_study
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
+    elif args.cmd == "map":
+        return map_cli.main(args)
     return 0
 
 
