@@ -81,6 +81,7 @@ def _import(path: Path) -> ImportedMap:
 
 
 def _import_csv(path: Path) -> ImportedMap:
+    _check_csv_numbers(path)
     try:
         fmap = read_flux_map(path)
     except (ValueError, IndexError) as e:  # read_flux_map's message names the line's problem
@@ -90,6 +91,26 @@ def _import_csv(path: Path) -> ImportedMap:
     raw = map_formats.RawMap("contract CSV", I_d, I_q, fmap.psi_d, fmap.psi_q,
                              ("i_d", "i_q", "psi_d", "psi_q"), square_axis0="i_d", metadata=dict(fmap.metadata))
     return _to_contract(raw, path)
+
+
+CSV_COLUMNS = ("i_d", "i_q", "psi_d", "psi_q")
+
+
+def _check_csv_numbers(path: Path) -> None:
+    """NaN or Inf in a contract CSV, named by column and line (read_flux_map would only see a hole)."""
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as e:
+        raise MapImportError(path, "file", "a text file (the contract CSV)", f"unreadable ({e})") from e
+    data = [(n, s) for n, s in enumerate(lines, 1) if s.strip() and not s.strip().startswith("#")][1:]
+    for n, s in data:
+        for col, x in zip(CSV_COLUMNS, s.split(",")):
+            try:
+                v = float(x)
+            except ValueError:
+                continue  # read_flux_map names the malformed row
+            if not np.isfinite(v):
+                raise MapImportError(path, col, "finite numbers", f"{x.strip()} on line {n}")
 
 
 def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
