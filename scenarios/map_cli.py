@@ -21,7 +21,8 @@ def add_parser(sub) -> None:
     show = msub.add_parser("show", help="flux linkages, inductances, reciprocity, envelope, MTPA/MTPV, "
                                         "efficiency map: map.png and map.md")
     show.add_argument("file", type=Path)
-    show.add_argument("--u-dc", type=float, default=U_DC_NOMINAL_V, help="DC-link voltage, V")
+    show.add_argument("--u-dc", type=float, default=None,
+                      help=f"DC-link voltage, V (default: the map's u_dc_V metadata, else {U_DC_NOMINAL_V:g})")
     show.add_argument("--out", type=Path, default=None, help="folder (default out/map_<name>)")
 
 
