@@ -23,6 +23,8 @@ def add_parser(sub) -> None:
     show.add_argument("file", type=Path)
     show.add_argument("--u-dc", type=float, default=None,
                       help=f"DC-link voltage, V (default: the map's u_dc_V metadata, else {U_DC_NOMINAL_V:g})")
+    show.add_argument("--I-max", type=float, default=None,
+                      help="peak current limit, A (default: the map's I_max_A metadata, else what the grid covers)")
     show.add_argument("--out", type=Path, default=None, help="folder (default out/map_<name>)")
 
 
@@ -40,7 +42,7 @@ def main(args: argparse.Namespace) -> int:
             from .map_show import show_map
             from .paths import ROOT
             out = args.out or ROOT / "out" / f"map_{args.file.stem}"
-            show_map(args.file, out, u_dc=args.u_dc, build=args.build)
+            show_map(args.file, out, u_dc=args.u_dc, I_max=args.I_max, build=args.build)
             print(f"wrote {out}/map.png, {out}/map.md")
     except MapImportError as e:
         print(f"error: {e}", file=sys.stderr)

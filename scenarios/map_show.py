@@ -28,7 +28,9 @@ import numpy as np
 from .constants import U_DC_NOMINAL_V
 from .flux_map import FluxMap, read_flux_map
 from .fmu import Fmu
+from .map_error import MapImportError
 from .map_import import contract_csv
+from .master import CosimError
 from .paths import BUILD_DIR
 from .progress import Progress
 
@@ -85,8 +87,9 @@ class MachineSummary:
     wall_s: float = 0.0
 
 
-def machine_parameters(fmap: FluxMap, u_dc: float | None) -> tuple[dict, list, float]:
-    """FMU parameters from the map's metadata (else the FMUs' defaults, listed), and u_dc."""
+def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = None) -> tuple[dict, list, float]:
+    """FMU parameters from the map's metadata (else the FMUs' defaults, listed), and u_dc; u_dc and
+    I_max given override the metadata."""
     params, assumed = {}, []
     for key, name in METADATA_PARAMETERS.items():
         if key in fmap.metadata:
@@ -98,7 +101,9 @@ def machine_parameters(fmap: FluxMap, u_dc: float | None) -> tuple[dict, list, f
         params["fe_psi_ref"] = fmap.psi_m
         assumed.append("iron loss: the default motor's coefficients, fe_psi_ref = this map's psi_m")
     reach = min(-fmap.i_d[0], -fmap.i_q[0], fmap.i_q[-1])
-    if "I_max_A" in fmap.metadata:
+    if I_max is not None:
+        params["I_max"] = float(I_max)
+    elif "I_max_A" in fmap.metadata:
         params["I_max"] = fmap.number("I_max_A")
     else:
         params["I_max"] = float(reach)
@@ -188,8 +193,8 @@ def efficiency_map(drive_path: Path, csv: Path, params: dict, u_dc: float, T_mag
     return eta, P_cu, P_fe, P_inv
 
 
-def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, build: Path = BUILD_DIR,
-             spec: ShowSpec | None = None) -> MachineSummary:
+def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max: float | None = None,
+             build: Path = BUILD_DIR, spec: ShowSpec | None = None) -> MachineSummary:
     """Write out/map.png, out/map.md and out/map.json for the flux map at `path` (CSV or .mat)."""
     from .map_show_plot import plot_machine
 
@@ -198,19 +203,29 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, build
     path, out = Path(path), Path(out)
     csv = contract_csv(path)
     fmap = read_flux_map(csv)
-    params, assumed, u_dc = machine_parameters(fmap, u_dc)
+    params, assumed, u_dc = machine_parameters(fmap, u_dc, I_max)
     T_magnet = params["T_magnet_ref"]
     V_max = params["k_u"] * u_dc / SQRT3
     bar = Progress(spec.n_speed + spec.n_mtpa + spec.n_eff_speed * spec.n_eff_torque, "map show")
-    speeds, env, mtpa, T_peak = controller_curves(build / "fmu" / "IpmsmController.fmu", csv, params, u_dc, T_magnet,
-                                                  spec, params.get("w_m_max"), bar)
+    try:
+        speeds, env, mtpa, T_peak = controller_curves(build / "fmu" / "IpmsmController.fmu", csv, params, u_dc,
+                                                      T_magnet, spec, params.get("w_m_max"), bar)
+    except Exception as e:  # fmpy raises Exception on an fmi2Error status
+        raise MapImportError(path, "flux_map", "a map and parameters the IpmsmController FMU accepts "
+                             f"({', '.join(f'{k} = {v:g}' for k, v in params.items())})", str(e)) from e
     T_env = env[:, 0]
     base = int(np.nonzero(T_env >= 0.99 * T_peak)[0].max())
     P = T_env * speeds
     eff_speeds = np.linspace(speeds[-1] / spec.n_eff_speed, speeds[-1], spec.n_eff_speed)
     eff_torques = np.linspace(T_peak / spec.n_eff_torque, T_peak, spec.n_eff_torque)
-    eta, P_cu, P_fe, P_inv = efficiency_map(build / "fmu" / "IpmsmDrive.fmu", csv, params, u_dc, T_magnet, eff_speeds,
-                                            eff_torques, bar)
+    loss_source = (f"IpmsmDrive FMU (plant copper + iron loss, inverter conduction + switching loss), held "
+                   f"{DRIVE_DT * 1e3:g} ms steps until P_dc settles")
+    try:
+        eta, P_cu, P_fe, P_inv = efficiency_map(build / "fmu" / "IpmsmDrive.fmu", csv, params, u_dc, T_magnet,
+                                                eff_speeds, eff_torques, bar)
+    except CosimError as e:  # e.g. a map the plant cannot invert (it folds): the rest still holds
+        eta = P_cu = P_fe = P_inv = np.full((len(eff_speeds), len(eff_torques)), np.nan)
+        loss_source = f"none: {e}"
     bar.close()
     mismatch, rec_max, rec_rel, rec_at = reciprocity(fmap, params["I_max"])
     k_eta = np.unravel_index(np.nanargmax(eta), eta.shape) if np.isfinite(eta).any() else None
@@ -223,8 +238,7 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, build
         mtpv_points=int((env[:, 3] == 4).sum()),
         eta_max=float(eta[k_eta]) if k_eta else float("nan"),
         eta_max_at=[float(eff_speeds[k_eta[0]]), float(eff_torques[k_eta[1]])] if k_eta else [],
-        loss_source="IpmsmDrive FMU (plant copper + iron loss, inverter conduction + switching loss), "
-                    f"held {DRIVE_DT * 1e3:g} ms steps until P_dc settles",
+        loss_source=loss_source,
         envelope=dict(speed_rad_s=speeds.tolist(), T_max_Nm=T_env.tolist(), P_W=P.tolist(),
                       region=env[:, 3].astype(int).tolist()))
     out.mkdir(parents=True, exist_ok=True)
@@ -253,7 +267,7 @@ def markdown(s: MachineSummary, P_cu, P_fe, P_inv) -> str:
         ("envelope points on MTPV (region 4)", f"{s.mtpv_points} of {len(s.envelope['speed_rad_s'])}"),
         ("peak efficiency (motor + inverter)",
          f"{100 * s.eta_max:.2f} % at {s.eta_max_at[0] / RPM:.0f} r/min, {s.eta_max_at[1]:.1f} N m"
-         if s.eta_max_at else "n/a"),
+         if s.eta_max_at else "not available (see below)"),
     ]
     lines = [f"# Machine at a glance: `{Path(s.map_file).name}`", "",
              "Made by `python -m scenarios map show`; the figure is `map.png`, the numbers also in `map.json`.", "",
@@ -268,7 +282,7 @@ def markdown(s: MachineSummary, P_cu, P_fe, P_inv) -> str:
               "- envelope, MTPA, MTPV: the IpmsmController FMU, one step per point",
               f"- efficiency: {s.loss_source}; largest losses on the map: copper {np.nanmax(P_cu) / 1e3:.2f} kW, "
               f"iron {np.nanmax(P_fe) / 1e3:.2f} kW, inverter {np.nanmax(P_inv) / 1e3:.2f} kW"
-              if np.isfinite(P_cu).any() else "- efficiency: no point reached"]
+              if np.isfinite(P_cu).any() else f"- efficiency: {s.loss_source}"]
     lines += [f"- assumed: {a}" for a in s.assumed] or ["- every parameter from the map's metadata"]
     lines += ["", f"Wall time {s.wall_s:.1f} s.", ""]
     return "\n".join(lines)
