@@ -37,6 +37,8 @@ def main(args: argparse.Namespace) -> int:
             print(f"{args.file} ({imported.source_format}): {len(imported.i_d)} x {len(imported.i_q)} points")
             for n in imported.notes:
                 print(f"  {n}")
+            for w in imported.warnings:
+                print(f"  warning: {w}")
             print(f"wrote {args.out}")
         else:
             from .map_show import show_map

@@ -195,7 +195,7 @@ def resample_polar(mags, angles, psi_d, psi_q):
     for c in (np.cos(theta_dense), np.sin(theta_dense)):
         lo, hi = (R * c).min(), (R * c).max()
         lo = min(lo, 0.0) if mags[0] == 0 else lo
-        bounds.append(h * np.arange(math.floor(lo / h - 1e-9), math.ceil(hi / h + 1e-9) + 1))
+        bounds.append(h * np.arange(math.floor(lo / h + 1e-9), math.ceil(hi / h - 1e-9) + 1))  # rounding-proof
     i_d, i_q = bounds
     I_d, I_q = np.meshgrid(i_d, i_q, indexing="ij")
     r = np.hypot(I_d, I_q)

@@ -43,6 +43,7 @@ class ImportedMap:
     notes: list = field(default_factory=list)   # what was converted, in words
     metadata: dict = field(default_factory=dict)  # '# key: value' lines (pole_pairs, R_s_ohm, ...)
     source: Path | None = None
+    warnings: list = field(default_factory=list)  # what the map lacks, in words (nothing was changed)
 
     def flux_map(self) -> FluxMap:
         return FluxMap(self.i_d, self.i_q, self.psi_d, self.psi_q, dict(self.metadata))
@@ -131,7 +132,11 @@ def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
     i_d, i_q, psi_d, psi_q, mirrored = map_grid.mirror_half(i_d, i_q, psi_d, psi_q)
     notes += [mirrored] if mirrored else []
     _check(i_d, i_q, psi_d, raw.keys)
-    return ImportedMap(i_d, i_q, psi_d, psi_q, raw.source_format, notes, dict(raw.metadata), path)
+    warnings = []
+    if i_d[-1] <= 0.0:
+        warnings.append("no i_d > 0 in the map (no symmetry completes it): where an optimum lies at i_d > 0 "
+                        "the FMUs extrapolate beyond the grid")
+    return ImportedMap(i_d, i_q, psi_d, psi_q, raw.source_format, notes, dict(raw.metadata), path, warnings)
 
 
 def _check(i_d, i_q, psi_d, keys) -> None:
@@ -153,7 +158,7 @@ def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:
     comment = "\n".join([f"Imported by 'python -m scenarios map import' from {imported.source} "
                          f"({imported.source_format}).",
                          "Convention = amplitude-invariant dq, peak values, PM flux on +d."] +
-                        [f"Conversion: {n}" for n in imported.notes])
+                        [f"Conversion: {n}" for n in imported.notes] + [f"Warning: {w}" for w in imported.warnings])
     fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     os.close(fd)
     try:

@@ -27,6 +27,7 @@ POINTS = [(50.0, 1000.0), (200.0, 2000.0), (400.0, 3000.0), (150.0, 6000.0), (-1
 # and 15 (fluxes) significant digits, so the controller sees the same map up to rounding.
 ROUND_TRIP = 1e-9
 SATURATING = SaturatingMachine(0.3, 0.5, 0.15)
+MILD = SaturatingMachine(1.0, 0.5, 0.15)  # q saturation at I_max: reluctance torque wants i_d < 0
 
 
 @pytest.fixture(scope="module")
@@ -199,6 +200,9 @@ def test_phase_advance_resampling_error_falls_with_the_grid_step():
 def test_contract_csv_returns_a_good_csv_as_is_and_caches_imports(known_maps, tmp_path):
     f, original = known_maps["saturating"]
     assert contract_csv(original) == original
+    f_neg = FluxMap(f.i_d[f.i_d <= 0], f.i_q, f.psi_d[f.i_d <= 0], f.psi_q[f.i_d <= 0])  # legal, with a warning
+    write_flux_map(tmp_path / "neg.csv", f_neg)
+    assert contract_csv(tmp_path / "neg.csv") == tmp_path / "neg.csv"
     sio.savemat(tmp_path / "m.mat", motorcad_dq(f, rms=True))
     first = contract_csv(tmp_path / "m.mat")
     mtime = first.stat().st_mtime_ns
@@ -283,3 +287,58 @@ def test_bad_files_of_other_kinds(tmp_path, capsys, name, content, key):
     err = capsys.readouterr().err
     assert str(tmp_path / name) in err and f": {key}: expected" in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("quarter_turns", [1, 2, 3])
+def test_pm_on_any_axis_is_turned_onto_plus_d(known_maps, tmp_path, quarter_turns):
+    """The same machine drawn with its PM on +q, -d or -q (the frame turned by k x 90 deg)."""
+    f, _ = known_maps["default"]
+    r = 1j**quarter_turns
+    I_d, I_q = np.meshgrid(f.i_d, f.i_q, indexing="ij")
+    i, psi = (I_d + 1j * I_q) * r, (f.psi_d + 1j * f.psi_q) * r
+    sio.savemat(tmp_path / "m.mat", dict(Id_Peak=i.real, Iq_Peak=i.imag, Flux_Linkage_D=psi.real,
+                                         Flux_Linkage_Q=psi.imag))
+    m = import_map(tmp_path / "m.mat")
+    assert f"found on {('+d', '+q', '-d', '-q')[quarter_turns]}" in " ".join(m.notes)
+    assert np.allclose(m.i_d, f.i_d, rtol=0, atol=1e-12) and np.allclose(m.i_q, f.i_q, rtol=0, atol=1e-12)
+    assert _rel(m.psi_d, f.psi_d) < 1e-15 and _rel(m.psi_q, f.psi_q) < 1e-15
+
+
+@pytest.mark.parametrize("machine", ["default", "saturating"])
+def test_one_dimensional_axes_in_either_orientation(known_maps, tmp_path, machine):
+    """Id and Iq as vectors: the flux arrays' shape says the orientation; a square grid takes the
+    format's own (Motor-CAD: i_d along the rows), and says so."""
+    f, _ = known_maps[machine]
+    for psi_d, psi_q in ((f.psi_d, f.psi_q), (f.psi_d.T, f.psi_q.T)):
+        sio.savemat(tmp_path / "m.mat", dict(Id_Peak=f.i_d, Iq_Peak=f.i_q, Flux_Linkage_D=psi_d, Flux_Linkage_Q=psi_q))
+        m = import_map(tmp_path / "m.mat")
+        square = len(f.i_d) == len(f.i_q)
+        if square and psi_d is not f.psi_d:
+            assert _rel(m.psi_d, f.psi_d.T) < 1e-15  # ambiguous: read as Motor-CAD writes, not guessed
+        else:
+            assert _rel(m.psi_d, f.psi_d) < 1e-15 and _rel(m.psi_q, f.psi_q) < 1e-15
+        assert any("square grid" in n for n in m.notes) == square
+
+
+def test_phase_advance_quarter_map_motoring_only(controller_fmu, tmp_path):
+    """Advance 0 ... 90 deg only (i_d <= 0, i_q >= 0, the motoring quadrant a FEM run often covers):
+    the sector is resampled, then mirrored to i_q < 0; generating points come from the mirror.
+    A machine whose optimum lies at i_d < 0 (MILD): nothing can complete i_d > 0 (no symmetry in d;
+    on SATURATING, whose peak torque lies at i_d > 0, the controller extrapolates: +2 %)."""
+    write_flux_map(tmp_path / "mild.csv", make_map(MILD))
+    data = motorcad_phase_advance(MILD, 26, 73)
+    quarter = {k: v[:, :19] for k, v in data.items()}  # beta 0 ... 90 deg in 5 deg steps
+    sio.savemat(tmp_path / "q.mat", quarter)
+    m = import_map(tmp_path / "q.mat")
+    said = " ".join(m.notes)
+    assert "resampled" in said and "mirrored" in said and "no i_d > 0" in " ".join(m.warnings)
+    assert m.i_d[-1] == 0.0 and m.i_q[0] == -m.i_q[-1]
+    I_d, I_q = np.meshgrid(m.i_d, m.i_q, indexing="ij")
+    inside = np.hypot(I_d, I_q) <= MILD.I_max
+    psi_d, psi_q = MILD.flux(I_d, I_q)
+    assert max(np.abs(m.psi_d - psi_d)[inside].max(), np.abs(m.psi_q - psi_q)[inside].max()) < PHASE_ADVANCE_FLUX_TOL
+    a = commands(controller_fmu, write_contract_csv(m, tmp_path / "q.csv"))
+    b = commands(controller_fmu, tmp_path / "mild.csv")
+    assert _rel(a[:, 0], b[:, 0]) < PHASE_ADVANCE_T_TOL
+    assert np.abs(a[:, 1:] - b[:, 1:]).max() < PHASE_ADVANCE_I_TOL
+    assert (b[:, 1] < 0).all()  # the premise: every optimum at i_d < 0
