@@ -133,3 +133,18 @@ def test_envelope_power_is_torque_times_speed(maps, tmp_path):
     e = json.loads((tmp_path / "o" / "map.json").read_text())["envelope"]
     assert np.allclose(np.array(e["T_max_Nm"]) * np.array(e["speed_rad_s"]), e["P_W"], rtol=1e-12)
     assert math.isclose(max(e["P_W"]), json.loads((tmp_path / "o" / "map.json").read_text())["P_max_W"])
+
+
+def test_show_on_the_measured_map(tmp_path):
+    """The real measured map (not reciprocal, no I_max in its metadata): shown, its mismatch
+    reported as found, its peak torque the brute-force optimum's."""
+    from scenarios.paths import SHARED_DIR
+    path = SHARED_DIR / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
+    assert cli(["map", "show", str(path), "--out", str(tmp_path / "o")]) == 0
+    s = json.loads((tmp_path / "o" / "map.json").read_text())
+    assert s["u_dc_V"] == 540.0 and s["parameters"]["I_max"] == 20.0  # metadata; the grid's reach
+    assert any(a.startswith("I_max = 20 A") for a in s["assumed"])
+    assert s["reciprocity_rel"] > 10 * RECIPROCAL_REL  # measured: 0.84 %
+    fmap = read_flux_map(path)
+    for w, T in ((0.0, s["T_peak_Nm"]), (s["w_top_rad_s"], s["envelope"]["T_max_Nm"][-1])):
+        assert T == pytest.approx(brute_T_max(fmap, s, w), rel=TORQUE_TOL)
