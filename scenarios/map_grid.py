@@ -70,9 +70,10 @@ def as_2d(raw: RawMap) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, 
 
 
 def rotate_pm_onto_d(i_d, i_q, psi_d, psi_q, key: str):
-    """Turn the dq frame by k * 90 deg so that the PM flux is on +d. Returns the four arrays and
-    a note (None if nothing turned). A map without PM flux keeps its frame unless its d axis is
-    the high-inductance one (SyR-e's synchronous-reluctance convention), then it turns by 90 deg."""
+    """Turn the dq frame by k * 90 deg so that the PM flux is on +d. Returns the four arrays, what
+    was done (None: nothing to say) and whether the frame turned. A map without PM flux keeps its
+    frame unless its d axis is the high-inductance one (SyR-e's synchronous-reluctance
+    convention), then it turns by 90 deg."""
     i = i_d + 1j * i_q
     psi = psi_d + 1j * psi_q
     k0 = np.unravel_index(np.argmin(np.abs(i)), i.shape)
@@ -91,14 +92,15 @@ def rotate_pm_onto_d(i_d, i_q, psi_d, psi_q, key: str):
         L_d = np.sum(psi_d * i_d) / max(np.sum(i_d**2), 1e-300)
         L_q = np.sum(psi_q * i_q) / max(np.sum(i_q**2), 1e-300)
         if not L_d > 1.05 * L_q:
-            return i_d, i_q, psi_d, psi_q, None
+            return i_d, i_q, psi_d, psi_q, (f"no PM flux (below {PM_FLUX_MIN_RATIO:.0%} of the largest): a "
+                                            "synchronous-reluctance map, d on its low-inductance axis already"), False
         turns = 1
         why = f"no PM flux and L_d {L_d:.3g} H > L_q {L_q:.3g} H (synchronous-reluctance convention)"
     if turns == 0:
-        return i_d, i_q, psi_d, psi_q, None
+        return i_d, i_q, psi_d, psi_q, None, False
     r = 1j**turns  # exact for k * 90 deg: multiplies by 1, j, -1, -j
     i, psi = i * r, psi * r
-    return i.real, i.imag, psi.real, psi.imag, f"{why}: dq frame turned by {90 * turns} deg to put it on +d"
+    return i.real, i.imag, psi.real, psi.imag, f"{why}: dq frame turned by {90 * turns} deg to put it on +d", True
 
 
 def _axis(values: np.ndarray, key: str, what: str) -> np.ndarray:
@@ -174,6 +176,8 @@ def resample_polar(mags, angles, psi_d, psi_q):
     if len(mags) < MIN_POINTS or len(angles) < MIN_POINTS:
         raise MapImportError(None, "grid", f">= {MIN_POINTS} current magnitudes and angles",
                              f"{len(mags)} x {len(angles)}")
+    if mags[0] != 0.0:  # zero current: the PM flux, and no extrapolation towards the centre
+        raise MapImportError(None, "grid", "current magnitudes from 0 A", f"from {mags[0]:.6g} A")
     span = angles[-1] - angles[0]
     step = np.diff(angles).min()
     full = span + step >= 2 * math.pi - 1e-6
@@ -190,11 +194,10 @@ def resample_polar(mags, angles, psi_d, psi_q):
     R = mags[-1]
     # the rectangle: the bounding box of the sampled points, on the data's radial step, through 0
     theta_dense = np.linspace(angles[0], angles[-1], 721) if not full else np.linspace(0, 2 * math.pi, 721)
-    h = R / (len(mags) - 1) if mags[0] == 0 else np.diff(mags).min()
+    h = R / (len(mags) - 1)
     bounds = []
     for c in (np.cos(theta_dense), np.sin(theta_dense)):
-        lo, hi = (R * c).min(), (R * c).max()
-        lo = min(lo, 0.0) if mags[0] == 0 else lo
+        lo, hi = min((R * c).min(), 0.0), max((R * c).max(), 0.0)  # the sector and its apex, zero current
         bounds.append(h * np.arange(math.floor(lo / h + 1e-9), math.ceil(hi / h - 1e-9) + 1))  # rounding-proof
     i_d, i_q = bounds
     I_d, I_q = np.meshgrid(i_d, i_q, indexing="ij")

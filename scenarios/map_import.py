@@ -118,8 +118,9 @@ def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
     notes = list(raw.notes)
     i_d, i_q, psi_d, psi_q, more = map_grid.as_2d(raw)
     notes += more
-    i_d, i_q, psi_d, psi_q, turned = map_grid.rotate_pm_onto_d(i_d, i_q, psi_d, psi_q, raw.keys[2])
-    notes += [turned] if turned else []
+    warnings = []
+    i_d, i_q, psi_d, psi_q, said, turned = map_grid.rotate_pm_onto_d(i_d, i_q, psi_d, psi_q, raw.keys[2])
+    (notes if turned else warnings).extend([said] if said else [])
     grid = map_grid.rectangular(i_d, i_q, psi_d, psi_q, raw.keys)
     if grid is None:
         pol = map_grid.polar(i_d, i_q, psi_d, psi_q, raw.keys)
@@ -131,15 +132,14 @@ def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
     notes += [note] if note else []
     i_d, i_q, psi_d, psi_q, mirrored = map_grid.mirror_half(i_d, i_q, psi_d, psi_q)
     notes += [mirrored] if mirrored else []
-    _check(i_d, i_q, psi_d, raw.keys)
-    warnings = []
+    _check(i_d, i_q, raw.keys)
     if i_d[-1] <= 0.0:
         warnings.append("no i_d > 0 in the map (no symmetry completes it): where an optimum lies at i_d > 0 "
                         "the FMUs extrapolate beyond the grid")
     return ImportedMap(i_d, i_q, psi_d, psi_q, raw.source_format, notes, dict(raw.metadata), path, warnings)
 
 
-def _check(i_d, i_q, psi_d, keys) -> None:
+def _check(i_d, i_q, keys) -> None:
     """What the FMUs' reader needs beyond the grid: enough points, and zero current inside it."""
     for k, ax in ((keys[0], i_d), (keys[1], i_q)):
         if len(ax) < map_grid.MIN_POINTS:
@@ -147,8 +147,6 @@ def _check(i_d, i_q, psi_d, keys) -> None:
         if not ax[0] <= 0.0 <= ax[-1]:
             raise MapImportError(None, k, "a grid that contains zero current (psi_m = psi_d(0, 0))",
                                  f"{ax[0]:.6g} ... {ax[-1]:.6g} A")
-    if not psi_d[np.argmin(np.abs(i_d)), np.argmin(np.abs(i_q))] > 0.0:
-        raise MapImportError(None, keys[2], "PM flux on +d (psi_d(0, 0) > 0)", "psi_d(0, 0) <= 0")
 
 
 def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:

@@ -342,3 +342,29 @@ def test_phase_advance_quarter_map_motoring_only(controller_fmu, tmp_path):
     assert _rel(a[:, 0], b[:, 0]) < PHASE_ADVANCE_T_TOL
     assert np.abs(a[:, 1:] - b[:, 1:]).max() < PHASE_ADVANCE_I_TOL
     assert (b[:, 1] < 0).all()  # the premise: every optimum at i_d < 0
+
+
+@pytest.mark.parametrize("convention", ["SR", "PM"])
+def test_synchronous_reluctance_map_without_pm(controller_fmu, tmp_path, convention):
+    """No PM flux: the axes are told by saliency. In SyR-e's SR convention (d = high inductance)
+    the frame turns so that d is the low-inductance axis, as the contract's IPMSM frame."""
+    from scenarios.flux_map import linear_flux_map
+    f = linear_flux_map(2e-4, 6e-4, 0.0, 700.0, n=29)
+    write_flux_map(tmp_path / "syrm.csv", f)
+    content = syre_sr(f, half=True) if convention == "SR" else syre_pm(f)
+    sio.savemat(tmp_path / "syrm.mat", content)
+    m = import_map(tmp_path / "syrm.mat")
+    assert np.allclose(m.i_d, f.i_d, rtol=0, atol=1e-12) and np.allclose(m.i_q, f.i_q, rtol=0, atol=1e-12)
+    assert _rel(m.psi_d, f.psi_d) < 1e-15 and _rel(m.psi_q, f.psi_q) < 1e-15
+    said = " ".join(m.notes + m.warnings)
+    assert ("turned by 90 deg" in said) == (convention == "SR") and "no PM flux" in said
+    assert np.array_equal(commands(controller_fmu, contract_csv(tmp_path / "syrm.mat")),
+                          commands(controller_fmu, tmp_path / "syrm.csv"))
+    assert contract_csv(tmp_path / "syrm.csv") == tmp_path / "syrm.csv"  # a warning changes nothing
+
+
+def test_phase_advance_grid_without_zero_current_is_refused(tmp_path):
+    data = motorcad_phase_advance(SATURATING, 26, 73)
+    sio.savemat(tmp_path / "pa.mat", {k: v[1:] for k, v in data.items()})
+    with pytest.raises(MapImportError, match="current magnitudes from 0 A"):
+        import_map(tmp_path / "pa.mat")
