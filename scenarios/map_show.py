@@ -56,8 +56,8 @@ FMU_DEFAULTS = {"pole_pairs": 4, "R_s": 0.012, "T_winding_ref": 293.15, "alpha_c
 class ShowSpec:
     n_speed: int = 41          # envelope points, 0 ... top speed
     n_mtpa: int = 25           # MTPA points, 0 ... peak torque
-    n_eff_speed: int = 16      # efficiency map
-    n_eff_torque: int = 14
+    n_eff_speed: int = 30      # efficiency map
+    n_eff_torque: int = 24
 
 
 @dataclass

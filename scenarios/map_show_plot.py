@@ -84,7 +84,9 @@ def plot_machine(png, fmap: FluxMap, s, env, speeds, mtpa, mismatch, eff_speeds,
     W, Tq = np.meshgrid(eff_speeds / RPM, eff_torques, indexing="ij")
     if np.isfinite(eta).any():
         lo = max(0.5, np.nanmin(eta))
-        levels = np.unique(np.r_[100 * lo, np.arange(80, 100, 2), 100 * np.nanmax(eta)])
+        top = 100 * np.nanmax(eta)  # 1 % steps where drives differ, coarser below
+        levels = np.unique(np.r_[100 * lo, [60, 70, 80, 85, 88], np.arange(90, 100, 1.0), top])
+        levels = levels[(levels >= 100 * lo) & (levels <= top)]
         cs = a.contourf(W, Tq, 100 * eta, levels=levels, cmap="jet")
         fig.colorbar(cs, ax=a, label="efficiency (%)")
     a.plot(speeds / RPM, env[:, 0], "k")
