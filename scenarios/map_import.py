@@ -27,7 +27,7 @@ from .map_error import MapImportError
 __all__ = ["ImportedMap", "MapImportError", "contract_csv", "import_map", "write_contract_csv", "cache_dir"]
 
 #: bump when a conversion changes, so that cached imports are made again
-IMPORTER_VERSION = 1
+IMPORTER_VERSION = 2
 
 
 @dataclass
@@ -153,10 +153,11 @@ def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:
     """Write the map as a contract CSV, atomically: a temporary file beside `out`, then renamed."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    comment = "\n".join([f"Imported by 'python -m scenarios map import' from {imported.source} "
-                         f"({imported.source_format}).",
+    # two-word labels: a one-word 'key: value' line would read as metadata (INTERFACE.md)
+    comment = "\n".join([f"Imported by scenarios.map_import from {imported.source} ({imported.source_format}).",
                          "Convention = amplitude-invariant dq, peak values, PM flux on +d."] +
-                        [f"Conversion: {n}" for n in imported.notes] + [f"Warning: {w}" for w in imported.warnings])
+                        [f"Import conversion: {n}" for n in imported.notes] +
+                        [f"Import warning: {w}" for w in imported.warnings])
     fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
     os.close(fd)
     try:

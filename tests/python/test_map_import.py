@@ -220,7 +220,8 @@ def test_cli_import_writes_the_csv_and_states_the_conversions(known_maps, tmp_pa
     sio.savemat(tmp_path / "fdfq_idiq_n256.mat", syre_sr(known_maps["default"][0], half=True))
     assert cli(["map", "import", str(tmp_path / "fdfq_idiq_n256.mat"), "--out", str(tmp_path / "o.csv")]) == 0
     text = (tmp_path / "o.csv").read_text()
-    assert "Conversion: PM flux found on -q" in text and "Conversion: half map" in text
+    assert "# Import conversion: PM flux found on -q" in text and "# Import conversion: half map" in text
+    assert read_flux_map(tmp_path / "o.csv").metadata == {}  # the conversions are not read as metadata
     assert "mirrored" in capsys.readouterr().out
 
 
