@@ -139,7 +139,7 @@ def test_layouts_import_to_the_same_grid(known_maps, tmp_path, machine, layout):
 
 
 @pytest.mark.parametrize("machine", ["default", "saturating"])
-@pytest.mark.parametrize("layout", ["syre-SR-half", "motorcad-rms-half-transposed", "motorcad-peak"])
+@pytest.mark.parametrize("layout", list(LAYOUTS))
 def test_controller_on_the_imported_map_gives_the_same_commands(controller_fmu, known_maps, tmp_path, machine,
                                                                  layout):
     f, original = known_maps[machine]
