@@ -32,6 +32,13 @@ def maps(tmp_path_factory):
     return {"default": DEFAULT_MAP, "saturating": d / "saturating.csv"}
 
 
+@pytest.fixture
+def show(controller_fmu):
+    """show(args) -> the exit status of `python -m scenarios --build <the FMUs under test> map show args`."""
+    build = controller_fmu.parent.parent
+    return lambda args: cli(["--build", str(build), "map", "show", *args])
+
+
 @pytest.fixture(autouse=True)
 def _cache(tmp_path, monkeypatch):
     monkeypatch.setenv("IPMSM_MAP_CACHE", str(tmp_path / "cache"))
@@ -50,9 +57,9 @@ def brute_T_max(fmap: FluxMap, s: dict, w_m: float) -> float:
 
 
 @pytest.mark.parametrize("name", ["default", "saturating"])
-def test_show_writes_png_and_markdown_with_numbers_that_hold(maps, tmp_path, name):
+def test_show_writes_png_and_markdown_with_numbers_that_hold(show, maps, tmp_path, name):
     out = tmp_path / "show"
-    assert cli(["map", "show", str(maps[name]), "--out", str(out)]) == 0
+    assert show([str(maps[name]), "--out", str(out)]) == 0
     png = (out / "map.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 50_000
     md = (out / "map.md").read_text()
@@ -89,14 +96,14 @@ def test_reciprocity_is_zero_on_a_reciprocal_map_and_the_mismatch_on_a_non_recip
     assert np.allclose(mismatch, -c, atol=abs_0 + 1e-9)
 
 
-def test_show_on_a_non_reciprocal_map_reports_its_mismatch(maps, tmp_path):
+def test_show_on_a_non_reciprocal_map_reports_its_mismatch(show, maps, tmp_path):
     """5e-5 H also folds the map at high i_q (the plant cannot invert it): the efficiency map is
     left out with the FMU's reason; everything else is shown."""
     f = read_flux_map(maps["saturating"])
     c = 5e-5
     I_d, _ = np.meshgrid(f.i_d, f.i_q, indexing="ij")
     write_flux_map(tmp_path / "bent.csv", FluxMap(f.i_d, f.i_q, f.psi_d, f.psi_q + c * I_d, f.metadata))
-    assert cli(["map", "show", str(tmp_path / "bent.csv"), "--out", str(tmp_path / "o")]) == 0
+    assert show([str(tmp_path / "bent.csv"), "--out", str(tmp_path / "o")]) == 0
     md = (tmp_path / "o" / "map.md").read_text()
     assert md_value(md, "reciprocity max abs(dpsi_d/di_q - dpsi_q/di_d)").startswith("50 uH")
     assert md_value(md, "peak efficiency (motor + inverter)") == "not available (see below)"
@@ -104,16 +111,16 @@ def test_show_on_a_non_reciprocal_map_reports_its_mismatch(maps, tmp_path):
     assert (tmp_path / "o" / "map.png").stat().st_size > 50_000
 
 
-def test_show_takes_a_fem_export_and_gives_the_csv_s_numbers(maps, tmp_path):
+def test_show_takes_a_fem_export_and_gives_the_csv_s_numbers(show, maps, tmp_path):
     """A SyR-e half map (PM on -q) of the default motor: the same machine as its CSV. The .mat has no
     metadata: the FMUs' defaults (the default motor's) are assumed and listed."""
     f = read_flux_map(maps["default"])
     jq = f.i_q >= 0
     Id, Iq = np.meshgrid(f.i_q[jq], -f.i_d[::-1])
     sio.savemat(tmp_path / "fdfq_idiq_n256.mat", dict(Id=Id, Iq=Iq, Fd=f.psi_q[::-1][:, jq], Fq=-f.psi_d[::-1][:, jq]))
-    assert cli(["map", "show", str(tmp_path / "fdfq_idiq_n256.mat"), "--u-dc", "355", "--I-max", "500",
+    assert show([str(tmp_path / "fdfq_idiq_n256.mat"), "--u-dc", "355", "--I-max", "500",
                 "--out", str(tmp_path / "m")]) == 0
-    assert cli(["map", "show", str(maps["default"]), "--out", str(tmp_path / "c")]) == 0
+    assert show([str(maps["default"]), "--out", str(tmp_path / "c")]) == 0
     a, b = (json.loads((tmp_path / d / "map.json").read_text()) for d in ("m", "c"))
     assert a["T_peak_Nm"] == pytest.approx(b["T_peak_Nm"], rel=1e-9)
     assert a["P_max_W"] == pytest.approx(b["P_max_W"], rel=1e-3)  # top speed: metadata vs 4 x base speed
@@ -121,26 +128,26 @@ def test_show_takes_a_fem_export_and_gives_the_csv_s_numbers(maps, tmp_path):
     assert "assumed: pole_pairs" in (tmp_path / "m" / "map.md").read_text()
 
 
-def test_show_of_a_bad_file_exits_2_and_writes_nothing(tmp_path, capsys):
+def test_show_of_a_bad_file_exits_2_and_writes_nothing(show, tmp_path, capsys):
     (tmp_path / "bad.mat").write_bytes(b"not a mat file")
-    assert cli(["map", "show", str(tmp_path / "bad.mat"), "--out", str(tmp_path / "o")]) == 2
+    assert show([str(tmp_path / "bad.mat"), "--out", str(tmp_path / "o")]) == 2
     assert "bad.mat: file: expected a MATLAB .mat file" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
 
 
-def test_envelope_power_is_torque_times_speed(maps, tmp_path):
-    assert cli(["map", "show", str(maps["default"]), "--out", str(tmp_path / "o")]) == 0
+def test_envelope_power_is_torque_times_speed(show, maps, tmp_path):
+    assert show([str(maps["default"]), "--out", str(tmp_path / "o")]) == 0
     e = json.loads((tmp_path / "o" / "map.json").read_text())["envelope"]
     assert np.allclose(np.array(e["T_max_Nm"]) * np.array(e["speed_rad_s"]), e["P_W"], rtol=1e-12)
     assert math.isclose(max(e["P_W"]), json.loads((tmp_path / "o" / "map.json").read_text())["P_max_W"])
 
 
-def test_show_on_the_measured_map(tmp_path):
+def test_show_on_the_measured_map(show, tmp_path):
     """The real measured map (not reciprocal, no I_max in its metadata): shown, its mismatch
     reported as found, its peak torque the brute-force optimum's."""
     from scenarios.paths import SHARED_DIR
     path = SHARED_DIR / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
-    assert cli(["map", "show", str(path), "--out", str(tmp_path / "o")]) == 0
+    assert show([str(path), "--out", str(tmp_path / "o")]) == 0
     s = json.loads((tmp_path / "o" / "map.json").read_text())
     assert s["u_dc_V"] == 540.0 and s["parameters"]["I_max"] == 20.0  # metadata; the grid's reach
     assert any(a.startswith("I_max = 20 A") for a in s["assumed"])
