@@ -25,6 +25,8 @@ from .map_formats import RawMap
 
 #: grid values closer than this (relative to the largest current) are the same grid line
 GRID_TOL = 1e-9
+#: samples of one current magnitude (or angle) may differ by this, relative (rad): exports round
+POLAR_TOL = 1e-6
 #: the PM flux must lie within this of a dq axis to say which axis it is on (degrees)
 PM_AXIS_TOL_DEG = 15.0
 #: below this fraction of the largest flux, the map has no PM flux to tell the axes by
@@ -141,7 +143,7 @@ def polar(i_d, i_q, psi_d, psi_q, keys):
     """The samples as a magnitude x angle grid: (|i| axis, angle axis (rad, ascending,
     unwrapped), psi_d, psi_q with magnitude along axis 0); None if they are not one."""
     r = np.hypot(i_d, i_q)
-    tol = 1e-7 * max(r.max(), 1e-300)
+    tol = POLAR_TOL * max(r.max(), 1e-300)
     for ax_m in (0, 1):
         if np.ptp(r, axis=1 - ax_m).max() <= tol:
             break
@@ -157,7 +159,7 @@ def polar(i_d, i_q, psi_d, psi_q, keys):
     live = mags > tol
     # the angle is the same along the magnitude axis (rows of zero current excepted)
     spread = np.abs(np.angle(np.exp(1j * (theta[live] - theta[rim][None, :])))).max()
-    if spread > 1e-6:
+    if spread > POLAR_TOL:
         return None
     key = keys[0] + ", " + keys[1]
     mags = _axis(mags, key, "current magnitude")

@@ -369,3 +369,15 @@ def test_phase_advance_grid_without_zero_current_is_refused(tmp_path):
     sio.savemat(tmp_path / "pa.mat", {k: v[1:] for k, v in data.items()})
     with pytest.raises(MapImportError, match="current magnitudes from 0 A"):
         import_map(tmp_path / "pa.mat")
+
+
+def test_phase_advance_grid_rounded_to_seven_digits(tmp_path):
+    """An export that rounds (7 significant digits) still reads as a magnitude x angle grid."""
+    data = motorcad_phase_advance(SATURATING, 26, 73)
+    rounded = {k: np.array([float(f"{x:.7g}") for x in v.ravel()]).reshape(v.shape) for k, v in data.items()}
+    sio.savemat(tmp_path / "pa.mat", rounded)
+    m = import_map(tmp_path / "pa.mat")
+    I_d, I_q = np.meshgrid(m.i_d, m.i_q, indexing="ij")
+    inside = np.hypot(I_d, I_q) <= SATURATING.I_max
+    psi_d, psi_q = SATURATING.flux(I_d, I_q)
+    assert max(np.abs(m.psi_d - psi_d)[inside].max(), np.abs(m.psi_q - psi_q)[inside].max()) < PHASE_ADVANCE_FLUX_TOL
