@@ -183,12 +183,16 @@ def contract_csv(path: str | Path) -> Path:
     anything else (a .mat, a half-map CSV, ...) is imported once into the cache (cache_dir(), the
     name keyed by the file's content and the importer's version) and that CSV returned."""
     path = Path(path)
+    cached = _cached_name(path) if path.is_file() else None
+    if cached is not None and cached.is_file():
+        return cached  # imported before, from these very bytes
     imported = import_map(path)
     if imported.source_format == "contract CSV" and not imported.notes:
         return path
+    return write_contract_csv(imported, cached)
+
+
+def _cached_name(path: Path) -> Path:
     h = hashlib.sha256(path.read_bytes())
     h.update(f"importer {IMPORTER_VERSION}".encode())
-    cached = cache_dir() / f"{path.stem}-{h.hexdigest()[:16]}.csv"
-    if not cached.is_file():
-        write_contract_csv(imported, cached)
-    return cached
+    return cache_dir() / f"{path.stem}-{h.hexdigest()[:16]}.csv"
