@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from . import map_cli
 from .constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from .paths import BUILD_DIR, ROOT
 
@@ -48,6 +49,7 @@ def main(argv=None) -> int:
     cmp_.add_argument("--workers", type=int, default=None)
     from . import check
     check.add_parser(sub)
+    map_cli.add_parser(sub)
     args = ap.parse_args(argv)
     from .drive_description import DriveDescriptionError
     try:
@@ -89,6 +91,8 @@ def _dispatch(args) -> int:
         from .compare import run_study
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
+    elif args.cmd == "map":
+        return map_cli.main(args)
     return 0
 
 
