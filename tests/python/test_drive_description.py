@@ -317,3 +317,25 @@ def test_city_ev_is_a_different_car_and_motor():
     assert b.motor.pole_pairs != a.motor.pole_pairs and b.vehicle.mass < 0.8 * a.vehicle.mass
     assert dataclasses.replace(b, name=a.name) != a
 
+
+
+def test_a_drive_may_name_a_fem_export(tmp_path, monkeypatch):
+    """motor.flux_map = a Motor-CAD .mat (peak d/q grid): imported to a cached contract CSV that
+    holds the same machine; a .mat without the fields is an error of the description."""
+    import numpy as np
+    import scipy.io as sio
+
+    from scenarios.flux_map import read_flux_map
+    monkeypatch.setenv("IPMSM_MAP_CACHE", str(tmp_path / "cache"))
+    f = read_flux_map(DEFAULT_MAP)
+    I_d, I_q = np.meshgrid(f.i_d, f.i_q, indexing="ij")
+    sio.savemat(tmp_path / "motor.mat", dict(Id_Peak=I_d, Iq_Peak=I_q, Flux_Linkage_D=f.psi_d, Flux_Linkage_Q=f.psi_q))
+    (tmp_path / "d.toml").write_text('[motor]\nflux_map = "motor.mat"\n')
+    d = load_drive(tmp_path / "d.toml")
+    assert d.motor.flux_map.parent == tmp_path / "cache" and d.motor.flux_map.suffix == ".csv"
+    g = read_flux_map(d.motor.flux_map)
+    assert np.array_equal(g.i_d, f.i_d) and np.allclose(g.psi_q, f.psi_q, rtol=0, atol=1e-12)
+    sio.savemat(tmp_path / "motor.mat", dict(Id_Peak=I_d, Iq_Peak=I_q))
+    with pytest.raises(DriveDescriptionError) as e:
+        load_drive(tmp_path / "d.toml")
+    assert e.value.key == "motor.flux_map" and "motor.mat" in str(e.value)
