@@ -8,7 +8,7 @@ i3's measured or FEM map (none is public): the flux linkages come from the proje
 saturating, reciprocal maps (tools/saturating_map.py) with constants chosen so that the
 project's own controller reaches the published torque and power on the i3's 96-cell pack
 (`python -m scenarios sweep --drive scenarios/drives/city_ev.toml` shows the envelope: 250 N m
-to 4000 r/min, 116-125 kW from 4800 r/min to 11 400 r/min). The iron loss uses the default
+to 4000 r/min, 117-124 kW from 5000 r/min to 11 400 r/min). The iron loss uses the default
 motor's lamination data (tools/default_motor/iron_loss.py) on a core scaled by peak torque.
 The output is deterministic; a test regenerates it and compares with the shipped file.
 """
