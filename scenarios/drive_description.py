@@ -2,7 +2,7 @@
 inverter, battery, vehicle, controller settings and CI checks (../shared/spec/INTERFACE.md,
 "Drive description (TOML)"; every key, unit, default and source: docs/drives.md).
 
-    >>> d = load_drive("scenarios/drives/compact_suv.toml")   # None: scenarios/drives/default.toml
+    >>> d = load_drive("scenarios/drives/city_ev.toml")   # None: scenarios/drives/default.toml
     >>> d.motor.pole_pairs, d.vehicle.mass, d.battery.n_series
 
 The schema is written once, in SCHEMA: a key's section, name, kind, unit, the rule its value
