@@ -345,3 +345,14 @@ def test_a_drive_may_name_a_fem_export(tmp_path, monkeypatch):
     with pytest.raises(DriveDescriptionError) as e:
         load_drive(tmp_path / "d.toml")
     assert e.value.key == "motor.flux_map" and "motor.mat" in str(e.value)
+
+
+def test_the_drive_fmu_backend_follows_the_drive_too(controller_fmu, plant_fmu):
+    """--backend drive (the IpmsmDrive FMU, inverter inside) on the city EV: the same energy as the
+    two FMUs with the Python inverter model, so its motor and inverter parameters came from the file."""
+    cycle = segment(load_cycle(WINDOW[0]), *WINDOW[1:])
+    drive = load_drive(CITY_EV)
+    a, b = (simulate(cycle, RunSpec(drive=drive, backend=backend, reference=False), fmus=(controller_fmu, plant_fmu),
+                     progress=False) for backend in ("native", "drive"))
+    assert b.backend == "drive" and b.Wh_per_km == pytest.approx(a.Wh_per_km, rel=1e-9)
+    assert b.iron_loss_Wh == pytest.approx(a.iron_loss_Wh, rel=1e-9)
