@@ -5,7 +5,8 @@ machine. Prints the wall and CPU time of the run and its split: the wall time in
 calls around the steps). The optimum reference (an extra controller FMU call per vehicle step,
 for the copper-loss comparison) is left out unless --reference.
 
-    .venv/bin/python bench/bench_drive.py [--cycle WLTC3b] [--backend drive|native|fmpy] [--reference]
+    .venv/bin/python bench/bench_drive.py [--cycle WLTC3b] [--until SECONDS] [--backend drive|native|fmpy]
+                                          [--reference]
 
 With --backend native the co-simulation runs in the native master, not through fmi2DoStep: the
 split then counts only the reference's steps.
@@ -20,6 +21,7 @@ from pathlib import Path
 
 from fmpy.fmi2 import FMU2Slave
 
+from scenarios.cycles import load_cycle, segment
 from scenarios.simulate import RunSpec, fmu_paths, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,14 +55,18 @@ def do_step_clock():
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cycle", default="WLTC3b")
+    ap.add_argument("--until", type=float, default=None, help="run only the cycle's first SECONDS")
     ap.add_argument("--backend", default="drive", choices=("drive", "native", "fmpy"))
     ap.add_argument("--reference", action="store_true")
     ap.add_argument("--build", type=Path, default=ROOT / "build")
     a = ap.parse_args(argv)
     spec = RunSpec(backend=a.backend, reference=a.reference)
+    cycle = load_cycle(a.cycle)
+    if a.until is not None:
+        cycle = segment(cycle, cycle.time_s[0], cycle.time_s[0] + a.until)
     wall0, cpu0 = time.perf_counter(), time.process_time()
     with do_step_clock() as in_do_step:
-        s = simulate(a.cycle, spec, fmus=fmu_paths(a.build), progress=False).to_dict()
+        s = simulate(cycle, spec, fmus=fmu_paths(a.build), progress=False).to_dict()
     # the whole simulate() call: the run's loop (summary's wall_s) and its set-up (loading the FMUs)
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     n = s["vehicle_steps"]

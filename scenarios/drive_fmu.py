@@ -233,14 +233,15 @@ class DriveAsCosim:
         self.k += n_steps
         R = self._R_s * (1.0 + self._alpha_cu * (T_winding - self._T_winding_ref))
         i_abs_sq = s.P_cu / (1.5 * R) if R > 0.0 else math.nan
-        nan = math.nan
-        mean = Sample(T_shaft=s.T_shaft, T_e=s.T_e, P_elec=s.P_elec, P_mech=s.P_mech, P_cu=s.P_cu, P_fe=s.P_fe,
-                      i_d=s.i_d, i_q=s.i_q, i_abs=nan, i_abs_sq=i_abs_sq, T_cmd=s.T_cmd, T_max=s.T_max,
-                      region=float(s.region), iterations=nan, u_ratio=s.u_ratio)
-        end = Sample(T_shaft=s.T_shaft, T_e=s.T_e, P_elec=s.P_elec, P_mech=s.P_mech, P_cu=s.P_cu, P_fe=s.P_fe,
-                     i_d=s.i_d, i_q=s.i_q, i_abs=math.hypot(s.i_d, s.i_q), i_abs_sq=s.i_d * s.i_d + s.i_q * s.i_q,
-                     T_cmd=s.T_cmd, T_max=s.T_max, region=float(s.region), iterations=nan, u_ratio=s.u_ratio)
-        return DriveAdvanceResult(mean=mean, end=end, t=self.t, k=self.k, rows=0, P_inverter=s.P_inv)
+        nan, region = math.nan, float(s.region)
+        # Sample's fields in order (positional: a keyword call costs three times as much, per step):
+        # T_shaft, T_e, P_elec, P_mech, P_cu, P_fe, i_d, i_q, i_abs, i_abs_sq, T_cmd, T_max, region,
+        # iterations, u_ratio
+        mean = Sample(s.T_shaft, s.T_e, s.P_elec, s.P_mech, s.P_cu, s.P_fe, s.i_d, s.i_q, nan, i_abs_sq,
+                      s.T_cmd, s.T_max, region, nan, s.u_ratio)
+        end = Sample(s.T_shaft, s.T_e, s.P_elec, s.P_mech, s.P_cu, s.P_fe, s.i_d, s.i_q, math.hypot(s.i_d, s.i_q),
+                     s.i_d * s.i_d + s.i_q * s.i_q, s.T_cmd, s.T_max, region, nan, s.u_ratio)
+        return DriveAdvanceResult(mean, end, self.t, self.k, 0, s.P_inv)
 
     def close(self) -> None:
         self.drive.close()
