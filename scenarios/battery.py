@@ -164,6 +164,8 @@ class Battery:
     def __init__(self, p: BatteryParams | None = None, soc0: float | None = None):
         p = p if p is not None else BatteryParams()
         self.p = p
+        self.Q = p.capacity_As          # A s, charge capacity (derived from p once: used at every step)
+        self.u_max = p.u_max            # V, terminal-voltage cap while charging
         self.ocv_fn = Ocv(p)
         self.soc = float(p.soc0 if soc0 is None else soc0)
         self.ocv_fn._check(self.soc)
@@ -207,7 +209,7 @@ class Battery:
         e = math.exp(-dt / p.tau1)
         a = p.tau1 / dt * (1.0 - e)      # mean of exp(-t/tau) over the step
         ocv, docv, _ = self._ocv_now()
-        k = docv * dt / p.capacity_As    # OCV change per ampere over the step
+        k = docv * dt / self.Q           # OCV change per ampere over the step
         E0 = ocv - a * self.u_rc
         R_eff = p.R0 + (1.0 - a) * p.R1 + 0.5 * k
         E1 = ocv - e * self.u_rc
@@ -220,9 +222,9 @@ class Battery:
         below u_max at its start and end (in between it moves monotonically), SOC <= 1."""
         p = self.p
         E0, R_eff, E1, R_end, ocv = self._coeffs(dt)
-        i_start = (ocv - self.u_rc - p.u_max) / p.R0
-        i_end = (E1 - p.u_max) / R_end
-        i_full = -(1.0 - self.soc) * p.capacity_As / dt
+        i_start = (ocv - self.u_rc - self.u_max) / p.R0
+        i_end = (E1 - self.u_max) / R_end
+        i_full = -(1.0 - self.soc) * self.Q / dt
         return min(0.0, max(i_start, i_end, i_full))
 
     def max_charge_power(self, dt: float) -> float:
@@ -262,7 +264,7 @@ class Battery:
         P = u * i
         P_curtailed = P - P_demand if capped else 0.0   # P is monotone in i, so P > P_demand here
 
-        soc_next = self.soc - i * dt / p.capacity_As
+        soc_next = self.soc - i * dt / self.Q
         if soc_next < 0.0:
             raise RuntimeError(f"battery empty: SOC would fall to {soc_next:.4g}")
         soc_next = min(soc_next, 1.0)
@@ -280,7 +282,7 @@ class Battery:
         self.soc = soc_next
         self.u_rc = u_rc_next
         ocv_end, _, F_end = self._ocv_now()
-        self.E_ocv += p.capacity_As * (F_start - F_end)   # Q times the integral of OCV dSOC released
+        self.E_ocv += self.Q * (F_start - F_end)  # Q times the integral of OCV dSOC released
         u_end = ocv_end - p.R0 * i - self.u_rc
         self.u = u_end
         return BatteryStep(u=u, i=i, P=P, P_curtailed=P_curtailed, P_unmet=P_unmet, u_end=u_end, soc=self.soc)
