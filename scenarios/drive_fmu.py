@@ -8,7 +8,7 @@ plain fmpy calls, for the vehicle side at its own step (10 ms):
 One fmi2SetReal of the five inputs and one fmi2DoStep per call, one fmi2GetReal of every Real
 output and one fmi2GetInteger of the region: the per-step Python cost is four calls, whatever the
 number of inner steps. They are fmpy's fmi2* functions on ctypes arrays made once per instance
-(fmpy's setReal/getReal build new arrays at every call: three times the cost of the call).
+(fmpy's setReal/getReal build new arrays at every call, which costs 2-5 times the call itself).
 Messages the FMU logs go to the logging module ("scenarios.drive_fmu") and to `messages`; a
 failed call raises CosimError with the FMU's last messages.
 """
