@@ -1,15 +1,17 @@
 """Benchmark (issue 14): a full WLTC 3b with the vehicle side at 10 ms through the IpmsmDrive FMU
 in plain fmpy (one fmi2DoStep of 100 inner steps per vehicle step). Target: <= 15 s on a 2-core
-machine. Prints the wall and CPU time of the run and its split: the wall time inside fmi2DoStep
-(the FMUs' work) and the rest (the Python side: the vehicle models, the accounts and the fmpy
-calls around the steps). The optimum reference (an extra controller FMU call per vehicle step,
-for the copper-loss comparison) is left out unless --reference.
+machine. Prints the wall and CPU time of the run and their split: the time inside fmi2DoStep (the
+FMU's work) and the rest, the Python side (the vehicle models, the accounts and the fmpy calls
+around the steps; it also carries the split's own clock readings, about 1 us a step). The optimum
+reference (an extra controller FMU call per vehicle step, for the copper-loss comparison) is left
+out unless --reference.
 
     .venv/bin/python bench/bench_drive.py [--cycle WLTC3b] [--until SECONDS] [--backend drive|native|fmpy]
                                           [--reference]
 
-With --backend native the co-simulation runs in the native master, not through fmi2DoStep: the
-split then counts only the reference's steps.
+With --backend fmpy the split counts both FMUs' steps; with --backend native the co-simulation
+runs in the native master, not through fmpy's fmi2DoStep, and the split counts only the
+reference's steps.
 """
 from __future__ import annotations
 
