@@ -73,7 +73,7 @@ class BatteryParams:
 
 
 class _ScalarPPoly:
-    """Fast scalar evaluation of a scipy PPoly (the step loop calls the OCV ~10 times a step;
+    """Fast scalar evaluation of a scipy PPoly (the step loop needs the OCV at every step;
     scipy's array machinery costs ~10 us a call, this ~1 us)."""
 
     def __init__(self, pp):
@@ -81,14 +81,20 @@ class _ScalarPPoly:
         self.c = pp.c.T.tolist()        # per interval, highest power first
         self.n = len(self.x) - 2        # index of the last interval
 
-    def __call__(self, s: float) -> float:
-        x = self.x
-        i = min(max(bisect_right(x, s) - 1, 0), self.n)
-        d = s - x[i]
+    def interval(self, s: float) -> int:
+        """Index of the interval holding s (the first or last one beyond the ends)."""
+        return min(max(bisect_right(self.x, s) - 1, 0), self.n)
+
+    def on(self, i: int, s: float) -> float:
+        """The polynomial of interval i at s (Horner)."""
+        d = s - self.x[i]
         acc = 0.0
         for ck in self.c[i]:
             acc = acc * d + ck
         return acc
+
+    def __call__(self, s: float) -> float:
+        return self.on(self.interval(s), s)
 
 
 class Ocv:
@@ -115,6 +121,7 @@ class Ocv:
         self._f = _ScalarPPoly(pp)
         self._df = _ScalarPPoly(pp.derivative())
         self._F = _ScalarPPoly(pp.antiderivative())
+        assert self._df.x == self._f.x == self._F.x  # at() finds the interval once for the three
 
     @staticmethod
     def _check(soc: float) -> float:
@@ -133,8 +140,15 @@ class Ocv:
         """Integral of OCV dSOC from soc_a to soc_b, V (times Q: the chemical energy, J)."""
         return self._F(self._check(soc_b)) - self._F(self._check(soc_a))
 
+    def at(self, soc: float) -> tuple[float, float, float]:
+        """(OCV, dOCV/dSOC, integral of OCV dSOC from 0) at soc: the three values a battery step
+        needs, the same numbers as __call__, slope and integral give."""
+        s = self._check(soc)
+        i = self._f.interval(s)
+        return self._f.on(i, s), self._df.on(i, s), self._F.on(i, s)
 
-@dataclass
+
+@dataclass(slots=True)
 class BatteryStep:
     """What one step did. Powers at the terminals; positive = discharge."""
 
@@ -154,11 +168,14 @@ class Battery:
     def __init__(self, p: BatteryParams | None = None, soc0: float | None = None):
         p = p if p is not None else BatteryParams()
         self.p = p
+        self.Q = p.capacity_As          # A s, charge capacity (derived from p once: used at every step)
+        self.u_max = p.u_max            # V, terminal-voltage cap while charging
         self.ocv_fn = Ocv(p)
         self.soc = float(p.soc0 if soc0 is None else soc0)
         self.ocv_fn._check(self.soc)
         self.u_rc = 0.0
         self._cache = None
+        self._ocv_at = (None, None)     # (SOC, Ocv.at(SOC)) of the last SOC asked for
         self.u = self.ocv()             # last terminal voltage (open circuit at the start)
         self.E_terminal = 0.0           # integral of u i dt
         self.E_ocv = 0.0                # Q times integral of OCV dSOC released
@@ -169,7 +186,16 @@ class Battery:
 
     # -- circuit quantities ---------------------------------------------------------------
     def ocv(self, soc: float | None = None) -> float:
-        return self.ocv_fn(self.soc if soc is None else soc)
+        return self.ocv_fn(soc) if soc is not None else self._ocv_now()[0]
+
+    def _ocv_now(self) -> tuple[float, float, float]:
+        """Ocv.at(self.soc), evaluated once per SOC: a step needs the OCV, its slope and its
+        integral at the SOC it starts from, which is where the last one ended."""
+        soc, at = self._ocv_at
+        if soc != self.soc:
+            at = self.ocv_fn.at(self.soc)
+            self._ocv_at = (self.soc, at)
+        return at
 
     @property
     def W_C(self) -> float:
@@ -186,8 +212,8 @@ class Battery:
         p = self.p
         e = math.exp(-dt / p.tau1)
         a = p.tau1 / dt * (1.0 - e)      # mean of exp(-t/tau) over the step
-        ocv, docv = self.ocv(), self.ocv_fn.slope(self.soc)
-        k = docv * dt / p.capacity_As    # OCV change per ampere over the step
+        ocv, docv, _ = self._ocv_now()
+        k = docv * dt / self.Q           # OCV change per ampere over the step
         E0 = ocv - a * self.u_rc
         R_eff = p.R0 + (1.0 - a) * p.R1 + 0.5 * k
         E1 = ocv - e * self.u_rc
@@ -200,9 +226,9 @@ class Battery:
         below u_max at its start and end (in between it moves monotonically), SOC <= 1."""
         p = self.p
         E0, R_eff, E1, R_end, ocv = self._coeffs(dt)
-        i_start = (ocv - self.u_rc - p.u_max) / p.R0
-        i_end = (E1 - p.u_max) / R_end
-        i_full = -(1.0 - self.soc) * p.capacity_As / dt
+        i_start = (ocv - self.u_rc - self.u_max) / p.R0
+        i_end = (E1 - self.u_max) / R_end
+        i_full = -(1.0 - self.soc) * self.Q / dt
         return min(0.0, max(i_start, i_end, i_full))
 
     def max_charge_power(self, dt: float) -> float:
@@ -223,6 +249,7 @@ class Battery:
             raise ValueError(f"bad step: P = {P_demand} W, dt = {dt} s")
         p = self.p
         E0, R_eff, E1, R_end, _ = self._coeffs(dt)
+        F_start = self._ocv_now()[2]
         P_max = E0 * E0 / (4.0 * R_eff)
         P_unmet = 0.0
         if P_demand > P_max:
@@ -241,7 +268,7 @@ class Battery:
         P = u * i
         P_curtailed = P - P_demand if capped else 0.0   # P is monotone in i, so P > P_demand here
 
-        soc_next = self.soc - i * dt / p.capacity_As
+        soc_next = self.soc - i * dt / self.Q
         if soc_next < 0.0:
             raise RuntimeError(f"battery empty: SOC would fall to {soc_next:.4g}")
         soc_next = min(soc_next, 1.0)
@@ -251,7 +278,6 @@ class Battery:
         u_rc_next = c + d * e
         E_R1 = (c * c * dt + 2 * c * d * p.tau1 * (1 - e) + d * d * p.tau1 / 2 * (1 - e * e)) / p.R1
 
-        self.E_ocv += p.capacity_As * self.ocv_fn.integral(soc_next, self.soc)
         self.E_terminal += P * dt
         self.E_loss_R0 += p.R0 * i * i * dt
         self.E_loss_R1 += E_R1
@@ -259,7 +285,9 @@ class Battery:
         self.E_unmet += P_unmet * dt
         self.soc = soc_next
         self.u_rc = u_rc_next
-        u_end = self.ocv() - p.R0 * i - self.u_rc
+        ocv_end, _, F_end = self._ocv_now()
+        self.E_ocv += self.Q * (F_start - F_end)  # Q times the integral of OCV dSOC released
+        u_end = ocv_end - p.R0 * i - self.u_rc
         self.u = u_end
         return BatteryStep(u=u, i=i, P=P, P_curtailed=P_curtailed, P_unmet=P_unmet, u_end=u_end, soc=self.soc)
 

@@ -5,10 +5,12 @@ plain fmpy calls, for the vehicle side at its own step (10 ms):
         r = drive.advance(0.01, T_ref=120.0, w_m=100.0, u_dc=355.0, T_magnet=353.15, T_winding=373.15)
         r.T_shaft, r.P_dc, r.E_dc, r.i_q      # a DriveStep: the FMU's outputs after the step
 
-One fmi2SetReal of the five inputs and one fmi2DoStep per call, one fmi2GetReal and one
-fmi2GetInteger of the outputs: the per-step Python cost is a few calls, whatever the number of
-inner steps. Messages the FMU logs go to the logging module ("scenarios.drive_fmu") and to
-`messages`; a failed call raises CosimError with the FMU's last messages.
+One fmi2SetReal of the five inputs and one fmi2DoStep per call, one fmi2GetReal of every Real
+output and one fmi2GetInteger of the region: the per-step Python cost is four calls, whatever the
+number of inner steps. They are fmpy's fmi2* functions on ctypes arrays made once per instance
+(fmpy's setReal/getReal build new arrays at every call, which costs 2-5 times the call itself).
+Messages the FMU logs go to the logging module ("scenarios.drive_fmu") and to `messages`; a
+failed call raises CosimError with the FMU's last messages.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import math
 import shutil
 from collections import deque
 from collections.abc import Mapping
+from ctypes import c_double, c_int, c_uint
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -89,8 +92,12 @@ class DriveFmu:
                                                float(T_winding)])
             self._call("fmi2ExitInitializationMode", self.fmu.exitInitializationMode)
             self.sample_time = self.fmu.getReal([self.vars["sample_time"].valueReference])[0]
-            self._real_vrs = [self.vars[n].valueReference for n in _REALS]
-            self._region_vr = [self.vars["region"].valueReference]
+            # the value references and values every advance() passes (fmi2ValueReference, fmi2Real,
+            # fmi2Integer arrays)
+            self._u_vr, self._u = (c_uint * len(INPUTS))(*self._input_vrs), (c_double * len(INPUTS))()
+            self._y_vr = (c_uint * len(_REALS))(*(self.vars[n].valueReference for n in _REALS))
+            self._y = (c_double * len(_REALS))()
+            self._region_vr, self._region = (c_uint * 1)(self.vars["region"].valueReference), (c_int * 1)()
         except BaseException:
             self.close()
             raise
@@ -143,15 +150,17 @@ class DriveFmu:
                 T_winding: float) -> DriveStep:
         """One step of dt (a whole multiple of sample_time) with the inputs held over it."""
         fmu = self.fmu
-        fmu.setReal(self._input_vrs, [T_ref, w_m, u_dc, T_magnet, T_winding])
-        status = fmu.fmi2DoStep(fmu.component, self.t, dt, 1)
+        c = fmu.component
+        self._u[:] = (T_ref, w_m, u_dc, T_magnet, T_winding)
+        fmu.fmi2SetReal(c, self._u_vr, len(INPUTS), self._u)
+        status = fmu.fmi2DoStep(c, self.t, dt, 1)
         if status != fmi2OK:
             raise CosimError(f"IpmsmDrive: fmi2DoStep from t = {self.t:.9g} s by {dt:.9g} s returned status "
                              f"{status}; the FMU says: {self.last_messages()}")
         self.t += dt
-        reals = fmu.getReal(self._real_vrs)
-        region = fmu.getInteger(self._region_vr)[0]
-        return DriveStep(*reals, region=region)
+        fmu.fmi2GetReal(c, self._y_vr, len(_REALS), self._y)
+        fmu.fmi2GetInteger(c, self._region_vr, 1, self._region)
+        return DriveStep(*self._y[:], region=self._region[0])
 
     def close(self) -> None:
         if self.fmu is not None:
@@ -224,14 +233,15 @@ class DriveAsCosim:
         self.k += n_steps
         R = self._R_s * (1.0 + self._alpha_cu * (T_winding - self._T_winding_ref))
         i_abs_sq = s.P_cu / (1.5 * R) if R > 0.0 else math.nan
-        nan = math.nan
-        mean = Sample(T_shaft=s.T_shaft, T_e=s.T_e, P_elec=s.P_elec, P_mech=s.P_mech, P_cu=s.P_cu, P_fe=s.P_fe,
-                      i_d=s.i_d, i_q=s.i_q, i_abs=nan, i_abs_sq=i_abs_sq, T_cmd=s.T_cmd, T_max=s.T_max,
-                      region=float(s.region), iterations=nan, u_ratio=s.u_ratio)
-        end = Sample(T_shaft=s.T_shaft, T_e=s.T_e, P_elec=s.P_elec, P_mech=s.P_mech, P_cu=s.P_cu, P_fe=s.P_fe,
-                     i_d=s.i_d, i_q=s.i_q, i_abs=math.hypot(s.i_d, s.i_q), i_abs_sq=s.i_d * s.i_d + s.i_q * s.i_q,
-                     T_cmd=s.T_cmd, T_max=s.T_max, region=float(s.region), iterations=nan, u_ratio=s.u_ratio)
-        return DriveAdvanceResult(mean=mean, end=end, t=self.t, k=self.k, rows=0, P_inverter=s.P_inv)
+        nan, region = math.nan, float(s.region)
+        # Sample's fields in order (positional: a keyword call costs three times as much, per step):
+        # T_shaft, T_e, P_elec, P_mech, P_cu, P_fe, i_d, i_q, i_abs, i_abs_sq, T_cmd, T_max, region,
+        # iterations, u_ratio
+        mean = Sample(s.T_shaft, s.T_e, s.P_elec, s.P_mech, s.P_cu, s.P_fe, s.i_d, s.i_q, nan, i_abs_sq,
+                      s.T_cmd, s.T_max, region, nan, s.u_ratio)
+        end = Sample(s.T_shaft, s.T_e, s.P_elec, s.P_mech, s.P_cu, s.P_fe, s.i_d, s.i_q, math.hypot(s.i_d, s.i_q),
+                     s.i_d * s.i_d + s.i_q * s.i_q, s.T_cmd, s.T_max, region, nan, s.u_ratio)
+        return DriveAdvanceResult(mean, end, self.t, self.k, 0, s.P_inv)
 
     def close(self) -> None:
         self.drive.close()

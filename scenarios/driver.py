@@ -60,7 +60,8 @@ class Driver:
         vp = vp if vp is not None else VehicleParams()
         dp = dp if dp is not None else DriverParams()
         self.vp, self.dp = vp, dp
-        self.kp = vp.m_eff * dp.bandwidth
+        self.m_eff = vp.m_eff
+        self.kp = self.m_eff * dp.bandwidth
         self.ki = self.kp * dp.bandwidth * dp.zero_ratio
         self.integral = 0.0     # N
         self._last = None       # (error, integration increment, demand) of the last call
@@ -69,7 +70,7 @@ class Driver:
         """Force that takes the model from v_ref to v_ref_next in one explicit step, N."""
         if v_ref <= 0.0 and v_ref_next <= 0.0:
             return 0.0
-        return self.vp.m_eff * (v_ref_next - v_ref) / dt + road_load(v_ref, self.vp)
+        return self.m_eff * (v_ref_next - v_ref) / dt + road_load(v_ref, self.vp)
 
     def demand(self, v_ref: float, v_ref_next: float, v: float, dt: float) -> float:
         """Wheel-force demand (N) for the step from t to t + dt."""
@@ -108,7 +109,7 @@ class BlendParams:
     regen_fade_speed: float = 0.0   # m/s
 
 
-@dataclass
+@dataclass(slots=True)
 class Blend:
     T_ref: float             # N m, motor torque command (the controller may clamp it further)
     F_brake: float           # N >= 0, friction-brake force

@@ -12,7 +12,7 @@ from pathlib import Path
 from .master import AdvanceResult
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # made at every vehicle step: a frozen dataclass's __init__ costs 3x
 class VehicleStep:
     """The signals of one vehicle step (dt): the vehicle side's and the drive's, as the loop of
     scenarios.simulate produces them. Speeds and SOC at the end of the step; w_m, u_dc, T_ref
