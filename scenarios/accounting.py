@@ -82,7 +82,8 @@ class RunAccounts:
         n_T = max(self.n_T, 1)
         return RunSummary(
             cycle=cycle, method=method, recursion=recursion, conditions=asdict(conditions),
-            distance_km=km, energy_battery_Wh=battery.E_terminal * WH, Wh_per_km=battery.E_terminal * WH / km,
+            distance_km=km, energy_battery_Wh=battery.E_terminal * WH,
+            Wh_per_km=battery.E_terminal * WH / km if km > 0.0 else None,  # none: the car stood still
             speed_rmse_mps=math.sqrt(self.speed_err2 / n),
             torque_rmse_Nm=math.sqrt(self.T_err2 / n_T), torque_error_max_Nm=self.T_err_max,
             torque_cmd_rms_Nm=math.sqrt(self.T_cmd2 / n_T),

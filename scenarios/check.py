@@ -47,11 +47,12 @@ class Verdict:
 
 
 def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[Verdict]:
-    """The verdicts of one cycle's summary on every limit (a NaN figure fails)."""
+    """The verdicts of one cycle's summary on every limit (a NaN or missing figure, e.g. Wh_per_km
+    of a run that covered no distance, fails)."""
     out = []
     for name, bound in limits.items():
         key, direction = LIMITS[name]
-        x = float(summary[key])
+        x = math.nan if summary[key] is None else float(summary[key])
         ok = math.isfinite(x) and (x <= bound if direction == "max" else x >= bound)
         out.append(Verdict(cycle, name, key, x, bound, ok, wall_s))
     return out

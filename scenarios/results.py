@@ -99,7 +99,7 @@ class RunSummary:
     conditions: dict                  # scenarios.simulate.Conditions as a dict
     distance_km: float
     energy_battery_Wh: float          # at the battery's terminals
-    Wh_per_km: float
+    Wh_per_km: float | None  # None when the run covered no distance
     speed_rmse_mps: float             # vehicle against the cycle, at the vehicle steps
     torque_rmse_Nm: float             # delivered (step mean of T_e) against the command T_cmd
     torque_error_max_Nm: float

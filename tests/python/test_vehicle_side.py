@@ -436,3 +436,16 @@ def test_unknown_cycle_and_missing_file(tmp_path):
         load_cycle(tmp_path / "nope.csv")
     with pytest.raises(ValueError, match="not inside"):
         segment(load_cycle("US06"), 100.0, 700.0)
+
+
+def test_a_run_that_never_moves_has_no_energy_per_km_and_no_crash(tmp_path):
+    """A segment at standstill (0 km): Wh_per_km is null in summary.json (no division by zero)."""
+    import json
+
+    from scenarios.cycles import Cycle
+    from scenarios.simulate import RunSpec, simulate
+
+    still = Cycle("standstill", np.array([0.0, 2.0]), np.array([0.0, 0.0]))
+    s = simulate(still, RunSpec(reference=False), out=tmp_path, progress=False)
+    assert s.distance_km == 0.0 and s.Wh_per_km is None
+    assert json.loads((tmp_path / "summary.json").read_text())["Wh_per_km"] is None
