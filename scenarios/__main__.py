@@ -1,4 +1,4 @@
-"""python -m scenarios {sweep, run, compare} ... (see --help of each)."""
+"""python -m scenarios {sweep, run, compare, study} ... (see --help of each)."""
 from __future__ import annotations
 
 import argparse
@@ -38,6 +38,8 @@ def main(argv=None) -> int:
     cmp_.add_argument("--cycles", nargs="+", default=["WLTC3b"])
     cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
+    from .study import cli as study_cli
+    study_cli.add_parser(sub)
     args = ap.parse_args(argv)
 
     if args.cmd == "sweep":
@@ -63,6 +65,8 @@ def main(argv=None) -> int:
         from .compare import run_study
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
+    elif args.cmd == "study":
+        return study_cli.main(args)
     return 0
 
 

@@ -153,15 +153,19 @@ def _window(v, path: Path | None, key: str) -> tuple[float, float]:
     return a, b
 
 
-def _check_window(runs: list[Run], path: Path | None, key: str) -> None:
-    """Each window inside its cycle (so that a bad window is a bad spec, not a failed run)."""
+def _check_cycles(runs: list[Run], path: Path | None, cycle_key: str, window_key: str) -> None:
+    """Each cycle readable and each window inside its cycle: a bad cycle is a bad spec, not a
+    failed run (the client reads the cycles anyway: their samples enter the runs' keys)."""
     from ..cycles import load_cycle
-    for cycle in dict.fromkeys(r.cycle for r in runs if r.window):
-        c = load_cycle(cycle)
+    for cycle in dict.fromkeys(r.cycle for r in runs):
+        try:
+            c = load_cycle(cycle)
+        except (OSError, ValueError) as e:
+            raise SpecError(f"{_where(path, cycle_key)}: {e}") from None
         for r in runs:
             if r.cycle == cycle and r.window and not (c.time_s[0] <= r.window[0] and r.window[1] <= c.time_s[-1]):
-                raise SpecError(f"{_where(path, key)}: window [{r.window[0]:g}, {r.window[1]:g}] s is not inside "
-                                f"{cycle} [{c.time_s[0]:g}, {c.time_s[-1]:g}] s")
+                raise SpecError(f"{_where(path, window_key)}: window [{r.window[0]:g}, {r.window[1]:g}] s is not "
+                                f"inside {cycle} [{c.time_s[0]:g}, {c.time_s[-1]:g}] s")
 
 
 def parse(data: dict, path: Path | None = None) -> StudySpec:
@@ -199,7 +203,7 @@ def parse(data: dict, path: Path | None = None) -> StudySpec:
             values.setdefault("window_start_s", window[0])
             values.setdefault("window_end_s", window[1])
             runs.append(Run(**values))
-        _check_window(runs, path, "run[].window_s")
+        _check_cycles(runs, path, "run[].cycle", "run[].window_s")
     else:
         lists = []
         for key, field in AXES.items():
@@ -211,7 +215,7 @@ def parse(data: dict, path: Path | None = None) -> StudySpec:
                           _value(field, x, path, f"study.{key}") for x in v])
         for combo in itertools.product(*lists):
             runs.append(Run(**dict(zip(AXES.values(), combo)), window_start_s=window[0], window_end_s=window[1]))
-        _check_window(runs, path, "study.window_s")
+        _check_cycles(runs, path, "study.cycles", "study.window_s")
     if len(set(runs)) != len(runs):
         dup = next(r for r in runs if runs.count(r) > 1)
         raise SpecError(f"{_where(path, 'run' if explicit else 'study')}: the same run twice: {dup}")
