@@ -27,6 +27,10 @@ from .spec import Run
 IN_FLIGHT_PER_THREAD = 2
 
 
+#: s, how long a study waits for the first worker of an existing cluster (a batch system may be slow)
+WORKER_WAIT_S = 600
+
+
 class StudyError(RuntimeError):
     """The study cannot run at all (no FMUs, workers with other code, no scheduler)."""
 
@@ -56,6 +60,10 @@ def open_client(scheduler: str | None, workers: int | None, n_runs: int):
         except OSError as e:
             raise StudyError(f"no dask scheduler at {scheduler}: {e}") from None
         with client:
+            try:
+                client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+            except TimeoutError:
+                raise StudyError(f"the scheduler at {scheduler} has no worker after {WORKER_WAIT_S} s") from None
             yield client
         return
     n = min(workers or default_workers(), max(n_runs, 1))
