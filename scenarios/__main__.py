@@ -38,6 +38,7 @@ def main(argv=None) -> int:
     cmp_.add_argument("--cycles", nargs="+", default=["WLTC3b"])
     cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
+    cmp_.add_argument("--scheduler", default=None, help="an existing dask scheduler (as for study)")
     from .study import cli as study_cli
     study_cli.add_parser(sub)
     args = ap.parse_args(argv)
@@ -63,7 +64,8 @@ def main(argv=None) -> int:
         print(f"wrote {out}/summary.json, trace.csv, run.png")
     elif args.cmd == "compare":
         from .compare import run_study
-        run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers)
+        run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers,
+                  scheduler=args.scheduler)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "study":
         return study_cli.main(args)

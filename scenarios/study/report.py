@@ -10,17 +10,12 @@ import pyarrow as pa
 
 from . import table
 
-#: the compare study's names of its four variants (method, recursion)
-VARIANT_LABELS = {
-    ("ferrari", 1): "Ferrari, recursion 1 (paper)",
-    ("ferrari", 2): "Ferrari, recursion 2 (exact)",
-    ("lut_speed", 2): "2-D table, torque x speed",
-    ("lut_flux", 2): "2-D table, torque x V_max/w",
-}
-
 
 def variant_label(method: str, recursion: int) -> str:
-    return VARIANT_LABELS.get((method, recursion), f"{method}, recursion {recursion}")
+    """The compare study's name of a variant (method, recursion), else one made of them."""
+    from ..compare import VARIANTS
+    return next((v.label for v in VARIANTS if (v.method, v.recursion) == (method, recursion)),
+                f"{method}, recursion {recursion}")
 
 
 def _copper_excess(r: dict) -> float:

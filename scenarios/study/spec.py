@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 try:
@@ -64,17 +64,27 @@ class Run:
         return None if math.isnan(self.window_start_s) else (self.window_start_s, self.window_end_s)
 
     def conditions(self) -> Conditions:
-        """The run's operating conditions, named as the compare study names them when they are
-        one of its conditions (STUDY_CONDITIONS), else by their values."""
+        """The run's operating conditions; one of the compare study's (STUDY_CONDITIONS, or the
+        default) with its name and its very values when the run's are those, else named by them."""
         T_m, T_w = self.T_magnet_degC + ZERO_CELSIUS_K, self.T_winding_degC + ZERO_CELSIUS_K
-        if (self.T_magnet_degC, self.T_winding_degC) == (T_DEFAULT_DEGC, T_DEFAULT_DEGC):
-            T_m = T_w = T_REFERENCE_K  # the default Conditions' own value, not a sum that might round
-        for c in STUDY_CONDITIONS:
-            if (c.u_dc_scale, c.T_magnet, c.T_winding) == (self.u_dc_scale, T_m, T_w):
-                return Conditions(c.name, u_dc_scale=self.u_dc_scale, T_magnet=T_m, T_winding=T_w)
+        for c in (Conditions(), *STUDY_CONDITIONS):
+            in_celsius = (c.T_magnet - ZERO_CELSIUS_K, c.T_winding - ZERO_CELSIUS_K)
+            if c.u_dc_scale == self.u_dc_scale and ((c.T_magnet, c.T_winding) == (T_m, T_w) or
+                                                    in_celsius == (self.T_magnet_degC, self.T_winding_degC)):
+                return replace(c)
         name = (f"u_dc x{self.u_dc_scale:g}, magnets {self.T_magnet_degC:g} degC, "
                 f"windings {self.T_winding_degC:g} degC")
         return Conditions(name, u_dc_scale=self.u_dc_scale, T_magnet=T_m, T_winding=T_w)
+
+    @classmethod
+    def of_conditions(cls, c: Conditions, **columns) -> Run:
+        """The run at conditions `c` (inverse of conditions())."""
+        return cls(u_dc_scale=c.u_dc_scale, T_magnet_degC=c.T_magnet - ZERO_CELSIUS_K,
+                   T_winding_degC=c.T_winding - ZERO_CELSIUS_K, **columns)
+
+    @classmethod
+    def of_row(cls, row: dict) -> Run:
+        return cls(**{f.name: row[f.name] for f in fields(cls)})
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -9,10 +9,11 @@ row replaces an earlier one (a failed run that is run again and succeeds).
 """
 from __future__ import annotations
 
+import csv
 import math
 import os
 import uuid
-from dataclasses import fields
+from dataclasses import asdict, fields
 from pathlib import Path
 
 import pyarrow as pa
@@ -59,6 +60,22 @@ def row_of(run: Run, meta: dict, summary: RunSummary | None) -> dict:
     if summary is not None:
         row["cycle_name"] = summary.cycle
     return row
+
+
+def summary_of(row: dict) -> RunSummary:
+    """The RunSummary of an "ok" row (inverse of row_of)."""
+    run = Run.of_row(row)
+    return RunSummary(cycle=row["cycle_name"], method=run.method, recursion=run.recursion,
+                      conditions=asdict(run.conditions()), **{k: row[k] for k in SUMMARY_COLUMNS})
+
+
+def write_trace_csv(trace_parquet: Path, dest: Path) -> None:
+    """A trace as trace.csv (the format of scenarios.results.Trace.write_csv: floats as repr)."""
+    t = pq.read_table(trace_parquet)
+    with open(dest, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(t.column_names)
+        w.writerows(zip(*(t.column(n).to_pylist() for n in t.column_names)))
 
 
 def _atomic_write_table(table: pa.Table, path: Path) -> None:
