@@ -1,14 +1,18 @@
-"""python -m scenarios {sweep, run, compare, study} ... (see --help of each)."""
+"""python -m scenarios {sweep, run, compare, check, study} ... (see --help of each). A bad drive description
+or input exits 2 with the file, the key and what was expected."""
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
-from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
+from .constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from .paths import BUILD_DIR, ROOT
 
 #: the contract's summary keys (../shared/spec/INTERFACE.md) and the real-time factor: what `run` prints
+DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
+
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
                "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s", "real_time_factor")
 
@@ -21,12 +25,16 @@ def main(argv=None) -> int:
     sw = sub.add_parser("sweep", help="torque-speed sweep of the controller: table and plot of the optimal currents")
     sw.add_argument("--out", type=Path, default=ROOT / "out" / "sweep")
     sw.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
-    sw.add_argument("--u-dc", type=float, default=U_DC_NOMINAL_V)
+    sw.add_argument("--u-dc", type=float, default=None, help="V; default: the drive's controller.lut_u_dc")
+    sw.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
 
     run = sub.add_parser("run", help="one drive cycle: summary.json, trace.csv, run.png")
     run.add_argument("cycle", help="WLTC3b, UDDS, HWFET, US06, NEDC, or a CSV of time_s,speed_mps")
-    run.add_argument("--method", default="ferrari", choices=("ferrari", "lut_speed", "lut_flux"))
-    run.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
+    run.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
+    run.add_argument("--method", default=None, choices=("ferrari", "lut_speed", "lut_flux"),
+                     help="default: the drive's controller.method")
+    run.add_argument("--recursion", type=int, default=None, choices=(0, 1, 2),
+                     help="default: the drive's controller.recursion")
     run.add_argument("--backend", default="auto", choices=("auto", "native", "fmpy", "drive"),
                      help="the two FMUs coupled at 100 us by the native or the fmpy master, or the IpmsmDrive FMU "
                           "stepped at the vehicle's 10 ms through plain fmpy")
@@ -39,26 +47,44 @@ def main(argv=None) -> int:
     cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
     cmp_.add_argument("--scheduler", default=None, help="an existing dask scheduler (as for study)")
+    from . import check
+    check.add_parser(sub)
     from .study import cli as study_cli
     study_cli.add_parser(sub)
     args = ap.parse_args(argv)
+    from .drive_description import DriveDescriptionError
+    try:
+        return _dispatch(args)
+    except DriveDescriptionError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
 
+
+def _dispatch(args) -> int:
+    from .drive_description import load_drive
+    if args.cmd == "check":
+        from . import check
+        return check.main(args)
     if args.cmd == "sweep":
         from .sweep import SweepSpec, run_sweep
+        drive = load_drive(args.drive)
         s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
-                      SweepSpec(recursion=args.recursion, u_dc=args.u_dc))
+                      SweepSpec(drive=drive, recursion=args.recursion, u_dc=args.u_dc))
         print(json.dumps({k: s.to_dict()[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
         print(f"wrote {args.out}/sweep.csv, summary.json, current_trajectories.png")
     elif args.cmd == "run":
         from .plots import plot_run
         from .simulate import Conditions, RunSpec, fmu_paths, simulate
+        drive = load_drive(args.drive)
+        method = args.method or drive.controller.method
         T = args.magnet_degC + ZERO_CELSIUS_K
         custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
-        out = args.out or ROOT / "out" / f"{Path(args.cycle).stem}_{args.method}"
-        s = simulate(args.cycle, RunSpec(method=args.method, recursion=args.recursion, conditions=cond,
+        stem = Path(args.cycle).stem + ("" if args.drive is None else f"_{drive.name}")
+        out = args.out or ROOT / "out" / f"{stem}_{method}"
+        s = simulate(args.cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        plot_run(out, f"{s.cycle}, {args.method}")
+        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"))
         d = s.to_dict()
         print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
         print(f"wrote {out}/summary.json, trace.csv, run.png")
@@ -68,6 +94,7 @@ def main(argv=None) -> int:
                   scheduler=args.scheduler)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "study":
+        from .study import cli as study_cli
         return study_cli.main(args)
     return 0
 

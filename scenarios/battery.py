@@ -34,6 +34,10 @@ OCV_FITS = {
     "pybamm_ecm_example": "ocv_cell_pybamm_ecm_example_V",  # PyBaMM's example ECM cell (BSD-3)
 }
 
+#: ocv_fit = "csv": the cell OCV is column OCV_CSV_COLUMN of the user's own ocv_csv (a drive
+#: description's battery.ocv = "file.csv", ../shared/spec/INTERFACE.md)
+OCV_CSV_COLUMN = "ocv_cell_V"
+
 
 @dataclass
 class BatteryParams:
@@ -94,9 +98,9 @@ class Ocv:
     [0, 1] is an error."""
 
     def __init__(self, p: BatteryParams):
-        if p.ocv_fit not in OCV_FITS:
-            raise ValueError(f"unknown OCV fit {p.ocv_fit!r}: one of {', '.join(OCV_FITS)}")
-        col = OCV_FITS[p.ocv_fit]
+        if p.ocv_fit != "csv" and p.ocv_fit not in OCV_FITS:
+            raise ValueError(f"unknown OCV fit {p.ocv_fit!r}: one of {', '.join(OCV_FITS)}, or 'csv'")
+        col = OCV_CSV_COLUMN if p.ocv_fit == "csv" else OCV_FITS[p.ocv_fit]
         with open(p.ocv_csv, newline="") as f:
             rows = list(csv.DictReader(f))
         if not rows or "soc" not in rows[0] or col not in rows[0]:

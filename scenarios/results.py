@@ -127,6 +127,8 @@ class RunSummary:
     wall_s: float
     real_time_factor: float
     backend: str                      # the co-simulation master's backend: native or fmpy
+    drive: str = ""                   # the drive description's name (scenarios.drive_description)
+    drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
 
     def to_dict(self) -> dict:
         return asdict(self)

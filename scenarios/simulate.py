@@ -16,28 +16,27 @@ import math
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import ExitStack
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from .accounting import RunAccounts
-from .battery import Battery, BatteryParams
-from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
+from .battery import Battery
+from .constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from .cycles import Cycle, load_cycle
+from .drive_description import METHODS, DriveDescription, load_drive
 from .drive_fmu import DriveAdvanceResult, DriveAsCosim
-from .driver import P_AUX_DEFAULT, BlendParams, Driver, DriverParams, blend
-from .flux_map import DEFAULT_MAP, MotorData, read_flux_map
+from .driver import BlendParams, Driver, DriverParams, blend
 from .fmu import Fmu
-from .inverter import InverterParams, inverter_loss
+from .inverter import inverter_loss
 from .master import DriveCosim
 from .paths import BUILD_DIR
 from .progress import Progress
 from .results import RunSummary, Trace, VehicleStep, write_results
-from .vehicle import Vehicle, VehicleParams, motor_speed, wheel_force
+from .vehicle import Vehicle, motor_speed, wheel_force
 
-#: the contract's method names and the controller's `method` parameter
-METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
+__all__ = ["METHODS", "STUDY_CONDITIONS", "Conditions", "RunSpec", "fmu_paths", "simulate"]
 
 #: N m, the blending's torque limit before the controller has reported its reach (T_max, after
 #: the first step): no limit
@@ -48,14 +47,15 @@ T_MAX_UNKNOWN = 1e9
 class Conditions:
     """Operating conditions of a run. u_dc_scale: the DC voltage the drive sees, relative to the
     battery's terminal voltage (0.85: a pack sagging 15 % below what the tables were made for).
-    The tables are always made at lut_u_dc and lut_T_magnet."""
+    The tables are always made at lut_u_dc and lut_T_magnet; None: the drive's (its
+    controller.lut_u_dc and motor.T_magnet_ref), which the run's summary then records."""
 
     name: str = "nominal"
     u_dc_scale: float = 1.0
     T_magnet: float = T_REFERENCE_K    # K
     T_winding: float = T_REFERENCE_K   # K
-    lut_u_dc: float = U_DC_NOMINAL_V   # V, the pack's nominal (the default motor's design point)
-    lut_T_magnet: float = T_REFERENCE_K
+    lut_u_dc: float | None = None      # V
+    lut_T_magnet: float | None = None  # K
 
 
 STUDY_CONDITIONS = (
@@ -68,21 +68,35 @@ STUDY_CONDITIONS = (
 
 @dataclass
 class RunSpec:
-    method: str = "ferrari"
-    recursion: int = 2
+    """One run: the drive (motor, inverter, battery, vehicle, controller settings: a drive
+    description, scenarios.drive_description), how it is driven and simulated. method and
+    recursion None: the drive's [controller]."""
+
+    drive: DriveDescription = field(default_factory=load_drive)
+    method: str | None = None
+    recursion: int | None = None
     conditions: Conditions = field(default_factory=Conditions)
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
     trace_dt: float = 0.1     # s, trace.csv sampling
     backend: str = "auto"     # master: native if built, else fmpy; "drive": the IpmsmDrive FMU
     reference: bool = True    # evaluate the exact optimum per vehicle step
-    P_aux: float = P_AUX_DEFAULT
-    soc0: float | None = None
-    vehicle: VehicleParams = field(default_factory=VehicleParams)
     driver: DriverParams = field(default_factory=DriverParams)
-    battery: BatteryParams = field(default_factory=BatteryParams)
-    inverter: InverterParams = field(default_factory=InverterParams)
     blend: BlendParams = field(default_factory=BlendParams)
+
+    @property
+    def method_name(self) -> str:
+        return self.drive.controller.method if self.method is None else self.method
+
+    @property
+    def recursion_level(self) -> int:
+        return self.drive.controller.recursion if self.recursion is None else self.recursion
+
+    def resolved_conditions(self) -> Conditions:
+        """The conditions with the tables' lut_u_dc, lut_T_magnet filled in from the drive."""
+        c, d = self.conditions, self.drive
+        return replace(c, lut_u_dc=d.controller.lut_u_dc if c.lut_u_dc is None else c.lut_u_dc,
+                       lut_T_magnet=d.motor.T_magnet_ref if c.lut_T_magnet is None else c.lut_T_magnet)
 
     def steps_per_vehicle_step(self) -> int:
         """Co-simulation steps h in one vehicle step dt (a whole number)."""
@@ -97,12 +111,13 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
 
 
 class OptimumReference:
-    """The exact optimum (the controller FMU with Ferrari, recursion 2, at its default motor) at a
+    """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
     given torque and conditions: its current magnitude and copper loss."""
 
-    def __init__(self, controller_fmu: Path, motor: MotorData, T_winding: float):
-        self.R_s = motor.R_s_at(T_winding)
-        self.fmu = Fmu(controller_fmu, instance_name="reference", method=METHODS["ferrari"], recursion=2)
+    def __init__(self, controller_fmu: Path, drive: DriveDescription, T_winding: float):
+        self.R_s = drive.motor_data().R_s_at(T_winding)
+        self.fmu = Fmu(controller_fmu, instance_name="reference",
+                       **drive.controller_params(method="ferrari", recursion=2))
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float) -> float:
         """|i| (A) of the optimal command for T_e, one controller step at t."""
@@ -130,7 +145,8 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
     """The vehicle-side loop (scenarios/driver.py describes one step) over the cycle sampled at
     t_ref (len(t_ref) - 1 steps of spec.dt), the drive co-simulated by `cosim`; yields each
     step's signals once it has ended."""
-    cond, vp, dt = spec.conditions, spec.vehicle, spec.dt
+    cond, vp, dt = spec.conditions, spec.drive.vehicle, spec.dt
+    P_aux = spec.drive.P_aux
     n_inner = spec.steps_per_vehicle_step()
     T_max_known = T_MAX_UNKNOWN
     for k in range(len(t_ref) - 1):
@@ -138,7 +154,7 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         w_m = motor_speed(v, vp)
         u_dc = battery.u * cond.u_dc_scale
         F_dem = driver.demand(v_ref[k], v_ref[k + 1], v, dt)
-        b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + spec.P_aux, vp, spec.blend)
+        b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
         r = cosim.advance(n_inner, T_ref=b.T_ref, w_m=w_m, u_dc=u_dc, T_magnet=cond.T_magnet,
                           T_winding=cond.T_winding)
         m = r.mean
@@ -148,9 +164,9 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         vehicle.step(F_w, b.F_brake, dt)
         # the drive FMU has the inverter inside; the two-FMU drive's loss from its means
         P_inverter = (r.P_inverter if isinstance(r, DriveAdvanceResult) else
-                      inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.inverter).P)
+                      inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.drive.inverter).P)
         P_dc = m.P_elec + P_inverter
-        battery.step(P_dc + spec.P_aux, dt)
+        battery.step(P_dc + P_aux, dt)
         I = math.sqrt(max(m.i_abs_sq, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
         if reference is not None:
@@ -163,39 +179,40 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
 
 def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, Path] | None = None,
              out: Path | None = None, progress: bool = True) -> RunSummary:
-    """Run `cycle`; returns the summary (and writes summary.json, trace.csv to `out`)."""
+    """Run `cycle` with spec.drive; returns the summary (and writes summary.json, trace.csv to
+    `out`). The FMUs' parameters (map, motor, controller settings; the drive backend's inverter)
+    and the vehicle side all follow spec.drive; so does the reference optimum."""
     spec = spec if spec is not None else RunSpec()
+    spec = replace(spec, conditions=spec.resolved_conditions())
+    drive, method, recursion = spec.drive, spec.method_name, spec.recursion_level
     cycle = load_cycle(cycle) if isinstance(cycle, (str, Path)) else cycle
     controller_fmu, plant_fmu = fmus or fmu_paths()
-    cond, vp, dt = spec.conditions, spec.vehicle, spec.dt
+    cond, vp, dt = spec.conditions, drive.vehicle, spec.dt
     n_inner = spec.steps_per_vehicle_step()
-    if spec.method not in METHODS:
-        raise ValueError(f"method {spec.method!r}: one of {', '.join(METHODS)}")
-    c_params = dict(method=METHODS[spec.method], recursion=spec.recursion,
-                    lut_u_dc=cond.lut_u_dc, lut_T_magnet=cond.lut_T_magnet)
+    c_params = drive.controller_params(method, recursion, cond.lut_u_dc, cond.lut_T_magnet)
+    p_params = drive.plant_params()
     n = int(round(cycle.duration_s / dt))
     t_ref = cycle.time_s[0] + dt * np.arange(n + 1)
     v_ref = cycle.speed_at(t_ref).tolist()
     # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
-    motor = MotorData.of(read_flux_map(DEFAULT_MAP))  # the FMUs' defaults: the reference's R_s, k_u
     vehicle, driver = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver)
-    battery = Battery(spec.battery, spec.soc0)
-    accounts = RunAccounts(dt=dt, k_u=motor.k_u, reference=spec.reference)
+    battery = Battery(drive.battery)
+    accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference)
     trace = Trace(every=max(1, int(round(spec.trace_dt / dt))))
-    bar = Progress(n, f"{cycle.name} {spec.method} [{cond.name}]") if progress else None
+    bar = Progress(n, f"{cycle.name} {method} [{cond.name}]") if progress else None
     wall0 = time.perf_counter()
     try:
         with ExitStack() as stack:
-            reference = (stack.enter_context(OptimumReference(controller_fmu, motor, cond.T_winding))
+            reference = (stack.enter_context(OptimumReference(controller_fmu, drive, cond.T_winding))
                          if spec.reference else None)
             start = dict(w_m=motor_speed(vehicle.v, vp), u_dc=battery.u * cond.u_dc_scale,
                          T_magnet=cond.T_magnet, T_winding=cond.T_winding)
             cosim = stack.enter_context(
                 # the IpmsmDrive FMU (built next to the controller's) at the vehicle's step
-                DriveAsCosim(Path(controller_fmu).parent / "IpmsmDrive.fmu", c_params, {}, h=spec.h,
-                             inverter_params=asdict(spec.inverter), **start)
+                DriveAsCosim(Path(controller_fmu).parent / "IpmsmDrive.fmu", c_params, p_params, h=spec.h,
+                             inverter_params=asdict(drive.inverter), **start)
                 if spec.backend == "drive" else
-                DriveCosim(controller_fmu, plant_fmu, c_params, {}, h=spec.h, backend=spec.backend, **start))
+                DriveCosim(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, backend=spec.backend, **start))
             for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, cosim, vehicle, driver, battery, reference)):
                 accounts.observe(step)
                 trace.observe(k, step)
@@ -205,9 +222,10 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
         if bar:
             bar.close()
     wall = time.perf_counter() - wall0
-    summary = accounts.summary(cycle=cycle.name, method=spec.method, recursion=spec.recursion, conditions=cond,
-                               vehicle=vehicle, battery=battery, P_aux=spec.P_aux, n=n, n_inner=n_inner, h=spec.h,
+    summary = accounts.summary(cycle=cycle.name, method=method, recursion=recursion, conditions=cond,
+                               vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
                                wall=wall, backend=cosim.backend_name)
+    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256)
     if out is not None:
         write_results(out, summary, trace)
     return summary

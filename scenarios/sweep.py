@@ -11,29 +11,61 @@ import csv
 import json
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .constants import T_REFERENCE_K, U_DC_NOMINAL_V
-from .flux_map import MotorData, read_flux_map
+from .constants import T_REFERENCE_K
+from .drive_description import DriveDescription, load_drive
+from .flux_map import read_flux_map
 from .fmu import Fmu
 from .progress import Progress
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
 
+#: the sweep's torque commands run this far beyond the motor's reach at standstill, so the
+#: plot shows where the commands stop growing (the default motor: 285 N m -> 320 N m)
+OVERLOAD = 1.12
+
+#: speeds of the sweep below the drive's top speed (which is added), r/min
+SPEEDS_RPM = (0, 2000, 3000, 4000, 5000, 6000, 8000, 10000, 12000, 14000, 16000, 18000, 20000)
+
 
 @dataclass
 class SweepSpec:
-    speeds_rpm: tuple = (0, 2000, 3000, 4000, 5000, 6000, 8000, 10000, 12000)
+    """What to sweep: the drive's motor and controller settings (a drive description) at u_dc
+    (None: the drive's controller.lut_u_dc), torques 0..T_overload (None: OVERLOAD times the
+    reach at standstill, rounded up to 10 N m), speeds in r/min (None: SPEEDS_RPM up to the
+    drive's top speed motor.w_m_max)."""
+
+    drive: DriveDescription = field(default_factory=load_drive)
+    speeds_rpm: tuple | None = None
     n_torque: int = 61           # torque commands from 0 to T_overload
-    T_overload: float = 320.0    # N.m, beyond the default motor's 285 N.m peak
-    u_dc: float = U_DC_NOMINAL_V  # V, nominal 96s NMC pack
+    T_overload: float | None = None  # N.m
+    u_dc: float | None = None    # V
     T_magnet: float = T_REFERENCE_K  # K
-    method: int = 1
+    method: str = "ferrari"
     recursion: int = 2
     step: float = 1e-4           # s
+
+    def speeds(self) -> tuple:
+        if self.speeds_rpm is not None:
+            return tuple(self.speeds_rpm)
+        top = self.drive.motor.w_m_max / RPM
+        return (*(n for n in SPEEDS_RPM if n < top - 1.0), int(round(top)))
+
+    def to_dict(self) -> dict:
+        d = {k: v for k, v in asdict(self).items() if k != "drive"}
+        return dict(d, drive=self.drive.name, speeds_rpm=list(self.speeds()))
+
+
+def reach_at_standstill(controller_fmu: Path, spec: SweepSpec, u_dc: float) -> float:
+    """The controller's T_max at w_m = 0 (N m): one step of a fresh instance asked for far too much."""
+    with Fmu(controller_fmu, **spec.drive.controller_params(spec.method, spec.recursion)) as c:
+        c.set(T_ref=1e9, w_m=0.0, u_dc=u_dc, T_magnet=spec.T_magnet, i_d=0.0, i_q=0.0)
+        c.step(0.0, spec.step)
+        return float(c.get("T_max"))
 
 
 @dataclass(frozen=True)
@@ -55,14 +87,18 @@ class SweepSummary:
 
 def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec | None = None) -> SweepSummary:
     spec = spec if spec is not None else SweepSpec()
+    spec = replace(spec, u_dc=spec.drive.controller.lut_u_dc if spec.u_dc is None else spec.u_dc)
+    if spec.T_overload is None:
+        spec = replace(spec, T_overload=10.0 * math.ceil(
+            OVERLOAD * reach_at_standstill(controller_fmu, spec, spec.u_dc) / 10.0))
     out.mkdir(parents=True, exist_ok=True)
     rows = []
     torques = np.linspace(0.0, spec.T_overload, spec.n_torque)
     t0 = time.perf_counter()
-    bar = Progress(len(spec.speeds_rpm) * len(torques), "sweep")
-    with Fmu(controller_fmu, method=spec.method, recursion=spec.recursion) as c:
+    bar = Progress(len(spec.speeds()) * len(torques), "sweep")
+    with Fmu(controller_fmu, **spec.drive.controller_params(spec.method, spec.recursion)) as c:
         k = 0
-        for n in spec.speeds_rpm:
+        for n in spec.speeds():
             for T in torques:
                 c.set(T_ref=T, w_m=n * RPM, u_dc=spec.u_dc, T_magnet=spec.T_magnet, i_d=0.0, i_q=0.0)
                 c.step(k * spec.step, spec.step)
@@ -78,34 +114,35 @@ def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec | None = None) ->
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    envelope = {n: max(r["T_max_Nm"] for r in rows if r["speed_rpm"] == n) for n in spec.speeds_rpm}
-    summary = SweepSummary(spec=asdict(spec), points=len(rows), wall_s=wall, T_max_Nm_by_speed_rpm=envelope,
+    envelope = {n: max(r["T_max_Nm"] for r in rows if r["speed_rpm"] == n) for n in spec.speeds()}
+    summary = SweepSummary(spec=spec.to_dict(), points=len(rows), wall_s=wall, T_max_Nm_by_speed_rpm=envelope,
                            P_max_kW_by_speed_rpm={n: T * n * RPM / 1e3 for n, T in envelope.items()})
     (out / "summary.json").write_text(summary.to_json())
-    plot_sweep(rows, spec, controller_fmu, out / "current_trajectories.png")
+    plot_sweep(rows, spec, out / "current_trajectories.png")
     return summary
 
 
-def plot_sweep(rows, spec: SweepSpec, controller_fmu: Path, path: Path) -> None:
+def plot_sweep(rows, spec: SweepSpec, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from fmpy import extract
-    fmap = read_flux_map(Path(extract(str(controller_fmu))) / "resources" / "ev_ipmsm_default.csv")
-    motor = MotorData.of(fmap)
+    fmap = read_flux_map(spec.drive.motor.flux_map)
+    motor = spec.drive.motor_data()
     p, R_s, I_max = motor.pole_pairs, motor.R_s, motor.I_max
     V_max = motor.k_u * spec.u_dc / math.sqrt(3)
+    # the plane's window, scaled by the current limit (the default motor's 500 A: -560..100, -20..560)
+    d_lo, d_hi, q_lo, q_hi = -1.12 * I_max, 0.2 * I_max, -0.04 * I_max, 1.12 * I_max
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(13, 5.6), gridspec_kw=dict(width_ratios=[1.15, 1]))
     th = np.linspace(0, 2 * np.pi, 400)
     ax.plot(I_max * np.cos(th), I_max * np.sin(th), "k--", lw=1, label=f"current limit {I_max:.0f} A")
     # Voltage ellipses (with saturation, from the flux map) and the trajectories, one colour per speed.
-    g_d, g_q = np.meshgrid(np.linspace(-560, 100, 331), np.linspace(-20, 560, 291))
+    g_d, g_q = np.meshgrid(np.linspace(d_lo, d_hi, 331), np.linspace(q_lo, q_hi, 291))
     psi_d, psi_q = fmap.flux(g_d, g_q)
     cmap = plt.get_cmap("viridis")
-    speeds = [n for n in spec.speeds_rpm if n > 0]
-    for j, n in enumerate(spec.speeds_rpm):
-        color = cmap(j / max(1, len(spec.speeds_rpm) - 1))
+    speeds = [n for n in spec.speeds() if n > 0]
+    for j, n in enumerate(spec.speeds()):
+        color = cmap(j / max(1, len(spec.speeds()) - 1))
         sel = [r for r in rows if r["speed_rpm"] == n]
         ax.plot([r["i_d_A"] for r in sel], [r["i_q_A"] for r in sel], "-", color=color, lw=2, label=f"{n} r/min")
         if n in speeds:
@@ -117,8 +154,8 @@ def plot_sweep(rows, spec: SweepSpec, controller_fmu: Path, path: Path) -> None:
     ax.set_title(f"Optimal current commands, 0 to {spec.T_overload:.0f} N.m\n"
                  f"(dotted: voltage limit at {spec.u_dc:.0f} V)")
     ax.set_aspect("equal")
-    ax.set_xlim(-560, 100)
-    ax.set_ylim(-20, 560)
+    ax.set_xlim(d_lo, d_hi)
+    ax.set_ylim(q_lo, q_hi)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
 

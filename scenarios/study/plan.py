@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..cycles import Cycle, load_cycle, segment
+from ..drive_description import DriveDescription, load_drive
 from ..simulate import RunSpec
 from . import keys
 from .execute import Task
@@ -20,9 +21,10 @@ class Plan:
     failed_rows: tuple[dict, ...]  # runs that could not even be set up (recorded as failed)
 
 
-def run_spec(run: Run) -> RunSpec:
-    """The simulation's specification of a run (the default drive)."""
-    return RunSpec(method=run.method, recursion=run.recursion, conditions=run.conditions())
+def run_spec(run: Run, drive: DriveDescription | None = None) -> RunSpec:
+    """The simulation's specification of a run (its drive loaded already, or loaded here)."""
+    drive = drive if drive is not None else load_drive(run.drive or None)
+    return RunSpec(drive=drive, method=run.method, recursion=run.recursion, conditions=run.conditions())
 
 
 def run_cycle(run: Run, cache: dict) -> Cycle:

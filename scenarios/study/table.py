@@ -13,7 +13,7 @@ import csv
 import math
 import os
 import uuid
-from dataclasses import asdict, fields
+from dataclasses import asdict, fields, replace
 from pathlib import Path
 
 import pyarrow as pa
@@ -21,6 +21,7 @@ import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
 from ..results import RunSummary
+from ..simulate import Conditions
 from .spec import Run
 
 RUNS_FILE = "runs.parquet"
@@ -34,15 +35,18 @@ def _arrow_type(t) -> pa.DataType:
     return _ARROW.get(t) or _ARROW[{"str": str, "int": int, "float": float}.get(t, t)]
 
 
-#: the summary's fields that are columns of their own; `cycle` (the name with the window),
-#: `method`, `recursion` and `conditions` are the spec's columns already (see row_of)
+#: the summary's fields that are columns of their own; `method`, `recursion` and `conditions`
+#: are the spec's columns already, `cycle` (the name with the window) and `drive` (the drive's
+#: name) are cycle_name and drive_name (the spec's `cycle` and `drive` are what the spec says)
+RENAMED = {"cycle": "cycle_name", "drive": "drive_name"}
 SUMMARY_COLUMNS = tuple(f.name for f in fields(RunSummary)
-                        if f.name not in ("cycle", "method", "recursion", "conditions"))
+                        if f.name not in ("method", "recursion", "conditions", *RENAMED))
 
 #: where and how the run ran
 META = (("key", pa.string()), ("status", pa.string()), ("error", pa.string()), ("fmu_hash", pa.string()),
         ("code_hash", pa.string()), ("worker", pa.string()), ("started_utc", pa.float64()),
-        ("run_wall_s", pa.float64()), ("condition", pa.string()), ("cycle_name", pa.string()))
+        ("run_wall_s", pa.float64()), ("condition", pa.string()), ("cycle_name", pa.string()),
+        ("drive_name", pa.string()), ("lut_u_dc", pa.float64()), ("lut_T_magnet", pa.float64()))
 
 SCHEMA = pa.schema(
     [(f.name, _arrow_type(f.type)) for f in fields(Run)]
@@ -57,16 +61,25 @@ def row_of(run: Run, meta: dict, summary: RunSummary | None) -> dict:
     d = summary.to_dict() if summary is not None else {}
     for name in SUMMARY_COLUMNS:
         row[name] = d.get(name)
-    if summary is not None:
-        row["cycle_name"] = summary.cycle
+    for name, column in RENAMED.items():
+        row[column] = d.get(name)
+    if summary is not None:  # the tables' conditions, as the run resolved them from its drive
+        row["lut_u_dc"], row["lut_T_magnet"] = summary.conditions["lut_u_dc"], summary.conditions["lut_T_magnet"]
     return row
+
+
+def row_conditions(row: dict) -> Conditions:
+    """The conditions of a row's run, as its summary had them."""
+    return replace(Run.of_row(row).conditions(), name=row["condition"], lut_u_dc=row["lut_u_dc"],
+                   lut_T_magnet=row["lut_T_magnet"])
 
 
 def summary_of(row: dict) -> RunSummary:
     """The RunSummary of an "ok" row (inverse of row_of)."""
     run = Run.of_row(row)
-    return RunSummary(cycle=row["cycle_name"], method=run.method, recursion=run.recursion,
-                      conditions=asdict(run.conditions()), **{k: row[k] for k in SUMMARY_COLUMNS})
+    return RunSummary(method=run.method, recursion=run.recursion, conditions=asdict(row_conditions(row)),
+                      **{name: row[column] for name, column in RENAMED.items()},
+                      **{k: row[k] for k in SUMMARY_COLUMNS})
 
 
 def write_trace_csv(trace_parquet: Path, dest: Path) -> None:

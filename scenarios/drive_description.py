@@ -1,0 +1,530 @@
+"""Drive descriptions: one TOML file names a drive's motor (its flux map and parameters),
+inverter, battery, vehicle, controller settings and CI checks (../shared/spec/INTERFACE.md,
+"Drive description (TOML)"; every key, unit, default and source: docs/drives.md).
+
+    >>> d = load_drive("scenarios/drives/compact_suv.toml")   # None: scenarios/drives/default.toml
+    >>> d.motor.pole_pairs, d.vehicle.mass, d.battery.n_series
+
+The schema is written once, in SCHEMA: a key's section, name, kind, unit, the rule its value
+must obey and where its default comes from. The defaults are the project's default EV: the
+dataclasses of the vehicle side (VehicleParams, BatteryParams, InverterParams, P_AUX_DEFAULT)
+and, for the motor, the `# key: value` metadata of the named flux map (the map's own data
+sheet), else of the default motor's map. Paths are relative to the file. A bad file raises
+DriveDescriptionError naming the file, the key and what was expected.
+"""
+from __future__ import annotations
+
+import difflib
+import hashlib
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the same parser as a package (pyproject.toml)
+    import tomli as tomllib
+
+
+from .battery import OCV_FITS, BatteryParams
+from .driver import P_AUX_DEFAULT
+from .flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
+from .inverter import InverterParams
+from .paths import ROOT
+from .vehicle import VehicleParams
+
+#: the project's drives; `default.toml` is what no --drive means
+DRIVES_DIR = ROOT / "scenarios" / "drives"
+DEFAULT_DRIVE = DRIVES_DIR / "default.toml"
+
+#: the controller's methods by the contract's names (the FMU's `method` parameter)
+METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
+
+
+class DriveDescriptionError(ValueError):
+    """A drive description that cannot be used: which file, which key, what was expected."""
+
+    def __init__(self, file: Path | str | None, key: str, expected: str):
+        self.file, self.key, self.expected = file, key, expected
+        super().__init__(f"{file}: {key}: {expected}")
+
+    def __reduce__(self):  # picklable (Dask sends errors back from its workers)
+        return type(self), (self.file, self.key, self.expected)
+
+
+# -- the schema ---------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Rule:
+    """What a value must be: a kind (real, int, str, path, strings) and a physical range."""
+
+    kind: str                  # "real", "int", "str", "path", "strings"
+    lo: float | None = None    # bounds, inclusive unless open
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple = ()
+
+    def describe(self) -> str:
+        what = {"real": "a number", "int": "an integer", "str": "a string", "path": "a file path (string)",
+                "strings": "a list of strings"}[self.kind]
+        if self.choices:
+            what += " out of " + ", ".join(repr(c) for c in self.choices)
+        if self.lo is not None and self.hi is not None:
+            what += f" in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}{')' if self.hi_open else ']'}"
+        elif self.lo is not None:
+            what += f" {'>' if self.lo_open else '>='} {self.lo:g}"
+        elif self.hi is not None:
+            what += f" {'<' if self.hi_open else '<='} {self.hi:g}"
+        return what
+
+    def check(self, value: Any) -> str | None:
+        """None if `value` obeys the rule, else what was expected (for the error)."""
+        k = self.kind
+        if k == "real":
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                return self.describe()
+        elif k == "int":
+            if isinstance(value, bool) or not isinstance(value, int):
+                return self.describe()
+        elif k in ("str", "path"):
+            if not isinstance(value, str) or not value:
+                return self.describe()
+        elif k == "strings":
+            if not isinstance(value, list) or not value or not all(isinstance(s, str) and s for s in value):
+                return "a non-empty list of strings"
+        if self.choices and value not in self.choices:
+            return self.describe()
+        if k in ("real", "int"):
+            if self.lo is not None and (value < self.lo or (self.lo_open and value == self.lo)):
+                return self.describe() + f", got {value!r}"
+            if self.hi is not None and (value > self.hi or (self.hi_open and value == self.hi)):
+                return self.describe() + f", got {value!r}"
+        return None
+
+
+POSITIVE = Rule("real", lo=0.0, lo_open=True)
+NON_NEGATIVE = Rule("real", lo=0.0)
+FRACTION = Rule("real", lo=0.0, hi=1.0, lo_open=True)   # an efficiency, a utilisation
+TEMPERATURE = Rule("real", lo=173.15, hi=573.15)         # K, the FMUs' range of T_magnet_ref
+COEFFICIENT = Rule("real", lo=-0.01, hi=0.01)            # 1/K, the FMUs' range of k_psi_T
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of the schema. `default` documents where a missing key's value comes from; the
+    value itself is computed by the loader (from the dataclasses or the map's metadata).
+    `acts` says when the key changes a run (the tests perturb each key under that condition)."""
+
+    section: str
+    name: str
+    rule: Rule
+    unit: str
+    meaning: str
+    default: str
+    acts: str = "always"
+
+    @property
+    def path(self) -> str:
+        return f"{self.section}.{self.name}" if self.section else self.name
+
+
+def _dc(cls, name: str) -> str:
+    return f"{cls.__name__}.{name}"
+
+
+def _meta(key: str) -> str:
+    return f"map metadata `{key}`"
+
+
+SCHEMA: tuple[Key, ...] = (
+    Key("", "name", Rule("str"), "", "the drive's name in summaries and reports", "the file's stem"),
+    # [motor]: FMU parameters of the controller and the plant, and the rotor's inertia
+    Key("motor", "flux_map", Rule("path"), "", "flux-map file (the contract's CSV; a FEM export the scenarios "
+        "import), relative to this file; REQUIRED", "none: required"),
+    Key("motor", "pole_pairs", Rule("int", lo=1, hi=100), "", "pole pairs p", _meta("pole_pairs")),
+    Key("motor", "R_s", POSITIVE, "Ohm", "stator resistance per phase at T_winding_ref", _meta("R_s_ohm")),
+    Key("motor", "I_max", POSITIVE, "A", "peak current limit", _meta("I_max_A")),
+    Key("motor", "T_magnet_ref", TEMPERATURE, "K", "magnet temperature at which the map holds",
+        _meta("T_magnet_ref_K")),
+    Key("motor", "T_winding_ref", TEMPERATURE, "K", "winding temperature at which R_s holds",
+        _meta("T_winding_ref_K")),
+    Key("motor", "alpha_cu", Rule("real", lo=0.0, hi=0.01), "1/K", "temperature coefficient of R_s",
+        _meta("alpha_cu_per_K")),
+    Key("motor", "k_psi_T", COEFFICIENT, "1/K", "relative change of the magnet flux per kelvin",
+        _meta("k_psi_T_per_K")),
+    Key("motor", "J", POSITIVE, "kg m^2", "rotor inertia (and what turns at motor speed)",
+        _dc(VehicleParams, "J_motor")),
+    Key("motor", "w_m_max", POSITIVE, "rad/s", "top speed: the end of the 2-D tables' speed axis",
+        _meta("w_m_max_rad_s"), acts="method lut_speed, above w_m_max"),
+    Key("motor", "fe_k_h", NON_NEGATIVE, "W/Hz", "iron loss: hysteresis coefficient at fe_psi_ref",
+        _meta("fe_k_h_W_per_Hz")),
+    Key("motor", "fe_alpha", Rule("real", lo=1.0, hi=3.0), "1", "iron loss: Steinmetz exponent",
+        _meta("fe_alpha")),
+    Key("motor", "fe_k_e", NON_NEGATIVE, "W/Hz^2", "iron loss: eddy-current coefficient at fe_psi_ref",
+        _meta("fe_k_e_W_per_Hz2")),
+    Key("motor", "fe_psi_ref", POSITIVE, "Wb", "iron loss: flux linkage of the coefficients",
+        _meta("fe_psi_ref_Wb")),
+    # [inverter]: scenarios/inverter.py's loss model (and the IpmsmDrive FMU's)
+    Key("inverter", "f_sw", POSITIVE, "Hz", "switching frequency", _dc(InverterParams, "f_sw")),
+    Key("inverter", "V_T0", NON_NEGATIVE, "V", "IGBT threshold voltage", _dc(InverterParams, "V_T0")),
+    Key("inverter", "r_T", NON_NEGATIVE, "Ohm", "IGBT slope resistance", _dc(InverterParams, "r_T")),
+    Key("inverter", "V_D0", NON_NEGATIVE, "V", "diode threshold voltage", _dc(InverterParams, "V_D0")),
+    Key("inverter", "r_D", NON_NEGATIVE, "Ohm", "diode slope resistance", _dc(InverterParams, "r_D")),
+    Key("inverter", "E_on", NON_NEGATIVE, "J", "turn-on energy at I_ref, V_ref", _dc(InverterParams, "E_on")),
+    Key("inverter", "E_off", NON_NEGATIVE, "J", "turn-off energy at I_ref, V_ref", _dc(InverterParams, "E_off")),
+    Key("inverter", "E_rec", NON_NEGATIVE, "J", "diode recovery energy at I_ref, V_ref",
+        _dc(InverterParams, "E_rec")),
+    Key("inverter", "I_ref", POSITIVE, "A", "test current of the switching energies", _dc(InverterParams, "I_ref")),
+    Key("inverter", "V_ref", POSITIVE, "V", "test DC voltage of the switching energies",
+        _dc(InverterParams, "V_ref")),
+    Key("inverter", "k_v", Rule("real", lo=0.0, hi=3.0), "1", "exponent of the switching energies' voltage "
+        "scaling", _dc(InverterParams, "k_v")),
+    # [battery]: scenarios/battery.py's equivalent circuit
+    Key("battery", "n_series", Rule("int", lo=1), "", "cells in series", _dc(BatteryParams, "n_series")),
+    Key("battery", "n_parallel", Rule("int", lo=1), "", "cells in parallel", _dc(BatteryParams, "n_parallel")),
+    Key("battery", "cell_capacity_Ah", POSITIVE, "Ah", "capacity of one cell", _dc(BatteryParams, "cell_capacity_Ah"),
+        acts="always (SOC moves)"),
+    Key("battery", "R0", NON_NEGATIVE, "Ohm", "pack series resistance", _dc(BatteryParams, "R0")),
+    Key("battery", "R1", POSITIVE, "Ohm", "pack polarisation resistance", _dc(BatteryParams, "R1")),
+    Key("battery", "tau1", POSITIVE, "s", "polarisation time constant R1 C1", _dc(BatteryParams, "tau1")),
+    Key("battery", "u_cell_max", POSITIVE, "V", "charge cut-off voltage per cell",
+        _dc(BatteryParams, "u_cell_max"), acts="regenerative braking near a full pack"),
+    Key("battery", "soc0", Rule("real", lo=0.0, hi=1.0), "1", "state of charge at the start",
+        _dc(BatteryParams, "soc0")),
+    Key("battery", "ocv", Rule("str"), "", "cell open-circuit voltage: a shipped fit (" + ", ".join(OCV_FITS) +
+        ") or a CSV of soc,ocv_cell_V relative to this file", _dc(BatteryParams, "ocv_fit")),
+    # [vehicle]: scenarios/vehicle.py's longitudinal model and the auxiliary load
+    Key("vehicle", "mass", POSITIVE, "kg", "test mass", _dc(VehicleParams, "mass")),
+    Key("vehicle", "road_load_A", NON_NEGATIVE, "N", "road load F = A + B v + C v^2: A",
+        _dc(VehicleParams, "road_load_A")),
+    Key("vehicle", "road_load_B", NON_NEGATIVE, "N/(m/s)", "road load: B", _dc(VehicleParams, "road_load_B")),
+    Key("vehicle", "road_load_C", NON_NEGATIVE, "N/(m/s)^2", "road load: C", _dc(VehicleParams, "road_load_C")),
+    Key("vehicle", "gear_ratio", POSITIVE, "1", "motor speed / wheel speed", _dc(VehicleParams, "gear_ratio")),
+    Key("vehicle", "wheel_radius", POSITIVE, "m", "dynamic rolling radius", _dc(VehicleParams, "wheel_radius")),
+    Key("vehicle", "driveline_efficiency", FRACTION, "1", "gear efficiency under load",
+        _dc(VehicleParams, "driveline_efficiency")),
+    Key("vehicle", "J_wheels", NON_NEGATIVE, "kg m^2", "inertia of all road wheels", _dc(VehicleParams, "J_wheels")),
+    Key("vehicle", "tyre_road_friction", POSITIVE, "1", "tyre-road friction coefficient (friction-brake limit)",
+        _dc(VehicleParams, "tyre_road_friction"), acts="braking harder than mu m g"),
+    Key("vehicle", "P_aux", NON_NEGATIVE, "W", "auxiliary load on the DC link", "scenarios.driver.P_AUX_DEFAULT"),
+    # [controller]: the controller FMU's settings
+    Key("controller", "method", Rule("str", choices=tuple(METHODS)), "", "torque-to-current method",
+        "`ferrari` (the FMU's default)"),
+    Key("controller", "recursion", Rule("int", lo=0, hi=2), "", "inductance recursion (0, 1, 2)",
+        "2 (the FMU's default)"),
+    Key("controller", "k_u", Rule("real", lo=0.0, hi=1.0, lo_open=True), "1",
+        "voltage utilisation: V_max = k_u u_dc / sqrt 3", _meta("k_u")),
+    Key("controller", "current_bandwidth", POSITIVE, "rad/s", "current regulator's closed-loop bandwidth",
+        "the FMU's default (its modelDescription start, 2 pi 500 rad/s)"),
+    Key("controller", "lut_u_dc", POSITIVE, "V", "DC voltage the 2-D tables are built at (lut_* methods)",
+        _meta("u_dc_V"), acts="method lut_speed"),
+    # [checks]: what `python -m scenarios check` runs and gates on
+    Key("checks", "cycles", Rule("strings"), "", "cycles to run: names (WLTC3b, UDDS, HWFET, US06, NEDC) or CSVs "
+        "of time_s,speed_mps relative to this file", "[] (nothing to check)", acts="check"),
+)
+
+#: the limits `check` compares: summary key -> direction ("max": figure <= limit; "min": >=)
+LIMITS = {
+    "Wh_per_km_max": ("Wh_per_km", "max"),
+    "speed_rmse_mps_max": ("speed_rmse_mps", "max"),
+    "torque_rmse_Nm_max": ("torque_rmse_Nm", "max"),
+    "torque_error_max_Nm_max": ("torque_error_max_Nm", "max"),
+    "time_voltage_limited_pct_max": ("time_voltage_limited_pct", "max"),
+    "current_excess_rms_A_max": ("current_excess_rms_A", "max"),
+    "regen_curtailed_Wh_max": ("regen_curtailed_Wh", "max"),
+    "soc_end_min": ("soc_end", "min"),
+}
+_LIMIT_UNITS = {"Wh_per_km": "Wh/km", "speed_rmse_mps": "m/s", "torque_rmse_Nm": "N m",
+                "torque_error_max_Nm": "N m", "time_voltage_limited_pct": "%", "current_excess_rms_A": "A",
+                "regen_curtailed_Wh": "Wh", "soc_end": "1"}
+SCHEMA = SCHEMA + tuple(
+    Key("checks", name, NON_NEGATIVE, _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
+        f"{'at most' if d == 'max' else 'at least'} this on every cycle", "no limit", acts="check")
+    for name, (s, d) in LIMITS.items())
+
+SECTIONS = ("motor", "inverter", "battery", "vehicle", "controller", "checks")
+_BY_PATH = {k.path: k for k in SCHEMA}
+
+
+# -- what a loaded file is ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MotorSpec:
+    """The motor: its flux map and the FMUs' parameters (SI; R_s at T_winding_ref)."""
+
+    flux_map: Path
+    pole_pairs: int
+    R_s: float
+    I_max: float
+    T_magnet_ref: float
+    T_winding_ref: float
+    alpha_cu: float
+    k_psi_T: float
+    J: float
+    w_m_max: float
+    fe_k_h: float
+    fe_alpha: float
+    fe_k_e: float
+    fe_psi_ref: float
+
+
+#: the controller FMU's own defaults of `method` and `recursion` (its modelDescription)
+METHOD_DEFAULT = "ferrari"
+RECURSION_DEFAULT = 2
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    method: str
+    recursion: int
+    k_u: float                        # V_max = k_u u_dc / sqrt 3
+    current_bandwidth: float | None   # rad/s; None: the FMU's default
+    lut_u_dc: float                   # V, the 2-D tables' DC voltage
+
+
+@dataclass(frozen=True)
+class ChecksSpec:
+    cycles: tuple[str, ...] = ()      # names, or CSV paths made absolute
+    limits: dict = field(default_factory=dict)   # LIMITS key -> value
+
+
+@dataclass(frozen=True)
+class DriveDescription:
+    """A loaded, checked drive description: every value concrete (defaults filled in), SI.
+    Picklable: Dask ships it to its workers."""
+
+    name: str
+    source: Path | None           # the TOML file
+    sha256: str                   # of the file's bytes ("" without a file)
+    motor: MotorSpec
+    inverter: InverterParams
+    battery: BatteryParams
+    vehicle: VehicleParams        # J_motor = motor.J
+    P_aux: float                  # W, the [vehicle] table's auxiliary load
+    controller: ControllerSpec
+    checks: ChecksSpec
+
+    def motor_data(self) -> MotorData:
+        """The reference optimum's motor figures (scenarios.simulate.OptimumReference)."""
+        m = self.motor
+        return MotorData(m.pole_pairs, m.R_s, m.T_winding_ref, m.alpha_cu, m.I_max, self.controller.k_u)
+
+    def controller_params(self, method: str | None = None, recursion: int | None = None,
+                          lut_u_dc: float | None = None, lut_T_magnet: float | None = None) -> dict:
+        """The controller FMU's parameters; method/recursion/lut_* None: the drive's."""
+        m, c = self.motor, self.controller
+        method = c.method if method is None else method
+        if method not in METHODS:
+            raise ValueError(f"method {method!r}: one of {', '.join(METHODS)}")
+        p = dict(method=METHODS[method], recursion=c.recursion if recursion is None else recursion,
+                 flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, I_max=m.I_max, k_u=c.k_u,
+                 T_magnet_ref=m.T_magnet_ref, k_psi_T=m.k_psi_T, w_m_max=m.w_m_max,
+                 lut_u_dc=c.lut_u_dc if lut_u_dc is None else lut_u_dc,
+                 lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet)
+        if c.current_bandwidth is not None:
+            p["current_bandwidth"] = c.current_bandwidth
+        return p
+
+    def plant_params(self) -> dict:
+        """The plant FMU's parameters."""
+        m = self.motor
+        return dict(flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, T_winding_ref=m.T_winding_ref,
+                    alpha_cu=m.alpha_cu, k_psi_T=m.k_psi_T, T_magnet_ref=m.T_magnet_ref, fe_k_h=m.fe_k_h,
+                    fe_alpha=m.fe_alpha, fe_k_e=m.fe_k_e, fe_psi_ref=m.fe_psi_ref)
+
+
+# -- the loader -----------------------------------------------------------------------------------
+#: motor key -> the flux map's metadata key that gives its default
+MOTOR_METADATA = {"pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_A", "T_magnet_ref": "T_magnet_ref_K",
+                  "T_winding_ref": "T_winding_ref_K", "alpha_cu": "alpha_cu_per_K", "k_psi_T": "k_psi_T_per_K",
+                  "w_m_max": "w_m_max_rad_s", "fe_k_h": "fe_k_h_W_per_Hz", "fe_alpha": "fe_alpha",
+                  "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb"}
+CONTROLLER_METADATA = {"k_u": "k_u", "lut_u_dc": "u_dc_V"}
+
+#: a hook for FEM exports: path -> a contract CSV (scenarios.map_import.contract_csv when present)
+MapResolver = Callable[[Path], Path]
+
+
+def _map_resolver() -> MapResolver:
+    try:
+        from .map_import import contract_csv  # helper D's FEM importer (SyR-e, Motor-CAD .mat)
+    except ImportError:
+        return lambda p: p
+    return contract_csv
+
+
+def _nearest(name: str, known) -> str:
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _read_toml(path: Path) -> tuple[dict, bytes]:
+    try:
+        raw = path.read_bytes()
+    except OSError as e:
+        raise DriveDescriptionError(path, "(file)", f"a readable TOML file ({e.strerror or e})") from None
+    try:
+        return tomllib.loads(raw.decode("utf-8")), raw
+    except UnicodeDecodeError:
+        raise DriveDescriptionError(path, "(file)", "UTF-8 text") from None
+    except tomllib.TOMLDecodeError as e:
+        raise DriveDescriptionError(path, "(syntax)", f"valid TOML ({e})") from None
+
+
+def _check_keys(path: Path, doc: dict) -> None:
+    """Unknown sections and keys, and values of the wrong kind or range: errors."""
+    for top, value in doc.items():
+        if top in SECTIONS:
+            if not isinstance(value, dict):
+                raise DriveDescriptionError(path, top, "a table [" + top + "]")
+            for name, v in value.items():
+                kp = f"{top}.{name}"
+                if kp not in _BY_PATH:
+                    known = [k.path for k in SCHEMA if k.section == top]
+                    raise DriveDescriptionError(path, kp, "a known key: one of " + ", ".join(known) +
+                                                _nearest(kp, known))
+                bad = _BY_PATH[kp].rule.check(v)
+                if bad:
+                    raise DriveDescriptionError(path, kp, bad + ("" if "got" in bad else f", got {v!r}"))
+        elif top in _BY_PATH:
+            bad = _BY_PATH[top].rule.check(value)
+            if bad:
+                raise DriveDescriptionError(path, top, bad + f", got {value!r}")
+        else:
+            known = [*(k.path for k in SCHEMA if not k.section), *SECTIONS]
+            raise DriveDescriptionError(path, top, "a known key or table: one of " + ", ".join(known) +
+                                        _nearest(top, known))
+
+
+def _relative(path: Path, value: str) -> Path:
+    p = Path(value).expanduser()
+    return p if p.is_absolute() else (path.parent / p).resolve()
+
+
+def _load_map(path: Path, value: str, resolve: MapResolver) -> tuple[Path, FluxMap]:
+    map_path = _relative(path, value)
+    if not map_path.is_file():
+        raise DriveDescriptionError(path, "motor.flux_map", f"an existing flux-map file, {map_path} is not one")
+    try:
+        csv_path = Path(resolve(map_path))
+        return csv_path, read_flux_map(csv_path)
+    except DriveDescriptionError:
+        raise
+    except Exception as e:  # the readers' own words: which file, which line or field
+        raise DriveDescriptionError(path, "motor.flux_map", f"a readable flux map ({e})") from None
+
+
+def _metadata_number(fmap: FluxMap, key: str, default_map: FluxMap, path: Path, what: str) -> float:
+    try:
+        if key in fmap.metadata:
+            return fmap.number(key)
+        return default_map.number(key)
+    except (KeyError, ValueError) as e:
+        raise DriveDescriptionError(path, what, f"a value in the file or a number in the map's metadata ({e})") \
+            from None
+
+
+def _default_map() -> FluxMap:
+    global _DEFAULT_MAP_CACHE
+    if _DEFAULT_MAP_CACHE is None:
+        _DEFAULT_MAP_CACHE = read_flux_map(DEFAULT_MAP)
+    return _DEFAULT_MAP_CACHE
+
+
+_DEFAULT_MAP_CACHE: FluxMap | None = None
+
+
+def _cycle_entry(path: Path, name: str) -> str:
+    """A standard cycle's name stays; anything else is a CSV relative to the file."""
+    from .cycles import STANDARD_CYCLES
+    if name.lower() in {n.lower() for n in STANDARD_CYCLES}:
+        return name
+    p = _relative(path, name)
+    if not p.is_file():
+        raise DriveDescriptionError(path, "checks.cycles", f"a standard cycle ({', '.join(STANDARD_CYCLES)}) or an "
+                                    f"existing CSV of time_s,speed_mps; {name!r} is neither")
+    return str(p)
+
+
+def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None = None) -> DriveDescription:
+    """Read and check a drive description (None: scenarios/drives/default.toml). Raises
+    DriveDescriptionError (file, key, expectation) for anything the schema does not allow."""
+    path = Path(DEFAULT_DRIVE if path is None else path).expanduser().resolve()
+    doc, raw = _read_toml(path)
+    _check_keys(path, doc)
+    sec = {s: doc.get(s, {}) for s in SECTIONS}
+    if "flux_map" not in sec["motor"]:
+        raise DriveDescriptionError(path, "motor.flux_map", "a flux-map file: the one key every drive must give")
+    map_path, fmap = _load_map(path, sec["motor"]["flux_map"], resolve_map or _map_resolver())
+    dmap = _default_map()
+
+    given = sec["motor"]
+    motor_values = {}
+    for key, meta in MOTOR_METADATA.items():
+        motor_values[key] = given[key] if key in given else _metadata_number(fmap, meta, dmap, path, f"motor.{key}")
+    motor_values["pole_pairs"] = int(motor_values["pole_pairs"])
+    vp_default = VehicleParams()
+    motor = MotorSpec(flux_map=map_path, J=float(given.get("J", vp_default.J_motor)),
+                      **{k: (v if k == "pole_pairs" else float(v)) for k, v in motor_values.items()})
+    for key in MOTOR_METADATA:   # metadata values obey the same rules as the file's
+        bad = _BY_PATH[f"motor.{key}"].rule.check(getattr(motor, key))
+        if bad:
+            raise DriveDescriptionError(path, f"motor.{key}", f"{bad} (from the map's metadata)")
+
+    inverter = replace(InverterParams(), **{k: float(v) for k, v in sec["inverter"].items()})
+
+    b = dict(sec["battery"])
+    ocv = b.pop("ocv", None)
+    battery = replace(BatteryParams(), **{k: (v if k in ("n_series", "n_parallel") else float(v))
+                                          for k, v in b.items()})
+    if ocv is not None:
+        if ocv in OCV_FITS:
+            battery = replace(battery, ocv_fit=ocv)
+        else:
+            csv_path = _relative(path, ocv)
+            if not csv_path.is_file():
+                raise DriveDescriptionError(path, "battery.ocv", f"a shipped fit ({', '.join(OCV_FITS)}) or an "
+                                            f"existing CSV of soc,ocv_cell_V; {ocv!r} is neither")
+            battery = replace(battery, ocv_fit="csv", ocv_csv=csv_path)
+    try:
+        from .battery import Ocv
+        Ocv(battery)
+    except (OSError, ValueError, KeyError) as e:
+        raise DriveDescriptionError(path, "battery.ocv", f"a usable OCV curve ({e})") from None
+
+    v = dict(sec["vehicle"])
+    P_aux = float(v.pop("P_aux", P_AUX_DEFAULT))
+    vehicle = replace(vp_default, J_motor=motor.J, **{k: float(x) for k, x in v.items()})
+
+    c = sec["controller"]
+    controller = ControllerSpec(
+        method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
+        k_u=float(c["k_u"]) if "k_u" in c else _metadata_number(fmap, "k_u", dmap, path, "controller.k_u"),
+        current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
+        lut_u_dc=float(c["lut_u_dc"]) if "lut_u_dc" in c else
+        _metadata_number(fmap, "u_dc_V", dmap, path, "controller.lut_u_dc"))
+
+    ch = sec["checks"]
+    checks = ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),
+                        limits={k: float(x) for k, x in ch.items() if k in LIMITS})
+    return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),
+                            motor=motor, inverter=inverter, battery=battery, vehicle=vehicle, P_aux=P_aux,
+                            controller=controller, checks=checks)
+
+
+def schema_markdown() -> str:
+    """The schema as a Markdown table (docs/drives.md holds it; a test keeps the two equal)."""
+    rows = ["| key | unit | allowed | default | meaning |", "|---|---|---|---|---|"]
+    for k in SCHEMA:
+        rows.append(f"| `{k.path}` | {k.unit} | {k.rule.describe()} | {k.default} | {k.meaning} |")
+    return "\n".join(rows)
+
+
+def known_fields() -> dict[str, tuple[str, ...]]:
+    """Section -> its key names (for tools that build descriptions)."""
+    return {s: tuple(k.name for k in SCHEMA if k.section == s) for s in ("", *SECTIONS)}
+
+
+__all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "LIMITS", "METHODS", "SCHEMA", "ChecksSpec", "ControllerSpec",
+           "DriveDescription", "DriveDescriptionError", "Key", "MotorSpec", "Rule", "load_drive", "schema_markdown"]
