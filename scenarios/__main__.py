@@ -47,6 +47,7 @@ def main(argv=None) -> int:
     cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
     cmp_.add_argument("--scheduler", default=None, help="an existing dask scheduler (as for study)")
+    cmp_.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
     from . import check
     check.add_parser(sub)
     from .study import cli as study_cli
@@ -90,8 +91,9 @@ def _dispatch(args) -> int:
         print(f"wrote {out}/summary.json, trace.csv, run.png")
     elif args.cmd == "compare":
         from .compare import run_study
+        load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers,
-                  scheduler=args.scheduler)
+                  scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "study":
         from .study import cli as study_cli

@@ -77,18 +77,21 @@ def controller_costs(build: Path) -> dict:
     }
 
 
-def study_runs(cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS) -> list[tuple[Run, Variant]]:
+def study_runs(cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS,
+               drive: Path | None = None) -> list[tuple[Run, Variant]]:
     """The compare study as study runs: every variant at every condition on every cycle."""
-    return [(Run.of_conditions(k, cycle=c, method=v.method, recursion=v.recursion), v)
+    d = str(Path(drive).resolve()) if drive else ""
+    return [(Run.of_conditions(k, drive=d, cycle=c, method=v.method, recursion=v.recursion), v)
             for c in cycles for k in conditions for v in variants]
 
 
 def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS,
-              build: Path = BUILD_DIR, workers: int | None = None, scheduler: str | None = None) -> list[StudyRun]:
+              build: Path = BUILD_DIR, workers: int | None = None, scheduler: str | None = None,
+              drive: Path | None = None) -> list[StudyRun]:
     """The compare study, run as a study (scenarios.study: out/runs.parquet, traces/, resumable),
     then reported as before: report.md, summary.csv/json, study.png and runs/<run>/ (summary.json,
     trace.csv, run.png)."""
-    jobs = study_runs(cycles, conditions, variants)
+    jobs = study_runs(cycles, conditions, variants, drive)
     print(f"compare: {len(jobs)} runs -> {out}", flush=True)
     res = study([r for r, _ in jobs], out, scheduler=scheduler, workers=workers, build=build)
     rows = {r["key"]: r for r in res.table.to_pylist()}

@@ -4,14 +4,14 @@ The cluster: by default an embedded LocalCluster on 127.0.0.1, one single-thread
 process per core (the FMUs and the co-simulation hold the GIL: processes, not threads), or any
 existing cluster by its scheduler's address.
 
-What travels: the FMUs are *shipped*: the client reads the build's three .fmu (and the native
-master's library, when built) once, scatters them to every worker, and each worker unpacks them
-once into a folder of its machine's temp directory named after their hash; so the FMUs that ran
-are exactly the ones whose hash is in the rows, whatever is installed on the workers. Each task
-carries its cycle's samples and its RunSpec, not paths. The workers need the same Python
-package (`pip install` of this repository; the client checks its code hash on every worker)
-and write the traces to `DIR/traces/` themselves, so DIR must be the same path for them (a
-shared filesystem on a cluster); only the summary row comes back to the client.
+What travels (scenarios.study.ship): the FMUs are *shipped*: the client reads the build's three
+.fmu (and the native master's library, when built) once and scatters them to every worker, which
+unpacks them once; so the FMUs that ran are exactly the ones whose hash is in the rows, whatever
+is installed on the workers. Each drive description travels loaded, with its flux map and OCV
+curve, once per drive; each task carries its cycle's samples, not paths. The workers need the
+same Python package (`pip install` of this repository; the client checks its code hash on every
+worker) and write the traces to `DIR/traces/` themselves, so DIR must be the same path for them
+(a shared filesystem on a cluster); only the summary row comes back to the client.
 
 Faults: a run that raises is a result (status "failed", its message), not a task failure, and
 is not retried (it would fail again). A worker that dies makes the scheduler run its task on
@@ -21,7 +21,6 @@ which the run is recorded failed ("KilledWorker").
 """
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import signal
@@ -31,9 +30,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..cycles import Cycle
-from ..simulate import RunSpec, fmu_paths, simulate
-from . import keys, table
-from .spec import Run
+from ..simulate import fmu_paths, simulate
+from . import table
+from .ship import FmuBundle, ShippedDrive
+from .spec import Run, run_spec
 
 #: how often a run may lose its worker before it is recorded failed (distributed's default)
 ALLOWED_WORKER_DEATHS = 3
@@ -44,56 +44,12 @@ KILL_ONCE_ENV = "IPMSM_STUDY_KILL_ONCE"
 
 
 @dataclass(frozen=True)
-class FmuBundle:
-    """The build's FMUs (and native master library) as bytes, by path relative to the build."""
-
-    hash: str                 # the FMUs' content hash (keys.fmu_hash), in every row
-    files: tuple[tuple[str, bytes], ...]
-
-    @classmethod
-    def of(cls, build: Path) -> FmuBundle:
-        build = Path(build)
-        missing = [n for n in keys.FMU_NAMES if not (build / "fmu" / n).is_file()]
-        if missing:
-            raise FileNotFoundError(f"{build / 'fmu'}: {', '.join(missing)} missing: build first")
-        rel = [f"fmu/{n}" for n in keys.FMU_NAMES]
-        if (build / "lib" / "libipmsm_cosim.so").is_file():
-            rel.append("lib/libipmsm_cosim.so")
-        return cls(keys.fmu_hash(build / "fmu"), tuple((r, (build / r).read_bytes()) for r in rel))
-
-    def folder_name(self) -> str:
-        h = hashlib.sha256()
-        for rel, data in self.files:
-            h.update(rel.encode() + b"\0" + hashlib.sha256(data).digest())
-        return f"ipmsm-study-{h.hexdigest()[:16]}"
-
-
-def materialise(bundle: FmuBundle) -> Path:
-    """The bundle unpacked as a build folder (fmu/, lib/) on this machine, once per bundle:
-    files are written under temporary names and renamed, so concurrent workers do not race."""
-    build = Path(tempfile.gettempdir()) / bundle.folder_name()
-    done = build / ".complete"
-    if done.exists():
-        return build
-    for rel, data in bundle.files:
-        dest = build / rel
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        tmp = dest.with_name(f".{dest.name}.{os.getpid()}.tmp")
-        tmp.write_bytes(data)
-        os.chmod(tmp, 0o755)
-        os.replace(tmp, dest)
-    done.touch()
-    return build
-
-
-@dataclass(frozen=True)
 class Task:
     """What a worker needs for one run."""
 
     key: str
     run: Run
     cycle: Cycle          # the samples to drive (window applied)
-    spec: RunSpec
     out: str              # the study's folder (traces/ in it)
     fmu_hash: str
     code_hash: str
@@ -118,16 +74,17 @@ def _kill_once_hook() -> None:
     os.kill(os.getpid(), signal.SIGKILL)
 
 
-def run_task(task: Task, bundle: FmuBundle) -> dict:
+def run_task(task: Task, bundle: FmuBundle, drive: ShippedDrive) -> dict:
     """One run on a worker: simulate, write the trace to DIR/traces/<key>.parquet, return the
     row. An error of the run is returned as a failed row, with its message."""
     started, t0 = time.time(), time.perf_counter()
     meta = dict(key=task.key, fmu_hash=task.fmu_hash, code_hash=task.code_hash, worker=_worker_address(),
-                started_utc=started, condition=task.spec.conditions.name)
+                started_utc=started, condition=task.run.conditions().name)
     scratch = Path(tempfile.mkdtemp(prefix=f"run-{task.key}-"))
     try:
-        build = materialise(bundle)
-        summary = simulate(task.cycle, task.spec, fmus=fmu_paths(build), out=scratch, progress=False)
+        build = bundle.materialise()
+        spec = run_spec(task.run, drive.localise())
+        summary = simulate(task.cycle, spec, fmus=fmu_paths(build), out=scratch, progress=False)
         table.write_trace_parquet(scratch / "trace.csv", table.trace_path(Path(task.out), task.key))
         _kill_once_hook()
         meta.update(status="ok", error=None, run_wall_s=time.perf_counter() - t0)

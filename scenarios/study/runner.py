@@ -17,9 +17,10 @@ import pyarrow as pa
 
 from ..paths import BUILD_DIR
 from . import keys, table
-from .execute import ALLOWED_WORKER_DEATHS, FmuBundle, run_task
+from .execute import ALLOWED_WORKER_DEATHS, run_task
 from .plan import make_plan
 from .progress import StudyProgress
+from .ship import FmuBundle
 from .spec import Run
 
 #: runs in flight per worker thread: enough to keep every worker busy between two results,
@@ -106,13 +107,15 @@ def run_study(runs: Sequence[Run], out: Path, scheduler: str | None = None, work
             with open_client(scheduler, workers, len(plan.tasks)) as client:
                 _check_workers(client, code)
                 shipped = client.scatter(bundle, broadcast=True)
+                drives = {d: client.scatter(s) for d, s in plan.drives.items()}
                 threads = max(1, sum(client.nthreads().values()))
                 pending = list(reversed(plan.tasks))
                 running = as_completed()
 
                 def submit_next():
                     t = pending.pop()
-                    running.add(client.submit(run_task, t, shipped, key=f"run-{t.key}", pure=False))
+                    running.add(client.submit(run_task, t, shipped, drives[t.run.drive], key=f"run-{t.key}",
+                                              pure=False))
 
                 for _ in range(min(len(pending), IN_FLIGHT_PER_THREAD * threads)):
                     submit_next()
@@ -123,7 +126,7 @@ def run_study(runs: Sequence[Run], out: Path, scheduler: str | None = None, work
                     except (Exception, FutureCancelledError) as e:  # KilledWorker after the allowed deaths
                         t = by_key[future.key]
                         row = table.row_of(t.run, dict(key=t.key, status="failed", fmu_hash=bundle.hash,
-                                                       code_hash=code, condition=t.spec.conditions.name,
+                                                       code_hash=code, condition=t.run.conditions().name,
                                                        error=f"{type(e).__name__}: {e}"), None)
                     future.release()
                     table.write_part(out, row)

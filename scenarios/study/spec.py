@@ -30,7 +30,8 @@ except ModuleNotFoundError:  # Python 3.10
 
 from ..constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from ..cycles import STANDARD_CYCLES
-from ..simulate import METHODS, STUDY_CONDITIONS, Conditions
+from ..drive_description import DriveDescription, load_drive
+from ..simulate import METHODS, STUDY_CONDITIONS, Conditions, RunSpec
 
 #: degC, the default magnet and winding temperatures: the reference the maps and R_s hold at
 T_DEFAULT_DEGC = T_REFERENCE_K - ZERO_CELSIUS_K
@@ -242,3 +243,9 @@ def load_spec(path: str | Path) -> StudySpec:
     except tomllib.TOMLDecodeError as e:
         raise SpecError(f"{path}: not valid TOML: {e}") from None
     return parse(data, path)
+
+
+def run_spec(run: Run, drive: DriveDescription | None = None) -> RunSpec:
+    """The simulation's specification of a run (its drive loaded already, or loaded here)."""
+    drive = drive if drive is not None else load_drive(run.drive or None)
+    return RunSpec(drive=drive, method=run.method, recursion=run.recursion, conditions=run.conditions())

@@ -17,7 +17,7 @@ from scenarios.paths import ROOT
 from scenarios.simulate import simulate
 from scenarios.study import parse, run_study
 from scenarios.study.execute import KILL_ONCE_ENV
-from scenarios.study.plan import run_spec
+from scenarios.study.spec import run_spec
 from scenarios.study.table import read_runs, summary_of, trace_path
 
 from conftest import same
@@ -177,3 +177,37 @@ def test_study_on_a_separately_started_scheduler_and_workers(tmp_path):
             if proc is not None:
                 stop(proc)
         log.close()
+
+
+def test_runs_with_a_bad_map_fail_with_their_message_and_the_others_complete(tmp_path, default_map_path):
+    from scenarios.drive_description import DEFAULT_DRIVE
+
+    # a map no reader accepts (fails as the drive loads, on the client) ...
+    (tmp_path / "torn.csv").write_text("i_d,i_q,psi_d\n0,0,0\n")
+    (tmp_path / "torn.toml").write_text('name = "torn"\n[motor]\nflux_map = "torn.csv"\n')
+    # ... and one the Python reader takes but the FMUs refuse (psi_q falling with i_q: fails on the worker)
+    lines, header = [], False
+    for line in default_map_path.read_text().splitlines():
+        if not line.startswith("#") and header:
+            c = line.split(",")
+            line = ",".join([*c[:3], repr(-float(c[3]))])
+        header = header or not line.startswith("#")
+        lines.append(line)
+    (tmp_path / "falling.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "falling.toml").write_text('name = "falling"\n[motor]\nflux_map = "falling.csv"\n')
+    spec = write_spec(tmp_path / "s.toml", methods=("ferrari",), recursions=(2,), u_dc_scale=(1.0,),
+                      drives=(str(DEFAULT_DRIVE), "torn.toml", "falling.toml"))
+    r = subprocess.run(study_cli(spec, tmp_path / "out", "--workers", "2"), cwd=ROOT, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 1, r.stderr  # some runs failed
+    assert "3 runs executed (2 failed)" in r.stdout
+    rows = {os.path.basename(x["drive"]): x for x in read_runs(tmp_path / "out").to_pylist()}
+    assert len(rows) == 3
+    assert rows["default.toml"]["status"] == "ok" and rows["default.toml"]["drive_name"] == "default"
+    torn, falling = rows["torn.toml"], rows["falling.toml"]
+    assert torn["status"] == "failed" and "motor.flux_map" in torn["error"] and "torn.csv" in torn["error"]
+    assert falling["status"] == "failed" and "fmi2ExitInitializationMode" in falling["error"], falling["error"]
+    assert falling["worker"].startswith("tcp://127.0.0.1"), "the FMU's refusal happened on a worker"
+    assert falling["Wh_per_km"] is None and torn["Wh_per_km"] is None
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "## Failed runs" in report and "torn.csv" in report
