@@ -18,6 +18,11 @@ def variant_label(method: str, recursion: int) -> str:
                 f"{method}, recursion {recursion}")
 
 
+def _label(r: dict) -> str:
+    grid = f", {r['lut_n_torque']} x {r['lut_n_speed']} points" if r["lut_n_torque"] is not None else ""
+    return variant_label(r["method"], r["recursion"]) + grid
+
+
 def _copper_excess(r: dict) -> float:
     """The run's copper loss over the optimum's, less 1 (NaN without the optimum)."""
     opt = r["copper_loss_optimal_Wh"]
@@ -61,7 +66,7 @@ def write_report(out: Path, runs: pa.Table | None = None) -> Path:
                   "| current excess RMS (A) | time above V_max / voltage-limited | run wall (s) | key |",
                   "|---|---|---|---|---|---|---|---|---|"]
         for r in rs:
-            lines.append(f"| {variant_label(r['method'], r['recursion'])} | {r['Wh_per_km']:.2f} | "
+            lines.append(f"| {_label(r)} | {r['Wh_per_km']:.2f} | "
                          f"{r['speed_rmse_mps'] * 3.6:.2f} | "
                          f"{r['torque_rmse_Nm']:.3f} / {r['torque_error_max_Nm']:.2f} | {_copper_excess(r):+.2%} | "
                          f"{r['current_excess_rms_A']:.2f} | "
@@ -72,7 +77,7 @@ def write_report(out: Path, runs: pa.Table | None = None) -> Path:
         lines += ["## Failed runs", "", "| run | method | key | error |", "|---|---|---|---|"]
         for r in failed:
             err = (r["error"] or "").replace("|", "\\|").replace("\n", " ")
-            lines.append(f"| {_where(r)} | {variant_label(r['method'], r['recursion'])} | `{r['key']}` | {err} |")
+            lines.append(f"| {_where(r)} | {_label(r)} | `{r['key']}` | {err} |")
         lines.append("")
     if ok:
         plot_study(out, groups)
@@ -90,12 +95,12 @@ def plot_study(out: Path, groups: dict[str, list[dict]]) -> Path:
     import numpy as np
 
     names = list(groups)
-    variants = list(dict.fromkeys(variant_label(r["method"], r["recursion"]) for rs in groups.values() for r in rs))
+    variants = list(dict.fromkeys(_label(r) for rs in groups.values() for r in rs))
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.8 + 0.12 * len(names)))
     x = np.arange(len(names))
     wdt = 0.8 / len(variants)
     for j, v in enumerate(variants):
-        sel = [{variant_label(r["method"], r["recursion"]): r for r in groups[n]}.get(v) for n in names]
+        sel = [{_label(r): r for r in groups[n]}.get(v) for n in names]
         def col(f, sel=sel):
             return [f(r) if r else np.nan for r in sel]
         ax[0].barh(x + j * wdt, col(lambda r: r["torque_rmse_Nm"]), wdt, label=v)

@@ -13,6 +13,7 @@ singular: drive, cycle, method, ...), each missing key taking the default. `wind
     u_dc_scale = [1.0, 0.85]
     T_magnet_degC = [20.0, 120.0]
     T_winding_degC = [20.0]
+    lut_grids = [[41, 41], [21, 21]]    # an extension: the 2-D tables' points (torque, speed or V_max/w)
 
 A bad specification raises SpecError naming the file and the key.
 """
@@ -59,6 +60,12 @@ class Run:
     u_dc_scale: float = 1.0
     T_magnet_degC: float = T_DEFAULT_DEGC
     T_winding_degC: float = T_DEFAULT_DEGC
+    lut_n_torque: int | None = None  # the 2-D tables' grid points; None: the controller's default
+    lut_n_speed: int | None = None
+
+    @property
+    def lut_grid(self) -> tuple[int, int] | None:
+        return None if self.lut_n_torque is None else (self.lut_n_torque, self.lut_n_speed)
 
     @property
     def window(self) -> tuple[float, float] | None:
@@ -93,8 +100,12 @@ class Run:
 
 #: [study] key (a list) -> Run field; the [[run]] tables use the field names
 AXES = {"drives": "drive", "cycles": "cycle", "methods": "method", "recursions": "recursion",
-        "u_dc_scale": "u_dc_scale", "T_magnet_degC": "T_magnet_degC", "T_winding_degC": "T_winding_degC"}
+        "u_dc_scale": "u_dc_scale", "T_magnet_degC": "T_magnet_degC", "T_winding_degC": "T_winding_degC",
+        "lut_grids": "lut_grid"}
 RUN_KEYS = tuple(AXES.values()) + ("window_s",)
+
+#: the controller's bounds of lut_n_torque and lut_n_speed (its modelDescription)
+LUT_POINTS_MIN, LUT_POINTS_MAX = 3, 1001
 RUN_COLUMNS = tuple(f.name for f in fields(Run))
 
 
@@ -142,6 +153,14 @@ def _value(field: str, v, path: Path | None, key: str):
         if v not in METHODS:
             raise SpecError(f"{_where(path, key)}: expected one of {', '.join(METHODS)}, got {v!r}")
         return v
+    if field == "lut_grid":
+        if not isinstance(v, list) or len(v) != 2:
+            raise SpecError(f"{_where(path, key)}: expected a [torque points, speed points] pair, got {v!r}")
+        n = tuple(_number(x, path, key, integer=True) for x in v)
+        if not all(LUT_POINTS_MIN <= x <= LUT_POINTS_MAX for x in n):
+            raise SpecError(f"{_where(path, key)}: grid points must be in [{LUT_POINTS_MIN}, {LUT_POINTS_MAX}], "
+                            f"got {v}")
+        return n
     if field == "recursion":
         r = _number(v, path, key, integer=True)
         if r not in RECURSIONS:
@@ -179,6 +198,14 @@ def _check_cycles(runs: list[Run], path: Path | None, cycle_key: str, window_key
                                 f"inside {cycle} [{c.time_s[0]:g}, {c.time_s[-1]:g}] s")
 
 
+def _run(values: dict, window: tuple[float, float]) -> Run:
+    values = dict(values)
+    grid = values.pop("lut_grid", None)
+    values.setdefault("window_start_s", window[0])
+    values.setdefault("window_end_s", window[1])
+    return Run(**values, **({} if grid is None else dict(lut_n_torque=grid[0], lut_n_speed=grid[1])))
+
+
 def parse(data: dict, path: Path | None = None) -> StudySpec:
     """The runs of a parsed TOML document (`path`: where relative paths start, and error messages)."""
     unknown = set(data) - {"study", "run"}
@@ -213,19 +240,22 @@ def parse(data: dict, path: Path | None = None) -> StudySpec:
                     values[k] = _value(k, v, path, key)
             values.setdefault("window_start_s", window[0])
             values.setdefault("window_end_s", window[1])
-            runs.append(Run(**values))
+            runs.append(_run(values, window))
         _check_cycles(runs, path, "run[].cycle", "run[].window_s")
     else:
         lists = []
         for key, field in AXES.items():
-            v = study.get(key, [getattr(Run(), field)] if field != "drive" else [""])
-            v = v if isinstance(v, list) else [v]
+            if key not in study:
+                lists.append([getattr(Run(), field)])
+                continue
+            v = study[key]
+            # a scalar is a list of one; a grid is a pair, so lut_grids is always a list of pairs
+            v = v if isinstance(v, list) and (field != "lut_grid" or all(isinstance(x, list) for x in v)) else [v]
             if not v:
                 raise SpecError(f"{_where(path, 'study.' + key)}: empty list")
-            lists.append([x if (field == "drive" and x == "" and key not in study) else
-                          _value(field, x, path, f"study.{key}") for x in v])
+            lists.append([_value(field, x, path, f"study.{key}") for x in v])
         for combo in itertools.product(*lists):
-            runs.append(Run(**dict(zip(AXES.values(), combo)), window_start_s=window[0], window_end_s=window[1]))
+            runs.append(_run(dict(zip(AXES.values(), combo)), window))
         _check_cycles(runs, path, "study.cycles", "study.window_s")
     if len(set(runs)) != len(runs):
         dup = next(r for r in runs if runs.count(r) > 1)
@@ -248,4 +278,5 @@ def load_spec(path: str | Path) -> StudySpec:
 def run_spec(run: Run, drive: DriveDescription | None = None) -> RunSpec:
     """The simulation's specification of a run (its drive loaded already, or loaded here)."""
     drive = drive if drive is not None else load_drive(run.drive or None)
-    return RunSpec(drive=drive, method=run.method, recursion=run.recursion, conditions=run.conditions())
+    return RunSpec(drive=drive, method=run.method, recursion=run.recursion, conditions=run.conditions(),
+                   lut_grid=run.lut_grid)

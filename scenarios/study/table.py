@@ -28,7 +28,8 @@ RUNS_FILE = "runs.parquet"
 PARTS_DIR = "parts"
 TRACES_DIR = "traces"
 
-_ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), "float | None": pa.float64()}
+_ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), "float | None": pa.float64(),
+          "int | None": pa.int64()}
 
 
 def _arrow_type(t) -> pa.DataType:

@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -61,14 +62,18 @@ def assert_rows_equal_direct_runs(out, runs, keys, scratch):
 
 
 def test_small_study_equals_direct_runs(tmp_path):
-    runs = study_runs()
+    coarse = replace(study_runs()[2], lut_n_torque=11, lut_n_speed=11)  # lut_speed on 11 x 11 tables
+    runs = (*study_runs(), coarse)
     res = run_study(runs, tmp_path / "out", workers=2, progress=False)
-    assert (res.executed, res.skipped, res.failed) == (4, 0, 0)
+    assert (res.executed, res.skipped, res.failed) == (5, 0, 0)
     rows = assert_rows_equal_direct_runs(tmp_path / "out", runs, res.keys, tmp_path / "direct")
     assert len({r["worker"] for r in rows.values()}) == 2, "both workers ran"
+    # the grid reached the controller: coarser tables, another torque error
+    assert study_runs()[2].method == "lut_speed"
+    assert rows[res.keys[4]]["torque_rmse_Nm"] != rows[res.keys[2]]["torque_rmse_Nm"]
     # the same runs again execute nothing
     again = run_study(runs, tmp_path / "out", workers=2, progress=False)
-    assert (again.executed, again.skipped) == (0, 4)
+    assert (again.executed, again.skipped) == (0, 5)
 
 
 def test_worker_killed_mid_run_is_retried(tmp_path, monkeypatch):

@@ -37,6 +37,13 @@ T_magnet_degC = [20, 120.0]
     assert [r.T_magnet_degC for r in spec.runs[:2]] == [20.0, 120.0]
 
 
+def test_table_grids_axis(tmp_path):
+    spec = load_spec(write(tmp_path, '[study]\nmethods = "lut_flux"\nlut_grids = [[41, 41], [11, 21]]\n'))
+    assert [r.lut_grid for r in spec.runs] == [(41, 41), (11, 21)]
+    assert load_spec(write(tmp_path, '[study]\nlut_grids = [11, 21]\n')).runs[0].lut_grid == (11, 21)
+    assert load_spec(write(tmp_path, '[[run]]\nlut_grid = [5, 7]\n[[run]]\n')).runs[1].lut_grid is None
+
+
 def test_conditions_are_named_as_the_compare_study_names_them(tmp_path):
     spec = load_spec(write(tmp_path, """
 [[run]]
@@ -68,6 +75,9 @@ def test_csv_cycle_relative_to_the_spec(tmp_path):
     ('[study]\nu_dc_scale = []\n', "study.u_dc_scale"),
     ('[study]\nT_magnet_degC = [-300.0]\n', "study.T_magnet_degC"),
     ('[study]\nwindow_s = [5.0]\n', "study.window_s"),
+    ('[study]\nlut_grids = [[41, 2]]\n', "study.lut_grids"),
+    ('[study]\nlut_grids = [[41, 41, 41]]\n', "study.lut_grids"),
+    ('[[run]]\nlut_grid = 41\n', "run[0].lut_grid"),
     ('[study]\nwindow_s = [5.0, 99999.0]\n', "study.window_s"),
     ('[study]\ncycles = ["nowhere.csv"]\n', "study.cycles"),
     ('[study]\ndrives = ["missing.toml"]\n', "study.drives"),
