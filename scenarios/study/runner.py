@@ -83,6 +83,10 @@ def _check_workers(client, code: str) -> None:
                          "install the same version on the workers")
 
 
+def _same(x):
+    return x
+
+
 def run_study(runs: Sequence[Run], out: Path, scheduler: str | None = None, workers: int | None = None,
               build: Path = BUILD_DIR, progress: bool = True) -> StudyResult:
     """Run what is not done yet of `runs`; rows go to out/runs.parquet as they finish."""
@@ -106,8 +110,10 @@ def run_study(runs: Sequence[Run], out: Path, scheduler: str | None = None, work
         if plan.tasks:
             with open_client(scheduler, workers, len(plan.tasks)) as client:
                 _check_workers(client, code)
-                shipped = client.scatter(bundle, broadcast=True)
-                drives = {d: client.scatter(s) for d, s in plan.drives.items()}
+                # as tasks, not scattered data: a task's result lost with its worker is made again
+                shipped = client.submit(_same, bundle, key=f"fmus-{bundle.hash}", pure=False)
+                drives = {d: client.submit(_same, s, key=f"drive-{s.content_hash()[:16]}", pure=False)
+                          for d, s in plan.drives.items()}
                 threads = max(1, sum(client.nthreads().values()))
                 pending = list(reversed(plan.tasks))
                 running = as_completed()

@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pyarrow.parquet as pq
+import pytest
 
 from scenarios.cycles import load_cycle, segment
 from scenarios.paths import ROOT
@@ -76,11 +77,12 @@ def test_small_study_equals_direct_runs(tmp_path):
     assert (again.executed, again.skipped) == (0, 5)
 
 
-def test_worker_killed_mid_run_is_retried(tmp_path, monkeypatch):
+@pytest.mark.parametrize("workers", [1, 2])  # 1: the nanny's restarted worker gets the run (and the FMUs again)
+def test_worker_killed_mid_run_is_retried(tmp_path, monkeypatch, workers):
     marker = tmp_path / "killed"
     monkeypatch.setenv(KILL_ONCE_ENV, str(marker))  # the workers of the LocalCluster inherit it
     runs = study_runs()
-    res = run_study(runs, tmp_path / "out", workers=2, progress=False)
+    res = run_study(runs, tmp_path / "out", workers=workers, progress=False)
     assert marker.exists(), "no worker was killed: the test did not test anything"
     rows = rows_by_key(tmp_path / "out")
     assert set(rows) == set(res.keys) and len(rows) == 4
