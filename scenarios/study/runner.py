@@ -70,7 +70,7 @@ def open_client(scheduler: str | None, workers: int | None, n_runs: int):
     n = min(workers or default_workers(), max(n_runs, 1))
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_WORKER_DEATHS}), \
             LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                         dashboard_address=None) as cluster, Client(cluster) as client:
+                         dashboard_address="127.0.0.1:0") as cluster, Client(cluster) as client:
         yield client
 
 

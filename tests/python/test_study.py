@@ -75,6 +75,15 @@ def test_small_study_equals_direct_runs(tmp_path):
     # the same runs again execute nothing
     again = run_study(runs, tmp_path / "out", workers=2, progress=False)
     assert (again.executed, again.skipped) == (0, 5)
+    # the report from runs.parquet alone
+    import shutil
+
+    from scenarios.__main__ import main
+    shutil.rmtree(tmp_path / "out" / "traces")
+    assert main(["study", "--report-only", str(tmp_path / "out")]) == 0
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert all(f"`{k}`" in report for k in res.keys) and "11 x 11 points" in report
+    assert (tmp_path / "out" / "study.png").exists()
 
 
 @pytest.mark.parametrize("workers", [1, 2])  # 1: the nanny's restarted worker gets the run (and the FMUs again)

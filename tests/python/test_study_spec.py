@@ -103,3 +103,15 @@ def test_cli_exit_2_on_a_bad_spec(tmp_path):
     r = subprocess.run([sys.executable, "-m", "scenarios", "study", str(tmp_path / "none.toml")],
                        cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "file not found" in r.stderr
+
+
+def test_progress_line():
+    import io
+
+    from scenarios.study.progress import StudyProgress
+    buf = io.StringIO()
+    p = StudyProgress(total=10, skipped=4, stream=buf, every_s=0.0)
+    p.update(done=2, failed=1, running=2)
+    line = buf.getvalue().strip()
+    assert line.startswith("study: 7/10 done (4 before, 1 failed), 2 running,") and line.endswith("left")
+    assert "?" not in line  # time left known after the first finished run
