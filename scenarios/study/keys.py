@@ -3,8 +3,10 @@ what they name (the drive description's files, the cycle's samples after the win
 build (the content hash of the three .fmu) and the Python model's source. A study skips a run
 whose key is already "ok" in runs.parquet; any change of these gives new keys, so new runs.
 
-The key does not cover the output-only modules (reports, plots, progress) nor the study
-machinery itself: changing those does not invalidate results.
+The key does not cover the output-only modules (reports, plots, progress, the command line) nor
+the study machinery itself: changing those does not invalidate results; nor the native master's
+library (shipped with the FMUs), whose results are bit-identical to the fmpy master's
+(tests/python/test_master.py).
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ KEY_VERSION = 1
 FMU_NAMES = ("IpmsmController.fmu", "IpmsmPlant.fmu", "IpmsmDrive.fmu")
 
 #: scenarios/ modules that do not change a run's numbers (presentation, the command line)
-OUTPUT_ONLY = frozenset({"__main__.py", "__init__.py", "compare.py", "plots.py", "progress.py", "sweep.py"})
+OUTPUT_ONLY = frozenset({"__main__.py", "__init__.py", "check.py", "compare.py", "plots.py", "progress.py", "sweep.py"})
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
