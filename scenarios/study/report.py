@@ -10,6 +10,9 @@ import pyarrow as pa
 
 from . import table
 
+#: groups (drive, cycle, condition) drawn in study.png at most: a picture, not the table
+PLOT_GROUPS_MAX = 60
+
 
 def variant_label(method: str, recursion: int) -> str:
     """The compare study's name of a variant (method, recursion), else one made of them."""
@@ -94,7 +97,7 @@ def plot_study(out: Path, groups: dict[str, list[dict]]) -> Path:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    names = list(groups)
+    names = list(groups)[:PLOT_GROUPS_MAX]
     variants = list(dict.fromkeys(_label(r) for rs in groups.values() for r in rs))
     fig, ax = plt.subplots(1, 3, figsize=(16, 4.8 + 0.12 * len(names)))
     x = np.arange(len(names))
@@ -112,6 +115,8 @@ def plot_study(out: Path, groups: dict[str, list[dict]]) -> Path:
         a.set_title(t)
         a.grid(alpha=0.3, axis="x")
     ax[0].legend(fontsize=7)
+    if len(groups) > len(names):
+        fig.suptitle(f"the first {len(names)} of {len(groups)} groups (all in report.md and runs.parquet)", fontsize=9)
     fig.tight_layout()
     path = out / "study.png"
     fig.savefig(path, dpi=90)
