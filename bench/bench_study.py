@@ -153,15 +153,18 @@ def memory(a) -> None:
     wall = study_wall(runs, a.workers)
     stop.set()
     th.join()
-    n = len(samples)
-    first, mid, last = samples[min(5, n - 1)], samples[n // 2], samples[-1]
     print(f"memory: {len(runs)} runs of 2 s on {a.workers} workers in {wall:.0f} s "
-          f"({wall / len(runs) * 1e3:.0f} ms a run)")
-    print(f"  client+scheduler RSS: {first[1]:.0f} MB at {first[0] - t0:.0f} s, "
-          f"{mid[1]:.0f} MB at {mid[0] - t0:.0f} s, "
-          f"{last[1]:.0f} MB at {last[0] - t0:.0f} s, max {max(s[1] for s in samples):.0f} MB")
-    print(f"  workers' RSS (all):   {first[2]:.0f} MB, {mid[2]:.0f} MB, {last[2]:.0f} MB, "
-          f"max {max(s[2] for s in samples):.0f} MB")
+          f"({wall / len(runs) * 1e3:.0f} ms a run); resident memory (MB) over the study:")
+    print("  time (s)              " + " ".join(f"{s[0] - t0:6.0f}" for s in _spread(samples)))
+    print("  client + scheduler    " + " ".join(f"{s[1]:6.0f}" for s in _spread(samples)))
+    print("  workers (all)         " + " ".join(f"{s[2]:6.0f}" for s in _spread(samples)))
+    print("  (the last column: after the cluster closed and runs.parquet was consolidated)")
+
+
+def _spread(samples: list, n: int = 9) -> list:
+    """n samples evenly over the list, its first (after start-up) and last included."""
+    idx = sorted({min(len(samples) - 1, round(i * (len(samples) - 1) / (n - 1))) for i in range(n)})
+    return [samples[i] for i in idx]
 
 
 def main(argv=None) -> int:
