@@ -238,8 +238,6 @@ def parse(data: dict, path: Path | None = None) -> StudySpec:
                     values["window_start_s"], values["window_end_s"] = _window(v, path, key)
                 else:
                     values[k] = _value(k, v, path, key)
-            values.setdefault("window_start_s", window[0])
-            values.setdefault("window_end_s", window[1])
             runs.append(_run(values, window))
         _check_cycles(runs, path, "run[].cycle", "run[].window_s")
     else:
