@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from . import map_cli
 from .constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from .paths import BUILD_DIR, ROOT
 
@@ -50,6 +51,7 @@ def main(argv=None) -> int:
     cmp_.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
     from . import check
     check.add_parser(sub)
+    map_cli.add_parser(sub)
     from .study import cli as study_cli
     study_cli.add_parser(sub)
     args = ap.parse_args(argv)
@@ -95,6 +97,8 @@ def _dispatch(args) -> int:
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers,
                   scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
+    elif args.cmd == "map":
+        return map_cli.main(args)
     elif args.cmd == "study":
         from .study import cli as study_cli
         return study_cli.main(args)

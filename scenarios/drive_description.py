@@ -2,7 +2,7 @@
 inverter, battery, vehicle, controller settings and CI checks (../shared/spec/INTERFACE.md,
 "Drive description (TOML)"; every key, unit, default and source: docs/drives.md).
 
-    >>> d = load_drive("scenarios/drives/compact_suv.toml")   # None: scenarios/drives/default.toml
+    >>> d = load_drive("scenarios/drives/city_ev.toml")   # None: scenarios/drives/default.toml
     >>> d.motor.pole_pairs, d.vehicle.mass, d.battery.n_series
 
 The schema is written once, in SCHEMA: a key's section, name, kind, unit, the rule its value
@@ -156,8 +156,9 @@ SCHEMA: tuple[Key, ...] = (
         _meta("k_psi_T_per_K")),
     Key("motor", "J", POSITIVE, "kg m^2", "rotor inertia (and what turns at motor speed)",
         _dc(VehicleParams, "J_motor")),
-    Key("motor", "w_m_max", POSITIVE, "rad/s", "top speed: the end of the 2-D tables' speed axis",
-        _meta("w_m_max_rad_s"), acts="method lut_speed, above w_m_max"),
+    Key("motor", "w_m_max", POSITIVE, "rad/s", "top speed: the end of the 2-D tables' speed axis (and of "
+        "`sweep`'s speeds)", "the controller FMU's default (its modelDescription start, 12 000 r/min)",
+        acts="method lut_speed"),
     Key("motor", "fe_k_h", NON_NEGATIVE, "W/Hz", "iron loss: hysteresis coefficient at fe_psi_ref",
         _meta("fe_k_h_W_per_Hz")),
     Key("motor", "fe_alpha", Rule("real", lo=1.0, hi=3.0), "1", "iron loss: Steinmetz exponent",
@@ -262,7 +263,7 @@ class MotorSpec:
     alpha_cu: float
     k_psi_T: float
     J: float
-    w_m_max: float
+    w_m_max: float | None   # None: the controller FMU's default
     fe_k_h: float
     fe_alpha: float
     fe_k_e: float
@@ -305,6 +306,20 @@ class DriveDescription:
     controller: ControllerSpec
     checks: ChecksSpec
 
+    def value(self, path: str):
+        """The value of a schema key ("vehicle.mass", "name", ...) in this description."""
+        section, _, name = path.rpartition(".")
+        if not section:
+            return getattr(self, name)
+        if path == "vehicle.P_aux":
+            return self.P_aux
+        if path == "battery.ocv":
+            return str(self.battery.ocv_csv) if self.battery.ocv_fit == "csv" else self.battery.ocv_fit
+        if section == "checks":
+            return list(self.checks.cycles) if name == "cycles" else self.checks.limits.get(name)
+        return getattr({"motor": self.motor, "inverter": self.inverter, "battery": self.battery,
+                        "vehicle": self.vehicle, "controller": self.controller}[section], name)
+
     def motor_data(self) -> MotorData:
         """The reference optimum's motor figures (scenarios.simulate.OptimumReference)."""
         m = self.motor
@@ -319,9 +334,12 @@ class DriveDescription:
             raise ValueError(f"method {method!r}: one of {', '.join(METHODS)}")
         p = dict(method=METHODS[method], recursion=c.recursion if recursion is None else recursion,
                  flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, I_max=m.I_max, k_u=c.k_u,
-                 T_magnet_ref=m.T_magnet_ref, k_psi_T=m.k_psi_T, w_m_max=m.w_m_max,
+                 T_magnet_ref=m.T_magnet_ref, k_psi_T=m.k_psi_T,
                  lut_u_dc=c.lut_u_dc if lut_u_dc is None else lut_u_dc,
                  lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet)
+        # the keys without a value of their own leave the FMU's default (its modelDescription start)
+        if m.w_m_max is not None:
+            p["w_m_max"] = m.w_m_max
         if c.current_bandwidth is not None:
             p["current_bandwidth"] = c.current_bandwidth
         return p
@@ -338,7 +356,7 @@ class DriveDescription:
 #: motor key -> the flux map's metadata key that gives its default
 MOTOR_METADATA = {"pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_A", "T_magnet_ref": "T_magnet_ref_K",
                   "T_winding_ref": "T_winding_ref_K", "alpha_cu": "alpha_cu_per_K", "k_psi_T": "k_psi_T_per_K",
-                  "w_m_max": "w_m_max_rad_s", "fe_k_h": "fe_k_h_W_per_Hz", "fe_alpha": "fe_alpha",
+                  "fe_k_h": "fe_k_h_W_per_Hz", "fe_alpha": "fe_alpha",
                   "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb"}
 CONTROLLER_METADATA = {"k_u": "k_u", "lut_u_dc": "u_dc_V"}
 
@@ -466,6 +484,7 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
     motor_values["pole_pairs"] = int(motor_values["pole_pairs"])
     vp_default = VehicleParams()
     motor = MotorSpec(flux_map=map_path, J=float(given.get("J", vp_default.J_motor)),
+                      w_m_max=float(given["w_m_max"]) if "w_m_max" in given else None,
                       **{k: (v if k == "pole_pairs" else float(v)) for k, v in motor_values.items()})
     for key in MOTOR_METADATA:   # metadata values obey the same rules as the file's
         bad = _BY_PATH[f"motor.{key}"].rule.check(getattr(motor, key))
@@ -514,10 +533,14 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
 
 
 def schema_markdown() -> str:
-    """The schema as a Markdown table (docs/drives.md holds it; a test keeps the two equal)."""
-    rows = ["| key | unit | allowed | default | meaning |", "|---|---|---|---|---|"]
+    """The schema as a Markdown table with the default EV's values (docs/drives.md holds it; a
+    test keeps the two equal)."""
+    d = load_drive()
+    rows = ["| key | unit | allowed | default: from | default EV | meaning |", "|---|---|---|---|---|---|"]
     for k in SCHEMA:
-        rows.append(f"| `{k.path}` | {k.unit} | {k.rule.describe()} | {k.default} | {k.meaning} |")
+        v = d.value(k.path) if k.path != "motor.flux_map" else DEFAULT_MAP.relative_to(ROOT).as_posix()
+        v = "—" if v is None or v == [] else (f"{v:.6g}" if isinstance(v, float) else str(v))
+        rows.append(f"| `{k.path}` | {k.unit} | {k.rule.describe()} | {k.default} | {v} | {k.meaning} |")
     return "\n".join(rows)
 
 

@@ -37,7 +37,7 @@ class SweepSpec:
     """What to sweep: the drive's motor and controller settings (a drive description) at u_dc
     (None: the drive's controller.lut_u_dc), torques 0..T_overload (None: OVERLOAD times the
     reach at standstill, rounded up to 10 N m), speeds in r/min (None: SPEEDS_RPM up to the
-    drive's top speed motor.w_m_max)."""
+    drive's top speed: motor.w_m_max, or the controller FMU's default)."""
 
     drive: DriveDescription = field(default_factory=load_drive)
     speeds_rpm: tuple | None = None
@@ -50,14 +50,23 @@ class SweepSpec:
     step: float = 1e-4           # s
 
     def speeds(self) -> tuple:
-        if self.speeds_rpm is not None:
-            return tuple(self.speeds_rpm)
-        top = self.drive.motor.w_m_max / RPM
-        return (*(n for n in SPEEDS_RPM if n < top - 1.0), int(round(top)))
+        """The speeds (r/min); run_sweep fills speeds_rpm in before it starts."""
+        if self.speeds_rpm is None:
+            raise ValueError("speeds_rpm not set: run_sweep sets it from the drive's top speed")
+        return tuple(self.speeds_rpm)
 
     def to_dict(self) -> dict:
         d = {k: v for k, v in asdict(self).items() if k != "drive"}
         return dict(d, drive=self.drive.name, speeds_rpm=list(self.speeds()))
+
+
+def top_speed(controller_fmu: Path, drive: DriveDescription) -> float:
+    """The drive's motor.w_m_max, else the controller FMU's default (rad/s)."""
+    if drive.motor.w_m_max is not None:
+        return drive.motor.w_m_max
+    from fmpy import read_model_description
+    md = read_model_description(str(controller_fmu))
+    return float(next(v.start for v in md.modelVariables if v.name == "w_m_max"))
 
 
 def reach_at_standstill(controller_fmu: Path, spec: SweepSpec, u_dc: float) -> float:
@@ -88,6 +97,9 @@ class SweepSummary:
 def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec | None = None) -> SweepSummary:
     spec = spec if spec is not None else SweepSpec()
     spec = replace(spec, u_dc=spec.drive.controller.lut_u_dc if spec.u_dc is None else spec.u_dc)
+    if spec.speeds_rpm is None:
+        top = top_speed(controller_fmu, spec.drive) / RPM
+        spec = replace(spec, speeds_rpm=(*(n for n in SPEEDS_RPM if n < top - 1.0), int(round(top))))
     if spec.T_overload is None:
         spec = replace(spec, T_overload=10.0 * math.ceil(
             OVERLOAD * reach_at_standstill(controller_fmu, spec, spec.u_dc) / 10.0))

@@ -1,0 +1,1 @@
+"""The example drive descriptions (default.toml: what no --drive means) and their data."""

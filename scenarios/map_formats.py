@@ -1,0 +1,158 @@
+"""What the FEM tools' flux-map files hold, read as they are: the field names, units and grid
+layouts of each format, and nothing of the conversion to the contract (that is map_grid.py).
+
+SyR-e (https://github.com/SyR-e/syre_public, Apache-2.0):
+  `fdfq_idiq_n256.mat` holds top-level `Id`, `Iq`, `Fd`, `Fq` (and `T`, `dT`, ...), written by
+  syreManipulateMM / plot_singm.m after `[Id,Iq] = meshgrid(i_d, i_q)`: MATLAB meshgrid layout,
+  i_d along the columns (axis 1), i_q along the rows (axis 0); peak A and Vs. The motor-model
+  file (e.g. THOR.mat) holds the same four fields in `motorModel.FluxMap_dq`, which is what
+  motulator's `import_syre_data` reads (motulator/drive/utils/_flux_maps.py). SyR-e draws
+  synchronous-reluctance machines in its "SR" axis convention: PM flux on -q, and usually only
+  i_d >= 0 (a half map); its "PM" convention (IPMs) has the PM on +d.
+Motor-CAD (Ansys), the Lab "Saturation and Loss Map" export (.mat):
+  `Id_Peak`, `Iq_Peak` (A, 2-D, the grid points), `Flux_Linkage_D`, `Flux_Linkage_Q` (Vs,
+  averaged over rotor position; `Angular_Flux_Linkage_D/Q` hold them per position along a
+  third axis), computed over `Stator_Current_Phase_Peak` x `Phase_Advance` (the default, a
+  magnitude x angle grid; MathWorks' getFemPmsmParams.m reads it so) or over d/q currents
+  (`Id_Peak[i, j]`: i_d along axis 0, as pymotorcad's ECE example reads it). Lab exports
+  also name RMS currents `Id_RMS`, `Iq_RMS`, `Stator_Current_Phase_RMS`. Optional:
+  `Phase_Resistance_DC_at_20C` (Ohm), `Frequency` (Hz) and `Speed` (r/min) give R_s and the
+  pole pairs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .map_error import MapImportError
+
+SQRT2 = math.sqrt(2.0)  # peak / RMS of a sinusoid
+T_20C_K = 293.15        # Motor-CAD's Phase_Resistance_DC_at_20C holds at 20 degC
+
+
+@dataclass
+class RawMap:
+    """The flux-map samples as a format stores them, in the file's own dq frame, currents
+    converted to peak A: i_d, i_q (2-D, or 1-D axes), psi_d, psi_q (2-D, Wb)."""
+
+    source_format: str
+    i_d: np.ndarray
+    i_q: np.ndarray
+    psi_d: np.ndarray
+    psi_q: np.ndarray
+    keys: tuple            # the file's names of (i_d, i_q, psi_d, psi_q), for messages
+    square_axis0: str      # with 1-D axes and a square flux array: which current runs along axis 0
+    notes: list = field(default_factory=list)
+    metadata: dict = field(default_factory=dict)
+
+
+def load_mat(path: Path) -> dict:
+    """The variables of a MATLAB .mat file (v4 to v7; v7.3 is HDF5, which scipy.io does not read)."""
+    from scipy.io import loadmat
+    try:
+        return loadmat(str(path), squeeze_me=False, struct_as_record=True)
+    except NotImplementedError as e:  # scipy: "Please use HDF reader for matlab v7.3 files"
+        raise MapImportError(path, "file", "a MATLAB .mat file of version 7 or older (save with '-v7')",
+                             "a v7.3 (HDF5) file") from e
+    except Exception as e:  # loadmat raises ValueError, TypeError, OSError... on a file that is not a .mat
+        raise MapImportError(path, "file", "a MATLAB .mat file", f"unreadable ({type(e).__name__}: {e})") from e
+
+
+def _array(path: Path, mat: dict, key: str, label: str) -> np.ndarray:
+    if key not in mat:
+        raise MapImportError(path, key, f"the variable {key} ({label})", "no such variable")
+    try:
+        a = np.asarray(mat[key], dtype=float)
+    except (TypeError, ValueError) as e:
+        raise MapImportError(path, key, f"a numeric array ({label})", f"{type(mat[key]).__name__}") from e
+    return a
+
+
+def is_syre(mat: dict) -> bool:
+    return {"Id", "Iq", "Fd", "Fq"} <= mat.keys() or "motorModel" in mat
+
+
+def is_motorcad(mat: dict) -> bool:
+    return any(k in mat for k in ("Flux_Linkage_D", "Angular_Flux_Linkage_D", "Id_Peak", "Id_RMS"))
+
+
+def _struct_field(path: Path, s, name: str, where: str):
+    """Field `name` of a loadmat struct (a 1x1 record array)."""
+    try:
+        return s[name][0, 0]
+    except (ValueError, IndexError, KeyError, TypeError) as e:
+        raise MapImportError(path, f"{where}.{name}", f"a struct field {where}.{name}", "none") from e
+
+
+def read_syre(path: Path, mat: dict) -> RawMap:
+    if {"Id", "Iq", "Fd", "Fq"} <= mat.keys():
+        src, prefix = mat, ""
+    else:
+        fm = _struct_field(path, mat["motorModel"], "FluxMap_dq", "motorModel")
+        src = {k: _struct_field(path, fm, k, "motorModel.FluxMap_dq") for k in ("Id", "Iq", "Fd", "Fq")}
+        prefix = "motorModel.FluxMap_dq."
+    keys = tuple(prefix + k for k in ("Id", "Iq", "Fd", "Fq"))
+    i_d, i_q, psi_d, psi_q = (_array(path, src, k, lab) for k, lab in
+                              zip(("Id", "Iq", "Fd", "Fq"), ("d current, A peak", "q current, A peak",
+                                                             "d flux linkage, Vs", "q flux linkage, Vs")))
+    return RawMap("SyR-e", i_d, i_q, psi_d, psi_q, keys, square_axis0="i_q",
+                  notes=[f"SyR-e {prefix or 'fdfq_idiq'} fields Id, Iq, Fd, Fq (peak A, Vs)"])
+
+
+def read_motorcad(path: Path, mat: dict) -> RawMap:
+    notes = []
+    if "Id_Peak" in mat or "Iq_Peak" in mat:
+        kd, kq, scale = "Id_Peak", "Iq_Peak", 1.0
+    elif "Id_RMS" in mat or "Iq_RMS" in mat:
+        kd, kq, scale = "Id_RMS", "Iq_RMS", SQRT2
+        notes.append("currents Id_RMS, Iq_RMS converted to peak (x sqrt 2)")
+    else:
+        raise MapImportError(path, "Id_Peak", "the variables Id_Peak and Iq_Peak (or Id_RMS and Iq_RMS)",
+                             "neither")
+    i_d = scale * _array(path, mat, kd, "d current")
+    i_q = scale * _array(path, mat, kq, "q current")
+    fluxes = []
+    for axis in "DQ":
+        key = f"Flux_Linkage_{axis}"
+        if key in mat:
+            fluxes.append((key, _array(path, mat, key, f"{axis.lower()} flux linkage, Vs")))
+            continue
+        angular = f"Angular_{key}"
+        if angular not in mat:
+            raise MapImportError(path, key, f"the variable {key} (or {angular})", "neither")
+        a = _array(path, mat, angular, f"{axis.lower()} flux linkage over rotor position, Vs")
+        if a.ndim != 3:
+            raise MapImportError(path, angular, "a 3-D array (current grid x rotor position)", f"shape {a.shape}")
+        fluxes.append((key, a.mean(axis=2)))
+        notes.append(f"{key} = the mean of {angular} over its {a.shape[2]} rotor positions")
+    notes.insert(0, f"Motor-CAD fields {kd}, {kq}, Flux_Linkage_D, Flux_Linkage_Q")
+    raw = RawMap("Motor-CAD", i_d, i_q, fluxes[0][1], fluxes[1][1], (kd, kq, fluxes[0][0], fluxes[1][0]),
+                 square_axis0="i_d", notes=notes)
+    raw.metadata.update(_motorcad_metadata(mat))
+    return raw
+
+
+def _scalar(mat: dict, key: str) -> float | None:
+    try:
+        v = np.asarray(mat[key], dtype=float).ravel()
+    except (KeyError, TypeError, ValueError):
+        return None
+    return float(v[0]) if v.size and np.isfinite(v[0]) else None
+
+
+def _motorcad_metadata(mat: dict) -> dict:
+    """The contract's '# key: value' metadata a Lab export gives: pole pairs from f = p n / 60, R_s."""
+    md = {}
+    f, n = _scalar(mat, "Frequency"), _scalar(mat, "Speed")
+    if f and n:
+        p = f * 60.0 / n
+        if abs(p - round(p)) < 1e-6 and round(p) >= 1:
+            md["pole_pairs"] = int(round(p))
+    r = _scalar(mat, "Phase_Resistance_DC_at_20C")
+    if r and r > 0:
+        md["R_s_ohm"] = r
+        md["T_winding_ref_K"] = T_20C_K
+    return md

@@ -1,0 +1,194 @@
+"""Flux maps from FEM tools into the contract's CSV (../shared/spec/INTERFACE.md):
+
+    import_map(path) -> ImportedMap     # read and convert, stating each conversion in .notes
+    contract_csv(path) -> Path          # a CSV the FMUs read: the file itself, or its cached import
+    write_contract_csv(imported, out)   # write it (temp file + rename: nothing half-written)
+
+Formats (map_formats.py has their field names and sources): the contract CSV, SyR-e's
+`fdfq_idiq_n*.mat` and motor-model `.mat`, Motor-CAD's Lab saturation-map `.mat` export.
+Conversions (map_grid.py): RMS to peak, dq frame turned to put the PM on +d, meshgrid or
+ndgrid layout, phase-advance grids resampled, half maps mirrored. Bad files raise
+MapImportError naming the file, the field and what was expected.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import map_formats, map_grid
+from .flux_map import FluxMap, read_flux_map, write_flux_map
+from .map_error import MapImportError
+
+__all__ = ["ImportedMap", "MapImportError", "contract_csv", "import_map", "write_contract_csv", "cache_dir"]
+
+#: bump when a conversion changes, so that cached imports are made again
+IMPORTER_VERSION = 2
+
+
+@dataclass
+class ImportedMap:
+    """A flux map in the contract's terms: ascending axes i_d, i_q (A peak), psi_d, psi_q of shape
+    (len(i_d), len(i_q)) (Wb peak), amplitude-invariant dq, PM flux on +d."""
+
+    i_d: np.ndarray
+    i_q: np.ndarray
+    psi_d: np.ndarray
+    psi_q: np.ndarray
+    source_format: str                          # "contract CSV", "SyR-e", "Motor-CAD"
+    notes: list = field(default_factory=list)   # what was converted, in words
+    metadata: dict = field(default_factory=dict)  # '# key: value' lines (pole_pairs, R_s_ohm, ...)
+    source: Path | None = None
+    warnings: list = field(default_factory=list)  # what the map lacks, in words (nothing was changed)
+
+    def flux_map(self) -> FluxMap:
+        return FluxMap(self.i_d, self.i_q, self.psi_d, self.psi_q, dict(self.metadata))
+
+
+def import_map(path: str | Path) -> ImportedMap:
+    """Read a flux map from a contract CSV or a FEM tool's .mat and convert it to the contract."""
+    path = Path(path)
+    try:
+        return _import(path)
+    except MapImportError as e:
+        if e.file is None:
+            e.file = path
+        raise
+
+
+def _import(path: Path) -> ImportedMap:
+    if not path.is_file():
+        raise MapImportError(path, "file", "an existing file", "no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return _import_csv(path)
+    if suffix != ".mat":
+        raise MapImportError(path, "file", "a flux map: a contract .csv or a SyR-e / Motor-CAD .mat",
+                             f"a '{path.suffix}' file")
+    mat = map_formats.load_mat(path)
+    if map_formats.is_motorcad(mat):
+        raw = map_formats.read_motorcad(path, mat)
+    elif map_formats.is_syre(mat):
+        raw = map_formats.read_syre(path, mat)
+    else:
+        names = ", ".join(sorted(k for k in mat if not k.startswith("__"))[:12]) or "none"
+        raise MapImportError(path, "variables", "SyR-e's Id, Iq, Fd, Fq (or motorModel.FluxMap_dq) or Motor-CAD's "
+                             "Id_Peak, Iq_Peak, Flux_Linkage_D, Flux_Linkage_Q", names)
+    return _to_contract(raw, path)
+
+
+def _import_csv(path: Path) -> ImportedMap:
+    _check_csv_numbers(path)
+    try:
+        fmap = read_flux_map(path)
+    except (ValueError, IndexError) as e:  # read_flux_map's message names the line's problem
+        raise MapImportError(path, "rows", "the contract's CSV: header i_d,i_q,psi_d,psi_q, then numbers "
+                             "forming a full rectangular grid", str(e).replace(f"{path}: ", "")) from e
+    I_d, I_q = np.meshgrid(fmap.i_d, fmap.i_q, indexing="ij")
+    raw = map_formats.RawMap("contract CSV", I_d, I_q, fmap.psi_d, fmap.psi_q,
+                             ("i_d", "i_q", "psi_d", "psi_q"), square_axis0="i_d", metadata=dict(fmap.metadata))
+    return _to_contract(raw, path)
+
+
+CSV_COLUMNS = ("i_d", "i_q", "psi_d", "psi_q")
+
+
+def _check_csv_numbers(path: Path) -> None:
+    """NaN or Inf in a contract CSV, named by column and line (read_flux_map would only see a hole)."""
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as e:
+        raise MapImportError(path, "file", "a text file (the contract CSV)", f"unreadable ({e})") from e
+    data = [(n, s) for n, s in enumerate(lines, 1) if s.strip() and not s.strip().startswith("#")][1:]
+    for n, s in data:
+        for col, x in zip(CSV_COLUMNS, s.split(",")):
+            try:
+                v = float(x)
+            except ValueError:
+                continue  # read_flux_map names the malformed row
+            if not np.isfinite(v):
+                raise MapImportError(path, col, "finite numbers", f"{x.strip()} on line {n}")
+
+
+def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
+    notes = list(raw.notes)
+    i_d, i_q, psi_d, psi_q, more = map_grid.as_2d(raw)
+    notes += more
+    warnings = []
+    i_d, i_q, psi_d, psi_q, said, turned = map_grid.rotate_pm_onto_d(i_d, i_q, psi_d, psi_q, raw.keys[2])
+    (notes if turned else warnings).extend([said] if said else [])
+    grid = map_grid.rectangular(i_d, i_q, psi_d, psi_q, raw.keys)
+    if grid is None:
+        pol = map_grid.polar(i_d, i_q, psi_d, psi_q, raw.keys)
+        if pol is None:
+            raise MapImportError(None, f"{raw.keys[0]}, {raw.keys[1]}", "currents on an i_d x i_q grid (meshgrid or "
+                                 "ndgrid) or on a current magnitude x angle grid", "scattered points")
+        grid = map_grid.resample_polar(*pol)
+    i_d, i_q, psi_d, psi_q, note = grid
+    notes += [note] if note else []
+    i_d, i_q, psi_d, psi_q, mirrored = map_grid.mirror_half(i_d, i_q, psi_d, psi_q)
+    notes += [mirrored] if mirrored else []
+    _check(i_d, i_q, raw.keys)
+    if i_d[-1] <= 0.0:
+        warnings.append("no i_d > 0 in the map (no symmetry completes it): where an optimum lies at i_d > 0 "
+                        "the FMUs extrapolate beyond the grid")
+    return ImportedMap(i_d, i_q, psi_d, psi_q, raw.source_format, notes, dict(raw.metadata), path, warnings)
+
+
+def _check(i_d, i_q, keys) -> None:
+    """What the FMUs' reader needs beyond the grid: enough points, and zero current inside it."""
+    for k, ax in ((keys[0], i_d), (keys[1], i_q)):
+        if len(ax) < map_grid.MIN_POINTS:
+            raise MapImportError(None, k, f">= {map_grid.MIN_POINTS} grid values", f"{len(ax)}")
+        if not ax[0] <= 0.0 <= ax[-1]:
+            raise MapImportError(None, k, "a grid that contains zero current (psi_m = psi_d(0, 0))",
+                                 f"{ax[0]:.6g} ... {ax[-1]:.6g} A")
+
+
+def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:
+    """Write the map as a contract CSV, atomically: a temporary file beside `out`, then renamed."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # two-word labels: a one-word 'key: value' line would read as metadata (INTERFACE.md)
+    comment = "\n".join([f"Imported by scenarios.map_import from {imported.source} ({imported.source_format}).",
+                         "Convention = amplitude-invariant dq, peak values, PM flux on +d."] +
+                        [f"Import conversion: {n}" for n in imported.notes] +
+                        [f"Import warning: {w}" for w in imported.warnings])
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    os.close(fd)
+    try:
+        write_flux_map(tmp, imported.flux_map(), comment)
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return out
+
+
+def cache_dir() -> Path:
+    """Where imported .mat maps are cached: $IPMSM_MAP_CACHE, else $XDG_CACHE_HOME/ipmsm-fmu/maps,
+    else ~/.cache/ipmsm-fmu/maps."""
+    if os.environ.get("IPMSM_MAP_CACHE"):
+        return Path(os.environ["IPMSM_MAP_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "ipmsm-fmu" / "maps"
+
+
+def contract_csv(path: str | Path) -> Path:
+    """A contract CSV for `path`: a CSV that needs no conversion is checked and returned as is;
+    anything else (a .mat, a half-map CSV, ...) is imported once into the cache (cache_dir(), the
+    name keyed by the file's content and the importer's version) and that CSV returned."""
+    path = Path(path)
+    imported = import_map(path)
+    if imported.source_format == "contract CSV" and not imported.notes:
+        return path
+    h = hashlib.sha256(path.read_bytes())
+    h.update(f"importer {IMPORTER_VERSION}".encode())
+    cached = cache_dir() / f"{path.stem}-{h.hexdigest()[:16]}.csv"
+    if not cached.is_file():
+        write_contract_csv(imported, cached)
+    return cached
