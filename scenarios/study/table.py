@@ -28,6 +28,9 @@ RUNS_FILE = "runs.parquet"
 PARTS_DIR = "parts"
 TRACES_DIR = "traces"
 
+#: parts read into one table at a time when folding them in (memory: one table per batch)
+FOLD_BATCH = 256
+
 _ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), "float | None": pa.float64(),
           "int | None": pa.int64()}
 
@@ -124,18 +127,19 @@ def _latest(tables: list[pa.Table]) -> pa.Table:
     """One row per key: in write order, a later row of a key replaces the earlier."""
     if not tables:
         return SCHEMA.empty_table()
-    latest = {}
-    for r in pa.concat_tables(tables).to_pylist():
-        latest.pop(r["key"], None)
-        latest[r["key"]] = r
-    return pa.Table.from_pylist(list(latest.values()), schema=SCHEMA)
+    t = pa.concat_tables(tables).combine_chunks()
+    last = {k: i for i, k in enumerate(t.column("key").to_pylist())}
+    return t.take(pa.array(sorted(last.values()), type=pa.int64()))
 
 
 def read_runs(out: Path, parts: list[Path] | None = None) -> pa.Table:
     """runs.parquet with the parts not yet folded in (read only)."""
     runs = Path(out) / RUNS_FILE
     parts = _parts(out) if parts is None else parts
-    return _latest(([_read(runs)] if runs.exists() else []) + [_read(p) for p in parts])
+    tables = [_read(runs)] if runs.exists() else []
+    for i in range(0, len(parts), FOLD_BATCH):  # a few large tables, not one small table per part
+        tables.append(pa.concat_tables([_read(p) for p in parts[i:i + FOLD_BATCH]]).combine_chunks())
+    return _latest(tables)
 
 
 def consolidate(out: Path) -> pa.Table:
