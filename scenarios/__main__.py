@@ -1,4 +1,4 @@
-"""python -m scenarios {sweep, run, compare, check} ... (see --help of each). A bad drive description
+"""python -m scenarios {sweep, run, compare, check, study} ... (see --help of each). A bad drive description
 or input exits 2 with the file, the key and what was expected."""
 from __future__ import annotations
 
@@ -47,9 +47,13 @@ def main(argv=None) -> int:
     cmp_.add_argument("--cycles", nargs="+", default=["WLTC3b"])
     cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
+    cmp_.add_argument("--scheduler", default=None, help="an existing dask scheduler (as for study)")
+    cmp_.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
     from . import check
     check.add_parser(sub)
     map_cli.add_parser(sub)
+    from .study import cli as study_cli
+    study_cli.add_parser(sub)
     args = ap.parse_args(argv)
     from .drive_description import DriveDescriptionError
     try:
@@ -89,10 +93,15 @@ def _dispatch(args) -> int:
         print(f"wrote {out}/summary.json, trace.csv, run.png")
     elif args.cmd == "compare":
         from .compare import run_study
-        run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers)
+        load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant
+        run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers,
+                  scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "map":
         return map_cli.main(args)
+    elif args.cmd == "study":
+        from .study import cli as study_cli
+        return study_cli.main(args)
     return 0
 
 

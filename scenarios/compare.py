@@ -2,23 +2,26 @@
 exact optimum on the flux map) against the industry's 2-D lookup tables (over torque x speed,
 and over torque x V_max/omega), over drive cycles and over conditions the tables were not made
 for (a sagging DC link, hot and cold magnets). Writes report.md, summary.csv/json and plots.
+
+A preset of `python -m scenarios study` (scenarios.study): its runs execute there (a local
+dask cluster or --scheduler's), land in runs.parquet and are skipped when run again.
 """
 from __future__ import annotations
 
 import csv
 import json
-import os
 import re
 import subprocess
-import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
 from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
 from .paths import BUILD_DIR
 from .results import RunSummary
-from .simulate import STUDY_CONDITIONS, Conditions, RunSpec, fmu_paths, simulate
+from .simulate import STUDY_CONDITIONS
+from .study import run_study as study
+from .study import table
+from .study.spec import Run
 
 
 @dataclass(frozen=True)
@@ -57,13 +60,6 @@ class StudyRun:
         return {**self.summary.to_dict(), "variant": self.variant, "run_dir": self.run_dir}
 
 
-def _one(cycle: str, variant: Variant, cond: Conditions, out: Path, build: Path) -> StudyRun:
-    run_dir = out / "runs" / f"{_slug(cycle)}__{_slug(cond.name)}__{_slug(variant.label)}"
-    s = simulate(cycle, RunSpec(method=variant.method, recursion=variant.recursion, conditions=cond),
-                 fmus=fmu_paths(build), out=run_dir, progress=False)
-    return StudyRun(variant.label, str(run_dir.relative_to(out)), s)
-
-
 def controller_costs(build: Path) -> dict:
     """ns per call of each method, from the C++ benchmark (build/bin/bench_controller)."""
     exe = build / "bin" / "bench_controller"
@@ -81,25 +77,35 @@ def controller_costs(build: Path) -> dict:
     }
 
 
+def study_runs(cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS,
+               drive: Path | None = None) -> list[tuple[Run, Variant]]:
+    """The compare study as study runs: every variant at every condition on every cycle."""
+    d = str(Path(drive).resolve()) if drive else ""
+    return [(Run.of_conditions(k, drive=d, cycle=c, method=v.method, recursion=v.recursion), v)
+            for c in cycles for k in conditions for v in variants]
+
+
 def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS,
-              build: Path = BUILD_DIR, workers: int | None = None) -> list[StudyRun]:
-    out.mkdir(parents=True, exist_ok=True)
-    jobs = [(c, v, k) for c in cycles for k in conditions for v in variants]
-    workers = workers or min(len(jobs), os.cpu_count() or 1)
+              build: Path = BUILD_DIR, workers: int | None = None, scheduler: str | None = None,
+              drive: Path | None = None) -> list[StudyRun]:
+    """The compare study, run as a study (scenarios.study: out/runs.parquet, traces/, resumable),
+    then reported as before: report.md, summary.csv/json, study.png and runs/<run>/ (summary.json,
+    trace.csv, run.png)."""
+    jobs = study_runs(cycles, conditions, variants, drive)
+    print(f"compare: {len(jobs)} runs -> {out}", flush=True)
+    res = study([r for r, _ in jobs], out, scheduler=scheduler, workers=workers, build=build)
+    rows = {r["key"]: r for r in res.table.to_pylist()}
+    failed = [(run, rows[key]["error"]) for key, (run, _) in zip(res.keys, jobs) if rows[key]["status"] != "ok"]
+    if failed:
+        raise RuntimeError(f"compare: {len(failed)} runs failed, the first: {failed[0][0]}: {failed[0][1]}")
     results = []
-    t0 = time.perf_counter()
-    print(f"compare: {len(jobs)} runs on {workers} processes -> {out}", flush=True)
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(_one, c, v, k, out, build): (c, v, k) for c, v, k in jobs}
-        for n, f in enumerate(as_completed(futures), 1):
-            r = f.result()
-            results.append(r)
-            s = r.summary
-            print(f"  [{n}/{len(jobs)}] {s.cycle:>7} | {r.condition:<17} | {r.variant:<29} "
-                  f"{s.Wh_per_km:6.1f} Wh/km, torque RMS {s.torque_rmse_Nm:.3f} N.m  ({s.wall_s:.0f} s, "
-                  f"{time.perf_counter() - t0:.0f} s elapsed)", flush=True)
-    order = {(c, k.name, v.label): i for i, (c, v, k) in enumerate(jobs)}
-    results.sort(key=lambda r: order[(r.summary.cycle, r.condition, r.variant)])
+    for key, (run, v) in zip(res.keys, jobs):
+        s = table.summary_of(rows[key])
+        run_dir = out / "runs" / f"{_slug(run.cycle)}__{_slug(s.conditions['name'])}__{_slug(v.label)}"
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / "summary.json").write_text(s.to_json())
+        table.write_trace_csv(table.trace_path(out, key), run_dir / "trace.csv")
+        results.append(StudyRun(v.label, str(run_dir.relative_to(out)), s))
     costs = controller_costs(build)
     write_report(out, results, costs)
     return results

@@ -81,6 +81,7 @@ class RunSpec:
     trace_dt: float = 0.1     # s, trace.csv sampling
     backend: str = "auto"     # master: native if built, else fmpy; "drive": the IpmsmDrive FMU
     reference: bool = True    # evaluate the exact optimum per vehicle step
+    lut_grid: tuple[int, int] | None = None  # 2-D tables' points (torque, speed or V_max/w); None: the FMU's
     driver: DriverParams = field(default_factory=DriverParams)
     blend: BlendParams = field(default_factory=BlendParams)
 
@@ -190,6 +191,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     cond, vp, dt = spec.conditions, drive.vehicle, spec.dt
     n_inner = spec.steps_per_vehicle_step()
     c_params = drive.controller_params(method, recursion, cond.lut_u_dc, cond.lut_T_magnet)
+    if spec.lut_grid is not None:
+        c_params.update(lut_n_torque=spec.lut_grid[0], lut_n_speed=spec.lut_grid[1])
     p_params = drive.plant_params()
     n = int(round(cycle.duration_s / dt))
     t_ref = cycle.time_s[0] + dt * np.arange(n + 1)

@@ -1,0 +1,77 @@
+"""From a study's runs to the tasks to execute: each run's cycle (window applied), drive (loaded
+and shipped with its files) and key (scenarios.study.keys); runs whose key is "ok" in
+runs.parquet already are left out, runs whose drive does not load are failed rows at once."""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..cycles import Cycle, load_cycle, segment
+from ..drive_description import load_drive
+from . import keys, table
+from .execute import Task
+from .ship import ShippedDrive
+from .spec import Run
+
+
+@dataclass(frozen=True)
+class Plan:
+    keys: tuple[str, ...]          # every run's key, in the spec's order
+    tasks: tuple[Task, ...]        # to run
+    drives: dict                   # Run.drive -> ShippedDrive, of the tasks
+    skipped: int                   # already "ok"
+    failed_rows: tuple[dict, ...]  # runs whose drive does not load (recorded as failed)
+
+
+def run_cycle(run: Run, cache: dict) -> Cycle:
+    if run.cycle not in cache:
+        cache[run.cycle] = load_cycle(run.cycle)
+    c = cache[run.cycle]
+    return segment(c, *run.window) if run.window else c
+
+
+def load_shipped(drive: str) -> ShippedDrive | Exception:
+    """The drive ("" the default) with its files, or why it cannot be used."""
+    try:
+        return ShippedDrive.of(load_drive(drive or None))
+    except Exception as e:  # a drive that does not load fails its runs, not the study
+        return e
+
+
+def drive_content(drive: str, shipped: ShippedDrive | Exception) -> str:
+    if isinstance(shipped, ShippedDrive):
+        return shipped.content_hash()
+    return hashlib.sha256(Path(drive).read_bytes()).hexdigest() if drive else "default:unloadable"
+
+
+def key_columns(run: Run) -> dict:
+    """The run's columns as they enter its key: files by name only (their content enters apart),
+    so a study moved to another folder keeps its keys."""
+    d = run.to_dict()
+    d["drive"] = Path(run.drive).name if run.drive else ""
+    d["cycle"] = Path(run.cycle).name
+    return d
+
+
+def make_plan(runs, out: Path, fmu_hash: str, code_hash: str, done: set[str]) -> Plan:
+    all_keys, tasks, failed, skipped, cycles, drives = [], [], [], 0, {}, {}
+    for run in runs:
+        cycle = run_cycle(run, cycles)
+        if run.drive not in drives:
+            drives[run.drive] = load_shipped(run.drive)
+        shipped = drives[run.drive]
+        content = dict(cycle=keys.cycle_hash(cycle), drive=drive_content(run.drive, shipped))
+        key = keys.run_key(key_columns(run), content, fmu_hash, code_hash)
+        all_keys.append(key)
+        if key in done:
+            skipped += 1
+        elif isinstance(shipped, Exception):
+            failed.append(table.row_of(run, dict(key=key, status="failed", error=f"{type(shipped).__name__}: {shipped}",
+                                                 fmu_hash=fmu_hash, code_hash=code_hash,
+                                                 condition=run.conditions().name), None))
+        else:
+            tasks.append(Task(key, run, cycle, str(Path(out).resolve()), fmu_hash, code_hash))
+    used = {t.run.drive for t in tasks}
+    return Plan(tuple(all_keys), tuple(tasks), {d: s for d, s in drives.items() if d in used}, skipped,
+                tuple(failed))

@@ -1,0 +1,94 @@
+"""What a study ships to its workers, so that they need nothing of the client's files: the
+build's FMUs (and the native master's library) once per worker, each drive description with
+the files it names (flux map, OCV curve) once per drive. A worker writes what it receives under
+its machine's temp directory, in folders named after the content's hash, once (temporary name,
+then rename: concurrent workers on one machine do not race)."""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from ..drive_description import DriveDescription
+from . import keys
+
+#: the native co-simulation master, relative to a build (scenarios.master.default_library finds it there)
+NATIVE_MASTER = "lib/libipmsm_cosim.so"
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _write_once(folder: Path, files) -> Path:
+    """`files` ((relative path, bytes), ...) in `folder`, unless already complete."""
+    done = folder / ".complete"
+    if done.exists():
+        return folder
+    for rel, data in files:
+        dest = folder / rel
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        tmp = dest.with_name(f".{dest.name}.{os.getpid()}.tmp")
+        tmp.write_bytes(data)
+        os.chmod(tmp, 0o755)
+        os.replace(tmp, dest)
+    done.touch()
+    return folder
+
+
+def _cache() -> Path:
+    return Path(tempfile.gettempdir()) / "ipmsm-study"
+
+
+@dataclass(frozen=True)
+class FmuBundle:
+    """The build's FMUs (and native master library) as bytes, by path relative to the build."""
+
+    hash: str                 # the FMUs' content hash (keys.fmu_hash), in every row
+    files: tuple[tuple[str, bytes], ...]
+
+    @classmethod
+    def of(cls, build: Path) -> FmuBundle:
+        build = Path(build)
+        missing = [n for n in keys.FMU_NAMES if not (build / "fmu" / n).is_file()]
+        if missing:
+            raise FileNotFoundError(f"{build / 'fmu'}: {', '.join(missing)} missing: build first")
+        rel = [f"fmu/{n}" for n in keys.FMU_NAMES]
+        if (build / NATIVE_MASTER).is_file():
+            rel.append(NATIVE_MASTER)
+        return cls(keys.fmu_hash(build / "fmu"), tuple((r, (build / r).read_bytes()) for r in rel))
+
+    def materialise(self) -> Path:
+        """The bundle as a build folder (fmu/, lib/) on this machine."""
+        h = hashlib.sha256(b"".join(r.encode() + b"\0" + _sha(d).encode() for r, d in self.files)).hexdigest()
+        return _write_once(_cache() / f"build-{h[:16]}", self.files)
+
+
+@dataclass(frozen=True)
+class ShippedDrive:
+    """A loaded drive description and the content of the files it names."""
+
+    drive: DriveDescription
+    flux_map: bytes
+    ocv_csv: bytes
+
+    @classmethod
+    def of(cls, drive: DriveDescription) -> ShippedDrive:
+        return cls(drive, Path(drive.motor.flux_map).read_bytes(), Path(drive.battery.ocv_csv).read_bytes())
+
+    def content_hash(self) -> str:
+        """What the drive is: its file, its map's and its OCV curve's content."""
+        return _sha(f"{self.drive.sha256}:{_sha(self.flux_map)}:{_sha(self.ocv_csv)}".encode())
+
+    def localise(self) -> DriveDescription:
+        """The drive with its files written on this machine and named there."""
+        files = {"flux_map": (Path(self.drive.motor.flux_map).name, self.flux_map),
+                 "ocv_csv": (Path(self.drive.battery.ocv_csv).name, self.ocv_csv)}
+        local = {}
+        for role, (name, data) in files.items():
+            local[role] = _write_once(_cache() / f"file-{_sha(data)[:24]}", [(name, data)]) / name
+        d = self.drive
+        return replace(d, motor=replace(d.motor, flux_map=local["flux_map"]),
+                       battery=replace(d.battery, ocv_csv=local["ocv_csv"]))

@@ -1,0 +1,280 @@
+"""The study specification (../shared/spec/INTERFACE.md, "Study specification (TOML)"): a TOML
+file whose `[study]` table names the axes, each a list (a scalar is a list of one), whose
+product is the set of runs; or an explicit list of runs (`[[run]]` tables, one key per axis,
+singular: drive, cycle, method, ...), each missing key taking the default. `window_s` is one
+[start, end] pair (s), not an axis: only that part of each cycle is driven.
+
+    [study]
+    drives = ["a.toml", "b.toml"]      # drive descriptions, relative to the spec; default: the default drive
+    cycles = ["WLTC3b", "my.csv"]      # names or CSVs of time_s,speed_mps
+    window_s = [0.0, 120.0]
+    methods = ["ferrari", "lut_speed", "lut_flux"]
+    recursions = [1, 2]
+    u_dc_scale = [1.0, 0.85]
+    T_magnet_degC = [20.0, 120.0]
+    T_winding_degC = [20.0]
+    lut_grids = [[41, 41], [21, 21]]    # an extension: the 2-D tables' points (torque, speed or V_max/w)
+
+A bad specification raises SpecError naming the file and the key.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+from ..constants import T_REFERENCE_K, ZERO_CELSIUS_K
+from ..cycles import STANDARD_CYCLES
+from ..drive_description import DriveDescription, load_drive
+from ..simulate import METHODS, STUDY_CONDITIONS, Conditions, RunSpec
+
+#: degC, the default magnet and winding temperatures: the reference the maps and R_s hold at
+T_DEFAULT_DEGC = T_REFERENCE_K - ZERO_CELSIUS_K
+
+#: the recursions the controller accepts (its `recursion` parameter)
+RECURSIONS = (0, 1, 2)
+
+
+class SpecError(ValueError):
+    """A bad study specification; the message names the file and the key."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of a study: its columns in runs.parquet. `drive` is the drive description's path
+    ("" = the default drive), `cycle` a standard cycle's name or a CSV's path; the window is
+    (NaN, NaN) for the whole cycle."""
+
+    drive: str = ""
+    cycle: str = "WLTC3b"
+    window_start_s: float = math.nan
+    window_end_s: float = math.nan
+    method: str = "ferrari"
+    recursion: int = 2
+    u_dc_scale: float = 1.0
+    T_magnet_degC: float = T_DEFAULT_DEGC
+    T_winding_degC: float = T_DEFAULT_DEGC
+    lut_n_torque: int | None = None  # the 2-D tables' grid points; None: the controller's default
+    lut_n_speed: int | None = None
+
+    @property
+    def lut_grid(self) -> tuple[int, int] | None:
+        return None if self.lut_n_torque is None else (self.lut_n_torque, self.lut_n_speed)
+
+    @property
+    def window(self) -> tuple[float, float] | None:
+        return None if math.isnan(self.window_start_s) else (self.window_start_s, self.window_end_s)
+
+    def conditions(self) -> Conditions:
+        """The run's operating conditions; one of the compare study's (STUDY_CONDITIONS, or the
+        default) with its name and its very values when the run's are those, else named by them."""
+        T_m, T_w = self.T_magnet_degC + ZERO_CELSIUS_K, self.T_winding_degC + ZERO_CELSIUS_K
+        for c in (Conditions(), *STUDY_CONDITIONS):
+            in_celsius = (c.T_magnet - ZERO_CELSIUS_K, c.T_winding - ZERO_CELSIUS_K)
+            if c.u_dc_scale == self.u_dc_scale and ((c.T_magnet, c.T_winding) == (T_m, T_w) or
+                                                    in_celsius == (self.T_magnet_degC, self.T_winding_degC)):
+                return replace(c)
+        name = (f"u_dc x{self.u_dc_scale:g}, magnets {self.T_magnet_degC:g} degC, "
+                f"windings {self.T_winding_degC:g} degC")
+        return Conditions(name, u_dc_scale=self.u_dc_scale, T_magnet=T_m, T_winding=T_w)
+
+    @classmethod
+    def of_conditions(cls, c: Conditions, **columns) -> Run:
+        """The run at conditions `c` (inverse of conditions())."""
+        return cls(u_dc_scale=c.u_dc_scale, T_magnet_degC=c.T_magnet - ZERO_CELSIUS_K,
+                   T_winding_degC=c.T_winding - ZERO_CELSIUS_K, **columns)
+
+    @classmethod
+    def of_row(cls, row: dict) -> Run:
+        return cls(**{f.name: row[f.name] for f in fields(cls)})
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+#: [study] key (a list) -> Run field; the [[run]] tables use the field names
+AXES = {"drives": "drive", "cycles": "cycle", "methods": "method", "recursions": "recursion",
+        "u_dc_scale": "u_dc_scale", "T_magnet_degC": "T_magnet_degC", "T_winding_degC": "T_winding_degC",
+        "lut_grids": "lut_grid"}
+RUN_KEYS = tuple(AXES.values()) + ("window_s",)
+
+#: the controller's bounds of lut_n_torque and lut_n_speed (its modelDescription)
+LUT_POINTS_MIN, LUT_POINTS_MAX = 3, 1001
+RUN_COLUMNS = tuple(f.name for f in fields(Run))
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """The runs of a study, in the specification's order (product: the axes above, the last
+    varying fastest), and the file they came from."""
+
+    path: Path | None
+    runs: tuple[Run, ...]
+
+
+def _where(path: Path | None, key: str) -> str:
+    return f"{path or '<study>'}: {key}"
+
+
+def _number(v, path, key, integer=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+        raise SpecError(f"{_where(path, key)}: expected {'an integer' if integer else 'a number'}, got {v!r}")
+    if not math.isfinite(v):
+        raise SpecError(f"{_where(path, key)}: expected a finite number, got {v!r}")
+    return int(v) if integer else float(v)
+
+
+def _value(field: str, v, path: Path | None, key: str):
+    """One axis value, checked and converted to the Run field's type."""
+    if field == "drive":
+        if not isinstance(v, str) or not v:
+            raise SpecError(f"{_where(path, key)}: expected the path of a drive description (TOML), got {v!r}")
+        p = Path(v) if Path(v).is_absolute() or path is None else path.parent / v
+        if not p.is_file():
+            raise SpecError(f"{_where(path, key)}: drive description not found: {p}")
+        return str(p.resolve())
+    if field == "cycle":
+        if not isinstance(v, str) or not v:
+            raise SpecError(f"{_where(path, key)}: expected a cycle name or CSV path, got {v!r}")
+        if v.lower() in (c.lower() for c in STANDARD_CYCLES):
+            return next(c for c in STANDARD_CYCLES if c.lower() == v.lower())
+        p = Path(v) if Path(v).is_absolute() or path is None else path.parent / v
+        if not p.is_file():
+            raise SpecError(f"{_where(path, key)}: {v!r} is neither a standard cycle "
+                            f"({', '.join(STANDARD_CYCLES)}) nor a CSV file ({p} not found)")
+        return str(p.resolve())
+    if field == "method":
+        if v not in METHODS:
+            raise SpecError(f"{_where(path, key)}: expected one of {', '.join(METHODS)}, got {v!r}")
+        return v
+    if field == "lut_grid":
+        if not isinstance(v, list) or len(v) != 2:
+            raise SpecError(f"{_where(path, key)}: expected a [torque points, speed points] pair, got {v!r}")
+        n = tuple(_number(x, path, key, integer=True) for x in v)
+        if not all(LUT_POINTS_MIN <= x <= LUT_POINTS_MAX for x in n):
+            raise SpecError(f"{_where(path, key)}: grid points must be in [{LUT_POINTS_MIN}, {LUT_POINTS_MAX}], "
+                            f"got {v}")
+        return n
+    if field == "recursion":
+        r = _number(v, path, key, integer=True)
+        if r not in RECURSIONS:
+            raise SpecError(f"{_where(path, key)}: expected one of {RECURSIONS}, got {r}")
+        return r
+    x = _number(v, path, key)
+    if field == "u_dc_scale" and not 0.0 < x <= 2.0:
+        raise SpecError(f"{_where(path, key)}: expected 0 < u_dc_scale <= 2, got {x}")
+    if field.endswith("_degC") and not -273.15 < x < 1000.0:
+        raise SpecError(f"{_where(path, key)}: expected a temperature in degC above absolute zero, got {x}")
+    return x
+
+
+def _window(v, path: Path | None, key: str) -> tuple[float, float]:
+    if not isinstance(v, list) or len(v) != 2:
+        raise SpecError(f"{_where(path, key)}: expected one [start, end] pair in s, got {v!r}")
+    a, b = (_number(x, path, key) for x in v)
+    if not 0.0 <= a < b:
+        raise SpecError(f"{_where(path, key)}: expected 0 <= start < end, got [{a}, {b}]")
+    return a, b
+
+
+def _check_cycles(runs: list[Run], path: Path | None, cycle_key: str, window_key: str) -> None:
+    """Each cycle readable and each window inside its cycle: a bad cycle is a bad spec, not a
+    failed run (the client reads the cycles anyway: their samples enter the runs' keys)."""
+    from ..cycles import load_cycle
+    for cycle in dict.fromkeys(r.cycle for r in runs):
+        try:
+            c = load_cycle(cycle)
+        except (OSError, ValueError) as e:
+            raise SpecError(f"{_where(path, cycle_key)}: {e}") from None
+        for r in runs:
+            if r.cycle == cycle and r.window and not (c.time_s[0] <= r.window[0] and r.window[1] <= c.time_s[-1]):
+                raise SpecError(f"{_where(path, window_key)}: window [{r.window[0]:g}, {r.window[1]:g}] s is not "
+                                f"inside {cycle} [{c.time_s[0]:g}, {c.time_s[-1]:g}] s")
+
+
+def _run(values: dict, window: tuple[float, float]) -> Run:
+    values = dict(values)
+    grid = values.pop("lut_grid", None)
+    values.setdefault("window_start_s", window[0])
+    values.setdefault("window_end_s", window[1])
+    return Run(**values, **({} if grid is None else dict(lut_n_torque=grid[0], lut_n_speed=grid[1])))
+
+
+def parse(data: dict, path: Path | None = None) -> StudySpec:
+    """The runs of a parsed TOML document (`path`: where relative paths start, and error messages)."""
+    unknown = set(data) - {"study", "run"}
+    if unknown:
+        raise SpecError(f"{_where(path, sorted(unknown)[0])}: unknown table (expected [study] and/or [[run]])")
+    study = data.get("study", {})
+    if not isinstance(study, dict):
+        raise SpecError(f"{_where(path, 'study')}: expected a table")
+    for k in study:
+        if k not in AXES and k != "window_s":
+            raise SpecError(f"{_where(path, 'study.' + k)}: unknown key (expected one of "
+                            f"{', '.join([*AXES, 'window_s'])})")
+    window = _window(study["window_s"], path, "study.window_s") if "window_s" in study else (math.nan, math.nan)
+    explicit = data.get("run")
+    runs: list[Run] = []
+    if explicit is not None:
+        if not isinstance(explicit, list) or not all(isinstance(r, dict) for r in explicit) or not explicit:
+            raise SpecError(f"{_where(path, 'run')}: expected a non-empty list of [[run]] tables")
+        axes_given = [k for k in study if k in AXES]
+        if axes_given:
+            raise SpecError(f"{_where(path, 'study.' + axes_given[0])}: the axes' product and an explicit [[run]] "
+                            "list exclude each other (only study.window_s may go with [[run]])")
+        for i, r in enumerate(explicit):
+            values = {}
+            for k, v in r.items():
+                key = f"run[{i}].{k}"
+                if k not in RUN_KEYS:
+                    raise SpecError(f"{_where(path, key)}: unknown key (expected one of {', '.join(RUN_KEYS)})")
+                if k == "window_s":
+                    values["window_start_s"], values["window_end_s"] = _window(v, path, key)
+                else:
+                    values[k] = _value(k, v, path, key)
+            runs.append(_run(values, window))
+        _check_cycles(runs, path, "run[].cycle", "run[].window_s")
+    else:
+        lists = []
+        for key, field in AXES.items():
+            if key not in study:
+                lists.append([getattr(Run(), field)])
+                continue
+            v = study[key]
+            # a scalar is a list of one; a grid is a pair, so lut_grids is always a list of pairs
+            v = v if isinstance(v, list) and (field != "lut_grid" or all(isinstance(x, list) for x in v)) else [v]
+            if not v:
+                raise SpecError(f"{_where(path, 'study.' + key)}: empty list")
+            lists.append([_value(field, x, path, f"study.{key}") for x in v])
+        for combo in itertools.product(*lists):
+            runs.append(_run(dict(zip(AXES.values(), combo)), window))
+        _check_cycles(runs, path, "study.cycles", "study.window_s")
+    if len(set(runs)) != len(runs):
+        dup = next(r for r in runs if runs.count(r) > 1)
+        raise SpecError(f"{_where(path, 'run' if explicit else 'study')}: the same run twice: {dup}")
+    return StudySpec(path, tuple(runs))
+
+
+def load_spec(path: str | Path) -> StudySpec:
+    """Read and check a study specification file."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise SpecError(f"{path}: file not found") from None
+    except tomllib.TOMLDecodeError as e:
+        raise SpecError(f"{path}: not valid TOML: {e}") from None
+    return parse(data, path)
+
+
+def run_spec(run: Run, drive: DriveDescription | None = None) -> RunSpec:
+    """The simulation's specification of a run (its drive loaded already, or loaded here)."""
+    drive = drive if drive is not None else load_drive(run.drive or None)
+    return RunSpec(drive=drive, method=run.method, recursion=run.recursion, conditions=run.conditions(),
+                   lut_grid=run.lut_grid)

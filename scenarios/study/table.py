@@ -1,0 +1,173 @@
+"""A study's results on disk: `DIR/runs.parquet` (one row per run: the spec's columns, the run's
+summary, where and how it ran) and `DIR/traces/<key>.parquet` (each run's trace).
+
+Durability: the client writes each finished run's row at once as a small part,
+`DIR/parts/<key>.parquet` (written to a temporary name, then renamed: a part is whole or
+absent); `consolidate` folds the parts into runs.parquet (same rename) at the start and end of
+a study. An interrupted study loses only the runs that were in flight. One row per key: a later
+row replaces an earlier one (a failed run that is run again and succeeds).
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+import uuid
+from dataclasses import asdict, fields, replace
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.csv as pa_csv
+import pyarrow.parquet as pq
+
+from ..results import RunSummary
+from ..simulate import Conditions
+from .spec import Run
+
+RUNS_FILE = "runs.parquet"
+PARTS_DIR = "parts"
+TRACES_DIR = "traces"
+
+#: parts read into one table at a time when folding them in (memory: one table per batch)
+FOLD_BATCH = 256
+
+_ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), "float | None": pa.float64(),
+          "int | None": pa.int64()}
+
+
+def _arrow_type(t) -> pa.DataType:
+    return _ARROW.get(t) or _ARROW[{"str": str, "int": int, "float": float}.get(t, t)]
+
+
+#: the summary's fields that are columns of their own; `method`, `recursion` and `conditions`
+#: are the spec's columns already, `cycle` (the name with the window) and `drive` (the drive's
+#: name) are cycle_name and drive_name (the spec's `cycle` and `drive` are what the spec says)
+RENAMED = {"cycle": "cycle_name", "drive": "drive_name"}
+SUMMARY_COLUMNS = tuple(f.name for f in fields(RunSummary)
+                        if f.name not in ("method", "recursion", "conditions", *RENAMED))
+
+#: where and how the run ran
+META = (("key", pa.string()), ("status", pa.string()), ("error", pa.string()), ("fmu_hash", pa.string()),
+        ("code_hash", pa.string()), ("worker", pa.string()), ("started_utc", pa.float64()),
+        ("run_wall_s", pa.float64()), ("condition", pa.string()), ("cycle_name", pa.string()),
+        ("drive_name", pa.string()), ("lut_u_dc", pa.float64()), ("lut_T_magnet", pa.float64()))
+
+SCHEMA = pa.schema(
+    [(f.name, _arrow_type(f.type)) for f in fields(Run)]
+    + list(META)
+    + [(f.name, _arrow_type(f.type)) for f in fields(RunSummary) if f.name in SUMMARY_COLUMNS])
+
+
+def row_of(run: Run, meta: dict, summary: RunSummary | None) -> dict:
+    """A row of runs.parquet: the run's columns, `meta` (META's keys) and the summary (None:
+    a failed run, its summary columns null)."""
+    row = {**run.to_dict(), **{k: None for k, _ in META}, **meta}
+    d = summary.to_dict() if summary is not None else {}
+    for name in SUMMARY_COLUMNS:
+        row[name] = d.get(name)
+    for name, column in RENAMED.items():
+        row[column] = d.get(name)
+    if summary is not None:  # the tables' conditions, as the run resolved them from its drive
+        row["lut_u_dc"], row["lut_T_magnet"] = summary.conditions["lut_u_dc"], summary.conditions["lut_T_magnet"]
+    return row
+
+
+def row_conditions(row: dict) -> Conditions:
+    """The conditions of a row's run, as its summary had them."""
+    return replace(Run.of_row(row).conditions(), name=row["condition"], lut_u_dc=row["lut_u_dc"],
+                   lut_T_magnet=row["lut_T_magnet"])
+
+
+def summary_of(row: dict) -> RunSummary:
+    """The RunSummary of an "ok" row (inverse of row_of)."""
+    run = Run.of_row(row)
+    return RunSummary(method=run.method, recursion=run.recursion, conditions=asdict(row_conditions(row)),
+                      **{name: row[column] for name, column in RENAMED.items()},
+                      **{k: row[k] for k in SUMMARY_COLUMNS})
+
+
+def write_trace_csv(trace_parquet: Path, dest: Path) -> None:
+    """A trace as trace.csv (the format of scenarios.results.Trace.write_csv: floats as repr)."""
+    t = pq.read_table(trace_parquet)
+    with open(dest, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(t.column_names)
+        w.writerows(zip(*(t.column(n).to_pylist() for n in t.column_names)))
+
+
+def _atomic_write_table(table: pa.Table, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+
+
+def write_part(out: Path, row: dict) -> Path:
+    """The row of a finished run, durably, as DIR/parts/<key>.parquet."""
+    parts = Path(out) / PARTS_DIR
+    parts.mkdir(parents=True, exist_ok=True)
+    path = parts / f"{row['key']}.parquet"
+    _atomic_write_table(pa.Table.from_pylist([row], schema=SCHEMA), path)
+    return path
+
+
+def _read(path: Path) -> pa.Table:
+    t = pq.read_table(path)
+    # columns added since the file was written are null; unknown ones are dropped
+    cols = [t.column(n).cast(f.type) if n in t.column_names else pa.nulls(t.num_rows, f.type)
+            for n, f in zip(SCHEMA.names, SCHEMA)]
+    return pa.Table.from_arrays(cols, schema=SCHEMA)
+
+
+def _parts(out: Path) -> list[Path]:
+    d = Path(out) / PARTS_DIR
+    return sorted(d.glob("*.parquet"), key=lambda p: p.stat().st_mtime_ns) if d.is_dir() else []
+
+
+def _latest(tables: list[pa.Table]) -> pa.Table:
+    """One row per key: in write order, a later row of a key replaces the earlier."""
+    if not tables:
+        return SCHEMA.empty_table()
+    t = pa.concat_tables(tables).combine_chunks()
+    last = {k: i for i, k in enumerate(t.column("key").to_pylist())}
+    return t.take(pa.array(sorted(last.values()), type=pa.int64()))
+
+
+def read_runs(out: Path, parts: list[Path] | None = None) -> pa.Table:
+    """runs.parquet with the parts not yet folded in (read only)."""
+    runs = Path(out) / RUNS_FILE
+    parts = _parts(out) if parts is None else parts
+    tables = [_read(runs)] if runs.exists() else []
+    for i in range(0, len(parts), FOLD_BATCH):  # a few large tables, not one small table per part
+        tables.append(pa.concat_tables([_read(p) for p in parts[i:i + FOLD_BATCH]]).combine_chunks())
+    return _latest(tables)
+
+
+def consolidate(out: Path) -> pa.Table:
+    """Fold DIR/parts/* into DIR/runs.parquet; returns the table. Only while no run is in flight."""
+    parts = _parts(out)
+    table = read_runs(out, parts)
+    if parts:
+        _atomic_write_table(table, Path(out) / RUNS_FILE)
+        for p in parts:
+            p.unlink(missing_ok=True)
+    return table
+
+
+def done_keys(table: pa.Table) -> set[str]:
+    """Keys of the runs that finished "ok" (a failed run is run again: see execute.py)."""
+    return {r["key"] for r in table.select(["key", "status"]).to_pylist() if r["status"] == "ok"}
+
+
+def trace_path(out: Path, key: str) -> Path:
+    return Path(out) / TRACES_DIR / f"{key}.parquet"
+
+
+def write_trace_parquet(trace_csv: Path, dest: Path) -> None:
+    """A run's trace.csv (scenarios.results; floats written as repr, so exact) as Parquet."""
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    table = pa_csv.read_csv(trace_csv)
+    _atomic_write_table(table, dest)
+
+
+def is_nan(x) -> bool:
+    return x is None or (isinstance(x, float) and math.isnan(x))
