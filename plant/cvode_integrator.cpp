@@ -1,6 +1,7 @@
 #include "cvode_integrator.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -23,6 +24,17 @@ namespace {
 // Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
 constexpr double kStiffLimit = 2.0;
 
+// CVODE's y: the two flux components (z or psi) and the step integrals (cvode_integrator.hpp).
+constexpr int kStates = 2 + StepIntegrands::count;
+
+// The absolute tolerances of y's components: atol on the flux components, its equivalents on the
+// step integrals (cvode_integrator.hpp).
+std::array<double, kStates> tolerances(const CvodeSettings& s, const StepIntegrands* integrands, double span) {
+    const double energy = 1.5 * s.atol * s.current_scale;                              // J
+    const double impulse = energy * (integrands ? integrands->pole_pairs : 1) * span;  // N.m.s
+    return {s.atol, s.atol, energy, energy, energy, impulse};
+}
+
 std::string number(double x) {
     char b[32];
     std::snprintf(b, sizeof b, "%.17g", x);
@@ -43,6 +55,7 @@ std::string flag_name(int flag) {
 struct CvodeHandles {
     SUNContext ctx = nullptr;
     N_Vector y = nullptr;
+    N_Vector atol = nullptr;  // the absolute tolerances of y's components
     void* mem = nullptr;
     SUNNonlinearSolver nls = nullptr;
     SUNMatrix A = nullptr;
@@ -56,6 +69,7 @@ struct CvodeHandles {
         if (ls != nullptr) SUNLinSolFree(ls);
         if (A != nullptr) SUNMatDestroy(A);
         if (nls != nullptr) SUNNonlinSolFree(nls);
+        if (atol != nullptr) N_VDestroy(atol);
         if (y != nullptr) N_VDestroy(y);
         if (ctx != nullptr) SUNContext_Free(&ctx);
     }
@@ -79,21 +93,40 @@ struct CvodeIntegrator::Workspace {
             psi[1] = psi0[1] + P[2] * f0[0] + P[3] * f0[1] + E[2] * z[0] + E[3] * z[1];
         }
     } lin;
-    bool linearised = false;  // this call's formulation (built_for.linearised unless too stiff)
-    std::string bad_flux;     // where the currents could not be found (for the error message)
-    std::string error;        // CVODE's error messages of the current call
-    std::string warning;      // CVODE's warnings of the current call
+    bool linearised = false;                     // this call's formulation (built_for.linearised unless too stiff)
+    const StepIntegrands* integrands = nullptr;  // this call's, or none (their components' y' = 0)
+    std::string bad_flux;                        // where the currents could not be found (for the error message)
+    std::string error;                           // CVODE's error messages of the current call
+    std::string warning;                         // CVODE's warnings of the current call
     // reinit_each_step = false: where CVODE's history stands, to know whether it continues.
     bool live = false;
-    double live_tau = 0, live_psi[2] = {0, 0};  // CVODE's clock and state where it stopped
-    // Tolerances given to CVODE (CVodeSStolerances clears CVODE's error-weight data until its next
+    double live_tau = 0, live_psi[2] = {0, 0};            // CVODE's clock and state where it stopped
+    double live_q[StepIntegrands::count] = {0, 0, 0, 0};  // ... and the step integrals
+    // Tolerances given to CVODE (CVodeSVtolerances clears CVODE's error-weight data until its next
     // initial setup, so it is called only when they change, and then CVODE is re-initialised).
-    double rtol = 0, atol = 0;
+    double rtol = 0, atol[kStates] = {0, 0, 0, 0, 0, 0};
     CvodeHandles h;  // last member: destroyed first, while the data above still exists
 
     explicit Workspace(const CvodeSettings& s);
     Workspace(const Workspace&) = delete;
     Workspace& operator=(const Workspace&) = delete;
+
+    // CVodeSVtolerances, only when they change (it resets CVODE's error weights).
+    void set_tolerances(double r, const double* a) {
+        bool same = r == rtol;
+        for (int k = 0; k < kStates; ++k) same = same && a[k] == atol[k];
+        if (same) return;
+        rtol = 0;  // unknown until the call succeeds
+        double* v = N_VGetArrayPointer(h.atol);
+        for (int k = 0; k < kStates; ++k) v[k] = atol[k] = a[k];
+        check(CVodeSVtolerances(h.mem, r, h.atol), "CVodeSVtolerances");
+        rtol = r;
+    }
+    bool same_tolerances(double r, const double* a) const {
+        bool same = r == rtol;
+        for (int k = 0; k < kStates; ++k) same = same && a[k] == atol[k];
+        return same;
+    }
 
     void check(int flag, const char* call) {
         if (flag >= 0) return;
@@ -109,25 +142,41 @@ struct CvodeIntegrator::Workspace {
         return 1;
     }
 
+    // y = (the two flux components, the step integrals); the integrals' y' are the integrands at
+    // the path's flux linkages, from the same inverse-map evaluation as the flux components'.
     static int rhs(realtype tau, N_Vector y, N_Vector ydot, void* data) {
         auto* w = static_cast<Workspace*>(data);
         const double* p = N_VGetArrayPointer(y);
         double* d = N_VGetArrayPointer(ydot);
+        double psi[2];
+        InverseFluxPoint c;
         if (!w->linearised) {
-            w->ode.rhs(p, d);
-            return w->finite_or_retry(p, d);
+            psi[0] = p[0];
+            psi[1] = p[1];
+            c = w->ode.currents(psi[0], psi[1]);
+            d[0] = w->ode.u_d - w->ode.R * c.i_d + w->ode.omega * psi[1];
+            d[1] = w->ode.u_q - w->ode.R * c.i_q - w->ode.omega * psi[0];
+        } else {
+            // z' = exp(-tau A) N(psi), N = -R (i(psi) - i0 - G0 (psi - psi0)).
+            const Linearisation& L = w->lin;
+            double E_inv[4];
+            L.psi_at(tau, p, psi, E_inv);
+            c = w->ode.currents(psi[0], psi[1]);
+            const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
+            const double n0 = -w->ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
+            const double n1 = -w->ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
+            d[0] = E_inv[0] * n0 + E_inv[1] * n1;
+            d[1] = E_inv[2] * n0 + E_inv[3] * n1;
         }
-        // z' = exp(-tau A) N(psi), N = -R (i(psi) - i0 - G0 (psi - psi0)).
-        const Linearisation& L = w->lin;
-        double psi[2], E_inv[4];
-        L.psi_at(tau, p, psi, E_inv);
-        const InverseFluxPoint c = w->ode.currents(psi[0], psi[1]);
-        const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
-        const double n0 = -w->ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
-        const double n1 = -w->ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
-        d[0] = E_inv[0] * n0 + E_inv[1] * n1;
-        d[1] = E_inv[2] * n0 + E_inv[3] * n1;
-        return w->finite_or_retry(psi, d);
+        double* q = d + 2;
+        if (w->integrands != nullptr)
+            w->integrands->eval(w->ode, psi[0], psi[1], c.i_d, c.i_q, q);
+        else
+            std::fill(q, q + StepIntegrands::count, 0.0);
+        double sum = d[0] + d[1];
+        for (int k = 0; k < StepIntegrands::count; ++k) sum += q[k];
+        const double all[2] = {sum, sum};
+        return w->finite_or_retry(psi, all);
     }
 
     static int jac(realtype tau, N_Vector y, N_Vector, SUNMatrix J, void* data, N_Vector, N_Vector, N_Vector) {
@@ -152,6 +201,8 @@ struct CvodeIntegrator::Workspace {
             j[2] = E_inv[2] * DE[0] + E_inv[3] * DE[2];
             j[3] = E_inv[2] * DE[1] + E_inv[3] * DE[3];
         }
+        // The step integrals' rows and columns stay zero: they do not feed back, so Newton with
+        // this matrix converges as fast as on the flux components alone.
         SM_ELEMENT_D(J, 0, 0) = j[0];
         SM_ELEMENT_D(J, 0, 1) = j[1];
         SM_ELEMENT_D(J, 1, 0) = j[2];
@@ -174,23 +225,22 @@ struct CvodeIntegrator::Workspace {
 CvodeIntegrator::Workspace::Workspace(const CvodeSettings& s) : built_for(s) {
     // On a throw, h's destructor frees whatever was made so far.
     if (SUNContext_Create(nullptr, &h.ctx) != 0 || h.ctx == nullptr) throw CvodeError("SUNContext_Create failed");
-    h.y = N_VNew_Serial(2, h.ctx);
-    if (h.y == nullptr) throw CvodeError("N_VNew_Serial failed");
+    h.y = N_VNew_Serial(kStates, h.ctx);
+    h.atol = N_VNew_Serial(kStates, h.ctx);
+    if (h.y == nullptr || h.atol == nullptr) throw CvodeError("N_VNew_Serial failed");
     N_VConst(0.0, h.y);
     h.mem = CVodeCreate(s.method == CvodeMethod::bdf ? CV_BDF : CV_ADAMS, h.ctx);
     if (h.mem == nullptr) throw CvodeError("CVodeCreate failed");
     check(CVodeSetErrHandlerFn(h.mem, &Workspace::handler, this), "CVodeSetErrHandlerFn");
     check(CVodeInit(h.mem, &Workspace::rhs, 0.0, h.y), "CVodeInit");
     check(CVodeSetUserData(h.mem, this), "CVodeSetUserData");
-    check(CVodeSStolerances(h.mem, s.rtol, s.atol), "CVodeSStolerances");
-    rtol = s.rtol;
-    atol = s.atol;
+    set_tolerances(s.rtol, tolerances(s, nullptr, 1.0).data());
     if (s.nonlinear == CvodeNonlinear::fixed_point) {
         h.nls = SUNNonlinSol_FixedPoint(h.y, 0, h.ctx);
         if (h.nls == nullptr) throw CvodeError("SUNNonlinSol_FixedPoint failed");
         check(CVodeSetNonlinearSolver(h.mem, h.nls), "CVodeSetNonlinearSolver");
     } else {
-        h.A = SUNDenseMatrix(2, 2, h.ctx);
+        h.A = SUNDenseMatrix(kStates, kStates, h.ctx);
         if (h.A == nullptr) throw CvodeError("SUNDenseMatrix failed");
         h.ls = SUNLinSol_Dense(h.y, h.A, h.ctx);
         if (h.ls == nullptr) throw CvodeError("SUNLinSol_Dense failed");
@@ -206,13 +256,16 @@ CvodeIntegrator::CvodeIntegrator(const CvodeSettings& settings) : settings_(sett
 CvodeIntegrator::~CvodeIntegrator() = default;
 
 CvodeIntegrator::CvodeIntegrator(const CvodeIntegrator& o)
-    : settings_(o.settings_), state_(o.state_), stats_(o.stats_), warnings_(o.warnings_) {}
+    : settings_(o.settings_), state_(o.state_), stats_(o.stats_), warnings_(o.warnings_) {
+    std::copy(o.integrals_, o.integrals_ + StepIntegrands::count, integrals_);
+}
 
 CvodeIntegrator& CvodeIntegrator::operator=(const CvodeIntegrator& o) {
     if (this == &o) return *this;
     settings_ = o.settings_;
     state_ = o.state_;
     stats_ = o.stats_;
+    std::copy(o.integrals_, o.integrals_ + StepIntegrands::count, integrals_);
     warnings_ = o.warnings_;
     if (ws_ && !ws_->built_for.same_structure(settings_)) ws_.reset();
     return *this;
@@ -227,6 +280,7 @@ void CvodeIntegrator::reset(double t, double psi_d, double psi_q) {
     state_.psi[0] = psi_d;
     state_.psi[1] = psi_q;
     stats_ = CvodeStats{};
+    std::fill(integrals_, integrals_ + StepIntegrands::count, 0.0);
     warnings_.clear();
 }
 
@@ -262,7 +316,7 @@ CvodeIntegrator::Workspace& CvodeIntegrator::workspace() {
     return *ws_;
 }
 
-void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
+void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegrands* integrands) {
     if (!(h > 0) || !std::isfinite(h))
         throw CvodeError("CvodeIntegrator::advance: the step h = " + number(h) + " s is not positive and finite");
     if (!(settings_.rtol > 0) || !(settings_.atol > 0)) throw CvodeError("CvodeIntegrator: rtol and atol must be > 0");
@@ -273,13 +327,15 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
     w.bad_flux.clear();
     double* y = N_VGetArrayPointer(w.h.y);
     void* mem = w.h.mem;
-    const bool new_tolerances = w.rtol != settings_.rtol || w.atol != settings_.atol;
+    const std::array<double, kStates> atol = tolerances(settings_, integrands, h);
+    const bool new_tolerances = !w.same_tolerances(settings_.rtol, atol.data());
     // History kept (direct formulation only): CVODE's clock continues from where it stopped.
     const bool resume = !settings_.linearised && !settings_.reinit_each_step && w.live && !new_tolerances &&
                         w.live_psi[0] == state_.psi[0] && w.live_psi[1] == state_.psi[1] &&
                         h > 64 * std::numeric_limits<double>::epsilon() * w.live_tau;
     const double tau0 = resume ? w.live_tau : 0.0, tau_end = tau0 + h;
     long steps0 = 0, rhs0 = 0, etf0 = 0, nni0 = 0, ncf0 = 0;
+    double integrals[StepIntegrands::count] = {0, 0, 0, 0}, q_end[StepIntegrands::count] = {0, 0, 0, 0};
     try {
         if (resume) {
             CVodeGetNumSteps(mem, &steps0);
@@ -318,16 +374,14 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
                 y[0] = state_.psi[0];
                 y[1] = state_.psi[1];
             }
+            std::fill(y + 2, y + kStates, 0.0);  // the step integrals
+            std::fill(w.live_q, w.live_q + StepIntegrands::count, 0.0);
             w.live = false;
             w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
             w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
         }
-        if (new_tolerances) {
-            w.rtol = w.atol = 0;  // unknown until the call succeeds
-            w.check(CVodeSStolerances(mem, settings_.rtol, settings_.atol), "CVodeSStolerances");
-            w.rtol = settings_.rtol;
-            w.atol = settings_.atol;
-        }
+        w.integrands = integrands;
+        if (new_tolerances) w.set_tolerances(settings_.rtol, atol.data());
         w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
         w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
         double t_ret = tau0;
@@ -342,6 +396,12 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
         }
         if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
             throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
+        for (int k = 0; k < StepIntegrands::count; ++k) {
+            q_end[k] = y[2 + k];
+            integrals[k] = q_end[k] - w.live_q[k];
+            if (!std::isfinite(integrals[k]))
+                throw CvodeError("non-finite step integrals at the end of a step of " + number(h) + " s");
+        }
     } catch (...) {
         w.live = false;
         throw;
@@ -377,6 +437,10 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
     if (settings_.init_step == CvodeInitStep::previous_next) CVodeGetCurrentStep(mem, &h_next);
     state_.h_next = h_next > 0 && std::isfinite(h_next) ? h_next : 0.0;
     stats_ = st;
+    for (int k = 0; k < StepIntegrands::count; ++k) {
+        integrals_[k] = integrals[k];
+        w.live_q[k] = q_end[k];
+    }
     warnings_ = w.warning;
     w.live = true;
     w.live_tau = tau_end;

@@ -29,6 +29,16 @@
 // copied (a copy gets a fresh workspace when it first integrates), and freed CVODE first, then the
 // solver objects, the vector and the context it points into.
 //
+// The step's integrals (integrands given to advance()): quadratures of the StepIntegrands
+// (ipmsm_ode.hpp) at the flux linkages along the path CVODE integrates, psi(tau) in either
+// formulation. CVODE proper has no quadrature module (CVODES has), so they are four more
+// components of y, q' = integrand(psi(tau)), q(0) = 0: under CVODE's error control like the
+// flux components (what CVodeSetQuadErrCon gives), with the relative tolerance rtol and absolute
+// tolerances that are atol's equivalents (what a flux error of atol means for an energy, 1.5 atol
+// current_scale J, and for the torque's impulse over the step, 1.5 p atol current_scale h N.m.s);
+// their integrands come from the inverse-map evaluation the flux components make anyway. They
+// restart from 0 at every call: step_integrals() are the last call's.
+//
 // reinit_each_step = false (for the benchmark only, with linearised = false: a linearisation is
 // one call's) keeps CVODE's history across calls (input jumps then go into CVODE's error
 // control); copies of such an integrator are not exact.
@@ -77,6 +87,7 @@ struct CvodeSettings {
     CvodeInitStep init_step = CvodeInitStep::previous_last;
     double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
     double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
+    double current_scale = 1e3;     // A: the quadratures' absolute tolerances (above)
 
     // Settings that shape CVODE's objects (a workspace is reused only if they match).
     bool same_structure(const CvodeSettings& o) const {
@@ -131,7 +142,8 @@ public:
     // CvodeError (CVODE's message) and leaves the state unchanged if CVODE fails.
     // linearised and reinit_each_step together: a call's result depends only on state().psi,
     // state().h_next (unused by the default initial step), the ODE and h.
-    void advance(const DqFluxOde& ode, double h);
+    // integrands: the step's integrals of these too (step_integrals()).
+    void advance(const DqFluxOde& ode, double h, const StepIntegrands* integrands = nullptr);
 
     const CvodeState& state() const { return state_; }
     void set_state(const CvodeState& s) { state_ = s; }
@@ -140,6 +152,9 @@ public:
     // solver, order) may too, at the cost of a new workspace on the next advance().
     void set_settings(const CvodeSettings& s) { settings_ = s; }
     const CvodeStats& stats() const { return stats_; }
+    // The integrals over the last advance() of the integrands it was given (indices
+    // StepIntegrands::Index; zeros if none were given).
+    const double* step_integrals() const { return integrals_; }
     // CVODE's warnings (not errors) during the last advance(), "" if none.
     const std::string& warnings() const { return warnings_; }
 
@@ -151,6 +166,7 @@ private:
     CvodeSettings settings_;
     CvodeState state_;
     CvodeStats stats_;
+    double integrals_[StepIntegrands::count] = {0, 0, 0, 0};
     std::string warnings_;
     std::unique_ptr<Workspace> ws_;
 };
