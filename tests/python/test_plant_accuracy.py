@@ -432,8 +432,9 @@ def test_saturating_maps_step_integrals_match_solve_ivp(plant_fmu, saturating, t
     to each one's throughput (the integral of its magnitude): at the plant's defaults (rtol 1e-6
     per step) to 1e-5 over the 400 steps (measured 0.9 .. 1.9e-6; the currents themselves are
     held to 1e-4 I_max there, test above), and at rtol 1e-10 to 1e-8 (measured <= 1.2e-9: what the
-    two splines of the map, the plant's and scipy's, allow). A rectangle rule on the powers after each step (what the drive summed before)
-    misses by more than 1e-4 here: checked, so that the walk has transients that matter."""
+    two splines of the map, the plant's and scipy's, allow). A rectangle rule on the powers after
+    each step (what the drive summed before) misses by more than 1e-4 here: checked, so that the
+    walk has transients that matter."""
     m, path, fm = saturating
     w_m = 400.0
     params = {} if tolerances == "default" else dict(rtol=1e-10, atol=1e-12)
