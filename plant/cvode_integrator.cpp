@@ -142,6 +142,55 @@ struct CvodeIntegrator::Workspace {
         return 1;
     }
 
+    // The linearised right-hand side at tau for y = (z, step integrals), with the path's psi and
+    // its currents.
+    void linearised_rhs(double tau, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
+        const Linearisation& L = lin;
+        double E_inv[4];
+        L.psi_at(tau, y, psi, E_inv);
+        c = ode.currents(psi[0], psi[1]);
+        const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
+        const double n0 = -ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
+        const double n1 = -ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
+        d[0] = E_inv[0] * n0 + E_inv[1] * n1;
+        d[1] = E_inv[2] * n0 + E_inv[3] * n1;
+        if (integrands != nullptr)
+            integrands->eval(ode, psi[0], psi[1], c.i_d, c.i_q, d + 2);
+        else
+            std::fill(d + 2, d + kStates, 0.0);
+    }
+
+    // One Bogacki-Shampine 3(2) step from y = 0 over the whole span (cvode_integrator.hpp):
+    // true, with y(span), psi(span) and the currents there, when its error estimate's weighted
+    // RMS norm (CVODE's, weights rtol |y(span)| + atol) is <= 1.
+    bool explicit_step(double span, double rtol, const double* atol, double* y_end, double* psi_end,
+                       InverseFluxPoint& c_end) const {
+        double k1[kStates], k2[kStates], k3[kStates], k4[kStates], y[kStates], psi[2];
+        InverseFluxPoint c;
+        // tau = 0: z = 0, psi = psi0, N(psi0) = 0; the integrands at the start's currents.
+        k1[0] = k1[1] = 0.0;
+        const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
+        if (integrands != nullptr)
+            integrands->eval(ode, lin.psi0[0], lin.psi0[1], c0.i_d, c0.i_q, k1 + 2);
+        else
+            std::fill(k1 + 2, k1 + kStates, 0.0);
+        for (int k = 0; k < kStates; ++k) y[k] = 0.5 * span * k1[k];
+        linearised_rhs(0.5 * span, y, k2, psi, c);
+        for (int k = 0; k < kStates; ++k) y[k] = 0.75 * span * k2[k];
+        linearised_rhs(0.75 * span, y, k3, psi, c);
+        for (int k = 0; k < kStates; ++k) y_end[k] = span * (2.0 / 9.0 * k1[k] + 1.0 / 3.0 * k2[k] + 4.0 / 9.0 * k3[k]);
+        linearised_rhs(span, y_end, k4, psi_end, c_end);
+        double sum = 0.0;
+        for (int k = 0; k < kStates; ++k) {
+            const double e = span * (-5.0 / 72.0 * k1[k] + 1.0 / 12.0 * k2[k] + 1.0 / 9.0 * k3[k] - 0.125 * k4[k]);
+            const double r = e / (rtol * std::abs(y_end[k]) + atol[k]);
+            sum += r * r;
+        }
+        // Not finite (the currents left what the map can invert): the norm is NaN, CVODE decides.
+        return sum <= kStates && std::isfinite(psi_end[0]) && std::isfinite(psi_end[1]) && std::isfinite(c_end.i_d) &&
+               std::isfinite(c_end.i_q);
+    }
+
     // y = (the two flux components, the step integrals); the integrals' y' are the integrands at
     // the path's flux linkages, from the same inverse-map evaluation as the flux components'.
     static int rhs(realtype tau, N_Vector y, N_Vector ydot, void* data) {
@@ -150,31 +199,21 @@ struct CvodeIntegrator::Workspace {
         double* d = N_VGetArrayPointer(ydot);
         double psi[2];
         InverseFluxPoint c;
-        if (!w->linearised) {
+        if (w->linearised) {
+            w->linearised_rhs(tau, p, d, psi, c);
+        } else {
             psi[0] = p[0];
             psi[1] = p[1];
             c = w->ode.currents(psi[0], psi[1]);
             d[0] = w->ode.u_d - w->ode.R * c.i_d + w->ode.omega * psi[1];
             d[1] = w->ode.u_q - w->ode.R * c.i_q - w->ode.omega * psi[0];
-        } else {
-            // z' = exp(-tau A) N(psi), N = -R (i(psi) - i0 - G0 (psi - psi0)).
-            const Linearisation& L = w->lin;
-            double E_inv[4];
-            L.psi_at(tau, p, psi, E_inv);
-            c = w->ode.currents(psi[0], psi[1]);
-            const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
-            const double n0 = -w->ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
-            const double n1 = -w->ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
-            d[0] = E_inv[0] * n0 + E_inv[1] * n1;
-            d[1] = E_inv[2] * n0 + E_inv[3] * n1;
+            if (w->integrands != nullptr)
+                w->integrands->eval(w->ode, psi[0], psi[1], c.i_d, c.i_q, d + 2);
+            else
+                std::fill(d + 2, d + kStates, 0.0);
         }
-        double* q = d + 2;
-        if (w->integrands != nullptr)
-            w->integrands->eval(w->ode, psi[0], psi[1], c.i_d, c.i_q, q);
-        else
-            std::fill(q, q + StepIntegrands::count, 0.0);
-        double sum = d[0] + d[1];
-        for (int k = 0; k < StepIntegrands::count; ++k) sum += q[k];
+        double sum = 0.0;
+        for (int k = 0; k < kStates; ++k) sum += d[k];
         const double all[2] = {sum, sum};
         return w->finite_or_retry(psi, all);
     }
@@ -349,8 +388,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
                 // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
                 Workspace::Linearisation& L = w.lin;
                 double A[4];
-                InverseFluxPoint c;
-                ode.rhs_and_jacobian(state_.psi, L.f0, A, &c);
+                const InverseFluxPoint c = currents(ode, state_.psi);
+                ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
                 if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
                     throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
                                      " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
@@ -377,6 +416,15 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
             std::fill(y + 2, y + kStates, 0.0);  // the step integrals
             std::fill(w.live_q, w.live_q + StepIntegrands::count, 0.0);
             w.live = false;
+            w.integrands = integrands;
+            if (w.linearised && settings_.explicit_first && settings_.reinit_each_step) {
+                double y_end[kStates], psi_end[2];
+                InverseFluxPoint c_end;
+                if (w.explicit_step(h, settings_.rtol, atol.data(), y_end, psi_end, c_end)) {
+                    commit_explicit(ode, h, y_end, psi_end, c_end);
+                    return;
+                }
+            }
             w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
             w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
         }
@@ -429,7 +477,10 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
             throw CvodeError("non-finite flux linkages at the end of a step of " + number(h) + " s");
     }
 
+    const InverseFluxPoint c_end = currents(ode, psi_end);
+
     // Commit.
+    end_ = Evaluation{ode.inverse, psi_end[0] - ode.delta_psi_m, psi_end[1], c_end};
     state_.t += h;
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];
@@ -446,6 +497,28 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     w.live_tau = tau_end;
     w.live_psi[0] = psi_end[0];
     w.live_psi[1] = psi_end[1];
+}
+
+InverseFluxPoint CvodeIntegrator::currents(const DqFluxOde& ode, const double* psi) {
+    const double x = psi[0] - ode.delta_psi_m, y = psi[1];
+    if (end_.map == ode.inverse && end_.x == x && end_.y == y) return end_.c;
+    return ode.currents(psi[0], psi[1]);
+}
+
+void CvodeIntegrator::commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
+                                      const InverseFluxPoint& c_end) {
+    end_ = Evaluation{ode.inverse, psi_end[0] - ode.delta_psi_m, psi_end[1], c_end};
+    state_.t += h;
+    state_.psi[0] = psi_end[0];
+    state_.psi[1] = psi_end[1];
+    state_.h_next = h;
+    stats_ = CvodeStats{};
+    stats_.steps = 1;
+    stats_.rhs_evals = 3;
+    stats_.last_order = 3;
+    stats_.last_step = h;
+    for (int k = 0; k < StepIntegrands::count; ++k) integrals_[k] = y_end[2 + k];
+    warnings_.clear();
 }
 
 }  // namespace ipmsm

@@ -39,6 +39,19 @@
 // their integrands come from the inverse-map evaluation the flux components make anyway. They
 // restart from 0 at every call: step_integrals() are the last call's.
 //
+// explicit_first (with linearised, reinit_each_step): before CVODE, one explicit Runge-Kutta step
+// over the whole call (Bogacki-Shampine 3(2), three evaluations of the right-hand side; the first
+// stage is known: z' = 0 at tau = 0) of z and the step integrals, whose embedded error estimate
+// is measured in CVODE's weighted RMS norm with the same tolerances (weights rtol |y(h)| + atol);
+// it is taken when that norm is <= 1, else CVODE integrates the call as without it. The
+// remainder z is of second order in the step's change of psi, so the estimate passes where the
+// currents change smoothly over the call, and the CVODE set-up (re-initialisation, initial
+// setup, the Nordsieck history) is not paid there.
+//
+// The currents at the end of a call (end_currents()) are the inverse map's at the end's flux
+// linkages; the next call's linearisation at the same flux linkages reuses them (the inverse
+// map is a pure function: keyed by its input, the result is bit-identical).
+//
 // reinit_each_step = false (for the benchmark only, with linearised = false: a linearisation is
 // one call's) keeps CVODE's history across calls (input jumps then go into CVODE's error
 // control); copies of such an integrator are not exact.
@@ -88,6 +101,7 @@ struct CvodeSettings {
     double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
     double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
     double current_scale = 1e3;     // A: the quadratures' absolute tolerances (above)
+    bool explicit_first = false;    // try one embedded Runge-Kutta step before CVODE (above)
 
     // Settings that shape CVODE's objects (a workspace is reused only if they match).
     bool same_structure(const CvodeSettings& o) const {
@@ -155,6 +169,8 @@ public:
     // The integrals over the last advance() of the integrands it was given (indices
     // StepIntegrands::Index; zeros if none were given).
     const double* step_integrals() const { return integrals_; }
+    // The inverse map's currents (and dI/dpsi) at state().psi after the last advance().
+    const InverseFluxPoint& end_currents() const { return end_.c; }
     // CVODE's warnings (not errors) during the last advance(), "" if none.
     const std::string& warnings() const { return warnings_; }
 
@@ -167,6 +183,15 @@ private:
     CvodeState state_;
     CvodeStats stats_;
     double integrals_[StepIntegrands::count] = {0, 0, 0, 0};
+    // The last inverse-map evaluation kept: its input (map, psi_d - delta_psi_m, psi_q) and result.
+    struct Evaluation {
+        const InverseFluxMap* map = nullptr;
+        double x = 0, y = 0;
+        InverseFluxPoint c{};
+    } end_;
+    InverseFluxPoint currents(const DqFluxOde& ode, const double* psi);  // end_'s if the same input
+    void commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
+                         const InverseFluxPoint& c_end);
     std::string warnings_;
     std::unique_ptr<Workspace> ws_;
 };

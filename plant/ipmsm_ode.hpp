@@ -47,6 +47,10 @@ struct DqFluxOde {
     void rhs_and_jacobian(const double* psi, double* dpsi, double* J, InverseFluxPoint* at = nullptr) const {
         const InverseFluxPoint c = currents(psi[0], psi[1]);
         if (at != nullptr) *at = c;
+        rhs_and_jacobian(psi, c, dpsi, J);
+    }
+    // ... at the currents c = currents(psi) known already.
+    void rhs_and_jacobian(const double* psi, const InverseFluxPoint& c, double* dpsi, double* J) const {
         dpsi[0] = u_d - R * c.i_d + omega * psi[1];
         dpsi[1] = u_q - R * c.i_q - omega * psi[0];
         J[0] = -R * c.G_dd;
