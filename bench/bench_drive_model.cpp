@@ -6,7 +6,7 @@
 //   glue    plus what the FMI glue adds per communication step: the undo copy of the model
 // (best of `rounds` runs) and the run's integrals, so that two builds can be compared.
 //
-//   bench_drive_model <profile.csv> [rounds = 3] [seconds = all]
+//   bench_drive_model <profile.csv> [rounds = 3] [seconds = all] [from = 0 s]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -79,11 +79,15 @@ Result run(const std::vector<Row>& rows, bool glue_copy) {
 
 int main(int argc, char** argv) {
     if (argc < 2) {
-        std::fprintf(stderr, "usage: bench_drive_model <profile.csv> [rounds = 3] [seconds = all]\n");
+        std::fprintf(stderr, "usage: bench_drive_model <profile.csv> [rounds = 3] [seconds = all] [from = 0 s]\n");
         return 2;
     }
     std::vector<Row> rows = read_profile(argv[1]);
     const int rounds = argc > 2 ? std::atoi(argv[2]) : 3;
+    if (argc > 4) {
+        const auto from = std::min(rows.size(), static_cast<std::size_t>(std::atof(argv[4]) / kVehicleStep));
+        rows.erase(rows.begin(), rows.begin() + static_cast<std::ptrdiff_t>(from));
+    }
     if (argc > 3) rows.resize(std::min(rows.size(), static_cast<std::size_t>(std::atof(argv[3]) / kVehicleStep)));
     if (rows.empty()) return 2;
     const double inner = rows.size() * std::llround(kVehicleStep / 1e-4);

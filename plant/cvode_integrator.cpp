@@ -81,16 +81,46 @@ struct CvodeIntegrator::Workspace {
     CvodeSettings built_for;  // structure
     DqFluxOde ode;            // the RHS's data during advance()
     // linearised: the step's linearisation at psi0 (cvode_integrator.hpp). CVODE's y is z.
+    // The linear flow at one tau: exp(tau A), exp(-tau A), P(tau) (linear_flow.hpp).
+    struct FlowAt {
+        double E[4], E_inv[4], P[4];
+        // At tau + sigma from the flows at tau (this) and at sigma: exp((tau + sigma) A) =
+        // exp(tau A) exp(sigma A), P(tau + sigma) = P(tau) + exp(tau A) P(sigma).
+        FlowAt then(const FlowAt& s) const {
+            FlowAt r;
+            mul(E, s.E, r.E);
+            mul(s.E_inv, E_inv, r.E_inv);
+            double EP[4];
+            mul(E, s.P, EP);
+            for (int k = 0; k < 4; ++k) r.P[k] = P[k] + EP[k];
+            return r;
+        }
+        static void mul(const double* a, const double* b, double* c) {
+            c[0] = a[0] * b[0] + a[1] * b[2];
+            c[1] = a[0] * b[1] + a[1] * b[3];
+            c[2] = a[2] * b[0] + a[3] * b[2];
+            c[3] = a[2] * b[1] + a[3] * b[3];
+        }
+    };
     struct Linearisation {
         double psi0[2], i0[2], G0[4], f0[2];
         LinearFlow flow;
-        // psi(tau) for z, with exp(-tau A) for the caller.
+        FlowAt at(double tau) const {
+            FlowAt F;
+            flow.exp(tau, F.E, F.E_inv);
+            flow.integral(tau, F.E, F.P);
+            return F;
+        }
+        // psi(tau) for z, the flow at tau given.
+        void psi_at(const FlowAt& F, const double* z, double* psi) const {
+            psi[0] = psi0[0] + F.P[0] * f0[0] + F.P[1] * f0[1] + F.E[0] * z[0] + F.E[1] * z[1];
+            psi[1] = psi0[1] + F.P[2] * f0[0] + F.P[3] * f0[1] + F.E[2] * z[0] + F.E[3] * z[1];
+        }
+        // ... at tau, with exp(-tau A) for the caller.
         void psi_at(double tau, const double* z, double* psi, double* E_inv) const {
-            double E[4], P[4];
-            flow.exp(tau, E, E_inv);
-            flow.integral(tau, E, P);
-            psi[0] = psi0[0] + P[0] * f0[0] + P[1] * f0[1] + E[0] * z[0] + E[1] * z[1];
-            psi[1] = psi0[1] + P[2] * f0[0] + P[3] * f0[1] + E[2] * z[0] + E[3] * z[1];
+            const FlowAt F = at(tau);
+            psi_at(F, z, psi);
+            std::copy(F.E_inv, F.E_inv + 4, E_inv);
         }
     } lin;
     bool linearised = false;                     // this call's formulation (built_for.linearised unless too stiff)
@@ -144,16 +174,18 @@ struct CvodeIntegrator::Workspace {
 
     // The linearised right-hand side at tau for y = (z, step integrals), with the path's psi and
     // its currents.
-    void linearised_rhs(double tau, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
+    void linearised_rhs(const FlowAt& F, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
         const Linearisation& L = lin;
-        double E_inv[4];
-        L.psi_at(tau, y, psi, E_inv);
-        c = ode.currents(psi[0], psi[1]);
+        L.psi_at(F, y, psi);
+        // Newton from the linearisation's prediction i0 + G0 (psi - psi0): within a step the
+        // currents are near it (one forward-map evaluation, not the table's three).
         const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
+        c = ode.currents_near(psi[0], psi[1], L.i0[0] + L.G0[0] * dd + L.G0[1] * dq,
+                              L.i0[1] + L.G0[2] * dd + L.G0[3] * dq);
         const double n0 = -ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
         const double n1 = -ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
-        d[0] = E_inv[0] * n0 + E_inv[1] * n1;
-        d[1] = E_inv[2] * n0 + E_inv[3] * n1;
+        d[0] = F.E_inv[0] * n0 + F.E_inv[1] * n1;
+        d[1] = F.E_inv[2] * n0 + F.E_inv[3] * n1;
         if (integrands != nullptr)
             integrands->eval(ode, psi[0], psi[1], c.i_d, c.i_q, d + 2);
         else
@@ -174,12 +206,14 @@ struct CvodeIntegrator::Workspace {
             integrands->eval(ode, lin.psi0[0], lin.psi0[1], c0.i_d, c0.i_q, k1 + 2);
         else
             std::fill(k1 + 2, k1 + kStates, 0.0);
+        // The flow at the stages span / 2, 3 span / 4, span from the one at span / 4.
+        const FlowAt F1 = lin.at(0.25 * span), F2 = F1.then(F1), F3 = F2.then(F1), F4 = F2.then(F2);
         for (int k = 0; k < kStates; ++k) y[k] = 0.5 * span * k1[k];
-        linearised_rhs(0.5 * span, y, k2, psi, c);
+        linearised_rhs(F2, y, k2, psi, c);
         for (int k = 0; k < kStates; ++k) y[k] = 0.75 * span * k2[k];
-        linearised_rhs(0.75 * span, y, k3, psi, c);
+        linearised_rhs(F3, y, k3, psi, c);
         for (int k = 0; k < kStates; ++k) y_end[k] = span * (2.0 / 9.0 * k1[k] + 1.0 / 3.0 * k2[k] + 4.0 / 9.0 * k3[k]);
-        linearised_rhs(span, y_end, k4, psi_end, c_end);
+        linearised_rhs(F4, y_end, k4, psi_end, c_end);
         double sum = 0.0;
         for (int k = 0; k < kStates; ++k) {
             const double e = span * (-5.0 / 72.0 * k1[k] + 1.0 / 12.0 * k2[k] + 1.0 / 9.0 * k3[k] - 0.125 * k4[k]);
@@ -200,7 +234,7 @@ struct CvodeIntegrator::Workspace {
         double psi[2];
         InverseFluxPoint c;
         if (w->linearised) {
-            w->linearised_rhs(tau, p, d, psi, c);
+            w->linearised_rhs(w->lin.at(tau), p, d, psi, c);
         } else {
             psi[0] = p[0];
             psi[1] = p[1];
@@ -388,7 +422,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
                 // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
                 Workspace::Linearisation& L = w.lin;
                 double A[4];
-                const InverseFluxPoint c = currents(ode, state_.psi);
+                const InverseFluxPoint c = ode.currents(state_.psi[0], state_.psi[1]);
                 ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
                 if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
                     throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
@@ -477,10 +511,18 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
             throw CvodeError("non-finite flux linkages at the end of a step of " + number(h) + " s");
     }
 
-    const InverseFluxPoint c_end = currents(ode, psi_end);
+    InverseFluxPoint c_end;
+    if (w.linearised) {  // as in linearised_rhs: from the linearisation's prediction
+        const Workspace::Linearisation& L = w.lin;
+        const double dd = psi_end[0] - L.psi0[0], dq = psi_end[1] - L.psi0[1];
+        c_end = ode.currents_near(psi_end[0], psi_end[1], L.i0[0] + L.G0[0] * dd + L.G0[1] * dq,
+                                  L.i0[1] + L.G0[2] * dd + L.G0[3] * dq);
+    } else {
+        c_end = ode.currents(psi_end[0], psi_end[1]);
+    }
 
     // Commit.
-    end_ = Evaluation{ode.inverse, psi_end[0] - ode.delta_psi_m, psi_end[1], c_end};
+    end_currents_ = c_end;
     state_.t += h;
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];
@@ -499,15 +541,9 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     w.live_psi[1] = psi_end[1];
 }
 
-InverseFluxPoint CvodeIntegrator::currents(const DqFluxOde& ode, const double* psi) {
-    const double x = psi[0] - ode.delta_psi_m, y = psi[1];
-    if (end_.map == ode.inverse && end_.x == x && end_.y == y) return end_.c;
-    return ode.currents(psi[0], psi[1]);
-}
-
 void CvodeIntegrator::commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
                                       const InverseFluxPoint& c_end) {
-    end_ = Evaluation{ode.inverse, psi_end[0] - ode.delta_psi_m, psi_end[1], c_end};
+    end_currents_ = c_end;
     state_.t += h;
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];

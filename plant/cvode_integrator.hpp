@@ -49,8 +49,9 @@
 // setup, the Nordsieck history) is not paid there.
 //
 // The currents at the end of a call (end_currents()) are the inverse map's at the end's flux
-// linkages; the next call's linearisation at the same flux linkages reuses them (the inverse
-// map is a pure function: keyed by its input, the result is bit-identical).
+// linkages, with Newton started from the call's linearisation (InverseFluxMap::eval_near); the
+// next call's linearisation evaluates them afresh from the map's table (InverseFluxMap::eval),
+// so that a call's result depends on its start state only (copies and restored states exact).
 //
 // reinit_each_step = false (for the benchmark only, with linearised = false: a linearisation is
 // one call's) keeps CVODE's history across calls (input jumps then go into CVODE's error
@@ -170,7 +171,7 @@ public:
     // StepIntegrands::Index; zeros if none were given).
     const double* step_integrals() const { return integrals_; }
     // The inverse map's currents (and dI/dpsi) at state().psi after the last advance().
-    const InverseFluxPoint& end_currents() const { return end_.c; }
+    const InverseFluxPoint& end_currents() const { return end_currents_; }
     // CVODE's warnings (not errors) during the last advance(), "" if none.
     const std::string& warnings() const { return warnings_; }
 
@@ -183,13 +184,7 @@ private:
     CvodeState state_;
     CvodeStats stats_;
     double integrals_[StepIntegrands::count] = {0, 0, 0, 0};
-    // The last inverse-map evaluation kept: its input (map, psi_d - delta_psi_m, psi_q) and result.
-    struct Evaluation {
-        const InverseFluxMap* map = nullptr;
-        double x = 0, y = 0;
-        InverseFluxPoint c{};
-    } end_;
-    InverseFluxPoint currents(const DqFluxOde& ode, const double* psi);  // end_'s if the same input
+    InverseFluxPoint end_currents_{};  // at state_.psi after the last advance()
     void commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
                          const InverseFluxPoint& c_end);
     std::string warnings_;

@@ -33,6 +33,10 @@ struct DqFluxOde {
     double delta_psi_m = 0;   // PM flux change from magnet temperature, Wb
 
     InverseFluxPoint currents(double psi_d, double psi_q) const { return inverse->eval(psi_d - delta_psi_m, psi_q); }
+    // ... with Newton started from a guess of the currents (inverse_flux_map.hpp: eval_near).
+    InverseFluxPoint currents_near(double psi_d, double psi_q, double i_d_guess, double i_q_guess) const {
+        return inverse->eval_near(psi_d - delta_psi_m, psi_q, i_d_guess, i_q_guess);
+    }
     void rhs(const double* psi, double* dpsi) const {
         const InverseFluxPoint c = currents(psi[0], psi[1]);
         dpsi[0] = u_d - R * c.i_d + omega * psi[1];

@@ -324,7 +324,7 @@ void DriveModel::do_step(double t, double h) {
     copy_to(*this, plant_, true);
     hold_inputs();
     coupling::CoupledModels& cm = coupled();
-    const InverterParams inv = inverter();
+    const InverterLossModel inv(inverter(), u_dc);  // u_dc is held over the step
     // The plant integrates its powers exactly over each inner step (its E_*, T_e_impulse): the
     // step's means are their increases over h. The inverter's loss is defined per inner step
     // (one PWM period): from the phase current sampled at its end, as the controller samples it,
@@ -337,7 +337,7 @@ void DriveModel::do_step(double t, double h) {
         cm.step();
         const double P_ac = (plant_.E_elec - E_elec_before) / sample_time;
         const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
-        const double p_inv = inverter_loss(std::sqrt(I2), I2, u_dc, P_ac, inv).P();
+        const double p_inv = inv.at(std::sqrt(I2), I2, P_ac).P();
         s_P_inv += p_inv;
         E_inv += p_inv * sample_time;
     }
