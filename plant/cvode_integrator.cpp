@@ -422,7 +422,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
                 // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
                 Workspace::Linearisation& L = w.lin;
                 double A[4];
-                const InverseFluxPoint c = ode.currents(state_.psi[0], state_.psi[1]);
+                const InverseFluxPoint c =
+                    ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
                 ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
                 if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
                     throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
@@ -523,6 +524,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
 
     // Commit.
     end_currents_ = c_end;
+    state_.i_seed[0] = c_end.i_d;
+    state_.i_seed[1] = c_end.i_q;
     state_.t += h;
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];
@@ -544,6 +547,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
 void CvodeIntegrator::commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
                                       const InverseFluxPoint& c_end) {
     end_currents_ = c_end;
+    state_.i_seed[0] = c_end.i_d;
+    state_.i_seed[1] = c_end.i_q;
     state_.t += h;
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];

@@ -50,14 +50,16 @@
 //
 // The currents at the end of a call (end_currents()) are the inverse map's at the end's flux
 // linkages, with Newton started from the call's linearisation (InverseFluxMap::eval_near); the
-// next call's linearisation evaluates them afresh from the map's table (InverseFluxMap::eval),
-// so that a call's result depends on its start state only (copies and restored states exact).
+// next call's linearisation evaluates them afresh with Newton started from them (state().i_seed,
+// part of the state: a call's result depends on its start state only, copies and restored
+// states are exact), or from the map's table where the seed is unknown (NaN, after reset()).
 //
 // reinit_each_step = false (for the benchmark only, with linearised = false: a linearisation is
 // one call's) keeps CVODE's history across calls (input jumps then go into CVODE's error
 // control); copies of such an integrator are not exact.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -131,6 +133,9 @@ struct CvodeState {
     double t = 0;            // the end of the last step (bookkeeping: the integration is in relative time)
     double psi[2] = {0, 0};  // psi_d, psi_q, Wb
     double h_next = 0;       // initial step size for the next advance(), s; 0: CVODE estimates
+    // The currents at psi (A) from the last advance(), where the next one's Newton starts; NaN:
+    // unknown, the inverse map's table gives the start.
+    double i_seed[2] = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
 };
 
 // Counters of the last advance().

@@ -236,6 +236,10 @@ void PlantModel::exit_initialization() {
     const FluxPoint p0 = map->eval(i_d_start, i_q_start);
     CvodeIntegrator integrator(settings());
     integrator.reset(0.0, p0.psi_d + shift, p0.psi_q);
+    CvodeState start = integrator.state();  // the start currents: exactly those at the start fluxes
+    start.i_seed[0] = i_d_start;
+    start.i_seed[1] = i_q_start;
+    integrator.set_state(start);
 
     // Commit.
     map_ = std::move(map);

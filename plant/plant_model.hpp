@@ -71,7 +71,7 @@ public:
     template <class Field>
     void state_fields(Field&& field) {
         CvodeState s = integrator_.state();
-        field(s.t), field(s.psi), field(s.h_next);
+        field(s.t), field(s.psi), field(s.h_next), field(s.i_seed);
         integrator_.set_state(s);  // what was read in; the same state when the fields were written
         field(outside_warned_);
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
