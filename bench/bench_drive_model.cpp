@@ -103,8 +103,8 @@ int main(int argc, char** argv) {
         std::printf("%-6s %zu steps of 10 ms (%.0f inner): %.3f s, %.3f us per inner step (best of %d)\n",
                     glue ? "glue" : "model", rows.size(), inner, best, 1e6 * best / inner, rounds);
         if (!glue)
-            std::printf("       E_dc %.9g J, E_mech %.9g J, E_cu %.9g J, E_fe %.9g J, E_inv %.9g J\n", e.E_dc, e.E_mech,
-                        e.E_cu, e.E_fe, e.E_inv);
+            std::printf("       E_dc %.17g J, E_mech %.17g J, E_cu %.17g J, E_fe %.17g J, E_inv %.17g J\n", e.E_dc,
+                        e.E_mech, e.E_cu, e.E_fe, e.E_inv);
     }
     return 0;
 }
