@@ -1,6 +1,7 @@
 #include "cvode_integrator.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -23,6 +24,17 @@ namespace {
 // Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
 constexpr double kStiffLimit = 2.0;
 
+// CVODE's y: the two flux components (z or psi) and the step integrals (cvode_integrator.hpp).
+constexpr int kStates = 2 + StepIntegrands::count;
+
+// The absolute tolerances of y's components: atol on the flux components, its equivalents on the
+// step integrals (cvode_integrator.hpp).
+std::array<double, kStates> tolerances(const CvodeSettings& s, const StepIntegrands* integrands, double span) {
+    const double energy = 1.5 * s.atol * s.current_scale;                              // J
+    const double impulse = energy * (integrands ? integrands->pole_pairs : 1) * span;  // N.m.s
+    return {s.atol, s.atol, energy, energy, energy, impulse};
+}
+
 std::string number(double x) {
     char b[32];
     std::snprintf(b, sizeof b, "%.17g", x);
@@ -43,6 +55,7 @@ std::string flag_name(int flag) {
 struct CvodeHandles {
     SUNContext ctx = nullptr;
     N_Vector y = nullptr;
+    N_Vector atol = nullptr;  // the absolute tolerances of y's components
     void* mem = nullptr;
     SUNNonlinearSolver nls = nullptr;
     SUNMatrix A = nullptr;
@@ -56,6 +69,7 @@ struct CvodeHandles {
         if (ls != nullptr) SUNLinSolFree(ls);
         if (A != nullptr) SUNMatDestroy(A);
         if (nls != nullptr) SUNNonlinSolFree(nls);
+        if (atol != nullptr) N_VDestroy(atol);
         if (y != nullptr) N_VDestroy(y);
         if (ctx != nullptr) SUNContext_Free(&ctx);
     }
@@ -67,33 +81,82 @@ struct CvodeIntegrator::Workspace {
     CvodeSettings built_for;  // structure
     DqFluxOde ode;            // the RHS's data during advance()
     // linearised: the step's linearisation at psi0 (cvode_integrator.hpp). CVODE's y is z.
+    // The linear flow at one tau: exp(tau A), exp(-tau A), P(tau) (linear_flow.hpp).
+    struct FlowAt {
+        double E[4], E_inv[4], P[4];
+        // At tau + sigma from the flows at tau (this) and at sigma: exp((tau + sigma) A) =
+        // exp(tau A) exp(sigma A), P(tau + sigma) = P(tau) + exp(tau A) P(sigma).
+        FlowAt then(const FlowAt& s) const {
+            FlowAt r;
+            mul(E, s.E, r.E);
+            mul(s.E_inv, E_inv, r.E_inv);
+            double EP[4];
+            mul(E, s.P, EP);
+            for (int k = 0; k < 4; ++k) r.P[k] = P[k] + EP[k];
+            return r;
+        }
+        static void mul(const double* a, const double* b, double* c) {
+            c[0] = a[0] * b[0] + a[1] * b[2];
+            c[1] = a[0] * b[1] + a[1] * b[3];
+            c[2] = a[2] * b[0] + a[3] * b[2];
+            c[3] = a[2] * b[1] + a[3] * b[3];
+        }
+    };
     struct Linearisation {
         double psi0[2], i0[2], G0[4], f0[2];
         LinearFlow flow;
-        // psi(tau) for z, with exp(-tau A) for the caller.
+        FlowAt at(double tau) const {
+            FlowAt F;
+            flow.exp(tau, F.E, F.E_inv);
+            flow.integral(tau, F.E, F.P);
+            return F;
+        }
+        // psi(tau) for z, the flow at tau given.
+        void psi_at(const FlowAt& F, const double* z, double* psi) const {
+            psi[0] = psi0[0] + F.P[0] * f0[0] + F.P[1] * f0[1] + F.E[0] * z[0] + F.E[1] * z[1];
+            psi[1] = psi0[1] + F.P[2] * f0[0] + F.P[3] * f0[1] + F.E[2] * z[0] + F.E[3] * z[1];
+        }
+        // ... at tau, with exp(-tau A) for the caller.
         void psi_at(double tau, const double* z, double* psi, double* E_inv) const {
-            double E[4], P[4];
-            flow.exp(tau, E, E_inv);
-            flow.integral(tau, E, P);
-            psi[0] = psi0[0] + P[0] * f0[0] + P[1] * f0[1] + E[0] * z[0] + E[1] * z[1];
-            psi[1] = psi0[1] + P[2] * f0[0] + P[3] * f0[1] + E[2] * z[0] + E[3] * z[1];
+            const FlowAt F = at(tau);
+            psi_at(F, z, psi);
+            std::copy(F.E_inv, F.E_inv + 4, E_inv);
         }
     } lin;
-    bool linearised = false;  // this call's formulation (built_for.linearised unless too stiff)
-    std::string bad_flux;     // where the currents could not be found (for the error message)
-    std::string error;        // CVODE's error messages of the current call
-    std::string warning;      // CVODE's warnings of the current call
+    bool linearised = false;                     // this call's formulation (built_for.linearised unless too stiff)
+    const StepIntegrands* integrands = nullptr;  // this call's, or none (their components' y' = 0)
+    std::string bad_flux;                        // where the currents could not be found (for the error message)
+    std::string error;                           // CVODE's error messages of the current call
+    std::string warning;                         // CVODE's warnings of the current call
     // reinit_each_step = false: where CVODE's history stands, to know whether it continues.
     bool live = false;
-    double live_tau = 0, live_psi[2] = {0, 0};  // CVODE's clock and state where it stopped
-    // Tolerances given to CVODE (CVodeSStolerances clears CVODE's error-weight data until its next
+    double live_tau = 0, live_psi[2] = {0, 0};            // CVODE's clock and state where it stopped
+    double live_q[StepIntegrands::count] = {0, 0, 0, 0};  // ... and the step integrals
+    // Tolerances given to CVODE (CVodeSVtolerances clears CVODE's error-weight data until its next
     // initial setup, so it is called only when they change, and then CVODE is re-initialised).
-    double rtol = 0, atol = 0;
+    double rtol = 0, atol[kStates] = {0, 0, 0, 0, 0, 0};
     CvodeHandles h;  // last member: destroyed first, while the data above still exists
 
     explicit Workspace(const CvodeSettings& s);
     Workspace(const Workspace&) = delete;
     Workspace& operator=(const Workspace&) = delete;
+
+    // CVodeSVtolerances, only when they change (it resets CVODE's error weights).
+    void set_tolerances(double r, const double* a) {
+        bool same = r == rtol;
+        for (int k = 0; k < kStates; ++k) same = same && a[k] == atol[k];
+        if (same) return;
+        rtol = 0;  // unknown until the call succeeds
+        double* v = N_VGetArrayPointer(h.atol);
+        for (int k = 0; k < kStates; ++k) v[k] = atol[k] = a[k];
+        check(CVodeSVtolerances(h.mem, r, h.atol), "CVodeSVtolerances");
+        rtol = r;
+    }
+    bool same_tolerances(double r, const double* a) const {
+        bool same = r == rtol;
+        for (int k = 0; k < kStates; ++k) same = same && a[k] == atol[k];
+        return same;
+    }
 
     void check(int flag, const char* call) {
         if (flag >= 0) return;
@@ -109,25 +172,84 @@ struct CvodeIntegrator::Workspace {
         return 1;
     }
 
+    // The linearised right-hand side at tau for y = (z, step integrals), with the path's psi and
+    // its currents.
+    void linearised_rhs(const FlowAt& F, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
+        const Linearisation& L = lin;
+        L.psi_at(F, y, psi);
+        // Newton from the linearisation's prediction i0 + G0 (psi - psi0): within a step the
+        // currents are near it (one forward-map evaluation, not the table's three).
+        const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
+        c = ode.currents_near(psi[0], psi[1], L.i0[0] + L.G0[0] * dd + L.G0[1] * dq,
+                              L.i0[1] + L.G0[2] * dd + L.G0[3] * dq);
+        const double n0 = -ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
+        const double n1 = -ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
+        d[0] = F.E_inv[0] * n0 + F.E_inv[1] * n1;
+        d[1] = F.E_inv[2] * n0 + F.E_inv[3] * n1;
+        if (integrands != nullptr)
+            integrands->eval(ode, psi[0], psi[1], c.i_d, c.i_q, d + 2);
+        else
+            std::fill(d + 2, d + kStates, 0.0);
+    }
+
+    // One Bogacki-Shampine 3(2) step from y = 0 over the whole span (cvode_integrator.hpp):
+    // true, with y(span), psi(span) and the currents there, when its error estimate's weighted
+    // RMS norm (CVODE's, weights rtol |y(span)| + atol) is <= 1.
+    bool explicit_step(double span, double rtol, const double* atol, double* y_end, double* psi_end,
+                       InverseFluxPoint& c_end) const {
+        double k1[kStates], k2[kStates], k3[kStates], k4[kStates], y[kStates], psi[2];
+        InverseFluxPoint c;
+        // tau = 0: z = 0, psi = psi0, N(psi0) = 0; the integrands at the start's currents.
+        k1[0] = k1[1] = 0.0;
+        const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
+        if (integrands != nullptr)
+            integrands->eval(ode, lin.psi0[0], lin.psi0[1], c0.i_d, c0.i_q, k1 + 2);
+        else
+            std::fill(k1 + 2, k1 + kStates, 0.0);
+        // The flow at the stages span / 2, 3 span / 4, span from the one at span / 4.
+        const FlowAt F1 = lin.at(0.25 * span), F2 = F1.then(F1), F3 = F2.then(F1), F4 = F2.then(F2);
+        for (int k = 0; k < kStates; ++k) y[k] = 0.5 * span * k1[k];
+        linearised_rhs(F2, y, k2, psi, c);
+        for (int k = 0; k < kStates; ++k) y[k] = 0.75 * span * k2[k];
+        linearised_rhs(F3, y, k3, psi, c);
+        for (int k = 0; k < kStates; ++k) y_end[k] = span * (2.0 / 9.0 * k1[k] + 1.0 / 3.0 * k2[k] + 4.0 / 9.0 * k3[k]);
+        linearised_rhs(F4, y_end, k4, psi_end, c_end);
+        double sum = 0.0;
+        for (int k = 0; k < kStates; ++k) {
+            const double e = span * (-5.0 / 72.0 * k1[k] + 1.0 / 12.0 * k2[k] + 1.0 / 9.0 * k3[k] - 0.125 * k4[k]);
+            const double r = e / (rtol * std::abs(y_end[k]) + atol[k]);
+            sum += r * r;
+        }
+        // Not finite (the currents left what the map can invert): the norm is NaN, CVODE decides.
+        return sum <= kStates && std::isfinite(psi_end[0]) && std::isfinite(psi_end[1]) && std::isfinite(c_end.i_d) &&
+               std::isfinite(c_end.i_q);
+    }
+
+    // y = (the two flux components, the step integrals); the integrals' y' are the integrands at
+    // the path's flux linkages, from the same inverse-map evaluation as the flux components'.
     static int rhs(realtype tau, N_Vector y, N_Vector ydot, void* data) {
         auto* w = static_cast<Workspace*>(data);
         const double* p = N_VGetArrayPointer(y);
         double* d = N_VGetArrayPointer(ydot);
-        if (!w->linearised) {
-            w->ode.rhs(p, d);
-            return w->finite_or_retry(p, d);
+        double psi[2];
+        InverseFluxPoint c;
+        if (w->linearised) {
+            w->linearised_rhs(w->lin.at(tau), p, d, psi, c);
+        } else {
+            psi[0] = p[0];
+            psi[1] = p[1];
+            c = w->ode.currents(psi[0], psi[1]);
+            d[0] = w->ode.u_d - w->ode.R * c.i_d + w->ode.omega * psi[1];
+            d[1] = w->ode.u_q - w->ode.R * c.i_q - w->ode.omega * psi[0];
+            if (w->integrands != nullptr)
+                w->integrands->eval(w->ode, psi[0], psi[1], c.i_d, c.i_q, d + 2);
+            else
+                std::fill(d + 2, d + kStates, 0.0);
         }
-        // z' = exp(-tau A) N(psi), N = -R (i(psi) - i0 - G0 (psi - psi0)).
-        const Linearisation& L = w->lin;
-        double psi[2], E_inv[4];
-        L.psi_at(tau, p, psi, E_inv);
-        const InverseFluxPoint c = w->ode.currents(psi[0], psi[1]);
-        const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
-        const double n0 = -w->ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
-        const double n1 = -w->ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
-        d[0] = E_inv[0] * n0 + E_inv[1] * n1;
-        d[1] = E_inv[2] * n0 + E_inv[3] * n1;
-        return w->finite_or_retry(psi, d);
+        double sum = 0.0;
+        for (int k = 0; k < kStates; ++k) sum += d[k];
+        const double all[2] = {sum, sum};
+        return w->finite_or_retry(psi, all);
     }
 
     static int jac(realtype tau, N_Vector y, N_Vector, SUNMatrix J, void* data, N_Vector, N_Vector, N_Vector) {
@@ -152,6 +274,8 @@ struct CvodeIntegrator::Workspace {
             j[2] = E_inv[2] * DE[0] + E_inv[3] * DE[2];
             j[3] = E_inv[2] * DE[1] + E_inv[3] * DE[3];
         }
+        // The step integrals' rows and columns stay zero: they do not feed back, so Newton with
+        // this matrix converges as fast as on the flux components alone.
         SM_ELEMENT_D(J, 0, 0) = j[0];
         SM_ELEMENT_D(J, 0, 1) = j[1];
         SM_ELEMENT_D(J, 1, 0) = j[2];
@@ -174,23 +298,22 @@ struct CvodeIntegrator::Workspace {
 CvodeIntegrator::Workspace::Workspace(const CvodeSettings& s) : built_for(s) {
     // On a throw, h's destructor frees whatever was made so far.
     if (SUNContext_Create(nullptr, &h.ctx) != 0 || h.ctx == nullptr) throw CvodeError("SUNContext_Create failed");
-    h.y = N_VNew_Serial(2, h.ctx);
-    if (h.y == nullptr) throw CvodeError("N_VNew_Serial failed");
+    h.y = N_VNew_Serial(kStates, h.ctx);
+    h.atol = N_VNew_Serial(kStates, h.ctx);
+    if (h.y == nullptr || h.atol == nullptr) throw CvodeError("N_VNew_Serial failed");
     N_VConst(0.0, h.y);
     h.mem = CVodeCreate(s.method == CvodeMethod::bdf ? CV_BDF : CV_ADAMS, h.ctx);
     if (h.mem == nullptr) throw CvodeError("CVodeCreate failed");
     check(CVodeSetErrHandlerFn(h.mem, &Workspace::handler, this), "CVodeSetErrHandlerFn");
     check(CVodeInit(h.mem, &Workspace::rhs, 0.0, h.y), "CVodeInit");
     check(CVodeSetUserData(h.mem, this), "CVodeSetUserData");
-    check(CVodeSStolerances(h.mem, s.rtol, s.atol), "CVodeSStolerances");
-    rtol = s.rtol;
-    atol = s.atol;
+    set_tolerances(s.rtol, tolerances(s, nullptr, 1.0).data());
     if (s.nonlinear == CvodeNonlinear::fixed_point) {
         h.nls = SUNNonlinSol_FixedPoint(h.y, 0, h.ctx);
         if (h.nls == nullptr) throw CvodeError("SUNNonlinSol_FixedPoint failed");
         check(CVodeSetNonlinearSolver(h.mem, h.nls), "CVodeSetNonlinearSolver");
     } else {
-        h.A = SUNDenseMatrix(2, 2, h.ctx);
+        h.A = SUNDenseMatrix(kStates, kStates, h.ctx);
         if (h.A == nullptr) throw CvodeError("SUNDenseMatrix failed");
         h.ls = SUNLinSol_Dense(h.y, h.A, h.ctx);
         if (h.ls == nullptr) throw CvodeError("SUNLinSol_Dense failed");
@@ -206,13 +329,16 @@ CvodeIntegrator::CvodeIntegrator(const CvodeSettings& settings) : settings_(sett
 CvodeIntegrator::~CvodeIntegrator() = default;
 
 CvodeIntegrator::CvodeIntegrator(const CvodeIntegrator& o)
-    : settings_(o.settings_), state_(o.state_), stats_(o.stats_), warnings_(o.warnings_) {}
+    : settings_(o.settings_), state_(o.state_), stats_(o.stats_), warnings_(o.warnings_) {
+    std::copy(o.integrals_, o.integrals_ + StepIntegrands::count, integrals_);
+}
 
 CvodeIntegrator& CvodeIntegrator::operator=(const CvodeIntegrator& o) {
     if (this == &o) return *this;
     settings_ = o.settings_;
     state_ = o.state_;
     stats_ = o.stats_;
+    std::copy(o.integrals_, o.integrals_ + StepIntegrands::count, integrals_);
     warnings_ = o.warnings_;
     if (ws_ && !ws_->built_for.same_structure(settings_)) ws_.reset();
     return *this;
@@ -227,6 +353,7 @@ void CvodeIntegrator::reset(double t, double psi_d, double psi_q) {
     state_.psi[0] = psi_d;
     state_.psi[1] = psi_q;
     stats_ = CvodeStats{};
+    std::fill(integrals_, integrals_ + StepIntegrands::count, 0.0);
     warnings_.clear();
 }
 
@@ -262,7 +389,7 @@ CvodeIntegrator::Workspace& CvodeIntegrator::workspace() {
     return *ws_;
 }
 
-void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
+void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegrands* integrands) {
     if (!(h > 0) || !std::isfinite(h))
         throw CvodeError("CvodeIntegrator::advance: the step h = " + number(h) + " s is not positive and finite");
     if (!(settings_.rtol > 0) || !(settings_.atol > 0)) throw CvodeError("CvodeIntegrator: rtol and atol must be > 0");
@@ -273,13 +400,15 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
     w.bad_flux.clear();
     double* y = N_VGetArrayPointer(w.h.y);
     void* mem = w.h.mem;
-    const bool new_tolerances = w.rtol != settings_.rtol || w.atol != settings_.atol;
+    const std::array<double, kStates> atol = tolerances(settings_, integrands, h);
+    const bool new_tolerances = !w.same_tolerances(settings_.rtol, atol.data());
     // History kept (direct formulation only): CVODE's clock continues from where it stopped.
     const bool resume = !settings_.linearised && !settings_.reinit_each_step && w.live && !new_tolerances &&
                         w.live_psi[0] == state_.psi[0] && w.live_psi[1] == state_.psi[1] &&
                         h > 64 * std::numeric_limits<double>::epsilon() * w.live_tau;
     const double tau0 = resume ? w.live_tau : 0.0, tau_end = tau0 + h;
     long steps0 = 0, rhs0 = 0, etf0 = 0, nni0 = 0, ncf0 = 0;
+    double integrals[StepIntegrands::count] = {0, 0, 0, 0}, q_end[StepIntegrands::count] = {0, 0, 0, 0};
     try {
         if (resume) {
             CVodeGetNumSteps(mem, &steps0);
@@ -293,8 +422,9 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
                 // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
                 Workspace::Linearisation& L = w.lin;
                 double A[4];
-                InverseFluxPoint c;
-                ode.rhs_and_jacobian(state_.psi, L.f0, A, &c);
+                const InverseFluxPoint c =
+                    ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
+                ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
                 if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
                     throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
                                      " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
@@ -318,16 +448,23 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
                 y[0] = state_.psi[0];
                 y[1] = state_.psi[1];
             }
+            std::fill(y + 2, y + kStates, 0.0);  // the step integrals
+            std::fill(w.live_q, w.live_q + StepIntegrands::count, 0.0);
             w.live = false;
+            w.integrands = integrands;
+            if (w.linearised && settings_.explicit_first && settings_.reinit_each_step) {
+                double y_end[kStates], psi_end[2];
+                InverseFluxPoint c_end;
+                if (w.explicit_step(h, settings_.rtol, atol.data(), y_end, psi_end, c_end)) {
+                    commit_explicit(ode, h, y_end, psi_end, c_end);
+                    return;
+                }
+            }
             w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
             w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
         }
-        if (new_tolerances) {
-            w.rtol = w.atol = 0;  // unknown until the call succeeds
-            w.check(CVodeSStolerances(mem, settings_.rtol, settings_.atol), "CVodeSStolerances");
-            w.rtol = settings_.rtol;
-            w.atol = settings_.atol;
-        }
+        w.integrands = integrands;
+        if (new_tolerances) w.set_tolerances(settings_.rtol, atol.data());
         w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
         w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
         double t_ret = tau0;
@@ -342,6 +479,12 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
         }
         if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
             throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
+        for (int k = 0; k < StepIntegrands::count; ++k) {
+            q_end[k] = y[2 + k];
+            integrals[k] = q_end[k] - w.live_q[k];
+            if (!std::isfinite(integrals[k]))
+                throw CvodeError("non-finite step integrals at the end of a step of " + number(h) + " s");
+        }
     } catch (...) {
         w.live = false;
         throw;
@@ -369,7 +512,20 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
             throw CvodeError("non-finite flux linkages at the end of a step of " + number(h) + " s");
     }
 
+    InverseFluxPoint c_end;
+    if (w.linearised) {  // as in linearised_rhs: from the linearisation's prediction
+        const Workspace::Linearisation& L = w.lin;
+        const double dd = psi_end[0] - L.psi0[0], dq = psi_end[1] - L.psi0[1];
+        c_end = ode.currents_near(psi_end[0], psi_end[1], L.i0[0] + L.G0[0] * dd + L.G0[1] * dq,
+                                  L.i0[1] + L.G0[2] * dd + L.G0[3] * dq);
+    } else {
+        c_end = ode.currents(psi_end[0], psi_end[1]);
+    }
+
     // Commit.
+    end_currents_ = c_end;
+    state_.i_seed[0] = c_end.i_d;
+    state_.i_seed[1] = c_end.i_q;
     state_.t += h;
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];
@@ -377,11 +533,33 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h) {
     if (settings_.init_step == CvodeInitStep::previous_next) CVodeGetCurrentStep(mem, &h_next);
     state_.h_next = h_next > 0 && std::isfinite(h_next) ? h_next : 0.0;
     stats_ = st;
+    for (int k = 0; k < StepIntegrands::count; ++k) {
+        integrals_[k] = integrals[k];
+        w.live_q[k] = q_end[k];
+    }
     warnings_ = w.warning;
     w.live = true;
     w.live_tau = tau_end;
     w.live_psi[0] = psi_end[0];
     w.live_psi[1] = psi_end[1];
+}
+
+void CvodeIntegrator::commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
+                                      const InverseFluxPoint& c_end) {
+    end_currents_ = c_end;
+    state_.i_seed[0] = c_end.i_d;
+    state_.i_seed[1] = c_end.i_q;
+    state_.t += h;
+    state_.psi[0] = psi_end[0];
+    state_.psi[1] = psi_end[1];
+    state_.h_next = h;
+    stats_ = CvodeStats{};
+    stats_.steps = 1;
+    stats_.rhs_evals = 3;
+    stats_.last_order = 3;
+    stats_.last_step = h;
+    for (int k = 0; k < StepIntegrands::count; ++k) integrals_[k] = y_end[2 + k];
+    warnings_.clear();
 }
 
 }  // namespace ipmsm

@@ -29,11 +29,37 @@
 // copied (a copy gets a fresh workspace when it first integrates), and freed CVODE first, then the
 // solver objects, the vector and the context it points into.
 //
+// The step's integrals (integrands given to advance()): quadratures of the StepIntegrands
+// (ipmsm_ode.hpp) at the flux linkages along the path CVODE integrates, psi(tau) in either
+// formulation. CVODE proper has no quadrature module (CVODES has), so they are four more
+// components of y, q' = integrand(psi(tau)), q(0) = 0: under CVODE's error control like the
+// flux components (what CVodeSetQuadErrCon gives), with the relative tolerance rtol and absolute
+// tolerances that are atol's equivalents (what a flux error of atol means for an energy, 1.5 atol
+// current_scale J, and for the torque's impulse over the step, 1.5 p atol current_scale h N.m.s);
+// their integrands come from the inverse-map evaluation the flux components make anyway. They
+// restart from 0 at every call: step_integrals() are the last call's.
+//
+// explicit_first (with linearised, reinit_each_step): before CVODE, one explicit Runge-Kutta step
+// over the whole call (Bogacki-Shampine 3(2), three evaluations of the right-hand side; the first
+// stage is known: z' = 0 at tau = 0) of z and the step integrals, whose embedded error estimate
+// is measured in CVODE's weighted RMS norm with the same tolerances (weights rtol |y(h)| + atol);
+// it is taken when that norm is <= 1, else CVODE integrates the call as without it. The
+// remainder z is of second order in the step's change of psi, so the estimate passes where the
+// currents change smoothly over the call, and the CVODE set-up (re-initialisation, initial
+// setup, the Nordsieck history) is not paid there.
+//
+// The currents at the end of a call (end_currents()) are the inverse map's at the end's flux
+// linkages, with Newton started from the call's linearisation (InverseFluxMap::eval_near); the
+// next call's linearisation evaluates them afresh with Newton started from them (state().i_seed,
+// part of the state: a call's result depends on its start state only, copies and restored
+// states are exact), or from the map's table where the seed is unknown (NaN, after reset()).
+//
 // reinit_each_step = false (for the benchmark only, with linearised = false: a linearisation is
 // one call's) keeps CVODE's history across calls (input jumps then go into CVODE's error
 // control); copies of such an integrator are not exact.
 #pragma once
 
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -77,6 +103,8 @@ struct CvodeSettings {
     CvodeInitStep init_step = CvodeInitStep::previous_last;
     double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
     double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
+    double current_scale = 1e3;     // A: the quadratures' absolute tolerances (above)
+    bool explicit_first = false;    // try one embedded Runge-Kutta step before CVODE (above)
 
     // Settings that shape CVODE's objects (a workspace is reused only if they match).
     bool same_structure(const CvodeSettings& o) const {
@@ -105,6 +133,9 @@ struct CvodeState {
     double t = 0;            // the end of the last step (bookkeeping: the integration is in relative time)
     double psi[2] = {0, 0};  // psi_d, psi_q, Wb
     double h_next = 0;       // initial step size for the next advance(), s; 0: CVODE estimates
+    // The currents at psi (A) from the last advance(), where the next one's Newton starts; NaN:
+    // unknown, the inverse map's table gives the start.
+    double i_seed[2] = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
 };
 
 // Counters of the last advance().
@@ -131,7 +162,8 @@ public:
     // CvodeError (CVODE's message) and leaves the state unchanged if CVODE fails.
     // linearised and reinit_each_step together: a call's result depends only on state().psi,
     // state().h_next (unused by the default initial step), the ODE and h.
-    void advance(const DqFluxOde& ode, double h);
+    // integrands: the step's integrals of these too (step_integrals()).
+    void advance(const DqFluxOde& ode, double h, const StepIntegrands* integrands = nullptr);
 
     const CvodeState& state() const { return state_; }
     void set_state(const CvodeState& s) { state_ = s; }
@@ -140,6 +172,11 @@ public:
     // solver, order) may too, at the cost of a new workspace on the next advance().
     void set_settings(const CvodeSettings& s) { settings_ = s; }
     const CvodeStats& stats() const { return stats_; }
+    // The integrals over the last advance() of the integrands it was given (indices
+    // StepIntegrands::Index; zeros if none were given).
+    const double* step_integrals() const { return integrals_; }
+    // The inverse map's currents (and dI/dpsi) at state().psi after the last advance().
+    const InverseFluxPoint& end_currents() const { return end_currents_; }
     // CVODE's warnings (not errors) during the last advance(), "" if none.
     const std::string& warnings() const { return warnings_; }
 
@@ -151,6 +188,10 @@ private:
     CvodeSettings settings_;
     CvodeState state_;
     CvodeStats stats_;
+    double integrals_[StepIntegrands::count] = {0, 0, 0, 0};
+    InverseFluxPoint end_currents_{};  // at state_.psi after the last advance()
+    void commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
+                         const InverseFluxPoint& c_end);
     std::string warnings_;
     std::unique_ptr<Workspace> ws_;
 };

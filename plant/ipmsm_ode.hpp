@@ -33,6 +33,10 @@ struct DqFluxOde {
     double delta_psi_m = 0;   // PM flux change from magnet temperature, Wb
 
     InverseFluxPoint currents(double psi_d, double psi_q) const { return inverse->eval(psi_d - delta_psi_m, psi_q); }
+    // ... with Newton started from a guess of the currents (inverse_flux_map.hpp: eval_near).
+    InverseFluxPoint currents_near(double psi_d, double psi_q, double i_d_guess, double i_q_guess) const {
+        return inverse->eval_near(psi_d - delta_psi_m, psi_q, i_d_guess, i_q_guess);
+    }
     void rhs(const double* psi, double* dpsi) const {
         const InverseFluxPoint c = currents(psi[0], psi[1]);
         dpsi[0] = u_d - R * c.i_d + omega * psi[1];
@@ -47,6 +51,10 @@ struct DqFluxOde {
     void rhs_and_jacobian(const double* psi, double* dpsi, double* J, InverseFluxPoint* at = nullptr) const {
         const InverseFluxPoint c = currents(psi[0], psi[1]);
         if (at != nullptr) *at = c;
+        rhs_and_jacobian(psi, c, dpsi, J);
+    }
+    // ... at the currents c = currents(psi) known already.
+    void rhs_and_jacobian(const double* psi, const InverseFluxPoint& c, double* dpsi, double* J) const {
         dpsi[0] = u_d - R * c.i_d + omega * psi[1];
         dpsi[1] = u_q - R * c.i_q - omega * psi[0];
         J[0] = -R * c.G_dd;
@@ -73,6 +81,25 @@ struct IronLossModel {
     }
 };
 
+// What the plant integrates over each step alongside the flux linkages (CVODE quadratures,
+// cvode_integrator.hpp): the electrical input power, the copper and iron losses (W) and the
+// electromagnetic torque (N.m), at flux linkages psi whose currents are i. Their integrals are the
+// step's energies (J) and the torque's impulse (N.m.s); with w_m held over the step, the shaft
+// energy is w_m int T_e - int P_fe and the shaft torque's impulse int T_e - int P_fe / w_m.
+struct StepIntegrands {
+    enum Index { P_elec, P_cu, P_fe, T_e, count };
+    int pole_pairs = 1;
+    double w_m = 0;  // rad/s, mechanical
+    IronLossModel fe;
+
+    void eval(const DqFluxOde& ode, double psi_d, double psi_q, double i_d, double i_q, double* q) const {
+        q[P_elec] = 1.5 * (ode.u_d * i_d + ode.u_q * i_q);
+        q[P_cu] = 1.5 * ode.R * (i_d * i_d + i_q * i_q);
+        q[P_fe] = fe.power(pole_pairs, w_m, psi_d, psi_q);
+        q[T_e] = 1.5 * pole_pairs * (psi_d * i_q - psi_q * i_d);
+    }
+};
+
 // Everything the plant reports at one instant.
 struct PlantOutputs {
     double i_d, i_q;        // A
@@ -84,13 +111,15 @@ struct PlantOutputs {
 // At flux linkages psi whose currents i are known (from the inverse map, or exactly).
 inline PlantOutputs plant_outputs(const DqFluxOde& ode, int pole_pairs, double w_m, const IronLossModel& fe,
                                   double psi_d, double psi_q, double i_d, double i_q) {
+    double q[StepIntegrands::count];
+    StepIntegrands{pole_pairs, w_m, fe}.eval(ode, psi_d, psi_q, i_d, i_q, q);
     PlantOutputs o;
     o.i_d = i_d;
     o.i_q = i_q;
-    o.T_e = 1.5 * pole_pairs * (psi_d * i_q - psi_q * i_d);
-    o.P_elec = 1.5 * (ode.u_d * i_d + ode.u_q * i_q);
-    o.P_cu = 1.5 * ode.R * (i_d * i_d + i_q * i_q);
-    o.P_fe = fe.power(pole_pairs, w_m, psi_d, psi_q);
+    o.T_e = q[StepIntegrands::T_e];
+    o.P_elec = q[StepIntegrands::P_elec];
+    o.P_cu = q[StepIntegrands::P_cu];
+    o.P_fe = q[StepIntegrands::P_fe];
     const double drag = w_m != 0.0 ? o.P_fe / w_m : 0.0;  // iron-loss drag torque, sign of w_m
     o.T_shaft = o.T_e - drag;
     o.P_mech = o.T_shaft * w_m;

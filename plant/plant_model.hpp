@@ -53,6 +53,11 @@ public:
                 {"P_cu", {"T_magnet", "T_winding"}},
                 {"P_elec", {"u_d", "u_q", "T_magnet"}},
                 {"R_s_T", {"T_winding"}},
+                {"E_elec", {}},
+                {"E_mech", {}},
+                {"E_cu", {}},
+                {"E_fe", {}},
+                {"T_e_impulse", {}},
                 {"cvode_steps", {}},
                 {"cvode_rhs_evals", {}}};
     }
@@ -60,11 +65,13 @@ public:
     explicit PlantModel(const fmi::Context& context);
     void exit_initialization();
     void do_step(double t, double h);
+    // The last step's integrals (StepIntegrands::Index: J, J, J, N.m.s): what E_* grew by.
+    const double* step_integrals() const { return integrator_.step_integrals(); }
     // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
     template <class Field>
     void state_fields(Field&& field) {
         CvodeState s = integrator_.state();
-        field(s.t), field(s.psi), field(s.h_next);
+        field(s.t), field(s.psi), field(s.h_next), field(s.i_seed);
         integrator_.set_state(s);  // what was read in; the same state when the fields were written
         field(outside_warned_);
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
@@ -84,6 +91,9 @@ public:
     double P_elec = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0;  // W
     double psi_m_T = 0.0;                                       // Wb, PM flux at T_magnet
     double R_s_T = 0.0;                                         // Ohm, R_s at T_winding
+    // integrals since the start, exact over each step (CVODE quadratures: cvode_integrator.hpp)
+    double E_elec = 0.0, E_mech = 0.0, E_cu = 0.0, E_fe = 0.0;  // J
+    double T_e_impulse = 0.0;                                   // N.m.s, int T_e dt
     int cvode_steps = 0;                                        // internal steps in the last step
     int cvode_rhs_evals = 0;                                    // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
@@ -112,6 +122,7 @@ private:
     void update_outputs(const DqFluxOde& ode);
     void update_outputs(const DqFluxOde& ode, double i_d, double i_q);  // at currents known exactly
     CvodeSettings settings() const;
+    StepIntegrands integrands() const;
 
     fmi::SharedContext context_;
     std::shared_ptr<const FluxMap> map_;

@@ -95,7 +95,8 @@ class Sample:
     P_cu, P_fe, i_d, i_q; i_abs = sqrt(i_d^2 + i_q^2) and i_abs_sq = i_d^2 + i_q^2 of the plant's
     currents (the mean of i_abs_sq is what the inverter's conduction loss needs); the
     controller's T_cmd, T_max, region, iterations, u_ratio (Integers as floats: a mean of region
-    is the time share weighted region, rarely useful)."""
+    is the time share weighted region, rarely useful). The means of the powers and torques are
+    exact (the plant's integrals), the others the means of the values after each step."""
     T_shaft: float
     T_e: float
     P_elec: float
@@ -134,6 +135,9 @@ SAMPLE_SOURCES = {
     "iterations": "controller.iterations", "u_ratio": "controller.u_ratio",
 }
 SAMPLE_FIELDS = tuple(f.name for f in fields(Sample))
+# The plant's integrals since the start (exact over each step): advance()'s means of P_elec,
+# P_mech, P_cu, P_fe, T_e and T_shaft are their increases over it, divided by its duration.
+PLANT_INTEGRALS = ("E_elec", "E_mech", "E_cu", "E_fe", "T_e_impulse")
 _CURRENT_PROBES = ("|i|", "|i|^2")
 
 
@@ -742,6 +746,7 @@ class DriveCosim:
             self._inputs = DriveInputs(float(T_ref), float(w_m), float(u_dc), float(T_magnet), float(T_winding))
             b.initialize(self._inputs)
             b.probes([SAMPLE_SOURCES[name] for name in SAMPLE_FIELDS])
+            self._integrals = self._plant_integrals()
         except BaseException:
             self.close()
             raise
@@ -831,7 +836,21 @@ class DriveCosim:
                 raise ValueError(f"trace has {trace.shape[0]} rows, {n_steps // decimation} are needed")
         mean, end, rows = self._b.advance(int(n_steps), new, trace, decimation)
         self._inputs = new
-        return AdvanceResult(mean=Sample(*mean), end=Sample(*end), t=self._b.k * self.h, k=self._b.k, rows=rows)
+        m = Sample(*mean)
+        self._exact_means(m, n_steps * self.h, new.w_m)
+        return AdvanceResult(mean=m, end=Sample(*end), t=self._b.k * self.h, k=self._b.k, rows=rows)
+
+    def _plant_integrals(self) -> list[float]:
+        return [self.value(f"plant.{name}") for name in PLANT_INTEGRALS]
+
+    def _exact_means(self, m: Sample, duration: float, w_m: float) -> None:
+        """The powers' and torques' means over the advance from the plant's exact integrals
+        (PLANT_INTEGRALS), as IpmsmDrive reports them; the currents stay the samples' means."""
+        now = self._plant_integrals()
+        E_elec, E_mech, E_cu, E_fe, impulse = ((b - a) / duration for a, b in zip(self._integrals, now))
+        self._integrals = now
+        m.P_elec, m.P_mech, m.P_cu, m.P_fe, m.T_e = E_elec, E_mech, E_cu, E_fe, impulse
+        m.T_shaft = impulse - E_fe / w_m if w_m != 0.0 else impulse  # the iron-loss drag at the held speed
 
     def close(self) -> None:
         if self._closed:

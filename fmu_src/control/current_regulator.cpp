@@ -22,6 +22,20 @@ double sinc(double x) { return std::abs(x) < 1e-4 ? 1.0 - x * x / 6.0 : std::sin
 
 double CurrentRegulator::bandwidth_at(double h) const { return std::min(alpha_c_, kMaxBandwidthTimesStep / h); }
 
+const CurrentRegulator::SampleConstants& CurrentRegulator::constants(double theta, double h) {
+    SampleConstants& k = constants_;
+    if (theta == k.theta && h == k.h) return k;
+    k.theta = theta;
+    k.h = h;
+    k.cos_theta = std::cos(theta);
+    k.sin_theta = std::sin(theta);
+    k.cos_half = std::cos(theta / 2);
+    k.sin_half = std::sin(theta / 2);
+    k.g_abs = sinc(theta / 2);
+    k.lambda = std::exp(-bandwidth_at(h) * h);
+    return k;
+}
+
 VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega, double u_dc,
                                       double h, const MagnetFlux& flux) {
     const double theta = omega * h;  // electrical rotation within the sample, rad
@@ -51,10 +65,11 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
         remember(r_d, r_q, u_d, u_q);
         return {u_d, u_q, limited, true};
     }
-    const Rotation back{std::cos(theta), -std::sin(theta)};               // Phi = exp(-j omega h)
-    const Rotation half_back{std::cos(theta / 2), -std::sin(theta / 2)};  // in Gamma = h g
-    const Rotation half_ahead{half_back.c, -half_back.s};                 // in g^-1
-    const double g_abs = sinc(theta / 2);
+    const SampleConstants& k = constants(theta, h);
+    const Rotation back{k.cos_theta, -k.sin_theta};        // Phi = exp(-j omega h)
+    const Rotation half_back{k.cos_half, -k.sin_half};     // in Gamma = h g
+    const Rotation half_ahead{half_back.c, -half_back.s};  // in g^-1
+    const double g_abs = k.g_abs;
 
     // Gamma (a + j b) = h g (a + j b): the flux change a held voltage a + j b makes over the sample.
     auto gamma = [&](double a, double b, double& out_d, double& out_q) {
@@ -87,8 +102,8 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
     // 2. Flux error, and the reference's own change (taken at the reference magnet temperature,
     //    so that a change of T_magnet, which shifts both fluxes alike, is not a reference step).
     const double e_d = fr.psi_d - z_d, e_q = fr.psi_q - z_q;
-    const double lambda = std::exp(-bandwidth_at(h) * h);  // both closed-loop poles
-    const double c = (1.0 - lambda) / h;                   // -> alpha_c as h -> 0
+    const double lambda = k.lambda;       // both closed-loop poles
+    const double c = (1.0 - lambda) / h;  // -> alpha_c as h -> 0
     if (s.primed) {
         s.v_d -= c * (r_d - s.psi_ref_d);
         s.v_q -= c * (r_q - s.psi_ref_q);

@@ -47,6 +47,8 @@
 // and the integrator is corrected by what the limit took away (anti-windup).
 #pragma once
 
+#include <limits>
+
 #include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
@@ -97,6 +99,16 @@ public:
     RegulatorState state;
 
 private:
+    // What the sample's rotation theta = omega h and the sample time h fix: they are held over a
+    // communication step, so these are computed when they change, not at every sample.
+    struct SampleConstants {
+        double theta = std::numeric_limits<double>::quiet_NaN(), h = std::numeric_limits<double>::quiet_NaN();
+        double cos_theta = 1, sin_theta = 0, cos_half = 1, sin_half = 0;  // of theta and theta / 2
+        double g_abs = 1;                                                 // sinc(theta / 2)
+        double lambda = 0;  // exp(-bandwidth_at(h) h), both closed-loop poles
+    };
+    const SampleConstants& constants(double theta, double h);
+    SampleConstants constants_;
     double alpha_c_;
     double R_s_;
     bool reported_lowered_ = false;

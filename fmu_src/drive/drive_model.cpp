@@ -123,27 +123,30 @@ const std::vector<V>& DriveModel::variables() {
         of_models("T_winding", &M::T_winding),
         // outputs: means over the last communication step
         {"T_shaft", &M::T_shaft, Causality::output, Variability::discrete, "N.m", "",
-         "Shaft torque (T_e less the iron-loss drag), mean over the last communication step"},
+         "Shaft torque (T_e less the iron-loss drag), mean over the last communication step (exact integral)"},
         {"T_e", &M::T_e, Causality::output, Variability::discrete, "N.m", "",
-         "Electromagnetic torque, mean over the last communication step"},
+         "Electromagnetic torque, mean over the last communication step (exact integral)"},
         {"i_dc", &M::i_dc, Causality::output, Variability::discrete, "A", "",
          "DC-link current drawn by the inverter, losses included (+ motoring), mean over the last communication step"},
         {"P_dc", &M::P_dc, Causality::output, Variability::discrete, "W", "kW",
          "DC power drawn by the inverter (machine input + inverter loss), mean over the last communication step"},
         {"P_mech", &M::P_mech, Causality::output, Variability::discrete, "W", "kW",
-         "Shaft power, mean over the last communication step"},
+         "Shaft power, mean over the last communication step (exact integral)"},
         {"P_cu", &M::P_cu, Causality::output, Variability::discrete, "W", "kW",
-         "Copper loss, mean over the last communication step"},
+         "Copper loss, mean over the last communication step (exact integral)"},
         {"P_fe", &M::P_fe, Causality::output, Variability::discrete, "W", "kW",
-         "Iron loss, mean over the last communication step"},
+         "Iron loss, mean over the last communication step (exact integral)"},
         {"P_elec", &M::P_elec, Causality::output, Variability::discrete, "W", "kW",
          "Electrical input power of the machine 1.5 (u_d i_d + u_q i_q) = P_dc - P_inv, mean over the last "
          "communication step"},
         {"P_inv", &M::P_inv, Causality::output, Variability::discrete, "W", "kW",
-         "Inverter conduction and switching loss, mean over the last communication step"},
+         "Inverter conduction and switching loss, mean over the last communication step (per inner step: the current "
+         "sampled at its end, the inner step's mean AC power)"},
         // outputs: integrals since the start
         {"E_dc", &M::E_dc, Causality::output, Variability::discrete, "J", "Wh",
-         "DC energy drawn since the start (sum of P_dc sample_time over the inner steps)"},
+         "DC energy drawn since the start: the machine's electrical input energy (exact integral) plus the inverter's "
+         "loss "
+         "(P_inv sample_time per inner step)"},
         {"E_mech", &M::E_mech, Causality::output, Variability::discrete, "J", "Wh", "Shaft energy since the start"},
         {"E_cu", &M::E_cu, Causality::output, Variability::discrete, "J", "Wh", "Copper-loss energy since the start"},
         {"E_fe", &M::E_fe, Causality::output, Variability::discrete, "J", "Wh", "Iron-loss energy since the start"},
@@ -321,36 +324,37 @@ void DriveModel::do_step(double t, double h) {
     copy_to(*this, plant_, true);
     hold_inputs();
     coupling::CoupledModels& cm = coupled();
-    const InverterParams inv = inverter();
-    double s_T_shaft = 0, s_T_e = 0, s_P_elec = 0, s_P_mech = 0, s_P_cu = 0, s_P_fe = 0, s_P_inv = 0;
+    const InverterLossModel inv(inverter(), u_dc);  // u_dc is held over the step
+    // The plant integrates its powers exactly over each inner step (its E_*, T_e_impulse): the
+    // step's means are their increases over h. The inverter's loss is defined per inner step
+    // (one PWM period): from the phase current sampled at its end, as the controller samples it,
+    // and the inner step's mean AC power; so E_dc = E_elec + E_inv by construction.
+    const double E_elec0 = plant_.E_elec, E_mech0 = plant_.E_mech, E_cu0 = plant_.E_cu, E_fe0 = plant_.E_fe;
+    const double impulse0 = plant_.T_e_impulse;
+    double s_P_inv = 0;
     for (long long j = 0; j < n; ++j) {
+        const double E_elec_before = plant_.E_elec;
         cm.step();
+        const double P_ac = (plant_.E_elec - E_elec_before) / sample_time;
         const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
-        const double p_inv = inverter_loss(std::sqrt(I2), I2, u_dc, plant_.P_elec, inv).P();
-        s_T_shaft += plant_.T_shaft;
-        s_T_e += plant_.T_e;
-        s_P_elec += plant_.P_elec;
-        s_P_mech += plant_.P_mech;
-        s_P_cu += plant_.P_cu;
-        s_P_fe += plant_.P_fe;
+        const double p_inv = inv.at(std::sqrt(I2), I2, P_ac).P();
         s_P_inv += p_inv;
-        E_dc += (plant_.P_elec + p_inv) * sample_time;
-        E_mech += plant_.P_mech * sample_time;
-        E_cu += plant_.P_cu * sample_time;
-        E_fe += plant_.P_fe * sample_time;
         E_inv += p_inv * sample_time;
     }
     k_ = cm.k();
-    const double nn = static_cast<double>(n);
-    T_shaft = s_T_shaft / nn;
-    T_e = s_T_e / nn;
-    P_mech = s_P_mech / nn;
-    P_cu = s_P_cu / nn;
-    P_fe = s_P_fe / nn;
-    P_inv = s_P_inv / nn;
-    P_elec = s_P_elec / nn;
+    P_elec = (plant_.E_elec - E_elec0) / h;
+    P_mech = (plant_.E_mech - E_mech0) / h;
+    P_cu = (plant_.E_cu - E_cu0) / h;
+    P_fe = (plant_.E_fe - E_fe0) / h;
+    T_e = (plant_.T_e_impulse - impulse0) / h;
+    T_shaft = w_m != 0.0 ? T_e - P_fe / w_m : T_e;  // the iron-loss drag at the held speed
+    P_inv = s_P_inv / static_cast<double>(n);
     P_dc = P_elec + P_inv;
     i_dc = P_dc / u_dc;
+    E_mech = plant_.E_mech;
+    E_cu = plant_.E_cu;
+    E_fe = plant_.E_fe;
+    E_dc = plant_.E_elec + E_inv;
     publish_end();
 }
 

@@ -4,10 +4,11 @@
 // It holds a ControllerModel and a PlantModel and runs them through the drive's one coupling
 // description (coupling/ipmsm_drive.coupling, by coupling/coupled_models.hpp): the same inner
 // sequence of calls as the two FMUs coupled by a master at sample_time. A communication step of
-// n sample times returns the means over its n inner steps of the plant's outputs after each
-// inner step (as the masters' Sample means), the inverter's loss (inverter/inverter_loss.hpp)
-// and DC current, and the powers integrated since the start (sum of P sample_time), so that a
-// master at 10 ms loses nothing between its samples.
+// n sample times returns the means over it of the plant's torques and powers, exact: the plant
+// integrates them over each inner step (its E_* and T_e_impulse outputs, CVODE quadratures), the
+// means are their increases over the step; the inverter's loss (inverter/inverter_loss.hpp), per
+// inner step, and the DC current; and the energies since the start, so that a master at 10 ms
+// loses nothing between its samples: E_dc = E_mech + E_cu + E_fe + E_inv + Delta W_magnetic.
 //
 // Parameters: every parameter of the two models, once, by the same name (value, unit, range and
 // description taken from the models' tables: one source), plus the inverter's and sample_time.

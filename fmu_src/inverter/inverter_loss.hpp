@@ -51,17 +51,41 @@ struct InverterLoss {
     double P() const { return P_cond + P_sw; }
 };
 
+// The loss model at a DC voltage u_dc (V): what u_dc fixes, computed once (a caller stepping many
+// PWM periods at a held u_dc evaluates only the terms in I, I^2 and P_ac).
+class InverterLossModel {
+public:
+    InverterLossModel(const InverterParams& p, double u_dc) : p_(p), u_dc_(u_dc) {
+        if (!(u_dc > 0.0))
+            throw std::invalid_argument("inverter loss: bad DC voltage u_dc = " + std::to_string(u_dc) + " V");
+        constexpr double kPi = 3.14159265358979323846;
+        k_I_ = (3.0 / kPi) * (p.V_T0 + p.V_D0);
+        k_I2_ = 0.75 * (p.r_T + p.r_D);
+        k_sw_ = (6.0 / kPi) * p.f_sw * (p.E_on + p.E_off + p.E_rec) / p.I_ref * std::pow(u_dc / p.V_ref, p.k_v);
+    }
+    // Loss (W) with the phase-current peak |i| = I (A), |i|^2 = I2 (A^2) and AC power P_ac (W,
+    // + motoring); or their means over an interval.
+    InverterLoss at(double I, double I2, double P_ac) const {
+        if (!(I >= 0.0) || !(I2 >= 0.0))
+            throw std::invalid_argument("inverter loss: bad operating point |i| = " + std::to_string(I) +
+                                        " A, |i|^2 = " + std::to_string(I2) + " A^2, u_dc = " + std::to_string(u_dc_) +
+                                        " V");
+        InverterLoss l;
+        l.P_cond = k_I_ * I + k_I2_ * I2 + (p_.V_T0 - p_.V_D0) * P_ac / u_dc_;
+        l.P_sw = k_sw_ * I;
+        return l;
+    }
+
+private:
+    InverterParams p_;
+    double u_dc_;
+    double k_I_ = 0, k_I2_ = 0, k_sw_ = 0;  // W/A, W/A^2, W/A
+};
+
 // Loss (W) with the phase-current peak |i| = I (A), |i|^2 = I2 (A^2) and AC power P_ac (W,
 // + motoring) at DC voltage u_dc (V); or their means over an interval.
 inline InverterLoss inverter_loss(double I, double I2, double u_dc, double P_ac, const InverterParams& p) {
-    if (!(I >= 0.0) || !(I2 >= 0.0) || !(u_dc > 0.0))
-        throw std::invalid_argument("inverter loss: bad operating point |i| = " + std::to_string(I) + " A, |i|^2 = " +
-                                    std::to_string(I2) + " A^2, u_dc = " + std::to_string(u_dc) + " V");
-    constexpr double kPi = 3.14159265358979323846;
-    InverterLoss l;
-    l.P_cond = (3.0 / kPi) * (p.V_T0 + p.V_D0) * I + 0.75 * (p.r_T + p.r_D) * I2 + (p.V_T0 - p.V_D0) * P_ac / u_dc;
-    l.P_sw = (6.0 / kPi) * p.f_sw * (p.E_on + p.E_off + p.E_rec) * (I / p.I_ref) * std::pow(u_dc / p.V_ref, p.k_v);
-    return l;
+    return InverterLossModel(p, u_dc).at(I, I2, P_ac);
 }
 
 }  // namespace ipmsm

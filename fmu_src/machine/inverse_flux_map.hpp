@@ -63,6 +63,11 @@ public:
 
     // The currents at (psi_d, psi_q), exact to rounding; NaN where no current reaches them.
     InverseFluxPoint eval(double psi_d, double psi_q) const;
+    // The same currents, Newton started from a guess near them (the plant's: its linearisation's
+    // first-order prediction within a step) instead of the table: one forward evaluation where
+    // the guess is within the step tolerance. Where Newton does not converge inside the grid
+    // from there, eval()'s way.
+    InverseFluxPoint eval_near(double psi_d, double psi_q, double i_d_guess, double i_q_guess) const;
     // The table's interpolated start guess alone (for the benchmark and the tests).
     InverseFluxPoint table(double psi_d, double psi_q) const;
     // The machine whose PM flux is delta_psi_m above the map's (magnet temperature).
@@ -102,6 +107,8 @@ public:
 
 private:
     static constexpr int kNewtonSteps = 8;  // from the table's guess, before the damped search
+    bool newton(double psi_d, double psi_q, double& i_d, double& i_q, InverseFluxPoint& out) const;
+    bool inside_grid(double i_d, double i_q) const;
     // The slow path: fast = the fast Newton's converged currents, nullptr if it did not converge.
     InverseFluxPoint search(double psi_d, double psi_q, const double* fast) const;
     void nearest_node(double psi_d, double psi_q, double& i_d, double& i_q) const;
@@ -124,30 +131,50 @@ inline InverseFluxPoint InverseFluxMap::table(double psi_d, double psi_q) const 
     return InverseFluxPoint{s[0].f, s[1].f, s[0].fx, s[0].fy, s[1].fx, s[1].fy};
 }
 
-inline InverseFluxPoint InverseFluxMap::eval(double psi_d, double psi_q) const {
-    SplineValue s[2];
-    spline_.eval<2>(psi_d, psi_q, s);
-    double i_d = s[0].f, i_q = s[1].f;
-    // Newton on psi(i) = psi*: quadratic from the table's guess; a correction below step_tol_
-    // (1e-9 of the grid's extent) leaves an error of its square, far below rounding of i.
+// Newton on psi(i) = psi* from (i_d, i_q): quadratic; a correction below step_tol_ (1e-9 of the
+// grid's extent) leaves an error of its square, far below rounding of i. True when it converged
+// (out: the currents and G there).
+inline bool InverseFluxMap::newton(double psi_d, double psi_q, double& i_d, double& i_q, InverseFluxPoint& out) const {
     for (int k = 0; k < kNewtonSteps; ++k) {
         const FluxPoint p = forward_.eval(i_d, i_q);
         const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
-        if (!(std::abs(det) > 0) || !std::isfinite(det)) break;
+        if (!(std::abs(det) > 0) || !std::isfinite(det)) return false;
         const double G_dd = p.L_qq / det, G_dq = -p.L_dq / det, G_qd = -p.L_qd / det, G_qq = p.L_dd / det;
         const double rd = psi_d - p.psi_d, rq = psi_q - p.psi_q;
         const double dd = G_dd * rd + G_dq * rq, dq = G_qd * rd + G_qq * rq;
         i_d += dd;
         i_q += dq;
         if (std::abs(dd) <= step_tol_ && std::abs(dq) <= step_tol_) {
-            if (i_d >= forward_.i_d_min() && i_d <= forward_.i_d_max() && i_q >= forward_.i_q_min() &&
-                i_q <= forward_.i_q_max())
-                return InverseFluxPoint{i_d, i_q, G_dd, G_dq, G_qd, G_qq};
-            const double fast[2] = {i_d, i_q};  // beyond the grid: is there a preimage nearer to it?
-            return search(psi_d, psi_q, fast);
+            out = InverseFluxPoint{i_d, i_q, G_dd, G_dq, G_qd, G_qq};
+            return true;
         }
     }
-    return search(psi_d, psi_q, nullptr);
+    return false;
+}
+
+inline bool InverseFluxMap::inside_grid(double i_d, double i_q) const {
+    return i_d >= forward_.i_d_min() && i_d <= forward_.i_d_max() && i_q >= forward_.i_q_min() &&
+           i_q <= forward_.i_q_max();
+}
+
+inline InverseFluxPoint InverseFluxMap::eval(double psi_d, double psi_q) const {
+    SplineValue s[2];
+    spline_.eval<2>(psi_d, psi_q, s);
+    double i_d = s[0].f, i_q = s[1].f;
+    InverseFluxPoint out;
+    if (!newton(psi_d, psi_q, i_d, i_q, out)) return search(psi_d, psi_q, nullptr);
+    if (inside_grid(out.i_d, out.i_q)) return out;
+    const double fast[2] = {out.i_d, out.i_q};  // beyond the grid: is there a preimage nearer to it?
+    return search(psi_d, psi_q, fast);
+}
+
+inline InverseFluxPoint InverseFluxMap::eval_near(double psi_d, double psi_q, double i_d_guess,
+                                                  double i_q_guess) const {
+    InverseFluxPoint out;
+    if (std::isfinite(i_d_guess) && std::isfinite(i_q_guess) && newton(psi_d, psi_q, i_d_guess, i_q_guess, out) &&
+        inside_grid(out.i_d, out.i_q))
+        return out;
+    return eval(psi_d, psi_q);
 }
 
 }  // namespace ipmsm
