@@ -36,6 +36,17 @@ const CurrentRegulator::SampleConstants& CurrentRegulator::constants(double thet
     return k;
 }
 
+const FluxPoint& CurrentRegulator::reference_flux(double i_d_ref, double i_q_ref, const MagnetFlux& flux) {
+    ReferenceFlux& r = reference_;
+    if (i_d_ref == r.i_d_ref && i_q_ref == r.i_q_ref && flux.shift() == r.shift && &flux.map() == r.map) return r.at;
+    r.map = &flux.map();
+    r.i_d_ref = i_d_ref;
+    r.i_q_ref = i_q_ref;
+    r.shift = flux.shift();
+    r.at = flux.eval(i_d_ref, i_q_ref);
+    return r.at;
+}
+
 VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega, double u_dc,
                                       double h, const MagnetFlux& flux) {
     const double theta = omega * h;  // electrical rotation within the sample, rad
@@ -56,7 +67,7 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
         s.u_d_prev = u_d;
         s.u_q_prev = u_q;
     };
-    const FluxPoint fr = flux.eval(i_d_ref, i_q_ref);
+    const FluxPoint& fr = reference_flux(i_d_ref, i_q_ref, flux);
     const double r_d = fr.psi_d - flux.shift(), r_q = fr.psi_q;  // at the reference magnet temperature
     if (!(std::abs(theta) < kMaxRotationPerSample)) {
         // Open loop: the reference's steady-state voltage; the integrator held.

@@ -109,6 +109,15 @@ private:
     };
     const SampleConstants& constants(double theta, double h);
     SampleConstants constants_;
+    // The reference's flux: the current command is held over a communication step, so the map
+    // is evaluated there when the reference (or the map, or the magnet temperature) changes.
+    struct ReferenceFlux {
+        const FluxMap* map = nullptr;
+        double i_d_ref = std::numeric_limits<double>::quiet_NaN(), i_q_ref = i_d_ref, shift = i_d_ref;
+        FluxPoint at{};
+    };
+    const FluxPoint& reference_flux(double i_d_ref, double i_q_ref, const MagnetFlux& flux);
+    ReferenceFlux reference_;
     double alpha_c_;
     double R_s_;
     bool reported_lowered_ = false;

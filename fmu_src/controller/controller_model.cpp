@@ -163,12 +163,18 @@ void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux)
     i_q_ref = cmd.i_q;
     T_max = sign * cmd.torque_max;
     T_cmd = sign * std::min(std::abs(T_ref), cmd.torque_max);
-    T_est = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
-    u_ratio = std::hypot(u_d_ref, u_q_ref) / (u_dc / kSqrt3);
+    if (observe_each_step) observe(flux);
     region = static_cast<int>(cmd.region);
     iterations = cmd.iterations;
     cache_ = {true, T_ref, w_m, u_dc, T_magnet, cmd};
 }
+
+void ControllerModel::observe(const MagnetFlux& flux) {
+    T_est = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
+    u_ratio = std::hypot(u_d_ref, u_q_ref) / (u_dc / kSqrt3);
+}
+
+void ControllerModel::observe() { observe(MagnetFlux(*map_, conditions().shift)); }
 
 void ControllerModel::initial_outputs() {
     // Outputs consistent with the initial inputs, before the first step: the current commands,

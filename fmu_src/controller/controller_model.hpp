@@ -30,6 +30,12 @@ public:
     explicit ControllerModel(const fmi::Context& context);
     void exit_initialization();
     void do_step(double t, double h);
+    // The observations of the measured state, T_est and u_ratio, from the present inputs and
+    // voltage command. do_step sets them unless observe_each_step is false: a model that steps
+    // the controller many times per communication step (IpmsmDrive) and reads them only at its
+    // end calls observe() then.
+    void observe();
+    bool observe_each_step = true;
     // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
     template <class Field>
     void state_fields(Field&& field) {
@@ -91,6 +97,7 @@ private:
     Conditions conditions() const;
     CurrentCommand current_command(const Conditions& c);              // reuses the cache while it holds
     void publish(const CurrentCommand& cmd, const MagnetFlux& flux);  // the command outputs (u_*_ref set)
+    void observe(const MagnetFlux& flux);
     void initial_outputs();
 
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc and T_magnet

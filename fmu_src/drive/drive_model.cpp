@@ -228,6 +228,7 @@ const std::vector<V>& DriveModel::variables() {
 
 DriveModel::DriveModel(const fmi::Context& context)
     : controller_(prefixed(context, "controller")), plant_(prefixed(context, "plant")) {
+    controller_.observe_each_step = false;  // publish_end() observes, once per communication step
     // Start values: the models' own (the controller's first, then the plant's where both have one).
     copy_from(*this, controller_);
     copy_from(*this, plant_);
@@ -277,6 +278,7 @@ void DriveModel::hold_inputs() {
 }
 
 void DriveModel::publish_end() {
+    controller_.observe();  // of the step's last sample only: the drive reads it here
     T_cmd = controller_.T_cmd;
     T_max = controller_.T_max;
     i_d = plant_.i_d;
