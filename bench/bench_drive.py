@@ -87,9 +87,10 @@ def main(argv=None) -> int:
         s, wall, cpu = timed_run()
     n = s["vehicle_steps"]
     py_wall, py_cpu = wall - in_do_step["wall"], cpu - in_do_step["cpu"]
-    print(f"  split of an instrumented run's simulate() ({wall:.2f} s wall with set-up, {cpu:.2f} s CPU): inside fmi2DoStep "
-          f"{in_do_step['wall']:.2f} s wall, {in_do_step['cpu']:.2f} s CPU; the Python side (the rest) "
-          f"{py_wall:.2f} s wall, {py_cpu:.2f} s CPU ({1e6 * py_cpu / n:.1f} us CPU per vehicle step)")
+    print(f"  split of an instrumented run's simulate() ({wall:.2f} s wall with set-up, {cpu:.2f} s CPU): "
+          f"inside fmi2DoStep {in_do_step['wall']:.2f} s wall, {in_do_step['cpu']:.2f} s CPU; "
+          f"the Python side (the rest) {py_wall:.2f} s wall, {py_cpu:.2f} s CPU "
+          f"({1e6 * py_cpu / n:.1f} us CPU per vehicle step)")
     return 0
 
 
