@@ -24,6 +24,10 @@ namespace {
 // Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
 constexpr double kStiffLimit = 2.0;
 
+// Attempts of explicit steps across one call before CVODE integrates it instead: a call that
+// needs more is stiff or has a kink the third-order method cannot step over cheaply.
+constexpr int kMaxExplicitSteps = 8;
+
 // CVODE's y: the two flux components (z or psi) and the step integrals (cvode_integrator.hpp).
 constexpr int kStates = 2 + StepIntegrands::count;
 
@@ -192,37 +196,95 @@ struct CvodeIntegrator::Workspace {
             std::fill(d + 2, d + kStates, 0.0);
     }
 
-    // One Bogacki-Shampine 3(2) step from y = 0 over the whole span (cvode_integrator.hpp):
-    // true, with y(span), psi(span) and the currents there, when its error estimate's weighted
-    // RMS norm (CVODE's, weights rtol |y(span)| + atol) is <= 1.
-    bool explicit_step(double span, double rtol, const double* atol, double* y_end, double* psi_end,
-                       InverseFluxPoint& c_end) const {
-        double k1[kStates], k2[kStates], k3[kStates], k4[kStates], y[kStates], psi[2];
+    // One Bogacki-Shampine 3(2) step of length dt from y with y' = k1 (Bogacki and Shampine, Appl.
+    // Math. Lett. 2 (1989) 321-325), the flows at its stages dt / 2, 3 dt / 4 and dt given: y_new,
+    // k4 = y'(y_new) (the next step's k1), psi and the currents there; returns the squared
+    // weighted norm of the embedded error estimate (CVODE's weights rtol |y_new| + atol, summed
+    // over y's components; NaN where the currents could not be found).
+    double bs3_step(const FlowAt& F2, const FlowAt& F3, const FlowAt& F4, double dt, const double* y, const double* k1,
+                    double rtol, const double* atol, double* y_new, double* k4, double* psi_new,
+                    InverseFluxPoint& c_new) const {
+        double k2[kStates], k3[kStates], ys[kStates], psi[2];
         InverseFluxPoint c;
+        for (int k = 0; k < kStates; ++k) ys[k] = y[k] + 0.5 * dt * k1[k];
+        linearised_rhs(F2, ys, k2, psi, c);
+        for (int k = 0; k < kStates; ++k) ys[k] = y[k] + 0.75 * dt * k2[k];
+        linearised_rhs(F3, ys, k3, psi, c);
+        for (int k = 0; k < kStates; ++k)
+            y_new[k] = y[k] + dt * (2.0 / 9.0 * k1[k] + 1.0 / 3.0 * k2[k] + 4.0 / 9.0 * k3[k]);
+        linearised_rhs(F4, y_new, k4, psi_new, c_new);
+        double sum = 0.0;
+        for (int k = 0; k < kStates; ++k) {
+            const double e = dt * (-5.0 / 72.0 * k1[k] + 1.0 / 12.0 * k2[k] + 1.0 / 9.0 * k3[k] - 0.125 * k4[k]);
+            const double r = e / (rtol * std::abs(y_new[k]) + atol[k]);
+            sum += r * r;
+        }
+        const bool found = std::isfinite(psi_new[0]) && std::isfinite(psi_new[1]) && std::isfinite(c_new.i_d) &&
+                           std::isfinite(c_new.i_q);
+        return found ? sum : std::numeric_limits<double>::quiet_NaN();
+    }
+
+    // Explicit steps from y = 0 across the span (cvode_integrator.hpp): one Bogacki-Shampine step
+    // over the whole span; where its error estimate's weighted RMS norm exceeds 1, shorter steps
+    // under the standard step-size controller for a third-order pair (safety 0.9, a change per
+    // step within [0.2, 5]: Hairer, Norsett and Wanner, Solving Ordinary Differential Equations I,
+    // 2nd ed., section II.4). True, with y(span), psi(span), the currents there and the steps
+    // taken, when at most kMaxExplicitSteps attempts crossed the span (false as soon as the step
+    // length the estimates ask for says they will not, or where the currents could not be found:
+    // CVODE decides).
+    bool explicit_steps(double span, double rtol, const double* atol, double* y_end, double* psi_end,
+                        InverseFluxPoint& c_end, CvodeStats& st) const {
+        double k1[kStates], k4[kStates];
         // tau = 0: z = 0, psi = psi0, N(psi0) = 0; the integrands at the start's currents.
+        const double zero[kStates] = {0, 0, 0, 0, 0, 0};
         k1[0] = k1[1] = 0.0;
         const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
         if (integrands != nullptr)
             integrands->eval(ode, lin.psi0[0], lin.psi0[1], c0.i_d, c0.i_q, k1 + 2);
         else
             std::fill(k1 + 2, k1 + kStates, 0.0);
-        // The flow at the stages span / 2, 3 span / 4, span from the one at span / 4.
-        const FlowAt F1 = lin.at(0.25 * span), F2 = F1.then(F1), F3 = F2.then(F1), F4 = F2.then(F2);
-        for (int k = 0; k < kStates; ++k) y[k] = 0.5 * span * k1[k];
-        linearised_rhs(F2, y, k2, psi, c);
-        for (int k = 0; k < kStates; ++k) y[k] = 0.75 * span * k2[k];
-        linearised_rhs(F3, y, k3, psi, c);
-        for (int k = 0; k < kStates; ++k) y_end[k] = span * (2.0 / 9.0 * k1[k] + 1.0 / 3.0 * k2[k] + 4.0 / 9.0 * k3[k]);
-        linearised_rhs(F4, y_end, k4, psi_end, c_end);
-        double sum = 0.0;
-        for (int k = 0; k < kStates; ++k) {
-            const double e = span * (-5.0 / 72.0 * k1[k] + 1.0 / 12.0 * k2[k] + 1.0 / 9.0 * k3[k] - 0.125 * k4[k]);
-            const double r = e / (rtol * std::abs(y_end[k]) + atol[k]);
-            sum += r * r;
+        st = CvodeStats{};
+        st.last_order = 3;
+        st.rhs_evals = 3;
+        // The whole span in one step: the flows at span / 2, 3 span / 4, span from the one at span / 4.
+        const FlowAt G = lin.at(0.25 * span), G2 = G.then(G);
+        double sum = bs3_step(G2, G2.then(G), G2.then(G2), span, zero, k1, rtol, atol, y_end, k4, psi_end, c_end);
+        if (sum <= kStates) {
+            st.steps = 1;
+            st.last_step = span;
+            return true;
         }
-        // Not finite (the currents left what the map can invert): the norm is NaN, CVODE decides.
-        return sum <= kStates && std::isfinite(psi_end[0]) && std::isfinite(psi_end[1]) && std::isfinite(c_end.i_d) &&
-               std::isfinite(c_end.i_q);
+        st.error_test_fails = 1;
+        // Shorter steps from tau with y, the flow at tau F0.
+        double y[kStates], y_new[kStates];
+        std::copy(zero, zero + kStates, y);
+        FlowAt F0 = lin.at(0.0);
+        double tau = 0.0, dt = span;
+        for (int attempt = 1;; ++attempt) {
+            if (!std::isfinite(sum)) return false;
+            const double norm = std::sqrt(sum / kStates);
+            dt *= norm > 0.0 ? std::clamp(0.9 * std::cbrt(1.0 / norm), 0.2, 5.0) : 5.0;
+            if ((span - tau) / dt > kMaxExplicitSteps - attempt) return false;  // would not fit in the attempts left
+            const bool last = tau + dt >= span * (1.0 - 1e-12);
+            if (last) dt = span - tau;
+            const FlowAt H = lin.at(0.25 * dt), H2 = H.then(H), F2 = F0.then(H2);
+            sum = bs3_step(F2, F2.then(H), F2.then(H2), dt, y, k1, rtol, atol, y_new, k4, psi_end, c_end);
+            st.rhs_evals += 3;
+            if (sum <= kStates) {  // accepted; k4 is the next step's k1 (first same as last)
+                ++st.steps;
+                st.last_step = dt;
+                if (last) {
+                    std::copy(y_new, y_new + kStates, y_end);
+                    return true;
+                }
+                tau += dt;
+                std::copy(y_new, y_new + kStates, y);
+                std::copy(k4, k4 + kStates, k1);
+                F0 = F0.then(H2.then(H2));
+            } else {
+                ++st.error_test_fails;
+            }
+        }
     }
 
     // y = (the two flux components, the step integrals); the integrals' y' are the integrands at
@@ -455,8 +517,9 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
             if (w.linearised && settings_.explicit_first && settings_.reinit_each_step) {
                 double y_end[kStates], psi_end[2];
                 InverseFluxPoint c_end;
-                if (w.explicit_step(h, settings_.rtol, atol.data(), y_end, psi_end, c_end)) {
-                    commit_explicit(ode, h, y_end, psi_end, c_end);
+                CvodeStats est;
+                if (w.explicit_steps(h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
+                    commit_explicit(h, y_end, psi_end, c_end, est);
                     return;
                 }
             }
@@ -544,8 +607,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     w.live_psi[1] = psi_end[1];
 }
 
-void CvodeIntegrator::commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
-                                      const InverseFluxPoint& c_end) {
+void CvodeIntegrator::commit_explicit(double h, const double* y_end, const double* psi_end,
+                                      const InverseFluxPoint& c_end, const CvodeStats& stats) {
     end_currents_ = c_end;
     state_.i_seed[0] = c_end.i_d;
     state_.i_seed[1] = c_end.i_q;
@@ -553,11 +616,8 @@ void CvodeIntegrator::commit_explicit(const DqFluxOde& ode, double h, const doub
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];
     state_.h_next = h;
-    stats_ = CvodeStats{};
-    stats_.steps = 1;
-    stats_.rhs_evals = 3;
-    stats_.last_order = 3;
-    stats_.last_step = h;
+    stats_ = stats;
+    stats_.explicit_only = true;
     for (int k = 0; k < StepIntegrands::count; ++k) integrals_[k] = y_end[2 + k];
     warnings_.clear();
 }

@@ -39,14 +39,19 @@
 // their integrands come from the inverse-map evaluation the flux components make anyway. They
 // restart from 0 at every call: step_integrals() are the last call's.
 //
-// explicit_first (with linearised, reinit_each_step): before CVODE, one explicit Runge-Kutta step
-// over the whole call (Bogacki-Shampine 3(2), three evaluations of the right-hand side; the first
-// stage is known: z' = 0 at tau = 0) of z and the step integrals, whose embedded error estimate
-// is measured in CVODE's weighted RMS norm with the same tolerances (weights rtol |y(h)| + atol);
-// it is taken when that norm is <= 1, else CVODE integrates the call as without it. The
-// remainder z is of second order in the step's change of psi, so the estimate passes where the
-// currents change smoothly over the call, and the CVODE set-up (re-initialisation, initial
-// setup, the Nordsieck history) is not paid there.
+// explicit_first (with linearised, reinit_each_step): before CVODE, explicit Runge-Kutta steps
+// across the call (Bogacki-Shampine 3(2), three evaluations of the right-hand side per step; the
+// first stage is known: z' = 0 at tau = 0, and later ones reuse the last stage) of z and the step
+// integrals, each step's embedded error estimate measured in CVODE's weighted RMS norm with the
+// same tolerances (weights rtol |y| + atol at the step's end). The first step spans the whole
+// call; where the estimate misses, shorter ones follow under the standard step-size controller,
+// and after kMaxExplicitSteps attempts CVODE integrates the call as without them. The remainder
+// z is of second order in the step's change of psi, so one step passes where the currents change
+// smoothly over the call; the step integrals' integrands carry the currents' whole change (at
+// high speed, a rotation of the frame by omega h within the call), and there a few shorter steps
+// meet the tolerances where CVODE, restarting at order 1 from each call's inputs, would need
+// many. The CVODE set-up (re-initialisation, initial setup, the Nordsieck history) is paid only
+// where the explicit steps give up.
 //
 // The currents at the end of a call (end_currents()) are the inverse map's at the end's flux
 // linkages, with Newton started from the call's linearisation (InverseFluxMap::eval_near); the
@@ -143,6 +148,7 @@ struct CvodeStats {
     long steps = 0, rhs_evals = 0, error_test_fails = 0, nonlinear_iterations = 0, nonlinear_failures = 0;
     int last_order = 0;
     double last_step = 0;
+    bool explicit_only = false;  // the call was finished by the explicit steps (explicit_first), not CVODE
 };
 
 class CvodeIntegrator {
@@ -190,8 +196,8 @@ private:
     CvodeStats stats_;
     double integrals_[StepIntegrands::count] = {0, 0, 0, 0};
     InverseFluxPoint end_currents_{};  // at state_.psi after the last advance()
-    void commit_explicit(const DqFluxOde& ode, double h, const double* y_end, const double* psi_end,
-                         const InverseFluxPoint& c_end);
+    void commit_explicit(double h, const double* y_end, const double* psi_end, const InverseFluxPoint& c_end,
+                         const CvodeStats& stats);
     std::string warnings_;
     std::unique_ptr<Workspace> ws_;
 };

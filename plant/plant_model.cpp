@@ -108,8 +108,8 @@ const std::vector<V>& PlantModel::variables() {
          "Angular impulse of the electromagnetic torque since the start, int T_e dt (its mean over a step is the "
          "increase over the step divided by the step)"},
         {"cvode_steps", &M::cvode_steps, Causality::output, Variability::discrete, "", "",
-         "Internal steps of the integrator in the last communication step (CVODE's, or 1: the explicit Runge-Kutta "
-         "step that met the tolerances)"},
+         "Internal steps of the integrator in the last communication step (CVODE's, or the explicit Runge-Kutta "
+         "steps that met the tolerances)"},
         {"cvode_rhs_evals", &M::cvode_rhs_evals, Causality::output, Variability::discrete, "", "",
          "Right-hand-side evaluations in the last communication step"},
         // parameters
