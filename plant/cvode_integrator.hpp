@@ -109,7 +109,7 @@ struct CvodeSettings {
     double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
     double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
     double current_scale = 1e3;     // A: the quadratures' absolute tolerances (above)
-    bool explicit_first = false;    // try one embedded Runge-Kutta step before CVODE (above)
+    bool explicit_first = false;    // try embedded Runge-Kutta steps before CVODE (above)
 
     // Settings that shape CVODE's objects (a workspace is reused only if they match).
     bool same_structure(const CvodeSettings& o) const {

@@ -168,7 +168,7 @@ CvodeSettings PlantModel::settings() const {
     s.linearised = true;        // the step's linear flow exact, CVODE on the rest (ibid.)
     s.init_step = CvodeInitStep::curvature;
     s.nonlin_conv_coef = 0.3;  // measured: 15-25 % fewer RHS evaluations, same error (bench_plant)
-    s.explicit_first = true;   // CVODE only where one embedded Runge-Kutta step misses the tolerances
+    s.explicit_first = true;   // CVODE only where the embedded Runge-Kutta steps give up (cvode_integrator.hpp)
     if (map_)                  // the quadratures' absolute tolerances scale with the largest current of the map's grid
         s.current_scale = std::max({std::abs(map_->i_d_min()), std::abs(map_->i_d_max()), std::abs(map_->i_q_min()),
                                     std::abs(map_->i_q_max())});
