@@ -234,9 +234,8 @@ struct CvodeIntegrator::Workspace {
     // CVODE decides).
     bool explicit_steps(double span, double rtol, const double* atol, double* y_end, double* psi_end,
                         InverseFluxPoint& c_end, CvodeStats& st) const {
-        double k1[kStates], k4[kStates];
+        double k1[kStates], k4[kStates], y[kStates] = {0, 0, 0, 0, 0, 0}, y_new[kStates];
         // tau = 0: z = 0, psi = psi0, N(psi0) = 0; the integrands at the start's currents.
-        const double zero[kStates] = {0, 0, 0, 0, 0, 0};
         k1[0] = k1[1] = 0.0;
         const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
         if (integrands != nullptr)
@@ -246,9 +245,10 @@ struct CvodeIntegrator::Workspace {
         st = CvodeStats{};
         st.last_order = 3;
         st.rhs_evals = 3;
+        st.explicit_only = true;  // unless it returns false
         // The whole span in one step: the flows at span / 2, 3 span / 4, span from the one at span / 4.
         const FlowAt G = lin.at(0.25 * span), G2 = G.then(G);
-        double sum = bs3_step(G2, G2.then(G), G2.then(G2), span, zero, k1, rtol, atol, y_end, k4, psi_end, c_end);
+        double sum = bs3_step(G2, G2.then(G), G2.then(G2), span, y, k1, rtol, atol, y_end, k4, psi_end, c_end);
         if (sum <= kStates) {
             st.steps = 1;
             st.last_step = span;
@@ -256,8 +256,6 @@ struct CvodeIntegrator::Workspace {
         }
         st.error_test_fails = 1;
         // Shorter steps from tau with y, the flow at tau F0.
-        double y[kStates], y_new[kStates];
-        std::copy(zero, zero + kStates, y);
         FlowAt F0 = lin.at(0.0);
         double tau = 0.0, dt = span;
         for (int attempt = 1;; ++attempt) {
@@ -267,8 +265,8 @@ struct CvodeIntegrator::Workspace {
             if ((span - tau) / dt > kMaxExplicitSteps - attempt) return false;  // would not fit in the attempts left
             const bool last = tau + dt >= span * (1.0 - 1e-12);
             if (last) dt = span - tau;
-            const FlowAt H = lin.at(0.25 * dt), H2 = H.then(H), F2 = F0.then(H2);
-            sum = bs3_step(F2, F2.then(H), F2.then(H2), dt, y, k1, rtol, atol, y_new, k4, psi_end, c_end);
+            const FlowAt H = lin.at(0.25 * dt), H2 = H.then(H), F2 = F0.then(H2), F4 = F2.then(H2);
+            sum = bs3_step(F2, F2.then(H), F4, dt, y, k1, rtol, atol, y_new, k4, psi_end, c_end);
             st.rhs_evals += 3;
             if (sum <= kStates) {  // accepted; k4 is the next step's k1 (first same as last)
                 ++st.steps;
@@ -280,7 +278,7 @@ struct CvodeIntegrator::Workspace {
                 tau += dt;
                 std::copy(y_new, y_new + kStates, y);
                 std::copy(k4, k4 + kStates, k1);
-                F0 = F0.then(H2.then(H2));
+                F0 = F4;
             } else {
                 ++st.error_test_fails;
             }
@@ -519,7 +517,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
                 InverseFluxPoint c_end;
                 CvodeStats est;
                 if (w.explicit_steps(h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
-                    commit_explicit(h, y_end, psi_end, c_end, est);
+                    commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
                     return;
                 }
             }
@@ -585,41 +583,28 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
         c_end = ode.currents(psi_end[0], psi_end[1]);
     }
 
-    // Commit.
-    end_currents_ = c_end;
-    state_.i_seed[0] = c_end.i_d;
-    state_.i_seed[1] = c_end.i_q;
-    state_.t += h;
-    state_.psi[0] = psi_end[0];
-    state_.psi[1] = psi_end[1];
     double h_next = st.last_step;
     if (settings_.init_step == CvodeInitStep::previous_next) CVodeGetCurrentStep(mem, &h_next);
-    state_.h_next = h_next > 0 && std::isfinite(h_next) ? h_next : 0.0;
-    stats_ = st;
-    for (int k = 0; k < StepIntegrands::count; ++k) {
-        integrals_[k] = integrals[k];
-        w.live_q[k] = q_end[k];
-    }
-    warnings_ = w.warning;
+    commit(h, psi_end, c_end, h_next > 0 && std::isfinite(h_next) ? h_next : 0.0, st, integrals, w.warning);
+    std::copy(q_end, q_end + StepIntegrands::count, w.live_q);
     w.live = true;
     w.live_tau = tau_end;
     w.live_psi[0] = psi_end[0];
     w.live_psi[1] = psi_end[1];
 }
 
-void CvodeIntegrator::commit_explicit(double h, const double* y_end, const double* psi_end,
-                                      const InverseFluxPoint& c_end, const CvodeStats& stats) {
+void CvodeIntegrator::commit(double h, const double* psi_end, const InverseFluxPoint& c_end, double h_next,
+                             const CvodeStats& stats, const double* integrals, const std::string& warnings) {
     end_currents_ = c_end;
-    state_.i_seed[0] = c_end.i_d;
+    state_.i_seed[0] = c_end.i_d;  // the next call's Newton seed
     state_.i_seed[1] = c_end.i_q;
     state_.t += h;
     state_.psi[0] = psi_end[0];
     state_.psi[1] = psi_end[1];
-    state_.h_next = h;
+    state_.h_next = h_next;
     stats_ = stats;
-    stats_.explicit_only = true;
-    for (int k = 0; k < StepIntegrands::count; ++k) integrals_[k] = y_end[2 + k];
-    warnings_.clear();
+    std::copy(integrals, integrals + StepIntegrands::count, integrals_);
+    warnings_ = warnings;
 }
 
 }  // namespace ipmsm

@@ -196,8 +196,9 @@ private:
     CvodeStats stats_;
     double integrals_[StepIntegrands::count] = {0, 0, 0, 0};
     InverseFluxPoint end_currents_{};  // at state_.psi after the last advance()
-    void commit_explicit(double h, const double* y_end, const double* psi_end, const InverseFluxPoint& c_end,
-                         const CvodeStats& stats);
+    // A call's result becomes the state (after CVODE or after the explicit steps alike).
+    void commit(double h, const double* psi_end, const InverseFluxPoint& c_end, double h_next, const CvodeStats& stats,
+                const double* integrals, const std::string& warnings);
     std::string warnings_;
     std::unique_ptr<Workspace> ws_;
 };
