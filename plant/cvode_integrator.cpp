@@ -120,11 +120,13 @@ struct CvodeIntegrator::Workspace {
             psi[0] = psi0[0] + F.P[0] * f0[0] + F.P[1] * f0[1] + F.E[0] * z[0] + F.E[1] * z[1];
             psi[1] = psi0[1] + F.P[2] * f0[0] + F.P[3] * f0[1] + F.E[2] * z[0] + F.E[3] * z[1];
         }
-        // ... at tau, with exp(-tau A) for the caller.
-        void psi_at(double tau, const double* z, double* psi, double* E_inv) const {
-            const FlowAt F = at(tau);
-            psi_at(F, z, psi);
-            std::copy(F.E_inv, F.E_inv + 4, E_inv);
+        // The linearisation's currents at psi, i0 + G0 (psi - psi0): within a step the currents are
+        // near them, so the inverse map's Newton starts there (one forward-map evaluation, not the
+        // table's three).
+        void predicted_currents(const double* psi, double* i) const {
+            const double dd = psi[0] - psi0[0], dq = psi[1] - psi0[1];
+            i[0] = i0[0] + G0[0] * dd + G0[1] * dq;
+            i[1] = i0[1] + G0[2] * dd + G0[3] * dq;
         }
     } lin;
     bool linearised = false;                     // this call's formulation (built_for.linearised unless too stiff)
@@ -179,21 +181,23 @@ struct CvodeIntegrator::Workspace {
     // The linearised right-hand side at tau for y = (z, step integrals), with the path's psi and
     // its currents.
     void linearised_rhs(const FlowAt& F, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
-        const Linearisation& L = lin;
-        L.psi_at(F, y, psi);
-        // Newton from the linearisation's prediction i0 + G0 (psi - psi0): within a step the
-        // currents are near it (one forward-map evaluation, not the table's three).
-        const double dd = psi[0] - L.psi0[0], dq = psi[1] - L.psi0[1];
-        c = ode.currents_near(psi[0], psi[1], L.i0[0] + L.G0[0] * dd + L.G0[1] * dq,
-                              L.i0[1] + L.G0[2] * dd + L.G0[3] * dq);
-        const double n0 = -ode.R * (c.i_d - L.i0[0] - L.G0[0] * dd - L.G0[1] * dq);
-        const double n1 = -ode.R * (c.i_q - L.i0[1] - L.G0[2] * dd - L.G0[3] * dq);
+        lin.psi_at(F, y, psi);
+        double i_lin[2];
+        lin.predicted_currents(psi, i_lin);
+        c = ode.currents_near(psi[0], psi[1], i_lin[0], i_lin[1]);
+        // The nonlinear remainder N = -R (i(psi) - i_lin(psi)), carried back by exp(-tau A).
+        const double n0 = -ode.R * (c.i_d - i_lin[0]), n1 = -ode.R * (c.i_q - i_lin[1]);
         d[0] = F.E_inv[0] * n0 + F.E_inv[1] * n1;
         d[1] = F.E_inv[2] * n0 + F.E_inv[3] * n1;
+        integrands_at(psi, c, d + 2);
+    }
+
+    // The step integrals' integrands at psi with its currents c (zeros without integrands).
+    void integrands_at(const double* psi, const InverseFluxPoint& c, double* q) const {
         if (integrands != nullptr)
-            integrands->eval(ode, psi[0], psi[1], c.i_d, c.i_q, d + 2);
+            integrands->eval(ode, psi[0], psi[1], c.i_d, c.i_q, q);
         else
-            std::fill(d + 2, d + kStates, 0.0);
+            std::fill(q, q + StepIntegrands::count, 0.0);
     }
 
     // One Bogacki-Shampine 3(2) step of length dt from y with y' = k1 (Bogacki and Shampine, Appl.
@@ -238,10 +242,7 @@ struct CvodeIntegrator::Workspace {
         // tau = 0: z = 0, psi = psi0, N(psi0) = 0; the integrands at the start's currents.
         k1[0] = k1[1] = 0.0;
         const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
-        if (integrands != nullptr)
-            integrands->eval(ode, lin.psi0[0], lin.psi0[1], c0.i_d, c0.i_q, k1 + 2);
-        else
-            std::fill(k1 + 2, k1 + kStates, 0.0);
+        integrands_at(lin.psi0, c0, k1 + 2);
         st = CvodeStats{};
         st.last_order = 3;
         st.rhs_evals = 3;
@@ -301,10 +302,7 @@ struct CvodeIntegrator::Workspace {
             c = w->ode.currents(psi[0], psi[1]);
             d[0] = w->ode.u_d - w->ode.R * c.i_d + w->ode.omega * psi[1];
             d[1] = w->ode.u_q - w->ode.R * c.i_q - w->ode.omega * psi[0];
-            if (w->integrands != nullptr)
-                w->integrands->eval(w->ode, psi[0], psi[1], c.i_d, c.i_q, d + 2);
-            else
-                std::fill(d + 2, d + kStates, 0.0);
+            w->integrands_at(psi, c, d + 2);
         }
         double sum = 0.0;
         for (int k = 0; k < kStates; ++k) sum += d[k];
@@ -320,9 +318,10 @@ struct CvodeIntegrator::Workspace {
         } else {
             // d z' / d z = exp(-tau A) (-R) (G(psi) - G0) exp(tau A)
             const Linearisation& L = w->lin;
-            double psi[2], E[4], E_inv[4];
-            L.psi_at(tau, N_VGetArrayPointer(y), psi, E_inv);
-            L.flow.exp(tau, E, E_inv);
+            const Workspace::FlowAt F = L.at(tau);
+            const double *E = F.E, *E_inv = F.E_inv;
+            double psi[2];
+            L.psi_at(F, N_VGetArrayPointer(y), psi);
             const InverseFluxPoint c = w->ode.currents(psi[0], psi[1]);
             const double R = w->ode.R;
             const double D[4] = {-R * (c.G_dd - L.G0[0]), -R * (c.G_dq - L.G0[1]), -R * (c.G_qd - L.G0[2]),
@@ -567,18 +566,16 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
 
     double psi_end[2] = {y[0], y[1]};
     if (w.linearised) {
-        double E_inv[4];
-        w.lin.psi_at(h, y, psi_end, E_inv);
+        w.lin.psi_at(w.lin.at(h), y, psi_end);
         if (!std::isfinite(psi_end[0]) || !std::isfinite(psi_end[1]))
             throw CvodeError("non-finite flux linkages at the end of a step of " + number(h) + " s");
     }
 
     InverseFluxPoint c_end;
     if (w.linearised) {  // as in linearised_rhs: from the linearisation's prediction
-        const Workspace::Linearisation& L = w.lin;
-        const double dd = psi_end[0] - L.psi0[0], dq = psi_end[1] - L.psi0[1];
-        c_end = ode.currents_near(psi_end[0], psi_end[1], L.i0[0] + L.G0[0] * dd + L.G0[1] * dq,
-                                  L.i0[1] + L.G0[2] * dd + L.G0[3] * dq);
+        double i_lin[2];
+        w.lin.predicted_currents(psi_end, i_lin);
+        c_end = ode.currents_near(psi_end[0], psi_end[1], i_lin[0], i_lin[1]);
     } else {
         c_end = ode.currents(psi_end[0], psi_end[1]);
     }

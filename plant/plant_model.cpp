@@ -288,8 +288,7 @@ void PlantModel::update_outputs(const DqFluxOde& o) {
 
 void PlantModel::update_outputs(const DqFluxOde& o, double i_d_now, double i_q_now) {
     const CvodeState& s = integrator_.state();
-    const IronLossModel fe{fe_k_h, fe_alpha, fe_k_e, fe_psi_ref};
-    const PlantOutputs out = plant_outputs(o, pole_pairs, w_m, fe, s.psi[0], s.psi[1], i_d_now, i_q_now);
+    const PlantOutputs out = plant_outputs(o, pole_pairs, w_m, integrands().fe, s.psi[0], s.psi[1], i_d_now, i_q_now);
     psi_d = s.psi[0];
     psi_q = s.psi[1];
     i_d = out.i_d;

@@ -65,8 +65,6 @@ public:
     explicit PlantModel(const fmi::Context& context);
     void exit_initialization();
     void do_step(double t, double h);
-    // The last step's integrals (StepIntegrands::Index: J, J, J, N.m.s): what E_* grew by.
-    const double* step_integrals() const { return integrator_.step_integrals(); }
     // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
     template <class Field>
     void state_fields(Field&& field) {
