@@ -29,9 +29,10 @@ from pathlib import Path
 import psutil
 
 from scenarios.compare import VARIANTS, study_runs
-from scenarios.cycles import STANDARD_CYCLES, load_cycle, segment
+from scenarios.cycles import STANDARD_CYCLES, load_cycle
 from scenarios.simulate import STUDY_CONDITIONS, simulate
 from scenarios.study import run_study
+from scenarios.study.plan import run_cycle
 from scenarios.study.spec import Run, run_spec
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,10 +54,7 @@ def direct(runs: list[Run]) -> float:
     t0 = time.perf_counter()
     cycles = {}
     for run in runs:
-        if run.cycle not in cycles:
-            cycles[run.cycle] = load_cycle(run.cycle)
-        c = segment(cycles[run.cycle], *run.window) if run.window else cycles[run.cycle]
-        simulate(c, run_spec(run), progress=False)
+        simulate(run_cycle(run, cycles), run_spec(run), progress=False)
     return time.perf_counter() - t0
 
 

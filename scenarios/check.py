@@ -40,10 +40,14 @@ class Verdict:
     wall_s: float   # the cycle's run time (each of its verdicts reports it)
 
     @property
+    def rel(self) -> str:
+        """The limit's relation: a *_max limit is an upper bound, the others lower bounds."""
+        return "<=" if self.limit.endswith("_max") else ">="
+
+    @property
     def message(self) -> str:
-        rel = "<=" if self.limit.endswith("_max") else ">="
         state = "holds" if self.passed else "FAILED"
-        return f"{self.key} = {self.figure:.6g}, limit {rel} {self.bound:.6g}: {state}"
+        return f"{self.key} = {self.figure:.6g}, limit {self.rel} {self.bound:.6g}: {state}"
 
 
 def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[Verdict]:
@@ -82,8 +86,7 @@ def markdown(drive: DriveDescription, verdicts: list[Verdict]) -> str:
              f"{len(verdicts)} limits on {len({v.cycle for v in verdicts})} cycles.", "",
              "| cycle | limit | figure | bound | result |", "|---|---|---|---|---|"]
     for v in verdicts:
-        rel = "<=" if v.limit.endswith("_max") else ">="
-        lines.append(f"| {v.cycle} | `{v.limit}` | {v.figure:.6g} | {rel} {v.bound:.6g} | "
+        lines.append(f"| {v.cycle} | `{v.limit}` | {v.figure:.6g} | {v.rel} {v.bound:.6g} | "
                      f"{'pass' if v.passed else '**FAIL**'} |")
     return "\n".join(lines) + "\n"
 
