@@ -275,6 +275,10 @@ class _NativeBackend:
             self._check(self.lib.ipmsm_cosim_set_string(self.m, role, n, vr,
                                                         (c_char_p * n)(*[v.encode() for v in values])))
 
+    def get_reals(self, u: _Unit, vrs, out) -> None:
+        """The Real variables vrs (a c_uint array) into out (a c_double array of the same length)."""
+        self._check(self.lib.ipmsm_cosim_get_real(self.m, u.role.encode(), len(vrs), vrs, out))
+
     def get(self, u: _Unit, kind: str, vr: int) -> float | int:
         if kind == "Real":
             out = c_double()
@@ -448,6 +452,11 @@ class _FmpyBackend:
         else:
             arr, fn = (c_char_p * n)(*[v.encode() for v in values]), "fmi2SetString"
         self._check(f, getattr(f, fn)(f.component, vr, n, arr), fn, self._when())
+
+    def get_reals(self, u: _Unit, vrs, out) -> None:
+        """The Real variables vrs (a c_uint array) into out (a c_double array of the same length)."""
+        f = self._unit(u)
+        self._check(f, f.fmi2GetReal(f.component, vrs, len(vrs), out), "fmi2GetReal", self._when())
 
     def get(self, u: _Unit, kind: str, vr: int) -> float | int:
         f = self._unit(u)
@@ -746,6 +755,9 @@ class DriveCosim:
             self._inputs = DriveInputs(float(T_ref), float(w_m), float(u_dc), float(T_magnet), float(T_winding))
             b.initialize(self._inputs)
             b.probes([SAMPLE_SOURCES[name] for name in SAMPLE_FIELDS])
+            # the plant's integrals, read after every advance: their value references resolved once
+            vrs = [self._units["plant"].variable(name).valueReference for name in PLANT_INTEGRALS]
+            self._integral_vrs, self._integral_values = (c_uint * len(vrs))(*vrs), (c_double * len(vrs))()
             self._integrals = self._plant_integrals()
         except BaseException:
             self.close()
@@ -841,7 +853,8 @@ class DriveCosim:
         return AdvanceResult(mean=m, end=Sample(*end), t=self._b.k * self.h, k=self._b.k, rows=rows)
 
     def _plant_integrals(self) -> list[float]:
-        return [self.value(f"plant.{name}") for name in PLANT_INTEGRALS]
+        self._b.get_reals(self._units["plant"], self._integral_vrs, self._integral_values)
+        return self._integral_values[:]
 
     def _exact_means(self, m: Sample, duration: float, w_m: float) -> None:
         """The powers' and torques' means over the advance from the plant's exact integrals
