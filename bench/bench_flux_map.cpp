@@ -98,7 +98,7 @@ void bench_map(const char* name, const FluxMap& m, bool with_inverse, double& ch
 
 int main(int argc, char** argv) {
     const std::string path =
-        std::string(IPMSM_SOURCE_DIR) + "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
+        std::string(IPMSM_SOURCE_DIR) + "/scenarios/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
     double checksum = 0;
     try {
         if (argc > 1) bench_map(argv[1], FluxMap(read_flux_map(argv[1])), true, checksum);

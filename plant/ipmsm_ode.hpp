@@ -5,7 +5,7 @@
 //     d psi_d / dt = u_d - R i_d + omega psi_q
 //     d psi_q / dt = u_q - R i_q - omega psi_d,     i = i_map(psi_d - delta_psi_m, psi_q)
 //
-// Conventions (../shared/spec/MATH.md): amplitude-invariant dq, peak values, PM flux on +d,
+// Conventions (docs/spec/MATH.md): amplitude-invariant dq, peak values, PM flux on +d,
 // omega = p w_m, T_e = 1.5 p (psi_d i_q - psi_q i_d). A magnet temperature other than the map's
 // shifts the PM flux by delta_psi_m = psi_m k_psi_T (T_magnet - T_magnet_ref) (magnet_flux.hpp):
 // the forward map becomes psi(i) + (delta_psi_m, 0), its inverse i(psi_d - delta_psi_m, psi_q).

@@ -11,7 +11,7 @@ from . import map_cli
 from .constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from .paths import BUILD_DIR, ROOT
 
-#: the contract's summary keys (../shared/spec/INTERFACE.md) and the real-time factor: what `run` prints
+#: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
 
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",

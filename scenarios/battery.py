@@ -23,10 +23,10 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from .paths import SHARED_DIR
+from .paths import DATA_DIR
 
-#: `<repo>/../shared/data/ocv_nmc_cell_and_96s.csv`: SOC 0..1 step 0.05, two published cell fits
-OCV_CSV = SHARED_DIR / "data" / "ocv_nmc_cell_and_96s.csv"
+#: the package's data/ocv_nmc_cell_and_96s.csv: SOC 0..1 step 0.05, two published cell fits
+OCV_CSV = DATA_DIR / "ocv_nmc_cell_and_96s.csv"
 
 #: fit name -> column of the cell OCV (V)
 OCV_FITS = {
@@ -35,7 +35,7 @@ OCV_FITS = {
 }
 
 #: ocv_fit = "csv": the cell OCV is column OCV_CSV_COLUMN of the user's own ocv_csv (a drive
-#: description's battery.ocv = "file.csv", ../shared/spec/INTERFACE.md)
+#: description's battery.ocv = "file.csv", docs/spec/INTERFACE.md)
 OCV_CSV_COLUMN = "ocv_cell_V"
 
 

@@ -1,5 +1,5 @@
 """Drive cycles: speed traces `time_s,speed_mps` (SI), the standard ones shipped in
-`<repo>/../shared/data/cycles/` (sources and verified statistics in its SOURCES.md) or any
+`scenarios/data/cycles/` (sources and verified statistics in its SOURCES.md) or any
 user CSV in the same format.
 
     >>> t, v = load_cycle("udds")            # unpacks as (time_s, speed_mps)
@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .paths import SHARED_DIR
+from .paths import DATA_DIR
 
-#: where the standard cycles live: `<repo>/../shared/data/cycles/` (scenarios.paths.SHARED_DIR)
-CYCLES_DIR = SHARED_DIR / "data" / "cycles"
+#: where the standard cycles live: the package's data/cycles/ (scenarios.paths.DATA_DIR)
+CYCLES_DIR = DATA_DIR / "cycles"
 
 #: canonical names (matched case-insensitively) -> file in CYCLES_DIR
 STANDARD_CYCLES = {

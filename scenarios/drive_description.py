@@ -1,5 +1,5 @@
 """Drive descriptions: one TOML file names a drive's motor (its flux map and parameters),
-inverter, battery, vehicle, controller settings and CI checks (../shared/spec/INTERFACE.md,
+inverter, battery, vehicle, controller settings and CI checks (docs/spec/INTERFACE.md,
 "Drive description (TOML)"; every key, unit, default and source: docs/drives.md).
 
     >>> d = load_drive("scenarios/drives/city_ev.toml")   # None: scenarios/drives/default.toml

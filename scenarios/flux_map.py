@@ -1,4 +1,4 @@
-"""Flux maps in the contract's CSV format (../shared/spec/INTERFACE.md), read and interpolated
+"""Flux maps in the contract's CSV format (docs/spec/INTERFACE.md), read and interpolated
 with scipy: an implementation independent of the FMUs' C++ one, used by the scenarios and as
 the reference in the tests."""
 from __future__ import annotations

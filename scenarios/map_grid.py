@@ -1,5 +1,5 @@
 """From a FEM tool's samples to the contract's grid: psi_d(i_d, i_q), psi_q(i_d, i_q) on ascending
-i_d x i_q axes, peak A and Wb, PM flux on +d (../shared/spec/INTERFACE.md). Each step says what
+i_d x i_q axes, peak A and Wb, PM flux on +d (docs/spec/INTERFACE.md). Each step says what
 it changed in a note, so that an imported map states how it was made:
 
 - dq frame: the PM flux (the flux at the sample nearest zero current) is turned onto +d by a

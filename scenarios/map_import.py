@@ -1,4 +1,4 @@
-"""Flux maps from FEM tools into the contract's CSV (../shared/spec/INTERFACE.md):
+"""Flux maps from FEM tools into the contract's CSV (docs/spec/INTERFACE.md):
 
     import_map(path) -> ImportedMap     # read and convert, stating each conversion in .notes
     contract_csv(path) -> Path          # a CSV the FMUs read: the file itself, or its cached import

@@ -1,16 +1,20 @@
-"""Where the project's files are: the repository (the package is installed editable, `pip install
--e .`), its default build folder, and the data shared by every clone beside it."""
+"""Where the project's files are: the package's own data (drive cycles, OCV fits, flux maps, all
+copied into the repository with their sources: data/*/SOURCES.md), the repository and its default
+build folder. Nothing here points outside the repository: a clone runs alone."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
-#: the repository
-ROOT = Path(__file__).resolve().parents[1]
+#: the installed package
+PACKAGE_DIR = Path(__file__).resolve().parent
+
+#: the repository (the package is installed editable, `pip install -e .`)
+ROOT = PACKAGE_DIR.parent
 
 #: the CMake build folder the scenarios take the FMUs (fmu/) and the native master (lib/) from
 BUILD_DIR = ROOT / "build"
 
-#: the read-only data shared by the clones (drive cycles, OCV fits, measured flux maps):
-#: `<repo>/../shared`, or $IPMSM_SHARED_DIR (a clone or worktree elsewhere)
-SHARED_DIR = Path(os.environ.get("IPMSM_SHARED_DIR") or ROOT.parent / "shared")
+#: the data the scenarios run on, shipped inside the package: cycles/, fluxmaps/ (fluxmaps/real/:
+#: real published maps as published), ocv_nmc_cell_and_96s.csv; each folder's SOURCES.md says
+#: where every file came from
+DATA_DIR = PACKAGE_DIR / "data"

@@ -1,4 +1,4 @@
-"""What a drive-cycle run produces (../shared/spec/INTERFACE.md, "Scenario results"): the signals
+"""What a drive-cycle run produces (docs/spec/INTERFACE.md, "Scenario results"): the signals
 of each vehicle step (`VehicleStep`), the trace sampled from them (`Trace`, trace.csv) and the
 run's summary (`RunSummary`, summary.json). SI units; energies in Wh, as the contract names them.
 """

@@ -1,5 +1,5 @@
 // Vocabulary shared by the optimal-current solvers, the 2-D tables and the controller.
-// Conventions (../shared/spec/MATH.md): amplitude-invariant dq, peak values, PM flux on +d,
+// Conventions (docs/spec/MATH.md): amplitude-invariant dq, peak values, PM flux on +d,
 // electrical speed omega = p * w_m, T = 1.5 p (psi_d i_q - psi_q i_d).
 #pragma once
 

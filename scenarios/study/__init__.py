@@ -1,5 +1,5 @@
 """Parameter studies on dask.distributed, resumable and fault-tolerant (issue 18; the contract:
-../shared/spec/INTERFACE.md, "Study specification (TOML)"): `python -m scenarios study SPEC.toml`.
+docs/spec/INTERFACE.md, "Study specification (TOML)"): `python -m scenarios study SPEC.toml`.
 
 spec (TOML -> runs), keys (a run's key), plan (runs -> tasks), execute (a run on a worker),
 runner (the client's loop), table (runs.parquet, traces), report (report.md from runs.parquet),

@@ -1,4 +1,4 @@
-"""The study specification (../shared/spec/INTERFACE.md, "Study specification (TOML)"): a TOML
+"""The study specification (docs/spec/INTERFACE.md, "Study specification (TOML)"): a TOML
 file whose `[study]` table names the axes, each a list (a scalar is a list of one), whose
 product is the set of runs; or an explicit list of runs (`[[run]]` tables, one key per axis,
 singular: drive, cycle, method, ...), each missing key taking the default. `window_s` is one

@@ -25,7 +25,7 @@ using namespace ipmsm;
 
 namespace {
 
-const std::string kBaldor = std::string(IPMSM_SOURCE_DIR) + "/../shared/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
+const std::string kBaldor = std::string(IPMSM_SOURCE_DIR) + "/scenarios/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
 
 std::string temp_dir() {
     static const std::string dir = [] {

@@ -16,7 +16,7 @@ from scenarios.flux_map import DEFAULT_MAP
 import fmi2_raw as raw
 
 ROOT = paths.ROOT
-SHARED = paths.SHARED_DIR
+DATA = paths.DATA_DIR
 BUILD_FMU = Path(os.environ.get("IPMSM_FMU_DIR", paths.BUILD_DIR / "fmu"))
 # The FMUs under test carry binaries/win64 (issue 17): unless the set-up was told IPMSM_WIN64=OFF,
 # or they come from the sanitizer build (build-asan/, Linux only).
@@ -53,7 +53,7 @@ def default_map_path() -> Path:
 
 @pytest.fixture(scope="session")
 def measured_map_path() -> Path:
-    return SHARED / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
+    return DATA / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
 
 
 @pytest.fixture(scope="session")

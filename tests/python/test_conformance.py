@@ -19,7 +19,7 @@ different things:
   table; this checks the XML that ships against the code that ships), outputs readable in
   Initialization Mode with their values after initialisation (they are InitialUnknowns), and the
   capabilities it declares.
-- The model description against the contract (../shared/spec/INTERFACE.md): names, causality,
+- The model description against the contract (docs/spec/INTERFACE.md): names, causality,
   type, unit and display units.
 - documentation/index.html inside the FMU: explains the method and every variable.
 """
@@ -38,7 +38,7 @@ import pytest
 from fmpy import read_model_description
 
 import fmi2_raw as raw
-from conftest import ROOT, SHARED, WIN64_BUILT, fmu_path
+from conftest import ROOT, WIN64_BUILT, fmu_path
 
 REAL_FMUS = ["IpmsmController", "IpmsmPlant", "IpmsmDrive"]
 ALL_FMUS = REAL_FMUS + ["ToyLag"]  # ToyLag: the glue's test FMU, built by the same add_fmu()
@@ -358,7 +358,7 @@ def test_every_output_declares_its_dependencies(name):
 
 def _contract_tables():
     """{fmu: {variable: (causality, type, unit)}} from the INTERFACE.md tables (type, unit may be '')."""
-    text = (SHARED / "spec" / "INTERFACE.md").read_text()
+    text = (ROOT / "docs" / "spec" / "INTERFACE.md").read_text()
     tables = {}
     for name in REAL_FMUS:
         section = text.split(f"## {name}", 1)[1].split("\n## ", 1)[0]

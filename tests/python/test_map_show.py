@@ -145,8 +145,8 @@ def test_envelope_power_is_torque_times_speed(show, maps, tmp_path):
 def test_show_on_the_measured_map(show, tmp_path):
     """The real measured map (not reciprocal, no I_max in its metadata): shown, its mismatch
     reported as found, its peak torque the brute-force optimum's."""
-    from scenarios.paths import SHARED_DIR
-    path = SHARED_DIR / "data" / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
+    from scenarios.paths import DATA_DIR
+    path = DATA_DIR / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
     assert show([str(path), "--out", str(tmp_path / "o")]) == 0
     s = json.loads((tmp_path / "o" / "map.json").read_text())
     assert s["u_dc_V"] == 540.0 and s["parameters"]["I_max"] == 20.0  # metadata; the grid's reach

@@ -23,7 +23,7 @@ from fmi2_raw import OK, WARNING, refused
 
 OUTPUTS = ("i_d", "i_q", "psi_d", "psi_q", "T_e", "T_shaft", "P_elec", "P_mech", "P_cu", "P_fe")
 
-# The contract (../shared/spec/INTERFACE.md): name -> (causality, type, unit).
+# The contract (docs/spec/INTERFACE.md): name -> (causality, type, unit).
 CONTRACT = {
     "u_d": ("input", "Real", "V"), "u_q": ("input", "Real", "V"), "w_m": ("input", "Real", "rad/s"),
     "T_magnet": ("input", "Real", "K"), "T_winding": ("input", "Real", "K"),

@@ -69,7 +69,7 @@ def test_full_cycle(cycle, controller_fmu, plant_fmu, tmp_path):
         assert lo <= s.Wh_per_km <= hi, f"{cycle}: {s.Wh_per_km:.1f} Wh/km outside the published {lo}-{hi}"
 
 
-# The contract's summary keys (../shared/spec/INTERFACE.md, "Scenario results").
+# The contract's summary keys (docs/spec/INTERFACE.md, "Scenario results").
 CONTRACT_SUMMARY_KEYS = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps",
                          "torque_rmse_Nm", "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s")
 
