@@ -22,7 +22,7 @@ import os
 import time
 from pathlib import Path
 
-from scenarios.master import DriveCosim, default_library
+from scenarios.cosim.master import DriveCosim, default_library
 
 ROOT = Path(__file__).resolve().parents[1]
 H = 1e-4

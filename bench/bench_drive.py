@@ -25,8 +25,8 @@ from pathlib import Path
 
 from fmpy.fmi2 import FMU2Slave
 
-from scenarios.cycles import load_cycle, segment
-from scenarios.simulate import RunSpec, fmu_paths, simulate
+from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
+from scenarios.vehicle.cycles import load_cycle, segment
 
 ROOT = Path(__file__).resolve().parents[1]
 

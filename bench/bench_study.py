@@ -28,12 +28,12 @@ from pathlib import Path
 
 import psutil
 
-from scenarios.compare import VARIANTS, study_runs
-from scenarios.cycles import STANDARD_CYCLES, load_cycle
-from scenarios.simulate import STUDY_CONDITIONS, simulate
+from scenarios.runs.simulate import STUDY_CONDITIONS, simulate
 from scenarios.study import run_study
+from scenarios.study.compare import VARIANTS, study_runs
 from scenarios.study.plan import run_cycle
 from scenarios.study.spec import Run, run_spec
+from scenarios.vehicle.cycles import STANDARD_CYCLES, load_cycle
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = (300.0, 302.0)  # s of WLTC 3b: the vehicle moving

@@ -1,6 +1,6 @@
 // Where the time of a coupled step goes: the drive-like profile of bench/bench_cosim.py run
 //   A  through the FMUs with libipmsm_cosim (the native master, 10 ms chunks, the 15 outputs of
-//      scenarios/master.py's Sample)
+//      scenarios/cosim/master.py's Sample)
 //   A0 the same with 2 probes (T_e, i_d: the bit-compare)
 //   B  the two models called directly, no FMI (ControllerModel, PlantModel linked in: the same
 //      sources as the FMUs), coupled by fmu_src/coupling/coupled_models.hpp on the same coupling

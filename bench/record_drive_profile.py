@@ -11,7 +11,7 @@ import csv
 import tempfile
 from pathlib import Path
 
-from scenarios.simulate import RunSpec, fmu_paths, simulate
+from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 VEHICLE_STEP = 0.01  # s: RunSpec's default dt, one IpmsmDrive fmi2DoStep

@@ -7,9 +7,9 @@ import json
 import sys
 from pathlib import Path
 
-from . import map_cli
-from .constants import T_REFERENCE_K, ZERO_CELSIUS_K
-from .paths import BUILD_DIR, ROOT
+from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
+from scenarios.core.paths import BUILD_DIR, ROOT
+from scenarios.maps import cli as map_cli
 
 #: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
@@ -49,13 +49,13 @@ def main(argv=None) -> int:
     cmp_.add_argument("--workers", type=int, default=None)
     cmp_.add_argument("--scheduler", default=None, help="an existing dask scheduler (as for study)")
     cmp_.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
-    from . import check
+    from scenarios.runs import check
     check.add_parser(sub)
     map_cli.add_parser(sub)
-    from .study import cli as study_cli
+    from scenarios.study import cli as study_cli
     study_cli.add_parser(sub)
     args = ap.parse_args(argv)
-    from .drive_description import DriveDescriptionError
+    from scenarios.drives.description import DriveDescriptionError
     try:
         return _dispatch(args)
     except DriveDescriptionError as e:
@@ -64,20 +64,20 @@ def main(argv=None) -> int:
 
 
 def _dispatch(args) -> int:
-    from .drive_description import load_drive
+    from scenarios.drives.description import load_drive
     if args.cmd == "check":
-        from . import check
+        from scenarios.runs import check
         return check.main(args)
     if args.cmd == "sweep":
-        from .sweep import SweepSpec, run_sweep
+        from scenarios.runs.sweep import SweepSpec, run_sweep
         drive = load_drive(args.drive)
         s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
                       SweepSpec(drive=drive, recursion=args.recursion, u_dc=args.u_dc))
         print(json.dumps({k: s.to_dict()[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
         print(f"wrote {args.out}/sweep.csv, summary.json, current_trajectories.png")
     elif args.cmd == "run":
-        from .plots import plot_run
-        from .simulate import Conditions, RunSpec, fmu_paths, simulate
+        from scenarios.runs.plots import plot_run
+        from scenarios.runs.simulate import Conditions, RunSpec, fmu_paths, simulate
         drive = load_drive(args.drive)
         method = args.method or drive.controller.method
         T = args.magnet_degC + ZERO_CELSIUS_K
@@ -92,7 +92,7 @@ def _dispatch(args) -> int:
         print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
         print(f"wrote {out}/summary.json, trace.csv, run.png")
     elif args.cmd == "compare":
-        from .compare import run_study
+        from scenarios.study.compare import run_study
         load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers,
                   scheduler=args.scheduler, drive=args.drive)
@@ -100,7 +100,7 @@ def _dispatch(args) -> int:
     elif args.cmd == "map":
         return map_cli.main(args)
     elif args.cmd == "study":
-        from .study import cli as study_cli
+        from scenarios.study import cli as study_cli
         return study_cli.main(args)
     return 0
 

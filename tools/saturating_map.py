@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.flux_map import FluxMap, write_flux_map
+from scenarios.maps.flux_map import FluxMap, write_flux_map
 
 # Unsaturated machine constants near the project's default motor (fmu_src/resources/
 # ev_ipmsm_default.csv: psi_m = 0.078 Wb, L_dd = 0.21 mH, L_qq = 0.57 mH at zero current).

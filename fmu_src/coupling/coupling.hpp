@@ -2,7 +2,7 @@
 // into names: which units, in which order, which output feeds which input, which external input
 // feeds which inputs. FMI-free: a master resolves the names to value references from the model
 // descriptions (scenarios/native/cosim.cpp), an FMU that holds both models to its models' fields.
-// scenarios/coupling.py reads the same file in Python.
+// scenarios/cosim/coupling.py reads the same file in Python.
 #pragma once
 
 #include <cctype>

@@ -1,6 +1,6 @@
 // Traction-inverter losses: a two-level, three-phase IGBT bridge with anti-parallel diodes,
 // sinusoidal phase currents of peak I, continuous PWM at f_sw (every leg switches every period).
-// The one implementation (the IpmsmDrive FMU's; scenarios/inverter.py is checked against it).
+// The one implementation (the IpmsmDrive FMU's; scenarios/vehicle/inverter.py is checked against it).
 //
 // Conduction, each device a threshold voltage plus a slope resistance (V = V0 + r i), averaged
 // over the fundamental period and summed over the three legs:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..paths import ROOT
+from scenarios.core.paths import ROOT
 
 
 def add_parser(sub) -> None:
@@ -21,9 +21,9 @@ def add_parser(sub) -> None:
 
 
 def main(args) -> int:
-    from . import SpecError, StudyError, load_spec, run_study
-    from .report import write_report
-    from .table import consolidate
+    from scenarios.study import SpecError, StudyError, load_spec, run_study
+    from scenarios.study.report import write_report
+    from scenarios.study.table import consolidate
 
     if args.report_only:
         if not (args.report_only / "runs.parquet").exists() and not (args.report_only / "parts").is_dir():

@@ -29,11 +29,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..cycles import Cycle
-from ..simulate import fmu_paths, simulate
-from . import table
-from .ship import FmuBundle, ShippedDrive
-from .spec import Run, run_spec
+from scenarios.runs.simulate import fmu_paths, simulate
+from scenarios.study import table
+from scenarios.study.ship import FmuBundle, ShippedDrive
+from scenarios.study.spec import Run, run_spec
+from scenarios.vehicle.cycles import Cycle
 
 #: how often a run may lose its worker before it is recorded failed (distributed's default)
 ALLOWED_WORKER_DEATHS = 3

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cycles import Cycle
+from scenarios.vehicle.cycles import Cycle
 
 #: bump when the meaning of a key's parts changes
 KEY_VERSION = 1
@@ -26,6 +26,8 @@ FMU_NAMES = ("IpmsmController.fmu", "IpmsmPlant.fmu", "IpmsmDrive.fmu")
 
 #: scenarios/ modules that do not change a run's numbers (presentation, the command line)
 OUTPUT_ONLY = frozenset({"__main__.py", "__init__.py", "check.py", "compare.py", "plots.py", "progress.py", "sweep.py"})
+#: scenarios/ subpackages that do not compute a run (the study itself, the map tools)
+NOT_IN_A_RUN = frozenset({"study", "maps", "data"})
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
@@ -46,9 +48,9 @@ def fmu_hash(fmu_dir: Path) -> str:
 
 def code_hash() -> str:
     """Content hash of the scenarios package's modules that compute a run (16 hex digits)."""
-    files = sorted(p for p in PACKAGE_DIR.glob("*.py") if p.name not in OUTPUT_ONLY)
-    native = sorted((PACKAGE_DIR / "native").glob("*.py")) if (PACKAGE_DIR / "native").is_dir() else []
-    return sha256_files(files + native)[:16]
+    files = sorted(p for p in PACKAGE_DIR.rglob("*.py")
+                   if p.name not in OUTPUT_ONLY and p.relative_to(PACKAGE_DIR).parts[0] not in NOT_IN_A_RUN)
+    return sha256_files(files)[:16]
 
 
 def cycle_hash(cycle: Cycle) -> str:

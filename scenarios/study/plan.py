@@ -7,12 +7,12 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..cycles import Cycle, load_cycle, segment
-from ..drive_description import load_drive
-from . import keys, table
-from .execute import Task
-from .ship import ShippedDrive
-from .spec import Run
+from scenarios.drives.description import load_drive
+from scenarios.study import keys, table
+from scenarios.study.execute import Task
+from scenarios.study.ship import ShippedDrive
+from scenarios.study.spec import Run
+from scenarios.vehicle.cycles import Cycle, load_cycle, segment
 
 
 @dataclass(frozen=True)

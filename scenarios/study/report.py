@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from . import table
+from scenarios.study import table
 
 #: groups (drive, cycle, condition) drawn in study.png at most: a picture, not the table
 PLOT_GROUPS_MAX = 60
@@ -16,7 +16,7 @@ PLOT_GROUPS_MAX = 60
 
 def variant_label(method: str, recursion: int) -> str:
     """The compare study's name of a variant (method, recursion), else one made of them."""
-    from ..compare import VARIANTS
+    from scenarios.study.compare import VARIANTS
     return next((v.label for v in VARIANTS if (v.method, v.recursion) == (method, recursion)),
                 f"{method}, recursion {recursion}")
 

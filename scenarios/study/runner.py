@@ -15,13 +15,13 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from ..paths import BUILD_DIR
-from . import keys, table
-from .execute import ALLOWED_WORKER_DEATHS, run_task
-from .plan import make_plan
-from .progress import StudyProgress
-from .ship import FmuBundle
-from .spec import Run
+from scenarios.core.paths import BUILD_DIR
+from scenarios.study import keys, table
+from scenarios.study.execute import ALLOWED_WORKER_DEATHS, run_task
+from scenarios.study.plan import make_plan
+from scenarios.study.progress import StudyProgress
+from scenarios.study.ship import FmuBundle
+from scenarios.study.spec import Run
 
 #: runs in flight per worker thread: enough to keep every worker busy between two results,
 #: few enough that the scheduler holds a bounded number of tasks whatever the study's size

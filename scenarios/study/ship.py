@@ -11,10 +11,10 @@ import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from ..drive_description import DriveDescription
-from . import keys
+from scenarios.drives.description import DriveDescription
+from scenarios.study import keys
 
-#: the native co-simulation master, relative to a build (scenarios.master.default_library finds it there)
+#: the native co-simulation master, relative to a build (scenarios.cosim.master.default_library finds it there)
 NATIVE_MASTER = "lib/libipmsm_cosim.so"
 
 

@@ -29,10 +29,10 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from ..constants import T_REFERENCE_K, ZERO_CELSIUS_K
-from ..cycles import STANDARD_CYCLES
-from ..drive_description import DriveDescription, load_drive
-from ..simulate import METHODS, STUDY_CONDITIONS, Conditions, RunSpec
+from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
+from scenarios.drives.description import DriveDescription, load_drive
+from scenarios.runs.simulate import METHODS, STUDY_CONDITIONS, Conditions, RunSpec
+from scenarios.vehicle.cycles import STANDARD_CYCLES
 
 #: degC, the default magnet and winding temperatures: the reference the maps and R_s hold at
 T_DEFAULT_DEGC = T_REFERENCE_K - ZERO_CELSIUS_K
@@ -186,7 +186,7 @@ def _window(v, path: Path | None, key: str) -> tuple[float, float]:
 def _check_cycles(runs: list[Run], path: Path | None, cycle_key: str, window_key: str) -> None:
     """Each cycle readable and each window inside its cycle: a bad cycle is a bad spec, not a
     failed run (the client reads the cycles anyway: their samples enter the runs' keys)."""
-    from ..cycles import load_cycle
+    from scenarios.vehicle.cycles import load_cycle
     for cycle in dict.fromkeys(r.cycle for r in runs):
         try:
             c = load_cycle(cycle)

@@ -20,9 +20,9 @@ import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
-from ..results import RunSummary
-from ..simulate import Conditions
-from .spec import Run
+from scenarios.runs.results import RunSummary
+from scenarios.runs.simulate import Conditions
+from scenarios.study.spec import Run
 
 RUNS_FILE = "runs.parquet"
 PARTS_DIR = "parts"
@@ -87,7 +87,7 @@ def summary_of(row: dict) -> RunSummary:
 
 
 def write_trace_csv(trace_parquet: Path, dest: Path) -> None:
-    """A trace as trace.csv (the format of scenarios.results.Trace.write_csv: floats as repr)."""
+    """A trace as trace.csv (the format of scenarios.runs.results.Trace.write_csv: floats as repr)."""
     t = pq.read_table(trace_parquet)
     with open(dest, "w", newline="") as f:
         w = csv.writer(f)
@@ -163,7 +163,7 @@ def trace_path(out: Path, key: str) -> Path:
 
 
 def write_trace_parquet(trace_csv: Path, dest: Path) -> None:
-    """A run's trace.csv (scenarios.results; floats written as repr, so exact) as Parquet."""
+    """A run's trace.csv (scenarios.runs.results; floats written as repr, so exact) as Parquet."""
     dest.parent.mkdir(parents=True, exist_ok=True)
     table = pa_csv.read_csv(trace_csv)
     _atomic_write_table(table, dest)

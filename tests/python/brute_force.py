@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from scenarios.flux_map import FluxMap
+from scenarios.maps.flux_map import FluxMap
 
 
 @dataclass

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios import paths
-from scenarios.flux_map import DEFAULT_MAP
+from scenarios.core import paths
+from scenarios.maps.flux_map import DEFAULT_MAP
 
 import fmi2_raw as raw
 

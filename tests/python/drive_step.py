@@ -5,15 +5,15 @@ Scenario: a torque step (0 -> 200 N.m at 2 ms) during a speed ramp (2000 -> 8000
 weakening, where the command is clamped to what is reachable.
 
 Coupling, the same in every master: the drive's coupling description
-(fmu_src/coupling/ipmsm_drive.coupling, scenarios.coupling.DRIVE: Jacobi, what libcosim's
+(fmu_src/coupling/ipmsm_drive.coupling, scenarios.cosim.coupling.DRIVE: Jacobi, what libcosim's
 fixed-step algorithm does). The external inputs T_ref and w_m are set before the step from t_k
 with their values at t_k (step index k: no floating-point test on the time); u_dc, T_magnet and
 T_winding are held at the FMUs' start values.
 
 Masters:
-- run_fmpy: this project's plain fmpy master (scenarios.master.DriveCosim, backend "fmpy"),
+- run_fmpy: this project's plain fmpy master (scenarios.cosim.master.DriveCosim, backend "fmpy"),
   advanced one step at a time; time_grid="ns" passes the times as libcosim does (step_times).
-- run_libcosim: libcosim (PyPI libcosimpy), from scenarios/osp/OspSystemStructure.xml (its
+- run_libcosim: libcosim (PyPI libcosimpy), from scenarios/cosim/osp/OspSystemStructure.xml (its
   connections are the description's, test_importers checks it); T_ref and w_m through an
   override manipulator.
 - run_container: fmpy's container FMU (fmpy.container_fmu) holding both FMUs with the
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.coupling import DRIVE, Port
+from scenarios.cosim.coupling import DRIVE, Port
 
 H = 1e-4              # s, communication step
 N_STEPS = 500         # 50 ms
@@ -41,7 +41,7 @@ T_STEP = 200.0        # N.m
 RPM_START, RPM_END = 2000.0, 8000.0
 U_DC = 355.0          # V
 
-OSP_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "osp"
+OSP_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "cosim" / "osp"
 
 # the recorded outputs: (FMU, variable); their FMI types come from the model descriptions
 RECORDED = [
@@ -106,7 +106,7 @@ def step_times(k: int, time_grid: str = "kh") -> tuple[float, float]:
 
 
 def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str = "kh") -> np.ndarray:
-    from scenarios.master import DriveCosim
+    from scenarios.cosim.master import DriveCosim
 
     rows = []
     with DriveCosim(controller_fmu, plant_fmu, h=H, backend="fmpy", T_ref=torque(0), w_m=speed(0), u_dc=U_DC,
@@ -120,7 +120,7 @@ def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str =
 # --- libcosim ---
 
 def osp_config(controller_fmu: str | Path, plant_fmu: str | Path, out_dir: str | Path) -> Path:
-    """scenarios/osp/OspSystemStructure.xml with its FMU sources pointed at the given files."""
+    """scenarios/cosim/osp/OspSystemStructure.xml with its FMU sources pointed at the given files."""
     ns = "http://opensimulationplatform.com/MSMI/OSPSystemStructure"
     ET.register_namespace("", ns)
     tree = ET.parse(OSP_DIR / "OspSystemStructure.xml")
@@ -230,7 +230,7 @@ def run_container(controller_fmu: str | Path, plant_fmu: str | Path) -> np.ndarr
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
-    from scenarios.fmu import get_values, set_values
+    from scenarios.cosim.fmu import get_values, set_values
 
     with tempfile.TemporaryDirectory(prefix="ipmsm-container-") as tmp:
         container = build_container(controller_fmu, plant_fmu, tmp)

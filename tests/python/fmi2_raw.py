@@ -3,7 +3,7 @@ C signature and no checks of our own, so that a test can pass NULL pointers, zer
 value references and calls out of sequence, and read the raw status (Unzipped, the fmi2XXX
 functions); and an instance with its log and values by name (Instance: set/get assert fmi2OK,
 setup/enter/exit/step/reset return the status; refused() for the calls that must fail).
-The scenarios' own wrapper, on fmpy, is scenarios/fmu.py."""
+The scenarios' own wrapper, on fmpy, is scenarios/cosim/fmu.py."""
 from __future__ import annotations
 
 import ctypes as C

@@ -1,4 +1,4 @@
-"""`python -m scenarios check` (scenarios/check.py, docs/ci.md): a passing and a failing drive,
+"""`python -m scenarios check` (scenarios/runs/check.py, docs/ci.md): a passing and a failing drive,
 the exit codes 0 / 1 / 2, check.md and the JUnit XML parsed back, nothing written on bad input."""
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from scenarios import __main__ as cli
-from scenarios.check import judge
-from scenarios.flux_map import DEFAULT_MAP
+from scenarios.maps.flux_map import DEFAULT_MAP
+from scenarios.runs.check import judge
 
 #: two short user cycles (CSV, relative to the drive file): a start, cruise and stop of 30 s, and
 #: a faster one of 20 s that ends at speed

@@ -10,7 +10,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from scenarios.constants import U_DC_NOMINAL_V
+from scenarios.core.constants import U_DC_NOMINAL_V
 
 from conftest import ROOT
 from fmi2_raw import ERROR, OK, refused

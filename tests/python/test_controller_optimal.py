@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
 
-from scenarios.flux_map import linear_flux_map, read_flux_map, write_flux_map
-from scenarios.fmu import Fmu
+from scenarios.cosim.fmu import Fmu
+from scenarios.maps.flux_map import linear_flux_map, read_flux_map, write_flux_map
 
 from brute_force import Drive, max_torque, min_current
 

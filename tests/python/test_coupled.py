@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.master import SAMPLE_FIELDS, DriveCosim
+from scenarios.cosim.master import SAMPLE_FIELDS, DriveCosim
 
 H = 1e-4
 I_MAX = 500.0

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.interpolate import RectBivariateSpline
 
-from scenarios.constants import T_REFERENCE_K, U_DC_NOMINAL_V
-from scenarios.flux_map import DEFAULT_MAP
+from scenarios.core.constants import T_REFERENCE_K, U_DC_NOMINAL_V
+from scenarios.maps.flux_map import DEFAULT_MAP
 
 CSV = DEFAULT_MAP
 RPM = 30 / math.pi
@@ -70,7 +70,7 @@ def test_metadata_and_grid(fmap):
     assert float(meta["alpha_cu_per_K"]) == pytest.approx(0.00393)
     assert float(meta["k_psi_T_per_K"]) == pytest.approx(-0.0012)
     assert I <= 500
-    # the scenarios' constants are the default motor's design point (scenarios/constants.py)
+    # the scenarios' constants are the default motor's design point (scenarios/core/constants.py)
     assert float(meta["u_dc_V"]) == U_DC_NOMINAL_V
     assert float(meta["T_winding_ref_K"]) == float(meta["T_magnet_ref_K"]) == T_REFERENCE_K
     assert float(meta["w_m_max_rad_s"]) * RPM == pytest.approx(12000, rel=1e-6)

@@ -3,7 +3,7 @@
 The drive runs the controller's and the plant's models through the same coupling description, so
 at any communication step (100 us, 1 ms, 10 ms) its step means and integrals must equal those
 formed from the two-FMU master's per-step outputs (DriveCosim, fmpy backend), up to rounding: the
-inverter's loss is then computed in Python (scenarios/inverter.py) from the master's means, which
+inverter's loss is then computed in Python (scenarios/vehicle/inverter.py) from the master's means, which
 also checks the C++ loss model against the Python one. The run has torque steps, regeneration and
 a speed ramp through every region.
 """
@@ -14,10 +14,10 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Error, fmi2OK
 
-from scenarios.drive_fmu import DriveFmu
-from scenarios.flux_map import linear_flux_map, write_flux_map
-from scenarios.inverter import inverter_loss
-from scenarios.master import DriveCosim, DriveInputs
+from scenarios.cosim.drive_fmu import DriveFmu
+from scenarios.cosim.master import DriveCosim, DriveInputs
+from scenarios.maps.flux_map import linear_flux_map, write_flux_map
+from scenarios.vehicle.inverter import inverter_loss
 
 from conftest import fmu_path
 
@@ -135,7 +135,7 @@ def magnetic_energy(i_d: float, i_q: float) -> float:
     default map: 1.5 (psi . i - co-energy), the co-energy integrated along the straight path
     (Gauss-Legendre, 24 points; the map is reciprocal, so any path gives it). The magnet's
     temperature shift of psi_d is a constant: it stores nothing."""
-    from scenarios.flux_map import DEFAULT_MAP, read_flux_map
+    from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map
     fmap = read_flux_map(DEFAULT_MAP)
     x, w = np.polynomial.legendre.leggauss(24)
     s = 0.5 * (x + 1.0)
@@ -251,8 +251,8 @@ def test_the_plant_fmu_leaving_the_grid_returns_ok_at_every_step_too():
 def test_drive_as_cosim_gives_the_vehicle_side_the_same_samples():
     """DriveAsCosim (the scenarios' drive backend) against DriveCosim at 10 ms: the means the
     vehicle side reads (P_elec, the mean |i|^2 derived from P_cu, T_shaft, T_e: exact, from the
-    plant's integrals) and the inverter loss of scenarios/inverter.py, to 1e-9."""
-    from scenarios.drive_fmu import DriveAsCosim
+    plant's integrals) and the inverter loss of scenarios/vehicle/inverter.py, to 1e-9."""
+    from scenarios.cosim.drive_fmu import DriveAsCosim
 
     blocks = profile()[::8]
     first = blocks[0]

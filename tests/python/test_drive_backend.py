@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import pytest
 
-from scenarios.cycles import load_cycle, segment
-from scenarios.simulate import RunSpec, simulate
+from scenarios.runs.simulate import RunSpec, simulate
+from scenarios.vehicle.cycles import load_cycle, segment
 
 from conftest import fmu_path
 

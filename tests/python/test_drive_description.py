@@ -1,4 +1,4 @@
-"""Drive descriptions (scenarios.drive_description, docs/drives.md): every key of the schema
+"""Drive descriptions (scenarios.drives.description, docs/drives.md): every key of the schema
 changes a run; bad files are refused with the file, the key and the expectation, exit status 2
 and nothing written; the default drive is what no --drive means; the second example drive's
 consumption is in its published range."""
@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from scenarios import __main__ as cli
-from scenarios.cycles import load_cycle, segment
-from scenarios.drive_description import (
+from scenarios.core.paths import ROOT
+from scenarios.drives.description import (
     DEFAULT_DRIVE,
     DRIVES_DIR,
     SCHEMA,
@@ -23,9 +23,9 @@ from scenarios.drive_description import (
     load_drive,
     schema_markdown,
 )
-from scenarios.flux_map import DEFAULT_MAP
-from scenarios.paths import ROOT
-from scenarios.simulate import Conditions, RunSpec, simulate
+from scenarios.maps.flux_map import DEFAULT_MAP
+from scenarios.runs.simulate import Conditions, RunSpec, simulate
+from scenarios.vehicle.cycles import load_cycle, segment
 
 CITY_EV = DRIVES_DIR / "city_ev.toml"
 
@@ -177,10 +177,10 @@ def test_the_reference_optimum_uses_the_drives_motor(controller_fmu, plant_fmu):
 def test_default_drive_is_the_dataclasses_defaults():
     """default.toml names only the map: every value is the vehicle side's dataclass default or the
     default map's metadata, so there is one place for each number."""
-    from scenarios.battery import BatteryParams
-    from scenarios.flux_map import MotorData, read_flux_map
-    from scenarios.inverter import InverterParams
-    from scenarios.vehicle import VehicleParams
+    from scenarios.maps.flux_map import MotorData, read_flux_map
+    from scenarios.vehicle.battery import BatteryParams
+    from scenarios.vehicle.inverter import InverterParams
+    from scenarios.vehicle.longitudinal import VehicleParams
     d = load_drive(None)
     assert d.source == DEFAULT_DRIVE and d.name == "default"
     assert d.vehicle == VehicleParams() and d.battery == BatteryParams() and d.inverter == InverterParams()
@@ -204,7 +204,7 @@ def test_paths_are_relative_to_the_file_and_ocv_takes_a_csv(tmp_path):
     shutil.copy(DRIVES_DIR / "city_ev_motor.csv", tmp_path / "m.csv")
     import csv
 
-    from scenarios.battery import OCV_CSV, OCV_FITS, Ocv
+    from scenarios.vehicle.battery import OCV_CSV, OCV_FITS, Ocv
     rows = list(csv.DictReader(open(OCV_CSV)))
     (tmp_path / "ocv.csv").write_text("soc,ocv_cell_V\n" + "".join(
         f"{r['soc']},{r[OCV_FITS['chen2020']]}\n" for r in rows))
@@ -222,7 +222,7 @@ def test_docs_hold_the_schema():
 
 
 def test_city_ev_map_is_what_its_generator_makes(tmp_path):
-    from scenarios.drives.make_city_ev_map import write
+    from tools.make_city_ev_map import write
     write(tmp_path / "m.csv")
     assert (tmp_path / "m.csv").read_text() == (DRIVES_DIR / "city_ev_motor.csv").read_text()
 
@@ -331,7 +331,7 @@ def test_a_drive_may_name_a_fem_export(tmp_path, monkeypatch):
     import numpy as np
     import scipy.io as sio
 
-    from scenarios.flux_map import read_flux_map
+    from scenarios.maps.flux_map import read_flux_map
     monkeypatch.setenv("IPMSM_MAP_CACHE", str(tmp_path / "cache"))
     f = read_flux_map(DEFAULT_MAP)
     I_d, I_q = np.meshgrid(f.i_d, f.i_q, indexing="ij")

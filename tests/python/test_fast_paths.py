@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from scenarios.battery import OCV_FITS, Battery, BatteryParams
-from scenarios.drive_fmu import DriveAsCosim, DriveFmu, DriveStep
-from scenarios.fmu import get_values
+from scenarios.cosim.drive_fmu import DriveAsCosim, DriveFmu, DriveStep
+from scenarios.cosim.fmu import get_values
+from scenarios.vehicle.battery import OCV_FITS, Battery, BatteryParams
 
 from conftest import fmu_path
 

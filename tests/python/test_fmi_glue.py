@@ -39,7 +39,7 @@ from fmpy.fmi2 import (
 )
 from fmpy.validation import validate_fmu
 
-from scenarios.fmu import get_values, set_values
+from scenarios.cosim.fmu import get_values, set_values
 
 from conftest import same
 

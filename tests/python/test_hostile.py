@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios.constants import U_DC_NOMINAL_V
-from scenarios.flux_map import linear_flux_map, write_flux_map
+from scenarios.core.constants import U_DC_NOMINAL_V
+from scenarios.maps.flux_map import linear_flux_map, write_flux_map
 
 import fmi2_raw as raw
 from conftest import BUILD_FMU, same
@@ -326,7 +326,7 @@ def test_zero_and_reversing_speed(make, name):
 def test_coupled_drive_through_zero_speed(controller_fmu, plant_fmu):
     """Controller and plant, a motoring torque while the speed reverses from +3000 to -3000 r/min:
     the drive stays within the current limit and follows the command through standstill."""
-    from scenarios.master import DriveCosim
+    from scenarios.cosim.master import DriveCosim
     n = 400
 
     def w(k):

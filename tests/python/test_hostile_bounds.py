@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from scenarios.flux_map import linear_flux_map, write_flux_map
+from scenarios.maps.flux_map import linear_flux_map, write_flux_map
 
 import fmi2_raw as raw
 from conftest import fmu_path

@@ -1,5 +1,5 @@
 """The coupled drive in three FMI 2.0 masters (issue 5): this project's fmpy master, libcosim
-(PyPI libcosimpy, scenarios/osp/OspSystemStructure.xml) and fmpy's container FMU. Scenario and
+(PyPI libcosimpy, scenarios/cosim/osp/OspSystemStructure.xml) and fmpy's container FMU. Scenario and
 coupling: tests/python/drive_step.py (torque step during a speed ramp, 50 ms at 100 us; the
 coupling description fmu_src/coupling/ipmsm_drive.coupling, Jacobi).
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenarios.coupling import DRIVE
+from scenarios.cosim.coupling import DRIVE
 
 import drive_step as ds
 

@@ -13,9 +13,9 @@ import pytest
 import scipy.io as sio
 
 from scenarios.__main__ import main as cli
-from scenarios.flux_map import FluxMap, read_flux_map, write_flux_map
-from scenarios.fmu import Fmu
-from scenarios.map_import import MapImportError, contract_csv, import_map, write_contract_csv
+from scenarios.cosim.fmu import Fmu
+from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
+from scenarios.maps.importer import MapImportError, contract_csv, import_map, write_contract_csv
 from tools.saturating_map import SaturatingMachine, make_map
 
 SQRT2 = math.sqrt(2.0)
@@ -35,7 +35,7 @@ def known_maps(tmp_path_factory):
     """name -> (FluxMap as written to CSV and read back, the CSV's path)."""
     d = tmp_path_factory.mktemp("known")
     out = {}
-    from scenarios.flux_map import DEFAULT_MAP
+    from scenarios.maps.flux_map import DEFAULT_MAP
     out["default"] = (read_flux_map(DEFAULT_MAP), DEFAULT_MAP)
     write_flux_map(d / "saturating.csv", make_map(SATURATING))
     out["saturating"] = (read_flux_map(d / "saturating.csv"), d / "saturating.csv")
@@ -349,7 +349,7 @@ def test_phase_advance_quarter_map_motoring_only(controller_fmu, tmp_path):
 def test_synchronous_reluctance_map_without_pm(controller_fmu, tmp_path, convention):
     """No PM flux: the axes are told by saliency. In SyR-e's SR convention (d = high inductance)
     the frame turns so that d is the low-inductance axis, as the contract's IPMSM frame."""
-    from scenarios.flux_map import linear_flux_map
+    from scenarios.maps.flux_map import linear_flux_map
     f = linear_flux_map(2e-4, 6e-4, 0.0, 700.0, n=29)
     write_flux_map(tmp_path / "syrm.csv", f)
     content = syre_sr(f, half=True) if convention == "SR" else syre_pm(f)

@@ -14,8 +14,8 @@ import pytest
 import scipy.io as sio
 
 from scenarios.__main__ import main as cli
-from scenarios.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
-from scenarios.map_show import reciprocity
+from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
+from scenarios.maps.show import reciprocity
 from tools.saturating_map import SaturatingMachine, make_map
 
 from brute_force import Drive, max_torque
@@ -145,7 +145,7 @@ def test_envelope_power_is_torque_times_speed(show, maps, tmp_path):
 def test_show_on_the_measured_map(show, tmp_path):
     """The real measured map (not reciprocal, no I_max in its metadata): shown, its mismatch
     reported as found, its peak torque the brute-force optimum's."""
-    from scenarios.paths import DATA_DIR
+    from scenarios.core.paths import DATA_DIR
     path = DATA_DIR / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
     assert show([str(path), "--out", str(tmp_path / "o")]) == 0
     s = json.loads((tmp_path / "o" / "map.json").read_text())

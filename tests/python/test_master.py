@@ -1,6 +1,6 @@
-"""The co-simulation master (scenarios/master.py; native backend scenarios/native/cosim.cpp) on
+"""The co-simulation master (scenarios/cosim/master.py; native backend scenarios/native/cosim.cpp) on
 the coupling description (fmu_src/coupling/ipmsm_drive.coupling): both backends bit-identical on
-torque steps and a speed ramp, and identical to an independent plain loop (scenarios.fmu, every
+torque steps and a speed ramp, and identical to an independent plain loop (scenarios.cosim.fmu, every
 input set every step); means are the means of the recorded trace; time is k h; the coupling is
 by name (the description's lines in another order give the same numbers; bad descriptions name
 their line, names the FMUs lack are refused); bad input raises CosimError naming the FMU (and
@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from fmpy import extract
 
-from scenarios.coupling import DRIVE, Coupling, CouplingError
-from scenarios.fmu import Fmu
-from scenarios.master import SAMPLE_FIELDS, CosimError, DriveCosim, default_library
+from scenarios.cosim.coupling import DRIVE, Coupling, CouplingError
+from scenarios.cosim.fmu import Fmu
+from scenarios.cosim.master import SAMPLE_FIELDS, CosimError, DriveCosim, default_library
 
 from conftest import ROOT
 
@@ -118,7 +118,7 @@ def test_decimated_trace(runs, backend, controller_fmu, plant_fmu, library):
 
 
 def test_same_as_the_plain_fmpy_loop(runs, controller_fmu, plant_fmu):
-    """The loop of test_coupled.py (scenarios.fmu, every input set every step) gives the same
+    """The loop of test_coupled.py (scenarios.cosim.fmu, every input set every step) gives the same
     numbers: the master couples as documented."""
     _, trace = runs["native"]
     i_T_e, i_id = 1 + SAMPLE_FIELDS.index("T_e"), 1 + SAMPLE_FIELDS.index("i_d")
@@ -308,9 +308,9 @@ def test_a_description_the_fmus_do_not_fit_is_refused(controller_fmu, plant_fmu,
     "unit p P\n",
 ])
 def test_cpp_and_python_read_descriptions_alike(library, text):
-    """coupling.hpp (in the native master) and scenarios/coupling.py refuse a bad description
+    """coupling.hpp (in the native master) and scenarios/cosim/coupling.py refuse a bad description
     with the same words."""
-    from scenarios.master import _NativeBackend
+    from scenarios.cosim.master import _NativeBackend
     lib = _NativeBackend._load(library)
     with pytest.raises(CouplingError) as e:
         Coupling.parse(text)

@@ -8,7 +8,7 @@
 2. Saturated maps (the default map and the measured, non-reciprocal Baldor map): scipy's
    solve_ivp (DOP853, rtol 1e-11) on the equations written in the currents,
    L_inc(i) di/dt = u - R i + omega J psi(i), with scipy's own splines of the map
-   (scenarios/flux_map.py) instead of the FMU's inverse map; voltage steps at several speeds.
+   (scenarios/maps/flux_map.py) instead of the FMU's inverse map; voltage steps at several speeds.
 3. Energy balance over a run: integral P_elec = integral (P_mech + P_fe) + integral P_cu + magnetic
    energy change, the last computed independently as 1.5 int i . dpsi along a straight path in
    psi (Newton on scipy's splines), to 0.1 %.
@@ -25,8 +25,8 @@ import pytest
 import scipy.linalg
 from scipy.integrate import solve_ivp
 
-from scenarios.flux_map import linear_flux_map, read_flux_map, write_flux_map
-from scenarios.fmu import Fmu
+from scenarios.cosim.fmu import Fmu
+from scenarios.maps.flux_map import linear_flux_map, read_flux_map, write_flux_map
 
 K_PSI_T = -0.0012
 ALPHA_CU = 0.00393

@@ -16,7 +16,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
-from scenarios.flux_map import linear_flux_map, read_flux_map, write_flux_map
+from scenarios.maps.flux_map import linear_flux_map, read_flux_map, write_flux_map
 
 from conftest import ROOT
 from fmi2_raw import OK, WARNING, refused

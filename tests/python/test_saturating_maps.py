@@ -20,8 +20,8 @@ import pytest
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
-from scenarios.flux_map import read_flux_map
-from scenarios.fmu import set_values
+from scenarios.cosim.fmu import set_values
+from scenarios.maps.flux_map import read_flux_map
 from tools.saturating_map import K_U, U_DC, W_M_MAX, SaturatingMachine, write_map
 
 from brute_force import Drive, max_torque, min_current
@@ -198,7 +198,7 @@ def run_warm(controller_fmu, m, path, ops, rng, T_peak, **extra):
     """One instance through a random history before each point (new problems, held inputs
     that hit the command cache, and steps with the same T_ref at another speed), then the point
     held for two steps: both answers are returned."""
-    from scenarios.fmu import Fmu
+    from scenarios.cosim.fmu import Fmu
     answers = []
     k = 0
     with Fmu(controller_fmu, **parameters(m, path), **extra) as c:

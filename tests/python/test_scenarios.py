@@ -1,4 +1,4 @@
-"""Drive cycles through the coupled FMUs (scenarios.simulate): a short segment of each cycle in
+"""Drive cycles through the coupled FMUs (scenarios.runs.simulate): a short segment of each cycle in
 the default run, the full cycles behind the `slow` marker (./test.sh -m slow)."""
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import math
 
 import pytest
 
-from scenarios.cycles import load_cycle, segment
-from scenarios.results import TRACE_COLUMNS, RunSummary
-from scenarios.simulate import RunSpec, simulate
+from scenarios.runs.results import TRACE_COLUMNS, RunSummary
+from scenarios.runs.simulate import RunSpec, simulate
+from scenarios.vehicle.cycles import load_cycle, segment
 
 # A busy minute of each cycle: accelerations, cruising and regenerative braking at its typical speeds.
 SEGMENTS = {"WLTC3b": (1480, 1560), "UDDS": (180, 260), "HWFET": (100, 180), "US06": (120, 200), "NEDC": (1020, 1100)}

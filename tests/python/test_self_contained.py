@@ -11,7 +11,7 @@ import textwrap
 
 import pytest
 
-from scenarios import paths
+from scenarios.core import paths
 
 from conftest import ROOT
 

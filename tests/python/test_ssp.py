@@ -11,7 +11,7 @@ import pytest
 from fmpy import read_model_description
 from fmpy.ssp.ssd import read_ssd
 
-from scenarios.coupling import DRIVE
+from scenarios.cosim.coupling import DRIVE
 
 from conftest import BUILD_FMU, fmu_path
 

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from scenarios.fmu import Fmu
+from scenarios.cosim.fmu import Fmu
 
 T_END = 0.08           # s
 T_STEP = 0.01          # s, the torque step (0 before it: start-up)
@@ -98,7 +98,7 @@ ALPHA_H_MAX = math.pi / 2                # the regulator's largest alpha_c h (cu
 
 @pytest.fixture(scope="module")
 def linear_map(tmp_path_factory):
-    from scenarios.flux_map import linear_flux_map, write_flux_map
+    from scenarios.maps.flux_map import linear_flux_map, write_flux_map
     path = tmp_path_factory.mktemp("step_size") / "linear.csv"
     write_flux_map(path, linear_flux_map(L_D, L_Q, PSI_M, 900.0, 7, pole_pairs=4), "linear test machine")
     return path

@@ -14,13 +14,13 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from scenarios.cycles import load_cycle, segment
-from scenarios.paths import ROOT
-from scenarios.simulate import simulate
+from scenarios.core.paths import ROOT
+from scenarios.runs.simulate import simulate
 from scenarios.study import parse, run_study
 from scenarios.study.execute import KILL_ONCE_ENV
 from scenarios.study.spec import run_spec
 from scenarios.study.table import read_runs, summary_of, trace_path
+from scenarios.vehicle.cycles import load_cycle, segment
 
 from conftest import same
 
@@ -182,7 +182,7 @@ def test_study_on_a_separately_started_scheduler_and_workers(tmp_path):
         assert r.returncode == 0, r.stderr
         runs = parse({"study": {"cycles": ["WLTC3b"], "window_s": WINDOW, "methods": ["ferrari", "lut_speed"],
                                 "recursions": [2], "u_dc_scale": [1.0, 0.85]}}).runs
-        from scenarios.paths import BUILD_DIR
+        from scenarios.core.paths import BUILD_DIR
         from scenarios.study.keys import code_hash, fmu_hash
         from scenarios.study.plan import make_plan
         keys = make_plan(runs, tmp_path / "out", fmu_hash(BUILD_DIR / "fmu"), code_hash(), set()).keys
@@ -196,7 +196,7 @@ def test_study_on_a_separately_started_scheduler_and_workers(tmp_path):
 
 
 def test_runs_with_a_bad_map_fail_with_their_message_and_the_others_complete(tmp_path, default_map_path):
-    from scenarios.drive_description import DEFAULT_DRIVE
+    from scenarios.drives.description import DEFAULT_DRIVE
 
     # a map no reader accepts (fails as the drive loads, on the client) ...
     (tmp_path / "torn.csv").write_text("i_d,i_q,psi_d\n0,0,0\n")

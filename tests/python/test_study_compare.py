@@ -3,17 +3,17 @@ trace.csv as simulate() writes them, byte for byte but for the timings), the rep
 call that runs nothing."""
 import json
 
-import scenarios.compare
-from scenarios.compare import VARIANTS, run_study
-from scenarios.cycles import load_cycle
-from scenarios.simulate import STUDY_CONDITIONS, RunSpec, simulate
+import scenarios.study.compare
+from scenarios.runs.simulate import STUDY_CONDITIONS, RunSpec, simulate
+from scenarios.study.compare import VARIANTS, run_study
+from scenarios.vehicle.cycles import load_cycle
 
 TIMINGS = ("wall_s", "real_time_factor")
 
 
 def test_compare_preset_writes_what_simulate_writes(tmp_path, monkeypatch):
     # the controller's C++ benchmark (ns per call in the report) is not what is tested here: a minute saved
-    monkeypatch.setattr(scenarios.compare, "controller_costs", lambda build: {})
+    monkeypatch.setattr(scenarios.study.compare, "controller_costs", lambda build: {})
     cycle = tmp_path / "ramp.csv"
     cycle.write_text("time_s,speed_mps\n0,2\n1,4\n2,5\n")
     conditions = STUDY_CONDITIONS[1:2]  # u_dc -15 %

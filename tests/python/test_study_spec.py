@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from scenarios.paths import ROOT
+from scenarios.core.paths import ROOT
 from scenarios.study import SpecError, load_spec
 from scenarios.study.spec import T_DEFAULT_DEGC
 

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from scenarios.battery import OCV_CSV, Battery, BatteryParams
-from scenarios.constants import U_DC_NOMINAL_V
-from scenarios.cycles import cycle_stats, load_cycle, read_cycle_csv, segment
-from scenarios.driver import Driver, DriverParams, blend, simulate_ideal
-from scenarios.inverter import InverterParams, dc_power, inverter_loss
-from scenarios.vehicle import (
+from scenarios.core.constants import U_DC_NOMINAL_V
+from scenarios.vehicle.battery import OCV_CSV, Battery, BatteryParams
+from scenarios.vehicle.cycles import cycle_stats, load_cycle, read_cycle_csv, segment
+from scenarios.vehicle.driver import Driver, DriverParams, blend, simulate_ideal
+from scenarios.vehicle.inverter import InverterParams, dc_power, inverter_loss
+from scenarios.vehicle.longitudinal import (
     Vehicle,
     VehicleParams,
     coastdown_speed,
@@ -442,8 +442,8 @@ def test_a_run_that_never_moves_has_no_energy_per_km_and_no_crash(tmp_path):
     """A segment at standstill (0 km): Wh_per_km is null in summary.json (no division by zero)."""
     import json
 
-    from scenarios.cycles import Cycle
-    from scenarios.simulate import RunSpec, simulate
+    from scenarios.runs.simulate import RunSpec, simulate
+    from scenarios.vehicle.cycles import Cycle
 
     still = Cycle("standstill", np.array([0.0, 2.0]), np.array([0.0, 0.0]))
     s = simulate(still, RunSpec(reference=False), out=tmp_path, progress=False)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.flux_map import DEFAULT_MAP, read_flux_map
+from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map
 
 from .iron_loss import IronLossCoefficients
 
@@ -220,7 +220,7 @@ def compute(csv_path=DEFAULT_MAP, plots_dir=None, json_path=None, verbose=True):
         Path(json_path).parent.mkdir(parents=True, exist_ok=True)
         Path(json_path).write_text(json.dumps(_rounded(res), indent=2) + "\n")
     if json_path is not None:
-        # The efficiency map as data, for the drive-cycle plots (scenarios/plots.py): rows = torque.
+        # The efficiency map as data, for the drive-cycle plots (scenarios/runs/plots.py): rows = torque.
         grid = {"speed_rpm": [round(float(x), 3) for x in sp_map * RPM], "torque_Nm": [float(x) for x in tq_map],
                 "efficiency": [[None if not np.isfinite(e) else round(float(e), 5) for e in row] for row in eta],
                 "conditions": res["conditions"]}

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.constants import T_REFERENCE_K, U_DC_NOMINAL_V
-from scenarios.flux_map import DEFAULT_MAP
+from scenarios.core.constants import T_REFERENCE_K, U_DC_NOMINAL_V
+from scenarios.maps.flux_map import DEFAULT_MAP
 
 from . import iron_loss, saturation
 

@@ -25,7 +25,7 @@ from fmpy import read_model_description
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from scenarios.coupling import COUPLING_FILE, Coupling  # noqa: E402
+from scenarios.cosim.coupling import COUPLING_FILE, Coupling  # noqa: E402
 
 NS = ('xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon" '
       'xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription" '

@@ -4,7 +4,7 @@ which external input feeds which inputs. Names only: a master resolves them to v
 from the model descriptions. fmu_src/coupling/coupling.hpp reads the same file in C++, with the
 same rules.
 
-    from scenarios.coupling import DRIVE
+    from scenarios.cosim.coupling import DRIVE
     DRIVE.units[0].role, DRIVE.connections[0].source.text   # "plant", "plant.i_d"
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-COUPLING_FILE = Path(__file__).resolve().parents[1] / "fmu_src" / "coupling" / "ipmsm_drive.coupling"
+COUPLING_FILE = Path(__file__).resolve().parents[2] / "fmu_src" / "coupling" / "ipmsm_drive.coupling"
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 

@@ -28,12 +28,12 @@ except ModuleNotFoundError:  # Python 3.10: the same parser as a package (pyproj
     import tomli as tomllib
 
 
-from .battery import OCV_FITS, BatteryParams
-from .driver import P_AUX_DEFAULT
-from .flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
-from .inverter import InverterParams
-from .paths import ROOT
-from .vehicle import VehicleParams
+from scenarios.core.paths import ROOT
+from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
+from scenarios.vehicle.battery import OCV_FITS, BatteryParams
+from scenarios.vehicle.driver import P_AUX_DEFAULT
+from scenarios.vehicle.inverter import InverterParams
+from scenarios.vehicle.longitudinal import VehicleParams
 
 #: the project's drives; `default.toml` is what no --drive means
 DRIVES_DIR = ROOT / "scenarios" / "drives"
@@ -209,7 +209,8 @@ SCHEMA: tuple[Key, ...] = (
     Key("vehicle", "J_wheels", NON_NEGATIVE, "kg m^2", "inertia of all road wheels", _dc(VehicleParams, "J_wheels")),
     Key("vehicle", "tyre_road_friction", POSITIVE, "1", "tyre-road friction coefficient (friction-brake limit)",
         _dc(VehicleParams, "tyre_road_friction"), acts="braking harder than mu m g"),
-    Key("vehicle", "P_aux", NON_NEGATIVE, "W", "auxiliary load on the DC link", "scenarios.driver.P_AUX_DEFAULT"),
+    Key("vehicle", "P_aux", NON_NEGATIVE, "W", "auxiliary load on the DC link",
+        "scenarios.vehicle.driver.P_AUX_DEFAULT"),
     # [controller]: the controller FMU's settings
     Key("controller", "method", Rule("str", choices=tuple(METHODS)), "", "torque-to-current method",
         "`ferrari` (the FMU's default)"),
@@ -321,7 +322,7 @@ class DriveDescription:
                         "vehicle": self.vehicle, "controller": self.controller}[section], name)
 
     def motor_data(self) -> MotorData:
-        """The reference optimum's motor figures (scenarios.simulate.OptimumReference)."""
+        """The reference optimum's motor figures (scenarios.runs.simulate.OptimumReference)."""
         m = self.motor
         return MotorData(m.pole_pairs, m.R_s, m.T_winding_ref, m.alpha_cu, m.I_max, self.controller.k_u)
 
@@ -360,13 +361,13 @@ MOTOR_METADATA = {"pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_
                   "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb"}
 CONTROLLER_METADATA = {"k_u": "k_u", "lut_u_dc": "u_dc_V"}
 
-#: a hook for FEM exports: path -> a contract CSV (scenarios.map_import.contract_csv when present)
+#: a hook for FEM exports: path -> a contract CSV (scenarios.maps.importer.contract_csv when present)
 MapResolver = Callable[[Path], Path]
 
 
 def _map_resolver() -> MapResolver:
     try:
-        from .map_import import contract_csv  # helper D's FEM importer (SyR-e, Motor-CAD .mat)
+        from scenarios.maps.importer import contract_csv  # helper D's FEM importer (SyR-e, Motor-CAD .mat)
     except ImportError:
         return lambda p: p
     return contract_csv
@@ -455,7 +456,7 @@ _DEFAULT_MAP_CACHE: FluxMap | None = None
 
 def _cycle_entry(path: Path, name: str) -> str:
     """A standard cycle's name stays; anything else is a CSV relative to the file."""
-    from .cycles import STANDARD_CYCLES
+    from scenarios.vehicle.cycles import STANDARD_CYCLES
     if name.lower() in {n.lower() for n in STANDARD_CYCLES}:
         return name
     p = _relative(path, name)
@@ -507,7 +508,7 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
                                             f"existing CSV of soc,ocv_cell_V; {ocv!r} is neither")
             battery = replace(battery, ocv_fit="csv", ocv_csv=csv_path)
     try:
-        from .battery import Ocv
+        from scenarios.vehicle.battery import Ocv
         Ocv(battery)
     except (OSError, ValueError, KeyError) as e:
         raise DriveDescriptionError(path, "battery.ocv", f"a usable OCV curve ({e})") from None

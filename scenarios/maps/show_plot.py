@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .flux_map import FluxMap
+from scenarios.maps.flux_map import FluxMap
 
 RPM = 2 * np.pi / 60
 

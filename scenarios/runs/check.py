@@ -21,8 +21,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
-from .drive_description import LIMITS, DriveDescription, DriveDescriptionError, load_drive
-from .paths import BUILD_DIR
+from scenarios.core.paths import BUILD_DIR
+from scenarios.drives.description import LIMITS, DriveDescription, DriveDescriptionError, load_drive
 
 EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -64,8 +64,8 @@ def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[
 
 def run_cycles(drive: DriveDescription, build: Path, backend: str = "auto", progress: bool = True) -> dict:
     """cycle -> (summary dict, wall s), each of the drive's check cycles run whole."""
-    from .cycles import load_cycle
-    from .simulate import RunSpec, fmu_paths, simulate
+    from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
+    from scenarios.vehicle.cycles import load_cycle
     cycles = {}
     for c in drive.checks.cycles:
         try:

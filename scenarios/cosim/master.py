@@ -3,7 +3,7 @@
 communication step h, default 100 us), driven by a slower caller (the vehicle side) that holds
 the external inputs over each call of `advance`.
 
-    from scenarios.master import DriveCosim
+    from scenarios.cosim.master import DriveCosim
     with DriveCosim("build/fmu/IpmsmController.fmu", "build/fmu/IpmsmPlant.fmu", w_m=100.0) as cosim:
         r = cosim.advance(100, T_ref=120.0, w_m=100.0, u_dc=355.0, T_magnet=353.15, T_winding=373.15)
         r.mean.T_shaft, r.end.i_q, r.t, r.k      # an AdvanceResult; mean and end are Samples
@@ -49,10 +49,10 @@ from pathlib import Path
 import numpy as np
 from fmpy import extract, read_model_description
 
-from .coupling import DRIVE, Coupling
+from scenarios.cosim.coupling import DRIVE, Coupling
 
-ROOT = Path(__file__).resolve().parents[1]
-LOG = logging.getLogger("scenarios.master")
+ROOT = Path(__file__).resolve().parents[2]
+LOG = logging.getLogger("scenarios.cosim.master")
 
 
 class Status(IntEnum):
@@ -703,7 +703,7 @@ class DriveCosim:
     T_winding: the external inputs at t = 0 (the controller's flying start uses them).
     advance() reports the fields of Sample (sources: SAMPLE_SOURCES). log: optional
     callable(role, status, category, message) for every message the FMUs log (also sent to the
-    logging module, "scenarios.master"). step_times (fmpy only): k -> (t_k, h_k) passed to
+    logging module, "scenarios.cosim.master"). step_times (fmpy only): k -> (t_k, h_k) passed to
     fmi2DoStep instead of (k h, h), to reproduce another master's clock.
     """
 

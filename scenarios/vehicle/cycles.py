@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .paths import DATA_DIR
+from scenarios.core.paths import DATA_DIR
 
-#: where the standard cycles live: the package's data/cycles/ (scenarios.paths.DATA_DIR)
+#: where the standard cycles live: the package's data/cycles/ (scenarios.core.paths.DATA_DIR)
 CYCLES_DIR = DATA_DIR / "cycles"
 
 #: canonical names (matched case-insensitively) -> file in CYCLES_DIR

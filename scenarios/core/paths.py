@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 #: the installed package
-PACKAGE_DIR = Path(__file__).resolve().parent
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
 
 #: the repository (the package is installed editable, `pip install -e .`)
 ROOT = PACKAGE_DIR.parent

@@ -5,8 +5,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from .constants import U_DC_NOMINAL_V
-from .map_error import MapImportError
+from scenarios.core.constants import U_DC_NOMINAL_V
+from scenarios.maps.error import MapImportError
 
 #: exit status for bad input, as the other subcommands
 EXIT_BAD_INPUT = 2
@@ -31,7 +31,7 @@ def add_parser(sub) -> None:
 def main(args: argparse.Namespace) -> int:
     try:
         if args.map_cmd == "import":
-            from .map_import import import_map, write_contract_csv
+            from scenarios.maps.importer import import_map, write_contract_csv
             imported = import_map(args.file)
             write_contract_csv(imported, args.out)
             print(f"{args.file} ({imported.source_format}): {len(imported.i_d)} x {len(imported.i_q)} points")
@@ -41,8 +41,8 @@ def main(args: argparse.Namespace) -> int:
                 print(f"  warning: {w}")
             print(f"wrote {args.out}")
         else:
-            from .map_show import show_map
-            from .paths import ROOT
+            from scenarios.core.paths import ROOT
+            from scenarios.maps.show import show_map
             out = args.out or ROOT / "out" / f"map_{args.file.stem}"
             show_map(args.file, out, u_dc=args.u_dc, I_max=args.I_max, build=args.build)
             print(f"wrote {out}/map.png, {out}/map.md")

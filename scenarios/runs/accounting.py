@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-from .results import RunSummary, VehicleStep
+from scenarios.runs.results import RunSummary, VehicleStep
 
 WH = 1 / 3600.0  # Wh per J
 
@@ -76,7 +76,7 @@ class RunAccounts:
     def summary(self, *, cycle: str, method: str, recursion: int, conditions, vehicle, battery, P_aux: float,
                 n: int, n_inner: int, h: float, wall: float, backend: str) -> RunSummary:
         """The summary of n vehicle steps of n_inner co-simulation steps h each. vehicle, battery:
-        scenarios.vehicle.Vehicle and scenarios.battery.Battery after the run."""
+        scenarios.vehicle.longitudinal.Vehicle and scenarios.vehicle.battery.Battery after the run."""
         dt = self.dt
         km = vehicle.distance / 1000.0
         n_T = max(self.n_T, 1)

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from .paths import DATA_DIR
+from scenarios.core.paths import DATA_DIR
 
 #: the package's data/ocv_nmc_cell_and_96s.csv: SOC 0..1 step 0.05, two published cell fits
 OCV_CSV = DATA_DIR / "ocv_nmc_cell_and_96s.csv"

@@ -3,7 +3,7 @@ eight panels), `map.md` (the numbers) and `map.json` (the same, for programs).
 
 Where each number comes from:
 - psi_d, psi_q, apparent and incremental inductances, reciprocity: the map itself, through
-  scenarios.flux_map's bicubic splines (scipy; independent of the FMUs' C++ interpolation).
+  scenarios.maps.flux_map's bicubic splines (scipy; independent of the FMUs' C++ interpolation).
   Reciprocity is dpsi_d/di_q - dpsi_q/di_d, at the grid nodes inside the current limit.
 - torque-speed envelope, MTPA and MTPV: the IpmsmController FMU (Ferrari, recursion 2: the
   optimum on the map), one step per point: T_max, i_d_ref, i_q_ref, region (4 = MTPV).
@@ -25,14 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .constants import U_DC_NOMINAL_V
-from .flux_map import FluxMap, read_flux_map
-from .fmu import Fmu
-from .map_error import MapImportError
-from .map_import import contract_csv
-from .master import CosimError
-from .paths import BUILD_DIR
-from .progress import Progress
+from scenarios.core.constants import U_DC_NOMINAL_V
+from scenarios.core.paths import BUILD_DIR
+from scenarios.core.progress import Progress
+from scenarios.cosim.fmu import Fmu
+from scenarios.cosim.master import CosimError
+from scenarios.maps.error import MapImportError
+from scenarios.maps.flux_map import FluxMap, read_flux_map
+from scenarios.maps.importer import contract_csv
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
 SQRT3 = math.sqrt(3.0)
@@ -171,7 +171,7 @@ def efficiency_map(drive_path: Path, csv: Path, params: dict, u_dc: float, T_mag
                    bar: Progress):
     """eta = P_mech / P_dc (and the losses) over speeds x torques from the IpmsmDrive FMU;
     NaN beyond the torque it can reach there."""
-    from .drive_fmu import DriveFmu
+    from scenarios.cosim.drive_fmu import DriveFmu
 
     shape = (len(speeds), len(torques))
     eta, P_cu, P_fe, P_inv = (np.full(shape, np.nan) for _ in range(4))
@@ -196,7 +196,7 @@ def efficiency_map(drive_path: Path, csv: Path, params: dict, u_dc: float, T_mag
 def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max: float | None = None,
              build: Path = BUILD_DIR, spec: ShowSpec | None = None) -> MachineSummary:
     """Write out/map.png, out/map.md and out/map.json for the flux map at `path` (CSV or .mat)."""
-    from .map_show_plot import plot_machine
+    from scenarios.maps.show_plot import plot_machine
 
     spec = spec or ShowSpec()
     t0 = time.perf_counter()

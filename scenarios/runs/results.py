@@ -9,13 +9,13 @@ import json
 from dataclasses import asdict, astuple, dataclass, field, fields
 from pathlib import Path
 
-from .master import AdvanceResult
+from scenarios.cosim.master import AdvanceResult
 
 
 @dataclass(slots=True)  # made at every vehicle step: a frozen dataclass's __init__ costs 3x
 class VehicleStep:
     """The signals of one vehicle step (dt): the vehicle side's and the drive's, as the loop of
-    scenarios.simulate produces them. Speeds and SOC at the end of the step; w_m, u_dc, T_ref
+    scenarios.runs.simulate produces them. Speeds and SOC at the end of the step; w_m, u_dc, T_ref
     and F_brake held over it; powers and the currents I, I_opt are the step's."""
 
     t: float           # s, end of the step
@@ -96,7 +96,7 @@ class RunSummary:
     cycle: str
     method: str
     recursion: int
-    conditions: dict                  # scenarios.simulate.Conditions as a dict
+    conditions: dict                  # scenarios.runs.simulate.Conditions as a dict
     distance_km: float
     energy_battery_Wh: float          # at the battery's terminals
     Wh_per_km: float | None  # None when the run covered no distance
@@ -127,7 +127,7 @@ class RunSummary:
     wall_s: float
     real_time_factor: float
     backend: str                      # the co-simulation master's backend: native or fmpy
-    drive: str = ""                   # the drive description's name (scenarios.drive_description)
+    drive: str = ""                   # the drive description's name (scenarios.drives.description)
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
 
     def to_dict(self) -> dict:

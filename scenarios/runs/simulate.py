@@ -1,10 +1,10 @@
 """One drive cycle with the FMUs: the vehicle side (driver, brake blending, vehicle, battery,
 inverter losses) at dt = 10 ms around the co-simulated drive (IpmsmController + IpmsmPlant at
-h = 100 us, scenarios.master). Results per the contract: summary.json and trace.csv
-(scenarios.results).
+h = 100 us, scenarios.cosim.master). Results per the contract: summary.json and trace.csv
+(scenarios.runs.results).
 
 The loop (`vehicle_steps`) only simulates: it yields each vehicle step's signals, which the
-accounts (scenarios.accounting: energies, tracking errors) and the trace observe.
+accounts (scenarios.runs.accounting: energies, tracking errors) and the trace observe.
 
 A reference controller (Ferrari, recursion 2, the exact optimum) is evaluated once per vehicle
 step at the delivered torque and the same conditions, so every method's current and copper
@@ -21,20 +21,20 @@ from pathlib import Path
 
 import numpy as np
 
-from .accounting import RunAccounts
-from .battery import Battery
-from .constants import T_REFERENCE_K, ZERO_CELSIUS_K
-from .cycles import Cycle, load_cycle
-from .drive_description import METHODS, DriveDescription, load_drive
-from .drive_fmu import DriveAdvanceResult, DriveAsCosim
-from .driver import BlendParams, Driver, DriverParams, blend
-from .fmu import Fmu
-from .inverter import inverter_loss
-from .master import DriveCosim
-from .paths import BUILD_DIR
-from .progress import Progress
-from .results import RunSummary, Trace, VehicleStep, write_results
-from .vehicle import Vehicle, motor_speed, wheel_force
+from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
+from scenarios.core.paths import BUILD_DIR
+from scenarios.core.progress import Progress
+from scenarios.cosim.drive_fmu import DriveAdvanceResult, DriveAsCosim
+from scenarios.cosim.fmu import Fmu
+from scenarios.cosim.master import DriveCosim
+from scenarios.drives.description import METHODS, DriveDescription, load_drive
+from scenarios.runs.accounting import RunAccounts
+from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
+from scenarios.vehicle.battery import Battery
+from scenarios.vehicle.cycles import Cycle, load_cycle
+from scenarios.vehicle.driver import BlendParams, Driver, DriverParams, blend
+from scenarios.vehicle.inverter import inverter_loss
+from scenarios.vehicle.longitudinal import Vehicle, motor_speed, wheel_force
 
 __all__ = ["METHODS", "STUDY_CONDITIONS", "Conditions", "RunSpec", "fmu_paths", "simulate"]
 
@@ -69,7 +69,7 @@ STUDY_CONDITIONS = (
 @dataclass
 class RunSpec:
     """One run: the drive (motor, inverter, battery, vehicle, controller settings: a drive
-    description, scenarios.drive_description), how it is driven and simulated. method and
+    description, scenarios.drives.description), how it is driven and simulated. method and
     recursion None: the drive's [controller]."""
 
     drive: DriveDescription = field(default_factory=load_drive)

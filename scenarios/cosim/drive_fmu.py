@@ -9,7 +9,7 @@ One fmi2SetReal of the five inputs and one fmi2DoStep per call, one fmi2GetReal 
 output and one fmi2GetInteger of the region: the per-step Python cost is four calls, whatever the
 number of inner steps. They are fmpy's fmi2* functions on ctypes arrays made once per instance
 (fmpy's setReal/getReal build new arrays at every call, which costs 2-5 times the call itself).
-Messages the FMU logs go to the logging module ("scenarios.drive_fmu") and to `messages`; a
+Messages the FMU logs go to the logging module ("scenarios.cosim.drive_fmu") and to `messages`; a
 failed call raises CosimError with the FMU's last messages.
 """
 from __future__ import annotations
@@ -26,9 +26,9 @@ from pathlib import Path
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2OK
 
-from .master import AdvanceResult, CosimError, Sample
+from scenarios.cosim.master import AdvanceResult, CosimError, Sample
 
-LOG = logging.getLogger("scenarios.drive_fmu")
+LOG = logging.getLogger("scenarios.cosim.drive_fmu")
 INPUTS = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")
 
 
@@ -199,7 +199,7 @@ class DriveAdvanceResult(AdvanceResult):
 
 
 class DriveAsCosim:
-    """IpmsmDrive behind DriveCosim's interface (scenarios.master): advance(n_steps, inputs) is one
+    """IpmsmDrive behind DriveCosim's interface (scenarios.cosim.master): advance(n_steps, inputs) is one
     fmi2DoStep of n_steps sample times, and returns the Samples the vehicle side reads. The drive
     outputs the means of the contract; a Sample's fields it has no output for are derived
     (i_abs_sq = P_cu / (1.5 R) with R at the held winding temperature, exact) or NaN (i_abs,

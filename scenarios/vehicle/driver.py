@@ -1,5 +1,5 @@
 """Driver and brake blending, and an "ideal drive" run of a whole cycle from the vehicle-side
-models alone (no FMUs): `python -m scenarios.driver [CYCLE ...]`.
+models alone (no FMUs): `python -m scenarios.vehicle.driver [CYCLE ...]`.
 
 The driver is a speed PI with feed-forward of the force the trace needs (m_eff a_ref plus the
 road load), so the PI only corrects what the model does not know (mass, road load, limits);
@@ -29,10 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .battery import Battery, BatteryParams
-from .cycles import STANDARD_CYCLES, Cycle, load_cycle
-from .inverter import InverterParams, inverter_loss
-from .vehicle import Vehicle, VehicleParams, motor_speed, road_load, shaft_torque, wheel_force
+from scenarios.vehicle.battery import Battery, BatteryParams
+from scenarios.vehicle.cycles import STANDARD_CYCLES, Cycle, load_cycle
+from scenarios.vehicle.inverter import InverterParams, inverter_loss
+from scenarios.vehicle.longitudinal import Vehicle, VehicleParams, motor_speed, road_load, shaft_torque, wheel_force
 
 #: auxiliary (low-voltage) load on the DC link, W: FASTSim's `auxKw` = 0.25 in its EV files
 #: (NREL FASTSim vehicle database, e.g. 2021_Cupra_Born.csv); dynamometer tests run with HVAC off
@@ -279,7 +279,7 @@ def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m scenarios.driver",
+    ap = argparse.ArgumentParser(prog="python -m scenarios.vehicle.driver",
                                  description="Ideal-drive energy per cycle from the vehicle-side models alone.")
     ap.add_argument("cycles", nargs="*", default=list(STANDARD_CYCLES), help="names or CSV paths")
     ap.add_argument("--eta-motor", type=float, default=IdealMotor.efficiency)

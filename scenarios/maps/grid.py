@@ -20,8 +20,8 @@ import math
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from .map_error import MapImportError
-from .map_formats import RawMap
+from scenarios.maps.error import MapImportError
+from scenarios.maps.formats import RawMap
 
 #: grid values closer than this (relative to the largest current) are the same grid line
 GRID_TOL = 1e-9

@@ -20,9 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import map_formats, map_grid
-from .flux_map import FluxMap, read_flux_map, write_flux_map
-from .map_error import MapImportError
+from scenarios.maps import formats as map_formats
+from scenarios.maps import grid as map_grid
+from scenarios.maps.error import MapImportError
+from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
 
 __all__ = ["ImportedMap", "MapImportError", "contract_csv", "import_map", "write_contract_csv", "cache_dir"]
 
@@ -154,7 +155,7 @@ def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     # two-word labels: a one-word 'key: value' line would read as metadata (INTERFACE.md)
-    comment = "\n".join([f"Imported by scenarios.map_import from {imported.source} ({imported.source_format}).",
+    comment = "\n".join([f"Imported by scenarios.maps.importer from {imported.source} ({imported.source_format}).",
                          "Convention = amplitude-invariant dq, peak values, PM flux on +d."] +
                         [f"Import conversion: {n}" for n in imported.notes] +
                         [f"Import warning: {w}" for w in imported.warnings])

@@ -15,13 +15,13 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
-from .constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
-from .paths import BUILD_DIR
-from .results import RunSummary
-from .simulate import STUDY_CONDITIONS
-from .study import run_study as study
-from .study import table
-from .study.spec import Run
+from scenarios.core.constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
+from scenarios.core.paths import BUILD_DIR
+from scenarios.runs.results import RunSummary
+from scenarios.runs.simulate import STUDY_CONDITIONS
+from scenarios.study import run_study as study
+from scenarios.study import table
+from scenarios.study.spec import Run
 
 
 @dataclass(frozen=True)
@@ -180,7 +180,7 @@ def plot_study(out: Path, results: list[StudyRun]) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from .plots import plot_run
+    from scenarios.runs.plots import plot_run
     for r in results:
         plot_run(out / r.run_dir, f"{r.summary.cycle}, {r.condition}, {r.variant}")
     conds = list(dict.fromkeys(r.condition for r in results))

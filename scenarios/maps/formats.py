@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .map_error import MapImportError
+from scenarios.maps.error import MapImportError
 
 SQRT2 = math.sqrt(2.0)  # peak / RMS of a sinusoid
 T_20C_K = 293.15        # Motor-CAD's Phase_Resistance_DC_at_20C holds at 20 degC

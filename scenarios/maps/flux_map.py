@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from .paths import ROOT
+from scenarios.core.paths import ROOT
 
 
 @dataclass

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .constants import T_REFERENCE_K
-from .drive_description import DriveDescription, load_drive
-from .flux_map import read_flux_map
-from .fmu import Fmu
-from .progress import Progress
+from scenarios.core.constants import T_REFERENCE_K
+from scenarios.core.progress import Progress
+from scenarios.cosim.fmu import Fmu
+from scenarios.drives.description import DriveDescription, load_drive
+from scenarios.maps.flux_map import read_flux_map
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
 

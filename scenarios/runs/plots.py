@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .constants import U_DC_NOMINAL_V
-from .flux_map import DEFAULT_MAP, MotorData, read_flux_map
-from .paths import ROOT
+from scenarios.core.constants import U_DC_NOMINAL_V
+from scenarios.core.paths import ROOT
+from scenarios.maps.flux_map import DEFAULT_MAP, MotorData, read_flux_map
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
 REGION_NAMES = {0: "zero torque", 1: "MTPA", 2: "voltage limit", 3: "current + voltage limit", 4: "MTPV"}
