@@ -40,6 +40,11 @@ class FluxMap:
         shift = psi_d_shift if dx == dy == 0 else 0.0
         return self._sd.ev(i_d, i_q, dx=dx, dy=dy) + shift, self._sq.ev(i_d, i_q, dx=dx, dy=dy)
 
+    def flux_on_grid(self, i_d, i_q, dx: int = 0, dy: int = 0):
+        """flux() on the grid i_d x i_q (1-D ascending axes; arrays indexed [i_d, i_q]): the splines'
+        tensor-product evaluation, far faster than flux() at the same points scattered."""
+        return (self._sd(i_d, i_q, dx=dx, dy=dy, grid=True), self._sq(i_d, i_q, dx=dx, dy=dy, grid=True))
+
     def number(self, key: str, default: float | None = None) -> float:
         """The leading number of a '# key: value' line; trailing words ('4 (8 poles)') are ignored,
         as the FMUs' reader does (fmu_src/machine/flux_map_metadata)."""
