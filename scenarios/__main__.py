@@ -87,7 +87,9 @@ def _dispatch(args) -> int:
         out = args.out or ROOT / "out" / f"{stem}_{method}"
         s = simulate(args.cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"))
+        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"), drive)
+        for a in drive.assumed:
+            print(f"assumed: {a}", file=sys.stderr)
         d = s.to_dict()
         print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
         print(f"wrote {out}/summary.json, trace.csv, run.png")

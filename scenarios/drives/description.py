@@ -238,10 +238,11 @@ LIMITS = {
     "current_excess_rms_A_max": ("current_excess_rms_A", "max"),
     "regen_curtailed_Wh_max": ("regen_curtailed_Wh", "max"),
     "soc_end_min": ("soc_end", "min"),
+    "time_above_top_speed_s_max": ("time_above_top_speed_s", "max"),
 }
 _LIMIT_UNITS = {"Wh_per_km": "Wh/km", "speed_rmse_mps": "m/s", "torque_rmse_Nm": "N m",
                 "torque_error_max_Nm": "N m", "time_voltage_limited_pct": "%", "current_excess_rms_A": "A",
-                "regen_curtailed_Wh": "Wh", "soc_end": "1"}
+                "regen_curtailed_Wh": "Wh", "soc_end": "1", "time_above_top_speed_s": "s"}
 SCHEMA = SCHEMA + tuple(
     Key("checks", name, NON_NEGATIVE, _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
         f"{'at most' if d == 'max' else 'at least'} this on every cycle", "no limit", acts="check")

@@ -111,6 +111,11 @@ def _check_csv_numbers(path: Path) -> None:
     except (OSError, UnicodeDecodeError) as e:
         raise MapImportError(path, "file", "a text file (the contract CSV)", f"unreadable ({e})") from e
     data = [(n, s) for n, s in enumerate(lines, 1) if s.strip() and not s.strip().startswith("#")][1:]
+    try:  # the common case at numpy's speed: every value a finite number
+        if np.isfinite(np.loadtxt([s for _, s in data], delimiter=",", ndmin=2, dtype=float)).all():
+            return
+    except ValueError:
+        pass  # a malformed row: read_flux_map names it
     for n, s in data:
         for col, x in zip(CSV_COLUMNS, s.split(",")):
             try:
@@ -215,8 +220,16 @@ def contract_csv(path: str | Path) -> Path:
     cached = _cached_name(path) if path.is_file() else None
     if cached is not None and cached.is_file():
         return cached  # imported before, from these very bytes
+    as_is = cached.with_suffix(".as-is") if cached is not None else None
+    if as_is is not None and as_is.is_file():
+        return path  # checked before, these very bytes: a contract CSV that needs no conversion
     imported = import_map(path)
     if imported.source_format == "contract CSV" and not imported.notes:
+        try:
+            as_is.parent.mkdir(parents=True, exist_ok=True)
+            as_is.write_text(f"{path}\n")
+        except OSError:
+            pass  # no cache: checked again next time
         return path
     return write_contract_csv(imported, cached)
 

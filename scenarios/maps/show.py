@@ -121,7 +121,7 @@ def reciprocity(fmap: FluxMap, I_max: float):
 
 
 def controller_curves(fmu_path: Path, csv: Path, params: dict, u_dc: float, T_magnet: float, spec: ShowSpec,
-                      w_top: float | None, bar: Progress):
+                      w_top: float | None, bar: Progress, fmap: FluxMap):
     """Envelope (speeds, T_max, region, i_d, i_q), MTPA (i_d, i_q, T) from the controller FMU."""
     cp = {k: v for k, v in params.items() if k in CONTROLLER_PARAMS}
     with Fmu(fmu_path, flux_map=str(csv), recursion=2, **cp) as c:
@@ -135,7 +135,7 @@ def controller_curves(fmu_path: Path, csv: Path, params: dict, u_dc: float, T_ma
 
         T_peak, i_d0, i_q0, _ = at(T_REF_HUGE, 0.0)
         if w_top is None:  # four times the speed where the peak-torque flux meets the voltage limit
-            fm = read_flux_map(csv)
+            fm = fmap
             psi = math.hypot(*(float(x) for x in fm.flux(i_d0, i_q0)))
             w_top = 4.0 * (params["k_u"] * u_dc / SQRT3) / (psi * params["pole_pairs"])
         speeds = np.linspace(0.0, w_top, spec.n_speed)
@@ -195,7 +195,7 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max
     bar = Progress(spec.n_speed + spec.n_mtpa + spec.n_eff_speed * spec.n_eff_torque, "map show")
     try:
         speeds, env, mtpa, T_peak = controller_curves(build / "fmu" / "IpmsmController.fmu", csv, params, u_dc,
-                                                      T_magnet, spec, params.get("w_m_max"), bar)
+                                                      T_magnet, spec, params.get("w_m_max"), bar, fmap)
     except Exception as e:  # fmpy raises Exception on an fmi2Error status
         raise MapImportError(path, "flux_map", "a map and parameters the IpmsmController FMU accepts "
                              f"({', '.join(f'{k} = {v:g}' for k, v in params.items())})", str(e)) from e
