@@ -15,7 +15,8 @@ from scenarios.maps import cli as map_cli
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
 
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
-               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s", "real_time_factor")
+               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
+               "steps", "wall_s", "real_time_factor")
 
 
 def main(argv=None) -> int:

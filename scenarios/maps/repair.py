@@ -152,7 +152,11 @@ def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, d
         if legal.defects(fmap).folds.size:
             changes.append("the projected map still folds somewhere (its incremental inductances): see the FMUs' "
                            "verdict")
-    comment = "\n".join([f"Repaired by scenarios.maps.repair from {path} ({imported.source_format})."] +
+    original = []
+    if path.suffix.lower() == ".csv":  # the source's own words (provenance), metadata lines aside
+        original = [f"Original: {line.strip()[1:].strip()}" for line in path.read_text().splitlines()
+                    if line.strip().startswith("#") and not _is_metadata(line)]
+    comment = "\n".join(original + [f"Repaired by scenarios.maps.repair from {path} ({imported.source_format})."] +
                         [f"Repair change: {c}" for c in changes] +
                         [f"Repair assumption: {a}" for a in assumed] +
                         [f"Import warning: {w}" for w in imported.warnings])
@@ -167,6 +171,12 @@ def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, d
         raise
     result = Repair(changes, verdicts(out, params, build), out)
     return result
+
+
+def _is_metadata(line: str) -> bool:
+    """A '# key: value' line (one-word key), as the readers take it (scenarios.maps.flux_map)."""
+    key, sep, _ = line.strip()[1:].partition(":")
+    return bool(sep and key.strip() and " " not in key.strip())
 
 
 __all__ = ["Repair", "fill_holes", "read_with_holes", "repair_map", "read_flux_map"]
