@@ -201,3 +201,71 @@ def test_no_iron_loss_metadata_no_crash_and_map_show_agrees_with_the_drive(tmp_p
         assert params[k] == getattr(d.motor, k)
     assert d.motor.fe_psi_ref > 0 and any("fe_psi_ref" in a for a in d.assumed) and assumed
     assert d.motor.pole_pairs == 3 and not any(a.startswith("pole_pairs") for a in d.assumed)
+
+
+# --- top speed -----------------------------------------------------------------------------------
+
+def test_top_speed_flagged_and_gated(tmp_path, controller_fmu, plant_fmu):
+    """The default car with its top speed set below what UDDS's hill (91 km/h) needs: the summary
+    counts the time above it, and `check`'s limit on it fails."""
+    from scenarios.drives.description import load_drive
+    from scenarios.runs.check import judge
+    from scenarios.runs.simulate import RunSpec, simulate
+    from scenarios.vehicle.cycles import load_cycle, segment
+    (tmp_path / "d.toml").write_text(f'[motor]\nflux_map = "{DEFAULT_MAP}"\nw_m_max = 500.0\n'
+                                     '[checks]\ntime_above_top_speed_s_max = 0.0\n')
+    d = load_drive(tmp_path / "d.toml")
+    s = simulate(segment(load_cycle("UDDS"), 180.0, 260.0), RunSpec(drive=d, reference=False),
+                 fmus=(controller_fmu, plant_fmu), progress=False).to_dict()
+    assert s["w_m_max_rpm"] == pytest.approx(500.0 * 30 / math.pi) and s["w_m_peak_rpm"] > s["w_m_max_rpm"]
+    assert s["time_above_top_speed_s"] > 0
+    (v,) = judge("UDDS", s, d.checks.limits)
+    assert not v.passed
+
+
+# --- the SyRM drive end to end -------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def syrm_drive(build, tmp_path_factory):
+    """scenarios/drives/syrm_rawp.toml on RAWP as published if the FMUs accept it, else on `map
+    repair`'s output (today's FMUs refuse psi_q's fold at |i_q| >= 47.3 A, beyond I_max)."""
+    from scenarios.drives.description import DRIVES_DIR, load_drive
+    from scenarios.maps.importer import contract_csv
+    d = tmp_path_factory.mktemp("syrm")
+    import os
+    os.environ.setdefault("IPMSM_MAP_CACHE", str(d / "cache"))
+    as_published = contract_csv(RAWP)
+    m = load_drive(DRIVES_DIR / "syrm_rawp.toml")
+    if all(v.accepted for v in _accepted_by_all(as_published, build, **m.plant_params())):
+        return m
+    assert cli(["--build", str(build), "map", "repair", str(RAWP), "--out", str(d / "rawp.csv")]) == 0
+    text = (DRIVES_DIR / "syrm_rawp.toml").read_text().replace("../data/fluxmaps/real/syre_RAWP.mat",
+                                                                str(d / "rawp.csv"))
+    (d / "syrm.toml").write_text(text)
+    return load_drive(d / "syrm.toml")
+
+
+def _syrm_run(drive, cycle, t0, t1, controller_fmu, plant_fmu):
+    from scenarios.drives.description import load_drive
+    from scenarios.runs.check import judge
+    from scenarios.runs.simulate import RunSpec, simulate
+    from scenarios.vehicle.cycles import load_cycle, segment
+    c = load_cycle(cycle)
+    c = c if t1 is None else segment(c, t0, t1)
+    s = simulate(c, RunSpec(drive=drive), fmus=(controller_fmu, plant_fmu), progress=False).to_dict()
+    limits = {k: v for k, v in load_drive(None).checks.limits.items() if k.startswith("torque")}
+    return s, judge(cycle, s, limits)
+
+
+@pytest.mark.parametrize("cycle, t0, t1", [("UDDS", 160.0, 320.0), ("HWFET", 0.0, 150.0)])
+def test_syrm_drive_segments_within_the_default_torque_limits(syrm_drive, controller_fmu, plant_fmu, cycle, t0, t1):
+    s, verdicts = _syrm_run(syrm_drive, cycle, t0, t1, controller_fmu, plant_fmu)
+    assert all(v.passed for v in verdicts), [v.message for v in verdicts]
+    assert s["time_above_top_speed_s"] == 0.0 and s["speed_rmse_mps"] < 0.2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cycle", ["UDDS", "HWFET"])
+def test_syrm_drive_whole_cycles_within_the_default_torque_limits(syrm_drive, controller_fmu, plant_fmu, cycle):
+    s, verdicts = _syrm_run(syrm_drive, cycle, 0.0, None, controller_fmu, plant_fmu)
+    assert all(v.passed for v in verdicts), [v.message for v in verdicts]
