@@ -58,7 +58,8 @@ def verdict(fmu_path: Path, csv: Path, params: dict) -> FmuVerdict:
         fmu.instantiate(callbacks=callbacks, loggingOn=True)
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
-        set_values(fmu, variables, flux_map=str(csv), **{k: v for k, v in params.items() if k in variables})
+        set_values(fmu, variables, flux_map=str(csv),
+                   **{k: v for k, v in params.items() if k in variables and k != "flux_map"})
         try:
             fmu.exitInitializationMode()
             accepted = True
