@@ -269,3 +269,22 @@ def test_syrm_drive_segments_within_the_default_torque_limits(syrm_drive, contro
 def test_syrm_drive_whole_cycles_within_the_default_torque_limits(syrm_drive, controller_fmu, plant_fmu, cycle):
     s, verdicts = _syrm_run(syrm_drive, cycle, 0.0, None, controller_fmu, plant_fmu)
     assert all(v.passed for v in verdicts), [v.message for v in verdicts]
+
+
+def test_run_picture_draws_the_drives_own_motor():
+    """run.png's current plane: the drive's current limit and voltage ellipses at its top speed, not
+    the default motor's 500 A and 12 000 r/min."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from scenarios.drives.description import DRIVES_DIR, load_drive
+    from scenarios.runs.plots import _current_plane
+    d = load_drive(DRIVES_DIR / "prius.toml")
+    tr = {"i_d_A": np.array([-20.0, -40.0]), "i_q_A": np.array([50.0, 80.0]), "region": np.array([1, 1]),
+          "u_dc_V": np.array([500.0, 500.0]), "w_m_rad_s": np.array([100.0, 200.0])}
+    fig, a = plt.subplots()
+    _current_plane(a, tr, d)
+    labels = [line.get_label() for line in a.get_lines()]
+    plt.close(fig)
+    assert "current limit 200 A" in labels and "voltage limit 6000 r/min, 500 V" in labels
