@@ -101,6 +101,7 @@ def _dispatch(args) -> int:
                   scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "map":
+        args.drive_description = load_drive(args.drive) if getattr(args, "drive", None) is not None else None
         return map_cli.main(args)
     elif args.cmd == "study":
         from scenarios.study import cli as study_cli

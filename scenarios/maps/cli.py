@@ -77,10 +77,8 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _drive(args):
-    if args.drive is None:
-        return None
-    from scenarios.drives.description import load_drive
-    return load_drive(args.drive)
+    """The --drive description, loaded by the caller (scenarios/__main__.py: drives sit above maps)."""
+    return getattr(args, "drive_description", None)
 
 
 def _check(args) -> int:

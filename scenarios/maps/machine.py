@@ -79,7 +79,7 @@ def machine_values(fmap: FluxMap, given: dict | None = None) -> tuple[dict, list
             largest_flux(dmap, dmap.number("I_max_A"))
         assumed = [a for a in assumed if not a.startswith("fe_psi_ref")]
         assumed.append(f"fe_psi_ref = {values['fe_psi_ref']:.4g} Wb: the default motor's, scaled by this map's largest "
-                       "flux linkage inside I_max over the default motor's (no iron-loss metadata)")
+                       "flux linkage within its current limit over the default motor's (no iron-loss metadata)")
     if iron_given and len(iron_given) < len(IRON_LOSS):
         missing = [k for k in IRON_LOSS if k not in iron_given]
         assumed.append(f"iron loss: {', '.join(missing)} the default motor's, the rest the map's")
