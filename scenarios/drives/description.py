@@ -9,7 +9,8 @@ The schema is written once, in SCHEMA: a key's section, name, kind, unit, the ru
 must obey and where its default comes from. The defaults are the project's default EV: the
 dataclasses of the vehicle side (VehicleParams, BatteryParams, InverterParams, P_AUX_DEFAULT)
 and, for the motor, the `# key: value` metadata of the named flux map (the map's own data
-sheet), else of the default motor's map. Paths are relative to the file. A bad file raises
+sheet), else of the default motor's map, each such value named in `DriveDescription.assumed`
+(scenarios.maps.machine). Paths are relative to the file. A bad file raises
 DriveDescriptionError naming the file, the key and what was expected.
 """
 from __future__ import annotations

@@ -27,7 +27,7 @@ import numpy as np
 from scenarios.maps import legal
 from scenarios.maps.check import analyse
 from scenarios.maps.error import MapImportError
-from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
+from scenarios.maps.flux_map import FluxMap, write_flux_map
 from scenarios.maps.fmu_verdict import verdicts
 from scenarios.maps.importer import import_map
 
@@ -169,8 +169,7 @@ def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, d
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    result = Repair(changes, verdicts(out, params, build), out)
-    return result
+    return Repair(changes, verdicts(out, params, build), out)
 
 
 def _is_metadata(line: str) -> bool:
@@ -179,4 +178,4 @@ def _is_metadata(line: str) -> bool:
     return bool(sep and key.strip() and " " not in key.strip())
 
 
-__all__ = ["Repair", "fill_holes", "read_with_holes", "repair_map", "read_flux_map"]
+__all__ = ["Repair", "fill_holes", "read_with_holes", "repair_map"]

@@ -25,7 +25,7 @@ I_EXCESS_MIN = 1.0
 #: vehicle's speed is a state of an explicit step: rounding must not count)
 TOP_SPEED_MARGIN = 1e-9
 
-RPM = 3.141592653589793 / 30.0  # rad/s per r/min
+RPM = math.pi / 30.0  # rad/s per r/min
 
 
 @dataclass
