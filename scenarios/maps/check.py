@@ -133,7 +133,7 @@ def markdown(c: MapCheck) -> str:
              "of the largest flux) |", "",
              "## Legal domain", "", "| defect | count | within I_max | nearest zero current |", "|---|---:|---:|---|"]
     for d in c.defects:
-        near = (f"i_d = {d['nearest_A'][0]:g} A, i_q = {d['nearest_A'][1]:g} A (|i| = {d['nearest_abs_A']:.4g} A)"
+        near = (f"i_d = {d['nearest_A'][0]:g} A, i_q = {d['nearest_A'][1]:g} A (abs(i) = {d['nearest_abs_A']:.4g} A)"
                 if d["nearest_A"] else "—")
         lines.append(f"| {d['kind']} | {d['count']} | {d['within_I_max']} | {near} |")
     lines += ["", "(the grid's own values and the map's bicubic spline: an analysis; the FMUs decide below)", "",

@@ -257,7 +257,7 @@ def _syrm_run(drive, cycle, t0, t1, controller_fmu, plant_fmu):
     return s, judge(cycle, s, limits)
 
 
-@pytest.mark.parametrize("cycle, t0, t1", [("UDDS", 160.0, 320.0), ("HWFET", 0.0, 150.0)])
+@pytest.mark.parametrize("cycle, t0, t1", [("UDDS", 180.0, 290.0), ("HWFET", 0.0, 100.0)])
 def test_syrm_drive_segments_within_the_default_torque_limits(syrm_drive, controller_fmu, plant_fmu, cycle, t0, t1):
     s, verdicts = _syrm_run(syrm_drive, cycle, t0, t1, controller_fmu, plant_fmu)
     assert all(v.passed for v in verdicts), [v.message for v in verdicts]
