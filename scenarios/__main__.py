@@ -15,7 +15,8 @@ from scenarios.maps import cli as map_cli
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
 
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
-               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s", "real_time_factor")
+               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
+               "steps", "wall_s", "real_time_factor")
 
 
 def main(argv=None) -> int:
@@ -87,7 +88,9 @@ def _dispatch(args) -> int:
         out = args.out or ROOT / "out" / f"{stem}_{method}"
         s = simulate(args.cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"))
+        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"), drive)
+        for a in drive.assumed:
+            print(f"assumed: {a}", file=sys.stderr)
         d = s.to_dict()
         print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
         print(f"wrote {out}/summary.json, trace.csv, run.png")
@@ -98,6 +101,7 @@ def _dispatch(args) -> int:
                   scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "map":
+        args.drive_description = load_drive(args.drive) if getattr(args, "drive", None) is not None else None
         return map_cli.main(args)
     elif args.cmd == "study":
         from scenarios.study import cli as study_cli

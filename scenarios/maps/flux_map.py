@@ -40,6 +40,11 @@ class FluxMap:
         shift = psi_d_shift if dx == dy == 0 else 0.0
         return self._sd.ev(i_d, i_q, dx=dx, dy=dy) + shift, self._sq.ev(i_d, i_q, dx=dx, dy=dy)
 
+    def flux_on_grid(self, i_d, i_q, dx: int = 0, dy: int = 0):
+        """flux() on the grid i_d x i_q (1-D ascending axes; arrays indexed [i_d, i_q]): the splines'
+        tensor-product evaluation, far faster than flux() at the same points scattered."""
+        return (self._sd(i_d, i_q, dx=dx, dy=dy, grid=True), self._sq(i_d, i_q, dx=dx, dy=dy, grid=True))
+
     def number(self, key: str, default: float | None = None) -> float:
         """The leading number of a '# key: value' line; trailing words ('4 (8 poles)') are ignored,
         as the FMUs' reader does (fmu_src/machine/flux_map_metadata)."""
@@ -101,8 +106,8 @@ def read_flux_map(path: str | Path) -> FluxMap:
                 raise ValueError(f"{path}: expected header i_d,i_q,psi_d,psi_q, got {s!r}")
             header_seen = True
             continue
-        rows.append([float(x) for x in s.split(",")])
-    data = np.array(rows)
+        rows.append(s)
+    data = _parse_rows(rows)
     i_d = np.unique(data[:, 0])
     i_q = np.unique(data[:, 1])
     if len(i_d) * len(i_q) != len(data):
@@ -116,6 +121,18 @@ def read_flux_map(path: str | Path) -> FluxMap:
     if np.isnan(psi_d).any():
         raise ValueError(f"{path}: duplicate or missing grid points")
     return FluxMap(i_d, i_q, psi_d, psi_q, metadata)
+
+
+def _parse_rows(rows: list[str]) -> np.ndarray:
+    """The data rows as an (n, 4) array: numpy's C parser (a 511 x 511 map in 0.2 s, not 2 s), and
+    where it refuses a row, the rows one by one, so that float() names the bad value."""
+    try:
+        data = np.loadtxt(rows, delimiter=",", ndmin=2, dtype=float)
+        if data.shape[1] == 4:
+            return data
+    except ValueError:
+        pass
+    return np.array([[float(x) for x in s.split(",")] for s in rows])
 
 
 def write_flux_map(path: str | Path, fmap: FluxMap, comment: str = "") -> None:

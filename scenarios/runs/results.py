@@ -129,6 +129,9 @@ class RunSummary:
     backend: str                      # the co-simulation master's backend: native or fmpy
     drive: str = ""                   # the drive description's name (scenarios.drives.description)
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
+    w_m_peak_rpm: float = 0.0         # the highest rotor speed of the run
+    w_m_max_rpm: float | None = None  # the motor's top speed (motor.w_m_max; None: not known)
+    time_above_top_speed_s: float = 0.0  # time the rotor spent above w_m_max
 
     def to_dict(self) -> dict:
         return asdict(self)
