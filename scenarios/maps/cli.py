@@ -41,9 +41,9 @@ def main(args: argparse.Namespace) -> int:
                 print(f"  warning: {w}")
             print(f"wrote {args.out}")
         else:
-            from scenarios.core.paths import ROOT
+            from scenarios.core.paths import OUT_DIR
             from scenarios.maps.show import show_map
-            out = args.out or ROOT / "out" / f"map_{args.file.stem}"
+            out = args.out or OUT_DIR / f"map_{args.file.stem}"
             show_map(args.file, out, u_dc=args.u_dc, I_max=args.I_max, build=args.build)
             print(f"wrote {out}/map.png, {out}/map.md")
     except MapImportError as e:

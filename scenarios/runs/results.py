@@ -9,6 +9,7 @@ import json
 from dataclasses import asdict, astuple, dataclass, field, fields
 from pathlib import Path
 
+from scenarios.core.version import VERSION
 from scenarios.cosim.master import AdvanceResult
 
 
@@ -129,6 +130,7 @@ class RunSummary:
     backend: str                      # the co-simulation master's backend: native or fmpy
     drive: str = ""                   # the drive description's name (scenarios.drives.description)
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
+    version: str = VERSION            # the ipmsm-fmu release that ran it (pyproject.toml, the FMUs' version)
 
     def to_dict(self) -> dict:
         return asdict(self)
