@@ -95,7 +95,7 @@ def _run(cmd, cwd, env, timeout=900) -> subprocess.CompletedProcess:
 
 def _untimed(markdown: str) -> str:
     """A report without its wall time (map.md ends with one)."""
-    return re.sub(r"wall time [0-9.]+ s", "wall time _ s", markdown)
+    return re.sub(r"(?i)wall time [0-9.]+ s", "wall time _ s", markdown)
 
 
 def _summary(path: Path) -> dict:
