@@ -1,5 +1,5 @@
-"""python -m scenarios {sweep, run, compare, check, study} ... (see --help of each). A bad drive description
-or input exits 2 with the file, the key and what was expected."""
+"""python -m scenarios {sweep, run, compare, check, study, map, fmu-path} ... (see --help of each). A bad drive
+description or input exits 2 with the file, the key and what was expected."""
 from __future__ import annotations
 
 import argparse
@@ -8,11 +8,16 @@ import sys
 from pathlib import Path
 
 from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
-from scenarios.core.paths import BUILD_DIR, ROOT
+from scenarios.core.paths import BUILD_DIR, OUT_DIR
+from scenarios.core.version import VERSION
 from scenarios.maps import cli as map_cli
 
 #: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
+
+#: what `fmu-path` finds: the FMUs (build/fmu/NAME.fmu) and the SSP package (build/ssp/NAME.ssp)
+FMU_NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
+SSP_NAME = "IpmsmControllerPlant"
 
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
                "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
@@ -21,11 +26,13 @@ RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__)
-    ap.add_argument("--build", type=Path, default=BUILD_DIR, help="build folder with fmu/ (and lib/, bin/)")
+    ap.add_argument("--version", action="version", version=f"ipmsm-fmu {VERSION}")
+    ap.add_argument("--build", type=Path, default=BUILD_DIR, help="build folder with fmu/ (and ssp/); default: "
+                    "the repository's build/, or the installed wheel's copies")
     sub = ap.add_subparsers(dest="cmd", required=True)
 
     sw = sub.add_parser("sweep", help="torque-speed sweep of the controller: table and plot of the optimal currents")
-    sw.add_argument("--out", type=Path, default=ROOT / "out" / "sweep")
+    sw.add_argument("--out", type=Path, default=OUT_DIR / "sweep")
     sw.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
     sw.add_argument("--u-dc", type=float, default=None, help="V; default: the drive's controller.lut_u_dc")
     sw.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
@@ -46,10 +53,12 @@ def main(argv=None) -> int:
 
     cmp_ = sub.add_parser("compare", help="Ferrari versus 2-D tables over cycles and conditions: report.md")
     cmp_.add_argument("--cycles", nargs="+", default=["WLTC3b"])
-    cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
+    cmp_.add_argument("--out", type=Path, default=OUT_DIR / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
     cmp_.add_argument("--scheduler", default=None, help="an existing dask scheduler (as for study)")
     cmp_.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
+    fp = sub.add_parser("fmu-path", help="where the FMUs (and the SSP package) are: print the file's path")
+    fp.add_argument("name", choices=FMU_NAMES + (SSP_NAME,), help="an FMU's model identifier, or the SSP package")
     from scenarios.runs import check
     check.add_parser(sub)
     map_cli.add_parser(sub)
@@ -65,6 +74,14 @@ def main(argv=None) -> int:
 
 
 def _dispatch(args) -> int:
+    if args.cmd == "fmu-path":
+        path = (args.build / "ssp" / f"{SSP_NAME}.ssp" if args.name == SSP_NAME
+                else args.build / "fmu" / f"{args.name}.fmu")
+        if not path.is_file():
+            print(f"error: {path} is missing: build it (cmake --build build)", file=sys.stderr)
+            return 2
+        print(path)
+        return 0
     from scenarios.drives.description import load_drive
     if args.cmd == "check":
         from scenarios.runs import check
@@ -85,7 +102,7 @@ def _dispatch(args) -> int:
         custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
         stem = Path(args.cycle).stem + ("" if args.drive is None else f"_{drive.name}")
-        out = args.out or ROOT / "out" / f"{stem}_{method}"
+        out = args.out or OUT_DIR / f"{stem}_{method}"
         s = simulate(args.cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
         plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"), drive)

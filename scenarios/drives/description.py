@@ -29,7 +29,7 @@ except ModuleNotFoundError:  # Python 3.10: the same parser as a package (pyproj
     import tomli as tomllib
 
 
-from scenarios.core.paths import ROOT
+from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
 from scenarios.maps.machine import machine_values
 from scenarios.vehicle.battery import OCV_FITS, BatteryParams
@@ -38,7 +38,7 @@ from scenarios.vehicle.inverter import InverterParams
 from scenarios.vehicle.longitudinal import VehicleParams
 
 #: the project's drives; `default.toml` is what no --drive means
-DRIVES_DIR = ROOT / "scenarios" / "drives"
+DRIVES_DIR = PACKAGE_DIR / "drives"
 DEFAULT_DRIVE = DRIVES_DIR / "default.toml"
 
 #: the controller's methods by the contract's names (the FMU's `method` parameter)
@@ -422,7 +422,8 @@ def _check_keys(path: Path, doc: dict) -> None:
 
 def _relative(path: Path, value: str) -> Path:
     p = Path(value).expanduser()
-    return p if p.is_absolute() else (path.parent / p).resolve()
+    # located: the shipped drives' paths into the repository (the default map) resolve in a wheel too
+    return located(p if p.is_absolute() else (path.parent / p).resolve())
 
 
 def _load_map(path: Path, value: str, resolve: MapResolver) -> tuple[Path, FluxMap]:

@@ -62,9 +62,9 @@ def main(args: argparse.Namespace) -> int:
         elif args.map_cmd == "repair":
             return _repair(args)
         else:
-            from scenarios.core.paths import ROOT
+            from scenarios.core.paths import OUT_DIR
             from scenarios.maps.show import show_map
-            out = args.out or ROOT / "out" / f"map_{args.file.stem}"
+            out = args.out or OUT_DIR / f"map_{args.file.stem}"
             drive = _drive(args)
             s = show_map(args.file, out, u_dc=args.u_dc, I_max=args.I_max, build=args.build, drive=drive)
             for a in s.assumed:
@@ -82,9 +82,9 @@ def _drive(args):
 
 
 def _check(args) -> int:
-    from scenarios.core.paths import ROOT
+    from scenarios.core.paths import OUT_DIR
     from scenarios.maps.check import check_map
-    out = args.out or ROOT / "out" / f"map_check_{args.file.stem}"
+    out = args.out or OUT_DIR / f"map_check_{args.file.stem}"
     c = check_map(args.file, out, args.build, I_max=args.I_max, drive=_drive(args))
     print(f"{args.file}: {c.grid}, I_max {c.I_max_A:g} A{' (magnet-free)' if c.magnet_free else ''}; "
           f"grid covers the drive's currents: {'yes' if c.grid_covers_I_max else 'NO'}")

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from scenarios.core.paths import ROOT
+from scenarios.core.paths import located
 
 
 @dataclass
@@ -61,7 +61,7 @@ class FluxMap:
 _LEADING_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 #: the default motor's flux map (tools/default_motor/ makes it); its metadata is the motor's data sheet
-DEFAULT_MAP = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
+DEFAULT_MAP = located("fmu_src/resources/ev_ipmsm_default.csv")
 
 
 @dataclass(frozen=True)

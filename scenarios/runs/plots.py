@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.core.paths import ROOT
+from scenarios.core.paths import located
 from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
@@ -120,7 +120,7 @@ def _current_plane(a, tr: dict, drive) -> None:
 def _efficiency_background(ax, run_dir: Path) -> None:
     """The motor's efficiency map (docs/motor, brute force over the map) as grey contours, if present."""
     import json
-    p = ROOT / "docs" / "motor" / "efficiency_map.json"
+    p = located("docs/motor/efficiency_map.json")
     if not p.exists():
         return
     d = json.loads(p.read_text())

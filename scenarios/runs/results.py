@@ -9,6 +9,7 @@ import json
 from dataclasses import asdict, astuple, dataclass, field, fields
 from pathlib import Path
 
+from scenarios.core.version import VERSION
 from scenarios.cosim.master import AdvanceResult
 
 
@@ -132,6 +133,7 @@ class RunSummary:
     w_m_peak_rpm: float = 0.0         # the highest rotor speed of the run
     w_m_max_rpm: float | None = None  # the motor's top speed (motor.w_m_max; None: not known)
     time_above_top_speed_s: float = 0.0  # time the rotor spent above w_m_max
+    version: str = VERSION            # the ipmsm-fmu release that ran it (pyproject.toml, the FMUs' version)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from scenarios.core.paths import ROOT
+from scenarios.core.paths import OUT_DIR
 
 
 def add_parser(sub) -> None:
@@ -42,7 +42,7 @@ def main(args) -> int:
     except SpecError as e:
         print(f"study: {e}", file=sys.stderr)
         return 2
-    out = args.out or ROOT / "out" / "study" / args.spec.stem
+    out = args.out or OUT_DIR / "study" / args.spec.stem
     print(f"study: {len(spec.runs)} runs of {args.spec} -> {out}", flush=True)
     try:
         result = run_study(spec.runs, out, scheduler=args.scheduler, workers=args.workers, build=args.build)
