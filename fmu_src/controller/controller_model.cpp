@@ -8,6 +8,7 @@
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
 #include "machine/map_file.hpp"
+#include "machine/operating_region.hpp"
 
 namespace ipmsm {
 
@@ -112,6 +113,9 @@ void ControllerModel::exit_initialization() {
                                                        {"k_psi_T_per_K", "k_psi_T", k_psi_T}}))
             context_->log_warning(w);
     check_current_limit_within_map(*map, I_max);
+    // The map must be legal where the drive operates (operating_region.hpp); beyond, one warning.
+    const MapAcceptance acceptance = accept_flux_map(*map, I_max, path);
+    if (context_->log_warning && !acceptance.warning.empty()) context_->log_warning(acceptance.warning);
     SaturatedOptimalCurrent solver(map, pole_pairs);
     std::shared_ptr<const TorqueTable> table;
     if (method == 2 || method == 3) {
