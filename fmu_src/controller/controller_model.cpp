@@ -112,9 +112,9 @@ void ControllerModel::exit_initialization() {
                                                        {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
                                                        {"k_psi_T_per_K", "k_psi_T", k_psi_T}}))
             context_->log_warning(w);
-    check_current_limit_within_map(*map, I_max);
     // The map must be legal where the drive operates (operating_region.hpp); beyond, one warning.
     const MapAcceptance acceptance = accept_flux_map(*map, I_max, path);
+    check_current_limit_within_map(*map, I_max);
     if (context_->log_warning && !acceptance.warning.empty()) context_->log_warning(acceptance.warning);
     SaturatedOptimalCurrent solver(map, pole_pairs);
     std::shared_ptr<const TorqueTable> table;
