@@ -200,3 +200,46 @@ TEST(InverseFluxMap, OutsideTheTableCostDoesNotGrowWithTheNodes) {
     std::printf("  eval far outside: %.0f ns per call at 60 x 60 nodes, %.0f ns at 240 x 240\n", ns[0], ns[1]);
     EXPECT_LT(ns[1], 4 * ns[0]);  // a scan of every node: 16 times
 }
+
+// The continuation's inductances are the derivatives of its fluxes (Newton, CVODE's Jacobian),
+// beyond edges and corners, and its fluxes are continuous across B's edges.
+TEST(InverseFluxMap, ContinuationDerivativesMatchFiniteDifferences) {
+    const FluxMap m(saturating_flux_map(2e-4, 6e-4, 0.08, 150, 0.15, 300, 500, 21));
+    InverseFluxMapOptions o;
+    o.legal = CurrentBox{-400, 300, -350, 450};
+    const InverseFluxMap inv(m, o);
+    std::mt19937_64 rng(3);
+    std::uniform_real_distribution<double> u(-900, 900);
+    const double h = 1e-3;
+    int beyond = 0;
+    for (int s = 0; s < 2000; ++s) {
+        const double id = u(rng), iq = u(rng);
+        if (std::abs(id - inv.legal().i_d_min) < 2 * h || std::abs(id - inv.legal().i_d_max) < 2 * h ||
+            std::abs(iq - inv.legal().i_q_min) < 2 * h || std::abs(iq - inv.legal().i_q_max) < 2 * h)
+            continue;  // a kink of the Jacobian on B's edges
+        beyond += !inv.legal().contains(id, iq);
+        const FluxPoint p = inv.forward_eval(id, iq);
+        const FluxPoint a = inv.forward_eval(id + h, iq), b = inv.forward_eval(id - h, iq);
+        const FluxPoint c = inv.forward_eval(id, iq + h), d = inv.forward_eval(id, iq - h);
+        const double tol = 1e-7 * 6e-4;
+        EXPECT_NEAR(p.L_dd, (a.psi_d - b.psi_d) / (2 * h), tol) << id << ", " << iq;
+        EXPECT_NEAR(p.L_qd, (a.psi_q - b.psi_q) / (2 * h), tol) << id << ", " << iq;
+        EXPECT_NEAR(p.L_dq, (c.psi_d - d.psi_d) / (2 * h), tol) << id << ", " << iq;
+        EXPECT_NEAR(p.L_qq, (c.psi_q - d.psi_q) / (2 * h), tol) << id << ", " << iq;
+        EXPECT_GT(p.L_dd * p.L_qq - p.L_dq * p.L_qd, 0) << id << ", " << iq;
+    }
+    EXPECT_GT(beyond, 1000);
+    // Continuity across the edges.
+    for (double t = -1000; t <= 1000; t += 37) {
+        for (const double e : {inv.legal().i_d_min, inv.legal().i_d_max}) {
+            const FluxPoint a = inv.forward_eval(e - 1e-9, t), b = inv.forward_eval(e + 1e-9, t);
+            EXPECT_NEAR(a.psi_d, b.psi_d, 1e-9);
+            EXPECT_NEAR(a.psi_q, b.psi_q, 1e-9);
+        }
+        for (const double e : {inv.legal().i_q_min, inv.legal().i_q_max}) {
+            const FluxPoint a = inv.forward_eval(t, e - 1e-9), b = inv.forward_eval(t, e + 1e-9);
+            EXPECT_NEAR(a.psi_d, b.psi_d, 1e-9);
+            EXPECT_NEAR(a.psi_q, b.psi_q, 1e-9);
+        }
+    }
+}
