@@ -146,3 +146,28 @@ def test_drive_delivers_the_torque_command_at_10ms(corpus, name):
                 assert err < 0.01, (name, w, frac, s.T_e, s.T_cmd, s.T_max)
         print(f"{name}: w_m {w:.1f} rad/s, T_max {T_max:.2f} N m")
     print(f"{name}: worst |T_e - T_cmd| / T_max = {worst:.2e}")
+
+
+def far_corner_fold() -> FluxMap:
+    """A 500 A machine whose incremental inductances fold only at its far corner (i_d = 30 A,
+    i_q = -600 A; issue 23): a saturating q axis (tanh, I_s = 300 A) and a cross-coupling bump of
+    width 40 A there (the same map as tests/cpp/test_flux_map_acceptance.cpp's)."""
+    L_d, L_q, I_s, s, a, b, c_d, c_q = 2e-4, 6e-4, 300.0, 40.0, 5e-5, 3e-4, 30.0, -600.0
+    i_d, i_q = np.arange(-570.0, 631.0, 20.0), np.arange(-700.0, 701.0, 25.0)
+    I_d, I_q = np.meshgrid(i_d, i_q, indexing="ij")
+    x, y = I_d - c_d, I_q - c_q
+    bump = np.exp(-(x * x + y * y) / (2 * s * s))
+    return FluxMap(i_d, i_q, 0.08 + L_d * I_d + b * y * bump, L_q * I_s * np.tanh(I_q / I_s) + a * x * bump, {})
+
+
+@pytest.mark.parametrize("fmu", ["IpmsmController", "IpmsmPlant"])
+def test_far_corner_fold_loads_and_is_refused_once_I_max_reaches_it(fmu_instances, tmp_path, fmu):
+    path = tmp_path / "corner.csv"
+    write_flux_map(path, far_corner_fold())
+    inst, status = _init(fmu_instances, fmu, path, dict(I_max=500.0))
+    assert status == WARNING or status == 0, inst.log.text()
+    warnings = _map_warnings(inst)
+    assert len(warnings) == 1 and "folds at i_d = " in warnings[0], inst.log.text()
+    inst, status = _init(fmu_instances, fmu, path, dict(I_max=560.0))
+    assert status == 3 and "folds at i_d = " in inst.log.text() and "inside the drive's operating region" in (
+        inst.log.text()), inst.log.text()
