@@ -105,7 +105,8 @@ struct FluxPoint2 : FluxPoint {
 // tangential variation grows with distance (beyond the i_q edge, d psi_d / d i_d =
 // L_dd(i_b) + dL_dd/di_q (i_q - i_q,b)), so far outside a strongly cross-saturated map the
 // continuation can lose monotonicity (Baldor: L_dd < 0 some 9 A beyond its +-26 A i_q edge).
-// Keep the operating range inside the map.
+// Keep the operating range inside the map. (The plant does not invert this continuation but one
+// that cannot fold: InverseFluxMap::forward_eval, inverse_flux_map.hpp.)
 // A FluxMap may also be built from a table with as few as 2 x 2 points (linear_flux_map with
 // n = 2); read_flux_map requires 4 x 4.
 class FluxMap {
