@@ -35,8 +35,8 @@ ModelUnit model_unit(Model& model) {
     return {[&model](const std::string& name) -> double* {
                 for (const auto& v : Model::variables()) {
                     if (name != v.name) continue;
-                    const auto* member = std::get_if<double Model::*>(&v.member);
-                    return member != nullptr ? &(model.**member) : nullptr;
+                    const auto* a = std::get_if<fmi::Access<Model, double>>(&v.member);
+                    return a != nullptr && a->member != nullptr ? &(model.*(a->member)) : nullptr;
                 }
                 return nullptr;
             },
