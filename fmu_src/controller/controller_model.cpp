@@ -1,4 +1,4 @@
-#include "controller_model.hpp"
+#include "controller/controller_model.hpp"
 
 #include <cmath>
 #include <sstream>

@@ -1,4 +1,4 @@
-#include "drive_model.hpp"
+#include "drive/drive_model.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "controller_model.hpp"
+#include "controller/controller_model.hpp"
 #include "coupling/coupled_models.hpp"
 #include "inverter/inverter_loss.hpp"
 #include "model.hpp"
