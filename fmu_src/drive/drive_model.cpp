@@ -23,19 +23,12 @@ const coupling::Coupling& drive_coupling() {
     return c;
 }
 
-template <class Sub>
-const fmi::Variable<Sub>* find(const char* name) {
-    for (const auto& v : Sub::variables())
-        if (std::string(name) == v.name) return &v;
-    return nullptr;
-}
-
 // The drive's entry for a variable of the plant and/or the controller: the plant's unit,
 // description and causality (the controller's where the plant has none), the range both accept,
 // fixed where either is fixed. One source: the models' tables.
 V of_models(const char* name, fmi::Member<M> member) {
-    const auto* p = find<PlantModel>(name);
-    const auto* c = find<ControllerModel>(name);
+    const auto* p = fmi::find_variable<PlantModel>(name);
+    const auto* c = fmi::find_variable<ControllerModel>(name);
     if (p == nullptr && c == nullptr) throw std::logic_error(std::string("IpmsmDrive: no model has ") + name);
     V v = p != nullptr ? V{p->name,         std::move(member), p->causality, p->variability, p->unit,
                            p->display_unit, p->description,    p->min,       p->max,         p->min_exclusive}
@@ -64,8 +57,8 @@ T Sub::*member_of(const fmi::Variable<Sub>* v) {
 // one (else from the controller), written to both.
 template <class T>
 fmi::Member<M> to_models(const char* name, ControllerModel M::*controller, PlantModel M::*plant) {
-    T ControllerModel::*c = member_of<T>(find<ControllerModel>(name));
-    T PlantModel::*p = member_of<T>(find<PlantModel>(name));
+    T ControllerModel::*c = member_of<T>(fmi::find_variable<ControllerModel>(name));
+    T PlantModel::*p = member_of<T>(fmi::find_variable<PlantModel>(name));
     return fmi::Access<M, T>{[=](const M& d) { return p != nullptr ? d.*plant.*p : d.*controller.*c; },
                              [=](M& d, const T& x) {
                                  if (c != nullptr) d.*controller.*c = x;
@@ -75,8 +68,8 @@ fmi::Member<M> to_models(const char* name, ControllerModel M::*controller, Plant
 
 // A parameter of the models, declared once: of_models() with the value forwarded to them.
 V parameter(const char* name, ControllerModel M::*controller, PlantModel M::*plant) {
-    const auto* p = find<PlantModel>(name);
-    const auto* c = find<ControllerModel>(name);
+    const auto* p = fmi::find_variable<PlantModel>(name);
+    const auto* c = fmi::find_variable<ControllerModel>(name);
     const fmi::Type t = p != nullptr ? fmi::type_of(*p) : c != nullptr ? fmi::type_of(*c) : fmi::Type::Real;
     switch (t) {
         case fmi::Type::Real: return of_models(name, to_models<double>(name, controller, plant));

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -157,6 +158,24 @@ T value_of(const M& m, const Variable<M>& v) {
 template <class T, class M>
 void set_value(M& m, const Variable<M>& v, const T& x) {
     std::get<Access<M, T>>(v.member).write(m, x);
+}
+
+// M's variable called `name`, or nullptr: the one lookup by name in a model's table.
+template <class M>
+const Variable<M>* find_variable(const std::string& name) {
+    for (const auto& v : M::variables())
+        if (name == v.name) return &v;
+    return nullptr;
+}
+
+// The value of m's Real or Integer parameter `name` as a double; nullopt if m has none.
+template <class M>
+std::optional<double> parameter_number(const M& m, const std::string& name) {
+    const Variable<M>* v = find_variable<M>(name);
+    if (v == nullptr || v->causality != Causality::parameter) return std::nullopt;
+    if (type_of(*v) == Type::Real) return value_of<double>(m, *v);
+    if (type_of(*v) == Type::Integer) return value_of<int>(m, *v);
+    return std::nullopt;
 }
 
 // Copies the value of v from one model to another.
