@@ -82,10 +82,6 @@ struct CvodeIntegrator::Workspace : LinearisedProblem {
     std::string bad_flux;     // where the currents could not be found (for the error message)
     std::string error;        // CVODE's error messages of the current call
     std::string warning;      // CVODE's warnings of the current call
-    // reinit_each_step = false: where CVODE's history stands, to know whether it continues.
-    bool live = false;
-    double live_tau = 0, live_psi[2] = {0, 0};            // CVODE's clock and state where it stopped
-    double live_q[StepIntegrands::count] = {0, 0, 0, 0};  // ... and the step integrals
     // Tolerances given to CVODE (CVodeSVtolerances clears CVODE's error-weight data until its next
     // initial setup, so it is called only when they change, and then CVODE is re-initialised).
     double rtol = 0, atol[kStates] = {0, 0, 0, 0, 0, 0};
@@ -258,14 +254,12 @@ void CvodeIntegrator::reset(double t, double psi_d, double psi_q) {
 
 double CvodeIntegrator::initial_step(const DqFluxOde& ode, double span, bool linearised) const {
     switch (settings_.init_step) {
-        case CvodeInitStep::estimate: return 0.0;
         case CvodeInitStep::curvature:
             // linearised: z(0) = z'(0) = z''(0) = 0 (N and its gradient vanish at psi0), so the
             // order-1 start has no curvature to resolve: try the whole step.
             if (linearised) return span;
             break;
-        case CvodeInitStep::previous_last:
-        case CvodeInitStep::previous_next: return std::min(state_.h_next, span);
+        case CvodeInitStep::previous_last: return std::min(state_.h_next, span);
     }
     // Order 1 (where CVODE restarts) has the local error about h^2/2 |y''|; CVODE accepts a step
     // when its weighted RMS norm is <= 1 (weights 1 / (rtol |y| + atol)). Aim at a quarter of
@@ -301,93 +295,70 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     void* mem = w.h.mem;
     const std::array<double, kStates> atol = tolerances(settings_, integrands, h);
     const bool new_tolerances = !w.same_tolerances(settings_.rtol, atol.data());
-    // History kept (direct formulation only): CVODE's clock continues from where it stopped.
-    const bool resume = !settings_.linearised && !settings_.reinit_each_step && w.live && !new_tolerances &&
-                        w.live_psi[0] == state_.psi[0] && w.live_psi[1] == state_.psi[1] &&
-                        h > 64 * std::numeric_limits<double>::epsilon() * w.live_tau;
-    const double tau0 = resume ? w.live_tau : 0.0, tau_end = tau0 + h;
-    long steps0 = 0, rhs0 = 0, etf0 = 0, nni0 = 0, ncf0 = 0;
-    double integrals[StepIntegrands::count] = {0, 0, 0, 0}, q_end[StepIntegrands::count] = {0, 0, 0, 0};
-    try {
-        if (resume) {
-            CVodeGetNumSteps(mem, &steps0);
-            CVodeGetNumRhsEvals(mem, &rhs0);
-            CVodeGetNumErrTestFails(mem, &etf0);
-            CVodeGetNumNonlinSolvIters(mem, &nni0);
-            CVodeGetNumNonlinSolvConvFails(mem, &ncf0);
-        } else {
-            w.linearised = false;
-            if (settings_.linearised) {
-                // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
-                Linearisation& L = w.lin;
-                double A[4];
-                const InverseFluxPoint c =
-                    ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
-                ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
-                if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
-                    throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
-                                     " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
-                L.psi0[0] = state_.psi[0];
-                L.psi0[1] = state_.psi[1];
-                L.i0[0] = c.i_d;
-                L.i0[1] = c.i_q;
-                L.G0[0] = c.G_dd;
-                L.G0[1] = c.G_dq;
-                L.G0[2] = c.G_qd;
-                L.G0[3] = c.G_qq;
-                L.flow = LinearFlow(A);
-                // z = exp(-tau A) (...) grows like a decaying mode decays: where the electrical
-                // time constant is shorter than the step (a stiff map), z would be badly scaled,
-                // and CVODE integrates psi itself (cvode_method 2, BDF, is meant for those).
-                w.linearised = L.flow.max_decay() * h <= kStiffLimit;
-            }
-            if (w.linearised) {
-                y[0] = y[1] = 0.0;
-            } else {
-                y[0] = state_.psi[0];
-                y[1] = state_.psi[1];
-            }
-            std::fill(y + 2, y + kStates, 0.0);  // the step integrals
-            std::fill(w.live_q, w.live_q + StepIntegrands::count, 0.0);
-            w.live = false;
-            w.integrands = integrands;
-            if (w.linearised && settings_.explicit_first && settings_.reinit_each_step) {
-                double y_end[kStates], psi_end[2];
-                InverseFluxPoint c_end;
-                CvodeStats est;
-                if (explicit_steps(w, h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
-                    commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
-                    return;
-                }
-            }
-            w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
-            w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
+    const double tau_end = h;
+    double integrals[StepIntegrands::count] = {0, 0, 0, 0};
+    w.linearised = false;
+    if (settings_.linearised) {
+        // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
+        Linearisation& L = w.lin;
+        double A[4];
+        const InverseFluxPoint c = ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
+        ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
+        if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
+            throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
+                             " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
+        L.psi0[0] = state_.psi[0];
+        L.psi0[1] = state_.psi[1];
+        L.i0[0] = c.i_d;
+        L.i0[1] = c.i_q;
+        L.G0[0] = c.G_dd;
+        L.G0[1] = c.G_dq;
+        L.G0[2] = c.G_qd;
+        L.G0[3] = c.G_qq;
+        L.flow = LinearFlow(A);
+        // z = exp(-tau A) (...) grows like a decaying mode decays: where the electrical
+        // time constant is shorter than the step (a stiff map), z would be badly scaled,
+        // and CVODE integrates psi itself (cvode_method 2, BDF, is meant for those).
+        w.linearised = L.flow.max_decay() * h <= kStiffLimit;
+    }
+    if (w.linearised) {
+        y[0] = y[1] = 0.0;
+    } else {
+        y[0] = state_.psi[0];
+        y[1] = state_.psi[1];
+    }
+    std::fill(y + 2, y + kStates, 0.0);  // the step integrals
+    w.integrands = integrands;
+    if (w.linearised && settings_.explicit_first) {
+        double y_end[kStates], psi_end[2];
+        InverseFluxPoint c_end;
+        CvodeStats est;
+        if (explicit_steps(w, h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
+            commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
+            return;
         }
-        w.integrands = integrands;
-        if (new_tolerances) w.set_tolerances(settings_.rtol, atol.data());
-        w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
-        w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
-        double t_ret = tau0;
-        const int flag = CVode(mem, tau_end, w.h.y, &t_ret, CV_NORMAL);
-        if (flag < 0) {
-            std::string m = "CVODE failed over a step of " + number(h) + " s (" + flag_name(flag) + ")";
-            if (!w.error.empty()) m += ": " + w.error;
-            if (!w.bad_flux.empty())
-                m += "; no finite currents at " + w.bad_flux +
-                     " (the flux linkages left what the flux map and its continuation can invert)";
-            throw CvodeError(m);
-        }
-        if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
-            throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
-        for (int k = 0; k < StepIntegrands::count; ++k) {
-            q_end[k] = y[2 + k];
-            integrals[k] = q_end[k] - w.live_q[k];
-            if (!std::isfinite(integrals[k]))
-                throw CvodeError("non-finite step integrals at the end of a step of " + number(h) + " s");
-        }
-    } catch (...) {
-        w.live = false;
-        throw;
+    }
+    w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
+    w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
+    if (new_tolerances) w.set_tolerances(settings_.rtol, atol.data());
+    w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
+    w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
+    double t_ret = 0.0;
+    const int flag = CVode(mem, tau_end, w.h.y, &t_ret, CV_NORMAL);
+    if (flag < 0) {
+        std::string m = "CVODE failed over a step of " + number(h) + " s (" + flag_name(flag) + ")";
+        if (!w.error.empty()) m += ": " + w.error;
+        if (!w.bad_flux.empty())
+            m += "; no finite currents at " + w.bad_flux +
+                 " (the flux linkages left what the flux map and its continuation can invert)";
+        throw CvodeError(m);
+    }
+    if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
+        throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
+    for (int k = 0; k < StepIntegrands::count; ++k) {
+        integrals[k] = y[2 + k];
+        if (!std::isfinite(integrals[k]))
+            throw CvodeError("non-finite step integrals at the end of a step of " + number(h) + " s");
     }
 
     CvodeStats st;
@@ -398,11 +369,6 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     CVodeGetNumNonlinSolvConvFails(mem, &st.nonlinear_failures);
     CVodeGetLastOrder(mem, &st.last_order);
     CVodeGetLastStep(mem, &st.last_step);
-    st.steps -= steps0;
-    st.rhs_evals -= rhs0;
-    st.error_test_fails -= etf0;
-    st.nonlinear_iterations -= nni0;
-    st.nonlinear_failures -= ncf0;
 
     double psi_end[2] = {y[0], y[1]};
     if (w.linearised) {
@@ -421,13 +387,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     }
 
     double h_next = st.last_step;
-    if (settings_.init_step == CvodeInitStep::previous_next) CVodeGetCurrentStep(mem, &h_next);
     commit(h, psi_end, c_end, h_next > 0 && std::isfinite(h_next) ? h_next : 0.0, st, integrals, w.warning);
-    std::copy(q_end, q_end + StepIntegrands::count, w.live_q);
-    w.live = true;
-    w.live_tau = tau_end;
-    w.live_psi[0] = psi_end[0];
-    w.live_psi[1] = psi_end[1];
 }
 
 void CvodeIntegrator::commit(double h, const double* psi_end, const InverseFluxPoint& c_end, double h_next,
