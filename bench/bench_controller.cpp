@@ -22,6 +22,7 @@
 #include "control/map_newton.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
+#include "flux_map_generators.hpp"
 #include "numerics/quartic.hpp"
 
 using namespace ipmsm;

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "drive_model.hpp"
+#include "drive/drive_model.hpp"
 
 namespace {
 

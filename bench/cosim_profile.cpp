@@ -23,7 +23,7 @@
 #include <string>
 #include <vector>
 
-#include "controller_model.hpp"
+#include "controller/controller_model.hpp"
 #include "coupling/coupled_models.hpp"
 #include "coupling/drive_coupling_text.hpp"
 #include "fmi2_support.hpp"

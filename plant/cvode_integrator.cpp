@@ -15,7 +15,8 @@
 #include <sunmatrix/sunmatrix_dense.h>
 #include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
-#include "linear_flow.hpp"
+#include "explicit_steps.hpp"
+#include "linearised_step.hpp"
 
 namespace ipmsm {
 
@@ -23,13 +24,6 @@ namespace {
 
 // Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
 constexpr double kStiffLimit = 2.0;
-
-// Attempts of explicit steps across one call before CVODE integrates it instead: a call that
-// needs more is stiff or has a kink the third-order method cannot step over cheaply.
-constexpr int kMaxExplicitSteps = 8;
-
-// CVODE's y: the two flux components (z or psi) and the step integrals (cvode_integrator.hpp).
-constexpr int kStates = 2 + StepIntegrands::count;
 
 // The absolute tolerances of y's components: atol on the flux components, its equivalents on the
 // step integrals (cvode_integrator.hpp).
@@ -81,63 +75,13 @@ struct CvodeHandles {
 
 // The CVODE objects of one integrator and the data CVODE's callbacks see: scratch memory, never
 // copied, at a fixed address (the callbacks' user data).
-struct CvodeIntegrator::Workspace {
+// CVODE's y is z in the linearised formulation (linearised_step.hpp), psi in the direct one.
+struct CvodeIntegrator::Workspace : LinearisedProblem {
     CvodeSettings built_for;  // structure
-    DqFluxOde ode;            // the RHS's data during advance()
-    // linearised: the step's linearisation at psi0 (cvode_integrator.hpp). CVODE's y is z.
-    // The linear flow at one tau: exp(tau A), exp(-tau A), P(tau) (linear_flow.hpp).
-    struct FlowAt {
-        double E[4], E_inv[4], P[4];
-        // At tau + sigma from the flows at tau (this) and at sigma: exp((tau + sigma) A) =
-        // exp(tau A) exp(sigma A), P(tau + sigma) = P(tau) + exp(tau A) P(sigma).
-        FlowAt then(const FlowAt& s) const {
-            FlowAt r;
-            mul(E, s.E, r.E);
-            mul(s.E_inv, E_inv, r.E_inv);
-            double EP[4];
-            mul(E, s.P, EP);
-            for (int k = 0; k < 4; ++k) r.P[k] = P[k] + EP[k];
-            return r;
-        }
-        static void mul(const double* a, const double* b, double* c) {
-            c[0] = a[0] * b[0] + a[1] * b[2];
-            c[1] = a[0] * b[1] + a[1] * b[3];
-            c[2] = a[2] * b[0] + a[3] * b[2];
-            c[3] = a[2] * b[1] + a[3] * b[3];
-        }
-    };
-    struct Linearisation {
-        double psi0[2], i0[2], G0[4], f0[2];
-        LinearFlow flow;
-        FlowAt at(double tau) const {
-            FlowAt F;
-            flow.exp(tau, F.E, F.E_inv);
-            flow.integral(tau, F.E, F.P);
-            return F;
-        }
-        // psi(tau) for z, the flow at tau given.
-        void psi_at(const FlowAt& F, const double* z, double* psi) const {
-            psi[0] = psi0[0] + F.P[0] * f0[0] + F.P[1] * f0[1] + F.E[0] * z[0] + F.E[1] * z[1];
-            psi[1] = psi0[1] + F.P[2] * f0[0] + F.P[3] * f0[1] + F.E[2] * z[0] + F.E[3] * z[1];
-        }
-        // The linearisation's currents at psi, i0 + G0 (psi - psi0): within a step the currents are
-        // near them, so the inverse map's Newton starts there (one forward-map evaluation, not the
-        // table's three).
-        void predicted_currents(const double* psi, double* i) const {
-            const double dd = psi[0] - psi0[0], dq = psi[1] - psi0[1];
-            i[0] = i0[0] + G0[0] * dd + G0[1] * dq;
-            i[1] = i0[1] + G0[2] * dd + G0[3] * dq;
-        }
-    } lin;
-    bool linearised = false;                     // this call's formulation (built_for.linearised unless too stiff)
-    const StepIntegrands* integrands = nullptr;  // this call's, or none (their components' y' = 0)
-    std::string bad_flux;                        // where the currents could not be found (for the error message)
-    std::string error;                           // CVODE's error messages of the current call
-    std::string warning;                         // CVODE's warnings of the current call
-    // reinit_each_step = false: where CVODE's history stands, to know whether it continues.
-    bool live = false;
-    double live_tau = 0, live_psi[2] = {0, 0};            // CVODE's clock and state where it stopped
-    double live_q[StepIntegrands::count] = {0, 0, 0, 0};  // ... and the step integrals
+    bool linearised = false;  // this call's formulation (built_for.linearised unless too stiff)
+    std::string bad_flux;     // where the currents could not be found (for the error message)
+    std::string error;        // CVODE's error messages of the current call
+    std::string warning;      // CVODE's warnings of the current call
     // Tolerances given to CVODE (CVodeSVtolerances clears CVODE's error-weight data until its next
     // initial setup, so it is called only when they change, and then CVODE is re-initialised).
     double rtol = 0, atol[kStates] = {0, 0, 0, 0, 0, 0};
@@ -178,114 +122,6 @@ struct CvodeIntegrator::Workspace {
         return 1;
     }
 
-    // The linearised right-hand side at tau for y = (z, step integrals), with the path's psi and
-    // its currents.
-    void linearised_rhs(const FlowAt& F, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
-        lin.psi_at(F, y, psi);
-        double i_lin[2];
-        lin.predicted_currents(psi, i_lin);
-        c = ode.currents_near(psi[0], psi[1], i_lin[0], i_lin[1]);
-        // The nonlinear remainder N = -R (i(psi) - i_lin(psi)), carried back by exp(-tau A).
-        const double n0 = -ode.R * (c.i_d - i_lin[0]), n1 = -ode.R * (c.i_q - i_lin[1]);
-        d[0] = F.E_inv[0] * n0 + F.E_inv[1] * n1;
-        d[1] = F.E_inv[2] * n0 + F.E_inv[3] * n1;
-        integrands_at(psi, c, d + 2);
-    }
-
-    // The step integrals' integrands at psi with its currents c (zeros without integrands).
-    void integrands_at(const double* psi, const InverseFluxPoint& c, double* q) const {
-        if (integrands != nullptr)
-            integrands->eval(ode, psi[0], psi[1], c.i_d, c.i_q, q);
-        else
-            std::fill(q, q + StepIntegrands::count, 0.0);
-    }
-
-    // One Bogacki-Shampine 3(2) step of length dt from y with y' = k1 (Bogacki and Shampine, Appl.
-    // Math. Lett. 2 (1989) 321-325), the flows at its stages dt / 2, 3 dt / 4 and dt given: y_new,
-    // k4 = y'(y_new) (the next step's k1), psi and the currents there; returns the squared
-    // weighted norm of the embedded error estimate (CVODE's weights rtol |y_new| + atol, summed
-    // over y's components; NaN where the currents could not be found).
-    double bs3_step(const FlowAt& F2, const FlowAt& F3, const FlowAt& F4, double dt, const double* y, const double* k1,
-                    double rtol, const double* atol, double* y_new, double* k4, double* psi_new,
-                    InverseFluxPoint& c_new) const {
-        double k2[kStates], k3[kStates], ys[kStates], psi[2];
-        InverseFluxPoint c;
-        for (int k = 0; k < kStates; ++k) ys[k] = y[k] + 0.5 * dt * k1[k];
-        linearised_rhs(F2, ys, k2, psi, c);
-        for (int k = 0; k < kStates; ++k) ys[k] = y[k] + 0.75 * dt * k2[k];
-        linearised_rhs(F3, ys, k3, psi, c);
-        for (int k = 0; k < kStates; ++k)
-            y_new[k] = y[k] + dt * (2.0 / 9.0 * k1[k] + 1.0 / 3.0 * k2[k] + 4.0 / 9.0 * k3[k]);
-        linearised_rhs(F4, y_new, k4, psi_new, c_new);
-        double sum = 0.0;
-        for (int k = 0; k < kStates; ++k) {
-            const double e = dt * (-5.0 / 72.0 * k1[k] + 1.0 / 12.0 * k2[k] + 1.0 / 9.0 * k3[k] - 0.125 * k4[k]);
-            const double r = e / (rtol * std::abs(y_new[k]) + atol[k]);
-            sum += r * r;
-        }
-        const bool found = std::isfinite(psi_new[0]) && std::isfinite(psi_new[1]) && std::isfinite(c_new.i_d) &&
-                           std::isfinite(c_new.i_q);
-        return found ? sum : std::numeric_limits<double>::quiet_NaN();
-    }
-
-    // Explicit steps from y = 0 across the span (cvode_integrator.hpp): one Bogacki-Shampine step
-    // over the whole span; where its error estimate's weighted RMS norm exceeds 1, shorter steps
-    // under the standard step-size controller for a third-order pair (safety 0.9, a change per
-    // step within [0.2, 5]: Hairer, Norsett and Wanner, Solving Ordinary Differential Equations I,
-    // 2nd ed., section II.4). True, with y(span), psi(span), the currents there and the steps
-    // taken, when at most kMaxExplicitSteps attempts crossed the span (false as soon as the step
-    // length the estimates ask for says they will not, or where the currents could not be found:
-    // CVODE decides).
-    bool explicit_steps(double span, double rtol, const double* atol, double* y_end, double* psi_end,
-                        InverseFluxPoint& c_end, CvodeStats& st) const {
-        double k1[kStates], k4[kStates], y[kStates] = {0, 0, 0, 0, 0, 0}, y_new[kStates];
-        // tau = 0: z = 0, psi = psi0, N(psi0) = 0; the integrands at the start's currents.
-        k1[0] = k1[1] = 0.0;
-        const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
-        integrands_at(lin.psi0, c0, k1 + 2);
-        st = CvodeStats{};
-        st.last_order = 3;
-        st.rhs_evals = 3;
-        st.explicit_only = true;  // unless it returns false
-        // The whole span in one step: the flows at span / 2, 3 span / 4, span from the one at span / 4.
-        const FlowAt G = lin.at(0.25 * span), G2 = G.then(G);
-        double sum = bs3_step(G2, G2.then(G), G2.then(G2), span, y, k1, rtol, atol, y_end, k4, psi_end, c_end);
-        if (sum <= kStates) {
-            st.steps = 1;
-            st.last_step = span;
-            return true;
-        }
-        st.error_test_fails = 1;
-        // Shorter steps from tau with y, the flow at tau F0.
-        FlowAt F0 = lin.at(0.0);
-        double tau = 0.0, dt = span;
-        for (int attempt = 1;; ++attempt) {
-            if (!std::isfinite(sum)) return false;
-            const double norm = std::sqrt(sum / kStates);
-            dt *= norm > 0.0 ? std::clamp(0.9 * std::cbrt(1.0 / norm), 0.2, 5.0) : 5.0;
-            if ((span - tau) / dt > kMaxExplicitSteps - attempt) return false;  // would not fit in the attempts left
-            const bool last = tau + dt >= span * (1.0 - 1e-12);
-            if (last) dt = span - tau;
-            const FlowAt H = lin.at(0.25 * dt), H2 = H.then(H), F2 = F0.then(H2), F4 = F2.then(H2);
-            sum = bs3_step(F2, F2.then(H), F4, dt, y, k1, rtol, atol, y_new, k4, psi_end, c_end);
-            st.rhs_evals += 3;
-            if (sum <= kStates) {  // accepted; k4 is the next step's k1 (first same as last)
-                ++st.steps;
-                st.last_step = dt;
-                if (last) {
-                    std::copy(y_new, y_new + kStates, y_end);
-                    return true;
-                }
-                tau += dt;
-                std::copy(y_new, y_new + kStates, y);
-                std::copy(k4, k4 + kStates, k1);
-                F0 = F4;
-            } else {
-                ++st.error_test_fails;
-            }
-        }
-    }
-
     // y = (the two flux components, the step integrals); the integrals' y' are the integrands at
     // the path's flux linkages, from the same inverse-map evaluation as the flux components'.
     static int rhs(realtype tau, N_Vector y, N_Vector ydot, void* data) {
@@ -318,7 +154,7 @@ struct CvodeIntegrator::Workspace {
         } else {
             // d z' / d z = exp(-tau A) (-R) (G(psi) - G0) exp(tau A)
             const Linearisation& L = w->lin;
-            const Workspace::FlowAt F = L.at(tau);
+            const FlowAt F = L.at(tau);
             const double *E = F.E, *E_inv = F.E_inv;
             double psi[2];
             L.psi_at(F, N_VGetArrayPointer(y), psi);
@@ -418,14 +254,12 @@ void CvodeIntegrator::reset(double t, double psi_d, double psi_q) {
 
 double CvodeIntegrator::initial_step(const DqFluxOde& ode, double span, bool linearised) const {
     switch (settings_.init_step) {
-        case CvodeInitStep::estimate: return 0.0;
         case CvodeInitStep::curvature:
             // linearised: z(0) = z'(0) = z''(0) = 0 (N and its gradient vanish at psi0), so the
             // order-1 start has no curvature to resolve: try the whole step.
             if (linearised) return span;
             break;
-        case CvodeInitStep::previous_last:
-        case CvodeInitStep::previous_next: return std::min(state_.h_next, span);
+        case CvodeInitStep::previous_last: return std::min(state_.h_next, span);
     }
     // Order 1 (where CVODE restarts) has the local error about h^2/2 |y''|; CVODE accepts a step
     // when its weighted RMS norm is <= 1 (weights 1 / (rtol |y| + atol)). Aim at a quarter of
@@ -461,93 +295,70 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     void* mem = w.h.mem;
     const std::array<double, kStates> atol = tolerances(settings_, integrands, h);
     const bool new_tolerances = !w.same_tolerances(settings_.rtol, atol.data());
-    // History kept (direct formulation only): CVODE's clock continues from where it stopped.
-    const bool resume = !settings_.linearised && !settings_.reinit_each_step && w.live && !new_tolerances &&
-                        w.live_psi[0] == state_.psi[0] && w.live_psi[1] == state_.psi[1] &&
-                        h > 64 * std::numeric_limits<double>::epsilon() * w.live_tau;
-    const double tau0 = resume ? w.live_tau : 0.0, tau_end = tau0 + h;
-    long steps0 = 0, rhs0 = 0, etf0 = 0, nni0 = 0, ncf0 = 0;
-    double integrals[StepIntegrands::count] = {0, 0, 0, 0}, q_end[StepIntegrands::count] = {0, 0, 0, 0};
-    try {
-        if (resume) {
-            CVodeGetNumSteps(mem, &steps0);
-            CVodeGetNumRhsEvals(mem, &rhs0);
-            CVodeGetNumErrTestFails(mem, &etf0);
-            CVodeGetNumNonlinSolvIters(mem, &nni0);
-            CVodeGetNumNonlinSolvConvFails(mem, &ncf0);
-        } else {
-            w.linearised = false;
-            if (settings_.linearised) {
-                // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
-                Workspace::Linearisation& L = w.lin;
-                double A[4];
-                const InverseFluxPoint c =
-                    ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
-                ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
-                if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
-                    throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
-                                     " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
-                L.psi0[0] = state_.psi[0];
-                L.psi0[1] = state_.psi[1];
-                L.i0[0] = c.i_d;
-                L.i0[1] = c.i_q;
-                L.G0[0] = c.G_dd;
-                L.G0[1] = c.G_dq;
-                L.G0[2] = c.G_qd;
-                L.G0[3] = c.G_qq;
-                L.flow = LinearFlow(A);
-                // z = exp(-tau A) (...) grows like a decaying mode decays: where the electrical
-                // time constant is shorter than the step (a stiff map), z would be badly scaled,
-                // and CVODE integrates psi itself (cvode_method 2, BDF, is meant for those).
-                w.linearised = L.flow.max_decay() * h <= kStiffLimit;
-            }
-            if (w.linearised) {
-                y[0] = y[1] = 0.0;
-            } else {
-                y[0] = state_.psi[0];
-                y[1] = state_.psi[1];
-            }
-            std::fill(y + 2, y + kStates, 0.0);  // the step integrals
-            std::fill(w.live_q, w.live_q + StepIntegrands::count, 0.0);
-            w.live = false;
-            w.integrands = integrands;
-            if (w.linearised && settings_.explicit_first && settings_.reinit_each_step) {
-                double y_end[kStates], psi_end[2];
-                InverseFluxPoint c_end;
-                CvodeStats est;
-                if (w.explicit_steps(h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
-                    commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
-                    return;
-                }
-            }
-            w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
-            w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
+    const double tau_end = h;
+    double integrals[StepIntegrands::count] = {0, 0, 0, 0};
+    w.linearised = false;
+    if (settings_.linearised) {
+        // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
+        Linearisation& L = w.lin;
+        double A[4];
+        const InverseFluxPoint c = ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
+        ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
+        if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
+            throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
+                             " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
+        L.psi0[0] = state_.psi[0];
+        L.psi0[1] = state_.psi[1];
+        L.i0[0] = c.i_d;
+        L.i0[1] = c.i_q;
+        L.G0[0] = c.G_dd;
+        L.G0[1] = c.G_dq;
+        L.G0[2] = c.G_qd;
+        L.G0[3] = c.G_qq;
+        L.flow = LinearFlow(A);
+        // z = exp(-tau A) (...) grows like a decaying mode decays: where the electrical
+        // time constant is shorter than the step (a stiff map), z would be badly scaled,
+        // and CVODE integrates psi itself (cvode_method 2, BDF, is meant for those).
+        w.linearised = L.flow.max_decay() * h <= kStiffLimit;
+    }
+    if (w.linearised) {
+        y[0] = y[1] = 0.0;
+    } else {
+        y[0] = state_.psi[0];
+        y[1] = state_.psi[1];
+    }
+    std::fill(y + 2, y + kStates, 0.0);  // the step integrals
+    w.integrands = integrands;
+    if (w.linearised && settings_.explicit_first) {
+        double y_end[kStates], psi_end[2];
+        InverseFluxPoint c_end;
+        CvodeStats est;
+        if (explicit_steps(w, h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
+            commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
+            return;
         }
-        w.integrands = integrands;
-        if (new_tolerances) w.set_tolerances(settings_.rtol, atol.data());
-        w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
-        w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
-        double t_ret = tau0;
-        const int flag = CVode(mem, tau_end, w.h.y, &t_ret, CV_NORMAL);
-        if (flag < 0) {
-            std::string m = "CVODE failed over a step of " + number(h) + " s (" + flag_name(flag) + ")";
-            if (!w.error.empty()) m += ": " + w.error;
-            if (!w.bad_flux.empty())
-                m += "; no finite currents at " + w.bad_flux +
-                     " (the flux linkages left what the flux map and its continuation can invert)";
-            throw CvodeError(m);
-        }
-        if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
-            throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
-        for (int k = 0; k < StepIntegrands::count; ++k) {
-            q_end[k] = y[2 + k];
-            integrals[k] = q_end[k] - w.live_q[k];
-            if (!std::isfinite(integrals[k]))
-                throw CvodeError("non-finite step integrals at the end of a step of " + number(h) + " s");
-        }
-    } catch (...) {
-        w.live = false;
-        throw;
+    }
+    w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
+    w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
+    if (new_tolerances) w.set_tolerances(settings_.rtol, atol.data());
+    w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
+    w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
+    double t_ret = 0.0;
+    const int flag = CVode(mem, tau_end, w.h.y, &t_ret, CV_NORMAL);
+    if (flag < 0) {
+        std::string m = "CVODE failed over a step of " + number(h) + " s (" + flag_name(flag) + ")";
+        if (!w.error.empty()) m += ": " + w.error;
+        if (!w.bad_flux.empty())
+            m += "; no finite currents at " + w.bad_flux +
+                 " (the flux linkages left what the flux map and its continuation can invert)";
+        throw CvodeError(m);
+    }
+    if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
+        throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
+    for (int k = 0; k < StepIntegrands::count; ++k) {
+        integrals[k] = y[2 + k];
+        if (!std::isfinite(integrals[k]))
+            throw CvodeError("non-finite step integrals at the end of a step of " + number(h) + " s");
     }
 
     CvodeStats st;
@@ -558,11 +369,6 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     CVodeGetNumNonlinSolvConvFails(mem, &st.nonlinear_failures);
     CVodeGetLastOrder(mem, &st.last_order);
     CVodeGetLastStep(mem, &st.last_step);
-    st.steps -= steps0;
-    st.rhs_evals -= rhs0;
-    st.error_test_fails -= etf0;
-    st.nonlinear_iterations -= nni0;
-    st.nonlinear_failures -= ncf0;
 
     double psi_end[2] = {y[0], y[1]};
     if (w.linearised) {
@@ -581,13 +387,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     }
 
     double h_next = st.last_step;
-    if (settings_.init_step == CvodeInitStep::previous_next) CVodeGetCurrentStep(mem, &h_next);
     commit(h, psi_end, c_end, h_next > 0 && std::isfinite(h_next) ? h_next : 0.0, st, integrals, w.warning);
-    std::copy(q_end, q_end + StepIntegrands::count, w.live_q);
-    w.live = true;
-    w.live_tau = tau_end;
-    w.live_psi[0] = psi_end[0];
-    w.live_psi[1] = psi_end[1];
 }
 
 void CvodeIntegrator::commit(double h, const double* psi_end, const InverseFluxPoint& c_end, double h_next,

@@ -19,7 +19,7 @@
 // gets); state().t is bookkeeping only.
 //
 // The integrator's state is plain data: the time, the flux linkages and the initial step size for
-// the next call. By default CVODE is re-initialised at every call of advance() (every
+// the next call. CVODE is re-initialised at every call of advance() (every
 // communication point): the inputs jump there anyway, and then the result of a call depends only
 // on that plain state, the ODE's inputs and the settings, never on CVODE's history. This makes
 // copies, FMU-state rollback and serialisation exact (bit-identical outputs) without touching
@@ -39,8 +39,7 @@
 // their integrands come from the inverse-map evaluation the flux components make anyway. They
 // restart from 0 at every call: step_integrals() are the last call's.
 //
-// explicit_first (with linearised, reinit_each_step): before CVODE, explicit Runge-Kutta steps
-// across the call (Bogacki-Shampine 3(2), three evaluations of the right-hand side per step; the
+// explicit_first (with linearised): before CVODE, explicit Runge-Kutta steps across the call (Bogacki-Shampine 3(2), three evaluations of the right-hand side per step; the
 // first stage is known: z' = 0 at tau = 0, and later ones reuse the last stage) of z and the step
 // integrals, each step's embedded error estimate measured in CVODE's weighted RMS norm with the
 // same tolerances (weights rtol |y| + atol at the step's end). The first step spans the whole
@@ -58,10 +57,6 @@
 // next call's linearisation evaluates them afresh with Newton started from them (state().i_seed,
 // part of the state: a call's result depends on its start state only, copies and restored
 // states are exact), or from the map's table where the seed is unknown (NaN, after reset()).
-//
-// reinit_each_step = false (for the benchmark only, with linearised = false: a linearisation is
-// one call's) keeps CVODE's history across calls (input jumps then go into CVODE's error
-// control); copies of such an integrator are not exact.
 #pragma once
 
 #include <limits>
@@ -88,9 +83,7 @@ enum class CvodeNonlinear : int {
 
 // Initial step size after a re-initialisation.
 enum class CvodeInitStep : int {
-    estimate = 0,       // CVODE's own estimate (costs RHS evaluations every call)
-    previous_last = 1,  // the last internal step size of the previous call (first call: estimate)
-    previous_next = 2,  // the step size CVODE would have tried next in the previous call
+    previous_last = 1,  // the last internal step size of the previous call (first call: CVODE's estimate)
     curvature = 3,      // from the solution's second derivative at the start, y'' = J f(y)
                         // (J from the inverse map's dI/dpsi): the step whose order-1 local error
                         // meets the tolerance; the whole interval if y'' = 0
@@ -103,7 +96,6 @@ struct CvodeSettings {
     long max_steps = 10000;  // internal steps per advance() before CVODE gives up
     double rtol = 1e-6;      // relative tolerance
     double atol = 1e-6;      // absolute tolerance on the flux linkages, Wb
-    bool reinit_each_step = true;
     bool linearised = true;  // integrate the remainder of the step's linearisation (above)
     CvodeInitStep init_step = CvodeInitStep::previous_last;
     double init_step_error = 0.25;  // curvature: the first step's aimed error, fraction of the tolerance
@@ -115,21 +107,6 @@ struct CvodeSettings {
     bool same_structure(const CvodeSettings& o) const {
         return method == o.method && nonlinear == o.nonlinear && max_order == o.max_order &&
                nonlin_conv_coef == o.nonlin_conv_coef && linearised == o.linearised;
-    }
-    // CVODE's defaults: BDF (order <= 5), Newton with a dense solver and difference-quotient
-    // Jacobian, its own initial step estimate, history kept across calls (no re-initialisation).
-    static CvodeSettings cvode_defaults(double rtol, double atol) {
-        CvodeSettings s;
-        s.method = CvodeMethod::bdf;
-        s.nonlinear = CvodeNonlinear::newton_dq;
-        s.max_order = 0;
-        s.max_steps = 500;
-        s.rtol = rtol;
-        s.atol = atol;
-        s.reinit_each_step = false;
-        s.linearised = false;
-        s.init_step = CvodeInitStep::estimate;
-        return s;
     }
 };
 
@@ -166,7 +143,7 @@ public:
     // Integrates over a step of h > 0 seconds from state() with the ODE's inputs held (in
     // relative time: the result does not depend on state().t, which then grows by h). Throws
     // CvodeError (CVODE's message) and leaves the state unchanged if CVODE fails.
-    // linearised and reinit_each_step together: a call's result depends only on state().psi,
+    // linearised: a call's result depends only on state().psi,
     // state().h_next (unused by the default initial step), the ODE and h.
     // integrands: the step's integrals of these too (step_integrals()).
     void advance(const DqFluxOde& ode, double h, const StepIntegrands* integrands = nullptr);

@@ -70,6 +70,12 @@ struct RegulatorState {
     double u_d_prev = 0, u_q_prev = 0;    // voltage being applied now, V
     double psi_ref_d = 0, psi_ref_q = 0;  // last reference flux (map at T_magnet_ref), Wb
     bool primed = false;                  // psi_ref_* hold a previous reference
+
+    // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
+    template <class Field>
+    void fields(Field&& field) {
+        field(v_d), field(v_q), field(u_d_prev), field(u_q_prev), field(psi_ref_d), field(psi_ref_q), field(primed);
+    }
 };
 
 struct VoltageCommand {

@@ -54,6 +54,12 @@ struct SolverMemory {
     double op_i_d = 0, op_i_q = 0;        // last command
     double limit_i_d = 0, limit_i_q = 0;  // last T_max point
     bool has_limit = false;
+
+    // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
+    template <class Field>
+    void fields(Field&& field) {
+        field(op_i_d), field(op_i_q), field(limit_i_d), field(limit_i_q), field(has_limit);
+    }
 };
 
 // Every method commands currents in the half disk |i| <= I_max, i_d <= 0, and the map must cover it:

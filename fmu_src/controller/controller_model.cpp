@@ -1,4 +1,4 @@
-#include "controller_model.hpp"
+#include "controller/controller_model.hpp"
 
 #include <cmath>
 #include <sstream>
@@ -106,11 +106,8 @@ void ControllerModel::exit_initialization() {
 
     const FluxMapTable& t = map->table();
     if (context_->log_warning)
-        for (const std::string& w : metadata_warnings(t, path,
-                                                      {{"pole_pairs", "pole_pairs", double(pole_pairs)},
-                                                       {"R_s_ohm", "R_s", R_s},
-                                                       {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
-                                                       {"k_psi_T_per_K", "k_psi_T", k_psi_T}}))
+        for (const std::string& w :
+             metadata_warnings(t, path, [this](const std::string& p) { return fmi::parameter_number(*this, p); }))
             context_->log_warning(w);
     // The map must be legal where the drive operates (operating_region.hpp); beyond, one warning.
     const MapAcceptance acceptance = accept_flux_map(*map, I_max, path);

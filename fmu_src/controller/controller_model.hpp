@@ -40,16 +40,10 @@ public:
     template <class Field>
     void state_fields(Field&& field) {
         SolverMemory unused;  // before initialisation there is no solver, and no memory to keep
-        SolverMemory& m = solver_ ? solver_->memory : unused;
-        field(m.op_i_d), field(m.op_i_q), field(m.limit_i_d), field(m.limit_i_q), field(m.has_limit);
-        RegulatorState& r = regulator_.state;
-        field(r.v_d), field(r.v_q), field(r.u_d_prev), field(r.u_q_prev), field(r.psi_ref_d), field(r.psi_ref_q);
-        field(r.primed);
+        (solver_ ? solver_->memory : unused).fields(field);
+        regulator_.state.fields(field);
         field(warned_unreachable_);
-        CommandCache& c = cache_;
-        field(c.valid), field(c.T_ref), field(c.w_m), field(c.u_dc), field(c.T_magnet);
-        field(c.cmd.i_d), field(c.cmd.i_q), field(c.cmd.torque), field(c.cmd.torque_max), field(c.cmd.region);
-        field(c.cmd.iterations), field(c.cmd.feasible), field(c.cmd.converged);
+        cache_.fields(field);
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
         field(saved);
         check_map_content(saved, map_.get());
@@ -109,6 +103,11 @@ private:
         CurrentCommand cmd;
         bool holds(const ControllerModel& m) const {
             return valid && T_ref == m.T_ref && w_m == m.w_m && u_dc == m.u_dc && T_magnet == m.T_magnet;
+        }
+        template <class Field>
+        void fields(Field&& field) {
+            field(valid), field(T_ref), field(w_m), field(u_dc), field(T_magnet);
+            cmd.fields(field);
         }
     };
     CommandCache cache_;

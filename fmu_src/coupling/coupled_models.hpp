@@ -33,12 +33,9 @@ struct ModelUnit {
 template <class Model>
 ModelUnit model_unit(Model& model) {
     return {[&model](const std::string& name) -> double* {
-                for (const auto& v : Model::variables()) {
-                    if (name != v.name) continue;
-                    const auto* member = std::get_if<double Model::*>(&v.member);
-                    return member != nullptr ? &(model.**member) : nullptr;
-                }
-                return nullptr;
+                const auto* v = fmi::find_variable<Model>(name);
+                const auto* a = v != nullptr ? std::get_if<fmi::Access<Model, double>>(&v->member) : nullptr;
+                return a != nullptr && a->member != nullptr ? &(model.*(a->member)) : nullptr;
             },
             [&model] { model.exit_initialization(); }, [&model](double t, double h) { model.do_step(t, h); }};
 }

@@ -1,4 +1,4 @@
-#include "drive_model.hpp"
+#include "drive/drive_model.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -23,26 +23,20 @@ const coupling::Coupling& drive_coupling() {
     return c;
 }
 
-template <class Sub>
-const fmi::Variable<Sub>* find(const char* name) {
-    for (const auto& v : Sub::variables())
-        if (std::string(name) == v.name) return &v;
-    return nullptr;
-}
-
 // The drive's entry for a variable of the plant and/or the controller: the plant's unit,
 // description and causality (the controller's where the plant has none), the range both accept,
 // fixed where either is fixed. One source: the models' tables.
-template <class T>
-V of_models(const char* name, T M::*member) {
-    const auto* p = find<PlantModel>(name);
-    const auto* c = find<ControllerModel>(name);
+V of_models(const char* name, fmi::Member<M> member) {
+    const auto* p = fmi::find_variable<PlantModel>(name);
+    const auto* c = fmi::find_variable<ControllerModel>(name);
     if (p == nullptr && c == nullptr) throw std::logic_error(std::string("IpmsmDrive: no model has ") + name);
-    V v = p != nullptr ? V{p->name,         member,         p->causality, p->variability, p->unit,
-                           p->display_unit, p->description, p->min,       p->max,         p->min_exclusive}
-                       : V{c->name,         member,         c->causality, c->variability, c->unit,
-                           c->display_unit, c->description, c->min,       c->max,         c->min_exclusive};
+    V v = p != nullptr ? V{p->name,         std::move(member), p->causality, p->variability, p->unit,
+                           p->display_unit, p->description,    p->min,       p->max,         p->min_exclusive}
+                       : V{c->name,         std::move(member), c->causality, c->variability, c->unit,
+                           c->display_unit, c->description,    c->min,       c->max,         c->min_exclusive};
     if (p != nullptr && c != nullptr) {
+        if (p->member.index() != c->member.index())
+            throw std::logic_error(std::string("IpmsmDrive: the models' ") + name + " differ in type");
         v.min_exclusive = (c->min > p->min)
                               ? c->min_exclusive
                               : (p->min > c->min ? p->min_exclusive : (p->min_exclusive || c->min_exclusive));
@@ -53,55 +47,40 @@ V of_models(const char* name, T M::*member) {
     return v;
 }
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// A drive parameter and the same-named parameter of a sub-model (same type).
-template <class Sub>
-struct Binding {
-    fmi::Member<DriveModel> drive;
-    fmi::Member<Sub> sub;
-    bool tunable;
-};
-
-template <class Sub>
-const std::vector<Binding<Sub>>& bindings() {
-    static const std::vector<Binding<Sub>> list = [] {
-        std::vector<Binding<Sub>> b;
-        for (const auto& d : DriveModel::variables()) {
-            if (d.causality != Causality::parameter) continue;
-            for (const auto& s : Sub::variables())
-                if (s.causality == Causality::parameter && std::string(s.name) == d.name &&
-                    s.member.index() == d.member.index())
-                    b.push_back({d.member, s.member, d.variability == Variability::tunable});
-        }
-        return b;
-    }();
-    return list;
+// Where a model keeps a variable of type T (nullptr: it has none).
+template <class T, class Sub>
+T Sub::*member_of(const fmi::Variable<Sub>* v) {
+    return v != nullptr ? std::get<fmi::Access<Sub, T>>(v->member).member : nullptr;
 }
 
-template <class Sub>
-void copy_to(const DriveModel& d, Sub& s, bool tunable_only) {
-    for (const auto& b : bindings<Sub>()) {
-        if (tunable_only && !b.tunable) continue;
-        std::visit(
-            [&](auto dp) {
-                using T = std::decay_t<decltype(d.*dp)>;
-                s.*std::get<T Sub::*>(b.sub) = d.*dp;
-            },
-            b.drive);
+// A parameter the drive forwards to the models that have it: read from the plant where it has
+// one (else from the controller), written to both.
+template <class T>
+fmi::Member<M> to_models(const char* name, ControllerModel M::*controller, PlantModel M::*plant) {
+    T ControllerModel::*c = member_of<T>(fmi::find_variable<ControllerModel>(name));
+    T PlantModel::*p = member_of<T>(fmi::find_variable<PlantModel>(name));
+    return fmi::Access<M, T>{[=](const M& d) { return p != nullptr ? d.*plant.*p : d.*controller.*c; },
+                             [=](M& d, const T& x) {
+                                 if (c != nullptr) d.*controller.*c = x;
+                                 if (p != nullptr) d.*plant.*p = x;
+                             }};
+}
+
+// A parameter of the models, declared once: of_models() with the value forwarded to them.
+V parameter(const char* name, ControllerModel M::*controller, PlantModel M::*plant) {
+    const auto* p = fmi::find_variable<PlantModel>(name);
+    const auto* c = fmi::find_variable<ControllerModel>(name);
+    const fmi::Type t = p != nullptr ? fmi::type_of(*p) : c != nullptr ? fmi::type_of(*c) : fmi::Type::Real;
+    switch (t) {
+        case fmi::Type::Real: return of_models(name, to_models<double>(name, controller, plant));
+        case fmi::Type::Integer: return of_models(name, to_models<int>(name, controller, plant));
+        case fmi::Type::Boolean: return of_models(name, to_models<bool>(name, controller, plant));
+        case fmi::Type::String: return of_models(name, to_models<std::string>(name, controller, plant));
     }
+    throw std::logic_error(std::string("IpmsmDrive: ") + name + " has no FMI type");
 }
 
-template <class Sub>
-void copy_from(DriveModel& d, const Sub& s) {
-    for (const auto& b : bindings<Sub>())
-        std::visit(
-            [&](auto dp) {
-                using T = std::decay_t<decltype(d.*dp)>;
-                d.*dp = s.*std::get<T Sub::*>(b.sub);
-            },
-            b.drive);
-}
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // A sub-model's log lines say which model wrote them.
 fmi::Context prefixed(const fmi::Context& c, const std::string& who) {
@@ -175,53 +154,57 @@ const std::vector<V>& DriveModel::variables() {
          "Sample time of the controller, and step of the inner coupling; a communication step must be a whole multiple "
          "of it",
          1e-7, 1.0},
-        {"f_sw", &M::f_sw, Causality::parameter, Variability::fixed, "Hz", "",
+        {"f_sw", fmi::forward(&M::inverter_, &InverterParams::f_sw), Causality::parameter, Variability::fixed, "Hz", "",
          "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
-        {"V_T0", &M::V_T0, Causality::parameter, Variability::fixed, "V", "", "IGBT threshold voltage", 0.0, 10.0},
-        {"r_T", &M::r_T, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "IGBT slope resistance", 0.0, 1.0},
-        {"V_D0", &M::V_D0, Causality::parameter, Variability::fixed, "V", "", "Diode threshold voltage", 0.0, 10.0},
-        {"r_D", &M::r_D, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "Diode slope resistance", 0.0, 1.0},
-        {"E_on", &M::E_on, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-on energy at I_ref, V_ref",
-         0.0, 100.0},
-        {"E_off", &M::E_off, Causality::parameter, Variability::fixed, "J", "", "IGBT turn-off energy at I_ref, V_ref",
-         0.0, 100.0},
-        {"E_rec", &M::E_rec, Causality::parameter, Variability::fixed, "J", "",
-         "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
-        {"I_ref", &M::I_ref, Causality::parameter, Variability::fixed, "A", "",
-         "Test current of the switching energies", 0.0, kInf, true},
-        {"V_ref", &M::V_ref, Causality::parameter, Variability::fixed, "V", "",
-         "Test DC voltage of the switching energies", 0.0, kInf, true},
-        {"k_v", &M::k_v, Causality::parameter, Variability::fixed, "1", "",
+        {"V_T0", fmi::forward(&M::inverter_, &InverterParams::V_T0), Causality::parameter, Variability::fixed, "V", "",
+         "IGBT threshold voltage", 0.0, 10.0},
+        {"r_T", fmi::forward(&M::inverter_, &InverterParams::r_T), Causality::parameter, Variability::fixed, "Ohm",
+         "mOhm", "IGBT slope resistance", 0.0, 1.0},
+        {"V_D0", fmi::forward(&M::inverter_, &InverterParams::V_D0), Causality::parameter, Variability::fixed, "V", "",
+         "Diode threshold voltage", 0.0, 10.0},
+        {"r_D", fmi::forward(&M::inverter_, &InverterParams::r_D), Causality::parameter, Variability::fixed, "Ohm",
+         "mOhm", "Diode slope resistance", 0.0, 1.0},
+        {"E_on", fmi::forward(&M::inverter_, &InverterParams::E_on), Causality::parameter, Variability::fixed, "J", "",
+         "IGBT turn-on energy at I_ref, V_ref", 0.0, 100.0},
+        {"E_off", fmi::forward(&M::inverter_, &InverterParams::E_off), Causality::parameter, Variability::fixed, "J",
+         "", "IGBT turn-off energy at I_ref, V_ref", 0.0, 100.0},
+        {"E_rec", fmi::forward(&M::inverter_, &InverterParams::E_rec), Causality::parameter, Variability::fixed, "J",
+         "", "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
+        {"I_ref", fmi::forward(&M::inverter_, &InverterParams::I_ref), Causality::parameter, Variability::fixed, "A",
+         "", "Test current of the switching energies", 0.0, kInf, true},
+        {"V_ref", fmi::forward(&M::inverter_, &InverterParams::V_ref), Causality::parameter, Variability::fixed, "V",
+         "", "Test DC voltage of the switching energies", 0.0, kInf, true},
+        {"k_v", fmi::forward(&M::inverter_, &InverterParams::k_v), Causality::parameter, Variability::fixed, "1", "",
          "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
         // the controller's and the plant's parameters, once each
-        of_models("method", &M::method),
-        of_models("recursion", &M::recursion),
-        of_models("flux_map", &M::flux_map),
-        of_models("pole_pairs", &M::pole_pairs),
-        of_models("R_s", &M::R_s),
-        of_models("I_max", &M::I_max),
-        of_models("k_u", &M::k_u),
-        of_models("T_magnet_ref", &M::T_magnet_ref),
-        of_models("k_psi_T", &M::k_psi_T),
-        of_models("lut_u_dc", &M::lut_u_dc),
-        of_models("lut_T_magnet", &M::lut_T_magnet),
-        of_models("lut_n_torque", &M::lut_n_torque),
-        of_models("lut_n_speed", &M::lut_n_speed),
-        of_models("w_m_max", &M::w_m_max),
-        of_models("current_bandwidth", &M::current_bandwidth),
-        of_models("T_winding_ref", &M::T_winding_ref),
-        of_models("alpha_cu", &M::alpha_cu),
-        of_models("fe_k_h", &M::fe_k_h),
-        of_models("fe_alpha", &M::fe_alpha),
-        of_models("fe_k_e", &M::fe_k_e),
-        of_models("fe_psi_ref", &M::fe_psi_ref),
-        of_models("i_d_start", &M::i_d_start),
-        of_models("i_q_start", &M::i_q_start),
-        of_models("rtol", &M::rtol),
-        of_models("atol", &M::atol),
-        of_models("cvode_method", &M::cvode_method),
-        of_models("cvode_max_order", &M::cvode_max_order),
-        of_models("cvode_max_steps", &M::cvode_max_steps),
+        parameter("method", &M::controller_, &M::plant_),
+        parameter("recursion", &M::controller_, &M::plant_),
+        parameter("flux_map", &M::controller_, &M::plant_),
+        parameter("pole_pairs", &M::controller_, &M::plant_),
+        parameter("R_s", &M::controller_, &M::plant_),
+        parameter("I_max", &M::controller_, &M::plant_),
+        parameter("k_u", &M::controller_, &M::plant_),
+        parameter("T_magnet_ref", &M::controller_, &M::plant_),
+        parameter("k_psi_T", &M::controller_, &M::plant_),
+        parameter("lut_u_dc", &M::controller_, &M::plant_),
+        parameter("lut_T_magnet", &M::controller_, &M::plant_),
+        parameter("lut_n_torque", &M::controller_, &M::plant_),
+        parameter("lut_n_speed", &M::controller_, &M::plant_),
+        parameter("w_m_max", &M::controller_, &M::plant_),
+        parameter("current_bandwidth", &M::controller_, &M::plant_),
+        parameter("T_winding_ref", &M::controller_, &M::plant_),
+        parameter("alpha_cu", &M::controller_, &M::plant_),
+        parameter("fe_k_h", &M::controller_, &M::plant_),
+        parameter("fe_alpha", &M::controller_, &M::plant_),
+        parameter("fe_k_e", &M::controller_, &M::plant_),
+        parameter("fe_psi_ref", &M::controller_, &M::plant_),
+        parameter("i_d_start", &M::controller_, &M::plant_),
+        parameter("i_q_start", &M::controller_, &M::plant_),
+        parameter("rtol", &M::controller_, &M::plant_),
+        parameter("atol", &M::controller_, &M::plant_),
+        parameter("cvode_method", &M::controller_, &M::plant_),
+        parameter("cvode_max_order", &M::controller_, &M::plant_),
+        parameter("cvode_max_steps", &M::controller_, &M::plant_),
     };
     return table;
 }
@@ -229,24 +212,14 @@ const std::vector<V>& DriveModel::variables() {
 DriveModel::DriveModel(const fmi::Context& context)
     : controller_(prefixed(context, "controller")), plant_(prefixed(context, "plant")) {
     controller_.observe_each_step = false;  // publish_end() observes, once per communication step
-    // Start values: the models' own (the controller's first, then the plant's where both have one).
-    copy_from(*this, controller_);
-    copy_from(*this, plant_);
+    // Start values: the models' own; where both have a parameter, the plant's, now the controller's too.
+    for (const V& v : variables())
+        if (v.causality == Causality::parameter) fmi::copy_value(*this, *this, v);
     T_ref = controller_.T_ref;
     u_dc = controller_.u_dc;
     w_m = plant_.w_m;
     T_magnet = plant_.T_magnet;
     T_winding = plant_.T_winding;
-    const InverterParams inv;
-    V_T0 = inv.V_T0, r_T = inv.r_T, V_D0 = inv.V_D0, r_D = inv.r_D, E_on = inv.E_on, E_off = inv.E_off;
-    E_rec = inv.E_rec, I_ref = inv.I_ref, V_ref = inv.V_ref, k_v = inv.k_v, f_sw = inv.f_sw;
-}
-
-InverterParams DriveModel::inverter() const {
-    InverterParams p;
-    p.V_T0 = V_T0, p.r_T = r_T, p.V_D0 = V_D0, p.r_D = r_D, p.E_on = E_on, p.E_off = E_off, p.E_rec = E_rec;
-    p.I_ref = I_ref, p.V_ref = V_ref, p.k_v = k_v, p.f_sw = f_sw;
-    return p;
 }
 
 coupling::CoupledModels& DriveModel::coupled() {
@@ -290,8 +263,6 @@ void DriveModel::publish_end() {
 }
 
 void DriveModel::exit_initialization() {
-    copy_to(*this, controller_, false);
-    copy_to(*this, plant_, false);
     coupled_.models.reset();  // sample_time is final now
     k_ = 0;
     hold_inputs();
@@ -299,7 +270,7 @@ void DriveModel::exit_initialization() {
     k_ = coupled().k();
     // The outputs before the first step: the plant's values at the start, nothing integrated.
     const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
-    P_inv = inverter_loss(std::sqrt(I2), I2, u_dc, plant_.P_elec, inverter()).P();
+    P_inv = inverter_loss(std::sqrt(I2), I2, u_dc, plant_.P_elec, inverter_).P();
     T_shaft = plant_.T_shaft, T_e = plant_.T_e, P_mech = plant_.P_mech, P_cu = plant_.P_cu, P_fe = plant_.P_fe;
     P_elec = plant_.P_elec;
     P_dc = P_elec + P_inv;
@@ -322,11 +293,9 @@ void DriveModel::do_step(double t, double h) {
            << " sample times): the controller runs at sample_time; use a step of n sample_time";
         throw fmi::Error(os.str());
     }
-    copy_to(*this, controller_, true);  // tunable parameters may have changed
-    copy_to(*this, plant_, true);
     hold_inputs();
     coupling::CoupledModels& cm = coupled();
-    const InverterLossModel inv(inverter(), u_dc);  // u_dc is held over the step
+    const InverterLossModel inv(inverter_, u_dc);  // u_dc is held over the step
     // The plant integrates its powers exactly over each inner step (its E_*, T_e_impulse): the
     // step's means are their increases over h. The inverter's loss is defined per inner step
     // (one PWM period): from the phase current sampled at its end, as the controller samples it,

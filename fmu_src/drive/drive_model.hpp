@@ -10,15 +10,16 @@
 // inner step, and the DC current; and the energies since the start, so that a master at 10 ms
 // loses nothing between its samples: E_dc = E_mech + E_cu + E_fe + E_inv + Delta W_magnetic.
 //
-// Parameters: every parameter of the two models, once, by the same name (value, unit, range and
-// description taken from the models' tables: one source), plus the inverter's and sample_time.
+// Parameters: every parameter of the two models, once, by the same name, forwarded to the models
+// that hold it (value, unit, range and description from the models' tables: one source); the
+// inverter's, forwarded to its InverterParams; and sample_time.
 #pragma once
 
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "controller_model.hpp"
+#include "controller/controller_model.hpp"
 #include "coupling/coupled_models.hpp"
 #include "inverter/inverter_loss.hpp"
 #include "model.hpp"
@@ -67,20 +68,8 @@ public:
     double i_d_ref = 0.0, i_q_ref = 0.0;  // A, the controller's
     int region = 0;
     double u_ratio = 0.0;  // the controller's voltage use, at the end of the step
-    // --- parameters: the drive's own
+    // --- parameters: the drive's own (the others live in controller_, plant_ and inverter_)
     double sample_time = 1e-4;  // s
-    // the inverter's (inverter/inverter_loss.hpp; start values from InverterParams)
-    double V_T0 = 0, r_T = 0, V_D0 = 0, r_D = 0, E_on = 0, E_off = 0, E_rec = 0, I_ref = 0, V_ref = 0, k_v = 0;
-    double f_sw = 0;
-    // --- parameters of the controller and the plant (start values copied from them)
-    int method = 0, recursion = 0, lut_n_torque = 0, lut_n_speed = 0;
-    std::string flux_map;
-    int pole_pairs = 0;
-    double R_s = 0, I_max = 0, k_u = 0, T_magnet_ref = 0, k_psi_T = 0, lut_u_dc = 0, lut_T_magnet = 0;
-    double w_m_max = 0, current_bandwidth = 0;
-    double T_winding_ref = 0, alpha_cu = 0, fe_k_h = 0, fe_alpha = 0, fe_k_e = 0, fe_psi_ref = 0;
-    double i_d_start = 0, i_q_start = 0, rtol = 0, atol = 0;
-    int cvode_method = 0, cvode_max_order = 0, cvode_max_steps = 0;
 
 private:
     // The sub-model's variables (its coupled inputs and outputs are not the drive's variables,
@@ -89,19 +78,19 @@ private:
     static void sub_model_fields(Sub& sub, Field& field) {
         for (const auto& v : Sub::variables())
             std::visit(
-                [&](auto p) {
-                    if constexpr (!std::is_same_v<decltype(p), std::string Sub::*>) field(sub.*p);
+                [&](const auto& a) {
+                    if constexpr (!std::is_same_v<decltype(a), const fmi::Access<Sub, std::string>&>)
+                        field(sub.*(a.member));
                 },
                 v.member);
     }
-    void copy_parameters(bool tunable_only);
     coupling::CoupledModels& coupled();
     void hold_inputs();
     void publish_end();
 
-    InverterParams inverter() const;
     ControllerModel controller_;
     PlantModel plant_;
+    InverterParams inverter_;
     long long k_ = 0;  // inner steps since the start
     // The coupled models point into this object: a copy of the drive (undo, FMU states) starts
     // without them and builds its own on first use.

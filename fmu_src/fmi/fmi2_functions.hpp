@@ -261,18 +261,17 @@ struct Fmi2 {
             const auto& vars = variables<M>();
             if constexpr (std::is_same_v<C, fmi2String>) {
                 in.strings.resize(nvr);
-                for (std::size_t i = 0; i < nvr; ++i)
-                    in.strings[i] = model.*std::get<std::string M::*>(vars[vr[i]].member);
+                for (std::size_t i = 0; i < nvr; ++i) in.strings[i] = value_of<std::string>(model, vars[vr[i]]);
                 for (std::size_t i = 0; i < nvr; ++i) value[i] = in.strings[i].c_str();
             } else {
                 for (std::size_t i = 0; i < nvr; ++i) {
-                    const auto& m = vars[vr[i]].member;
+                    const auto& v = vars[vr[i]];
                     if constexpr (std::is_same_v<C, fmi2Real>)
-                        value[i] = model.*std::get<double M::*>(m);
+                        value[i] = value_of<double>(model, v);
                     else if (type == Type::Integer)
-                        value[i] = model.*std::get<int M::*>(m);
+                        value[i] = value_of<int>(model, v);
                     else
-                        value[i] = model.*std::get<bool M::*>(m) ? fmi2True : fmi2False;
+                        value[i] = value_of<bool>(model, v) ? fmi2True : fmi2False;
                 }
             }
             return fmi2OK;
@@ -307,15 +306,15 @@ struct Fmi2 {
                 }
             }
             for (std::size_t i = 0; i < nvr; ++i) {
-                const auto& m = vars[vr[i]].member;
+                const auto& v = vars[vr[i]];
                 if constexpr (std::is_same_v<C, fmi2String>)
-                    in.model.*std::get<std::string M::*>(m) = value[i];
+                    set_value(in.model, v, std::string(value[i]));
                 else if constexpr (std::is_same_v<C, fmi2Real>)
-                    in.model.*std::get<double M::*>(m) = value[i];
+                    set_value(in.model, v, static_cast<double>(value[i]));
                 else if (type == Type::Integer)
-                    in.model.*std::get<int M::*>(m) = value[i];
+                    set_value(in.model, v, static_cast<int>(value[i]));
                 else
-                    in.model.*std::get<bool M::*>(m) = value[i] != fmi2False;
+                    set_value(in.model, v, value[i] != fmi2False);
             }
             in.initial.reset();
             return fmi2OK;

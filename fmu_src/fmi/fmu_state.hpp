@@ -33,16 +33,17 @@ void write_variables(StateWriter& w, const M& m) {
     for (const auto& v : vars) {
         w.put<std::uint8_t>(static_cast<std::uint8_t>(v.member.index()));
         std::visit(
-            [&](auto p) {
-                using T = std::decay_t<decltype(m.*p)>;
+            [&](const auto& a) {
+                const auto x = a.read(m);
+                using T = std::decay_t<decltype(x)>;
                 if constexpr (std::is_same_v<T, std::string>)
-                    w.put_string(m.*p);
+                    w.put_string(x);
                 else if constexpr (std::is_same_v<T, bool>)
-                    w.put<std::uint8_t>(m.*p ? 1 : 0);
+                    w.put<std::uint8_t>(x ? 1 : 0);
                 else if constexpr (std::is_same_v<T, int>)
-                    w.put<std::int32_t>(m.*p);
+                    w.put<std::int32_t>(x);
                 else
-                    w.put<double>(m.*p);
+                    w.put<double>(x);
             },
             v.member);
     }
@@ -59,18 +60,18 @@ void read_variables(StateReader& r, M& m, const char* what) {
         if (r.get<std::uint8_t>() != v.member.index())
             throw Error(std::string(what) + ": variable " + v.name + " has another type");
         std::visit(
-            [&](auto p) {
-                using T = std::decay_t<decltype(m.*p)>;
+            [&](const auto& a) {
+                using T = std::decay_t<decltype(a.read(m))>;
                 if constexpr (std::is_same_v<T, std::string>)
-                    m.*p = r.get_string();
+                    a.write(m, r.get_string());
                 else if constexpr (std::is_same_v<T, bool>)
-                    m.*p = r.get<std::uint8_t>() != 0;
+                    a.write(m, r.get<std::uint8_t>() != 0);
                 else if constexpr (std::is_same_v<T, int>)
-                    m.*p = r.get<std::int32_t>();
+                    a.write(m, r.get<std::int32_t>());
                 else {
-                    m.*p = r.get<double>();
-                    if (!std::isfinite(m.*p))
-                        throw Error(std::string(what) + ": variable " + v.name + " is not finite");
+                    const double x = r.get<double>();
+                    if (!std::isfinite(x)) throw Error(std::string(what) + ": variable " + v.name + " is not finite");
+                    a.write(m, x);
                 }
             },
             v.member);
@@ -130,7 +131,7 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
         if (v.causality != Causality::input && v.causality != Causality::parameter) continue;
         const Type t = type_of(v);
         if (t != Type::Real && t != Type::Integer) continue;
-        const double x = t == Type::Real ? m.*std::get<double M::*>(v.member) : m.*std::get<int M::*>(v.member);
+        const double x = t == Type::Real ? value_of<double>(m, v) : value_of<int>(m, v);
         if (!in_range(v, x))
             throw Error(std::string(what) + ": " + v.name + " = " + number_text(x) + " is out of range: it must be " +
                         range_text(v) + "; not restored");
@@ -154,7 +155,7 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
         // saved parameters, then put the saved values back.
         M initialised = m;
         initialised.exit_initialization();
-        for (const auto& v : variables<M>()) std::visit([&](auto p) { initialised.*p = m.*p; }, v.member);
+        for (const auto& v : variables<M>()) copy_value(m, initialised, v);
         m = std::move(initialised);
     }
 

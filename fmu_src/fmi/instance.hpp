@@ -120,7 +120,7 @@ public:
     }
     bool tracing() const { return (categories & bit(LogCategory::all)) != 0; }
 
-    static double value_of(const M& m, const Variable<M>* v) { return m.*std::get<double M::*>(v->member); }
+    static double value_of(const M& m, const Variable<M>* v) { return fmi::value_of<double>(m, *v); }
     // The first computed Real of m that is not finite, or nullptr.
     static const Variable<M>* first_non_finite(const M& m) {
         for (const Variable<M>* v : computed_reals<M>())

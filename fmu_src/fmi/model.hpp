@@ -16,7 +16,7 @@
 //     void do_step(double t, double h);  // one communication step from t to t + h (may throw)
 //     template <class Field>
 //     void state_fields(Field&& field);  // field(x) for every member x of the internal state
-//     ... members named in variables() ...
+//     ... members named in variables() (or parts they forward to: variable.hpp) ...
 //   };
 //
 // Contract with the glue:

@@ -152,12 +152,11 @@ std::string table_problems(const M& defaults) {
                     p << where << "Integer bounds must be integers\n";
         }
         if (type == Type::Real) {
-            const double x = defaults.*std::get<double M::*>(v.member);
+            const double x = value_of<double>(defaults, v);
             if (!std::isfinite(x)) p << where << "the default-constructed model has " << number_text(x) << "\n";
         }
         if ((c == Causality::parameter || c == Causality::input) && (type == Type::Real || type == Type::Integer)) {
-            const double x =
-                type == Type::Real ? defaults.*std::get<double M::*>(v.member) : defaults.*std::get<int M::*>(v.member);
+            const double x = type == Type::Real ? value_of<double>(defaults, v) : value_of<int>(defaults, v);
             if (!in_range(v, x))
                 p << where << "start value " << number_text(x) << " is outside " << range_text(v) << "\n";
         }
@@ -168,7 +167,7 @@ std::string table_problems(const M& defaults) {
 // value_text, but a String bare and escaped (it goes into an attribute).
 template <class M>
 std::string start_text(const M& m, const Variable<M>& v) {
-    if (type_of(v) == Type::String) return xml_escape(m.*std::get<std::string M::*>(v.member));
+    if (type_of(v) == Type::String) return xml_escape(value_of<std::string>(m, v));
     return value_text(m, v);
 }
 

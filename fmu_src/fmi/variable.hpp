@@ -4,9 +4,12 @@
 #pragma once
 
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -19,10 +22,40 @@ enum class Causality { parameter, input, output, local };
 inline bool is_computed(Causality c) { return c == Causality::output || c == Causality::local; }
 enum class Variability { fixed, tunable, discrete, continuous };
 
-// A pointer to the model member that holds the variable's value; its type is the FMI type
-// (double: Real, int: Integer, bool: Boolean, std::string: String).
+// Where a variable's value lives, as its C++ type T (double: Real, int: Integer, bool: Boolean,
+// std::string: String): a member of the model (a pointer to it), or a part of the model that
+// holds it, reached by a getter and a setter (a model made of other models forwards a variable
+// to the one that owns it: IpmsmDrive's parameters are its controller's and plant's).
+template <class Model, class T>
+struct Access {
+    T Model::*member = nullptr;
+    std::function<T(const Model&)> get;         // forwarded (member == nullptr)
+    std::function<void(Model&, const T&)> set;  // forwarded (member == nullptr)
+
+    Access(T Model::*m) : member(m) {}  // NOLINT(google-explicit-constructor): tables list &M::x
+    Access(std::function<T(const Model&)> g, std::function<void(Model&, const T&)> s)
+        : get(std::move(g)), set(std::move(s)) {}
+
+    T read(const Model& m) const { return member != nullptr ? m.*member : get(m); }
+    void write(Model& m, const T& x) const {
+        if (member != nullptr)
+            m.*member = x;
+        else
+            set(m, x);
+    }
+};
+
+// A variable's Access; the index of its alternative is the FMI type (Type, below).
 template <class Model>
-using Member = std::variant<double Model::*, int Model::*, bool Model::*, std::string Model::*>;
+using Member = std::variant<Access<Model, double>, Access<Model, int>, Access<Model, bool>, Access<Model, std::string>>;
+
+// A variable forwarded to a member of a part of the model: part is the model's member that
+// holds it (a sub-model, a parameter struct), field the part's member.
+template <class Model, class Part, class T>
+Access<Model, T> forward(Part Model::*part, T Part::*field) {
+    return {[part, field](const Model& m) { return m.*part.*field; },
+            [part, field](Model& m, const T& x) { m.*part.*field = x; }};
+}
 
 template <class Model>
 struct Variable {
@@ -100,18 +133,55 @@ std::string range_text(const Variable<M>& v) {
 template <class M>
 std::string value_text(const M& m, const Variable<M>& v) {
     return std::visit(
-        [&](auto p) -> std::string {
-            using T = std::decay_t<decltype(m.*p)>;
+        [&](const auto& a) -> std::string {
+            const auto x = a.read(m);
+            using T = std::decay_t<decltype(x)>;
             if constexpr (std::is_same_v<T, double>)
-                return number_text(m.*p);
+                return number_text(x);
             else if constexpr (std::is_same_v<T, int>)
-                return std::to_string(m.*p);
+                return std::to_string(x);
             else if constexpr (std::is_same_v<T, bool>)
-                return m.*p ? "true" : "false";
+                return x ? "true" : "false";
             else
-                return "\"" + m.*p + "\"";
+                return "\"" + x + "\"";
         },
         v.member);
+}
+
+// The value of v in m as type T (the variable's C++ type: std::bad_variant_access otherwise).
+template <class T, class M>
+T value_of(const M& m, const Variable<M>& v) {
+    return std::get<Access<M, T>>(v.member).read(m);
+}
+
+// Sets v in m to x, of type T (the variable's C++ type).
+template <class T, class M>
+void set_value(M& m, const Variable<M>& v, const T& x) {
+    std::get<Access<M, T>>(v.member).write(m, x);
+}
+
+// M's variable called `name`, or nullptr: the one lookup by name in a model's table.
+template <class M>
+const Variable<M>* find_variable(const std::string& name) {
+    for (const auto& v : M::variables())
+        if (name == v.name) return &v;
+    return nullptr;
+}
+
+// The value of m's Real or Integer parameter `name` as a double; nullopt if m has none.
+template <class M>
+std::optional<double> parameter_number(const M& m, const std::string& name) {
+    const Variable<M>* v = find_variable<M>(name);
+    if (v == nullptr || v->causality != Causality::parameter) return std::nullopt;
+    if (type_of(*v) == Type::Real) return value_of<double>(m, *v);
+    if (type_of(*v) == Type::Integer) return value_of<int>(m, *v);
+    return std::nullopt;
+}
+
+// Copies the value of v from one model to another.
+template <class M>
+void copy_value(const M& from, M& to, const Variable<M>& v) {
+    std::visit([&](const auto& a) { a.write(to, a.read(from)); }, v.member);
 }
 
 }  // namespace fmi

@@ -46,6 +46,13 @@ struct CurrentCommand {
     int iterations = 0;     // inductance-recursion / Newton iterations used
     bool feasible = true;   // false: no current satisfies both limits (above maximum speed)
     bool converged = true;  // false: an iteration did not converge (a fallback was used)
+
+    // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
+    template <class Field>
+    void fields(Field&& field) {
+        field(i_d), field(i_q), field(torque), field(torque_max), field(region), field(iterations), field(feasible);
+        field(converged);
+    }
 };
 
 inline double torque_factor(int pole_pairs) { return 1.5 * pole_pairs; }

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "control/current_regulator.hpp"
+#include "flux_map_generators.hpp"
 #include "machine/magnet_flux.hpp"
 
 using namespace ipmsm;

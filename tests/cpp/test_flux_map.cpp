@@ -17,6 +17,7 @@
 
 #include <unistd.h>
 
+#include "flux_map_generators.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
 #include "machine/operating_region.hpp"

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "flux_map_generators.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
 #include "machine/nearest_point.hpp"

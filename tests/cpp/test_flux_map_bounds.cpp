@@ -15,6 +15,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -176,19 +178,23 @@ TEST(FluxMapBounds, MetadataLeadingNumberAndUnits) {
     EXPECT_EQ(split_metadata_value("1.5e-3 Ohm").value, 1.5e-3);
     EXPECT_FALSE(split_metadata_value("four").is_number);
 
-    FluxMapTable t =
-        read_flux_map(write("meta.csv", grid("\n",
-                                             "# pole_pairs: 4 (8 poles)\n# R_s_ohm: 12 mOhm\n"
-                                             "# T_magnet_ref_K: 293.15 K\n# k_psi_T_per_K: -0.0012 1/K\n")));
+    FluxMapTable t = read_flux_map(
+        write("meta.csv", grid("\n",
+                               "# pole_pairs: 4 (8 poles)\n# R_s_ohm: 12 mOhm\n"
+                               "# T_magnet_ref_K: 293.15 K\n# k_psi_T_per_K: -0.0012 1/K\n# I_max_A: 500 A\n")));
     EXPECT_EQ(t.metadata_number("pole_pairs", 0), 4);
-    const auto w = metadata_warnings(t, "m.csv",
-                                     {{"pole_pairs", "pole_pairs", 4},
-                                      {"R_s_ohm", "R_s", 0.012},
-                                      {"T_magnet_ref_K", "T_magnet_ref", 293.15},
-                                      {"k_psi_T_per_K", "k_psi_T", -0.0012}});
+    // A model with these parameters (and I_max, which the metadata only default: never checked).
+    std::map<std::string, double> parameters = {
+        {"pole_pairs", 4}, {"R_s", 0.012}, {"T_magnet_ref", 293.15}, {"k_psi_T", -0.0012}, {"I_max", 1.0}};
+    auto of = [&](const std::string& name) -> std::optional<double> {
+        const auto it = parameters.find(name);
+        return it != parameters.end() ? std::optional<double>(it->second) : std::nullopt;
+    };
+    const auto w = metadata_warnings(t, "m.csv", of);
     ASSERT_EQ(w.size(), 1u);
     EXPECT_NE(w[0].find("'mOhm' is not the contract's SI unit Ohm"), std::string::npos) << w[0];
-    const auto differs = metadata_warnings(t, "m.csv", {{"pole_pairs", "pole_pairs", 3}});
+    parameters = {{"pole_pairs", 3}};
+    const auto differs = metadata_warnings(t, "m.csv", of);
     ASSERT_EQ(differs.size(), 1u);
     EXPECT_NE(differs[0].find("but the parameter pole_pairs is 3; using the parameter"), std::string::npos)
         << differs[0];

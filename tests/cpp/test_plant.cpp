@@ -19,6 +19,7 @@
 #include <unistd.h>
 
 #include "cvode_integrator.hpp"
+#include "flux_map_generators.hpp"
 #include "ipmsm_ode.hpp"
 #include "linear_flow.hpp"
 #include "machine/flux_map.hpp"

@@ -11,6 +11,7 @@
 #include <random>
 
 #include "control/saturated_optimal_current.hpp"
+#include "flux_map_generators.hpp"
 #include "machine/magnet_flux.hpp"
 
 using namespace ipmsm;
