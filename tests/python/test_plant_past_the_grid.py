@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenarios.flux_map import read_flux_map
+from scenarios.maps.flux_map import read_flux_map
 
 WARNING = 1
 MACHINES = [(0.3, None, 0.15), (0.3, 0.5, 0.15), (0.2, 0.5, 0.1)]  # (I_s / I_max, I_ds / I_max, cross)

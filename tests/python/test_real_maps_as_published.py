@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenarios.drive_fmu import DriveFmu
-from scenarios.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
-from scenarios.paths import DATA_DIR
+from scenarios.core.paths import DATA_DIR
+from scenarios.cosim.drive_fmu import DriveFmu
+from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
 
 from conftest import fmu_path
 
