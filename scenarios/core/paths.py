@@ -11,7 +11,7 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1]
 #: the repository (the package is installed editable, `pip install -e .`)
 ROOT = PACKAGE_DIR.parent
 
-#: the CMake build folder the scenarios take the FMUs (fmu/) and the native master (lib/) from
+#: the CMake build folder the scenarios take the FMUs (fmu/) from
 BUILD_DIR = ROOT / "build"
 
 #: the data the scenarios run on, shipped inside the package: cycles/, fluxmaps/ (fluxmaps/real/:

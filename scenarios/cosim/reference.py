@@ -30,15 +30,17 @@ CONTROLLER_END = ("T_cmd", "T_max", "i_d_ref", "i_q_ref", "u_ratio")
 
 class ReferenceDrive:
     """The drive's two units coupled at h (None: the description's step). Parameters by name per
-    unit; the external inputs (T_ref, w_m, u_dc, T_magnet, T_winding) at t = 0."""
+    unit; the external inputs (T_ref, w_m, u_dc, T_magnet, T_winding) at t = 0. clock: k -> (t_k,
+    h_k) passed to fmi2DoStep instead of (k h, h), to reproduce another master's clock."""
 
     def __init__(self, controller_fmu: str | Path, plant_fmu: str | Path, controller_params: Mapping | None = None,
                  plant_params: Mapping | None = None, h: float | None = None, inverter_loss: Callable | None = None,
-                 coupling: Coupling = DRIVE, logging_on: bool = False, **start: float):
+                 coupling: Coupling = DRIVE, logging_on: bool = False,
+                 clock: Callable[[int], tuple[float, float]] | None = None, **start: float):
         self.h = self.sample_time = coupling.step if h is None else h
         if not (isinstance(self.h, (int, float)) and math.isfinite(self.h) and self.h > 0):
             raise ValueError(f"h = {self.h!r}: must be a finite number > 0")
-        self.k, self.E_inv, self._loss = 0, 0.0, inverter_loss
+        self.k, self.E_inv, self._loss, self._clock = 0, 0.0, inverter_loss, clock
         self.held = {**dict(T_ref=0.0, w_m=0.0, u_dc=355.0, T_magnet=293.15, T_winding=293.15), **start}
         paths, params = {"controller": controller_fmu, "plant": plant_fmu}, \
             {"controller": controller_params or {}, "plant": plant_params or {}}
@@ -123,9 +125,10 @@ class ReferenceDrive:
                     status = set_real(f.c, vrs, m, values)
                     if status > FMI2_WARNING:
                         f.fail("fmi2SetReal", status)
+                t, h_k = (k * h, h) if self._clock is None else self._clock(k)
                 for do_step, f in self._steps:
-                    f.t = k * h
-                    status = do_step(f.c, f.t, h, 1)
+                    f.t = t
+                    status = do_step(f.c, t, h_k, 1)
                     if status > FMI2_WARNING:
                         f.fail("fmi2DoStep", status)
                 k += 1

@@ -126,7 +126,7 @@ class RunSummary:
     dt_s: float
     wall_s: float
     real_time_factor: float
-    backend: str                      # the co-simulation master's backend: native or fmpy
+    backend: str                      # how the drive was simulated: drive (IpmsmDrive) or fmpy (reference loop)
     drive: str = ""                   # the drive description's name (scenarios.drives.description)
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
 
