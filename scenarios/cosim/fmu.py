@@ -122,6 +122,11 @@ class Fmu:
         """The variables' value references, as an fmi2ValueReference array."""
         return (c_uint * len(names))(*(self.variable(n).valueReference for n in names))
 
+    def read(self, vrs, out, kind: str = "Real") -> None:
+        """fmi2Get<kind> of the value references vrs (an array from `vrs`) into out, an array of
+        their length (made once by the caller: the per-step paths)."""
+        self.call(f"fmi2Get{kind}", vrs, len(vrs), out)
+
     def set(self, **values) -> None:
         """Variables by name (parameters, inputs), each converted to its type."""
         for name in values:

@@ -2,8 +2,8 @@
 description (fmu_src/coupling/ipmsm_drive.coupling, its semantics stated there), by variable
 name, each step as the Modelica Reference-FMUs' simulate_fmi2_cs.c steps an FMU: set the inputs,
 fmi2DoStep(t_k, h) with t_k = k h, read the outputs. It returns IpmsmDrive's step record
-(DriveStep) for the same inputs, so a run takes either (`--backend fmpy`) and the tests hold the
-drive FMU against it. Several FMI calls from Python per 100 us: slow; IpmsmDrive is the fast path.
+(DriveStep), so a run takes either (`--backend fmpy`) and the tests hold the drive FMU against it.
+Six FMI calls from Python per 100 us: slow; IpmsmDrive is the fast path.
 
     with ReferenceDrive(controller_fmu, plant_fmu, w_m=100.0, inverter_loss=loss) as ref:
         s = ref.advance(0.01, T_ref=120.0, w_m=100.0, u_dc=355.0, T_magnet=353.15, T_winding=373.15)
@@ -26,6 +26,7 @@ from scenarios.cosim.fmu import FMI2_WARNING, CosimError, Fmu
 #: the plant's integrals since the start (exact over each step): a step's means are their increases
 PLANT_INTEGRALS = ("E_elec", "E_mech", "E_cu", "E_fe", "T_e_impulse")
 CONTROLLER_END = ("T_cmd", "T_max", "i_d_ref", "i_q_ref", "u_ratio")
+START = dict(T_ref=0.0, w_m=0.0, u_dc=355.0, T_magnet=293.15, T_winding=293.15)  # the FMUs' start values
 
 
 class ReferenceDrive:
@@ -40,10 +41,9 @@ class ReferenceDrive:
         self.h = self.sample_time = coupling.step if h is None else h
         if not (isinstance(self.h, (int, float)) and math.isfinite(self.h) and self.h > 0):
             raise ValueError(f"h = {self.h!r}: must be a finite number > 0")
-        self.k, self.E_inv, self._loss, self._clock = 0, 0.0, inverter_loss, clock
-        self.held = {**dict(T_ref=0.0, w_m=0.0, u_dc=355.0, T_magnet=293.15, T_winding=293.15), **start}
-        paths, params = {"controller": controller_fmu, "plant": plant_fmu}, \
-            {"controller": controller_params or {}, "plant": plant_params or {}}
+        self.k, self.E_inv, self._loss, self._clock, self.held = 0, 0.0, inverter_loss, clock, {**START, **start}
+        paths, params = dict(controller=controller_fmu, plant=plant_fmu), \
+            dict(controller=controller_params or {}, plant=plant_params or {})
         self.units: dict[str, Fmu] = {}
         try:
             for u in coupling.units:  # instantiated, set up, parameters set, in Initialization Mode
@@ -51,15 +51,17 @@ class ReferenceDrive:
                 if f.name != u.model_identifier:
                     raise CosimError(f"the {u.role} must be {u.model_identifier}, {f.path} is {f.name}")
             self._resolve(coupling)
+            ready = set()
             for role, f in self.units.items():  # in order: inputs, exit, outputs (the plant first)
                 f.set(**{v: self.held[x] for x, v in self.external[role]})
-                f.set(**{v: self.out[src][i] for v, src, i in self.feeds[role] if self.out[src].ready})
+                f.set(**{v: self.out[src][1][i] for v, src, i in self.feeds[role] if src in ready})
                 f.exit_initialization()
-                self._read(role)
-            plant = self.units["plant"]
-            self._integral_vr, self._integral = plant.vrs(*PLANT_INTEGRALS), (c_double * len(PLANT_INTEGRALS))()
-            self._end_vr, self._end = self.units["controller"].vrs(*CONTROLLER_END), (c_double * len(CONTROLLER_END))()
-            self._region_vr, self._region = self.units["controller"].vrs("region"), (c_int * 1)()
+                f.read(*self.out[role][:2])
+                ready.add(role)
+            plant, controller = self.units["plant"], self.units["controller"]
+            self._integral = plant.vrs(*PLANT_INTEGRALS), (c_double * len(PLANT_INTEGRALS))()
+            self._end = controller.vrs(*CONTROLLER_END), (c_double * len(CONTROLLER_END))()
+            self._region = controller.vrs("region"), (c_int * 1)()
             self._integrals = self._plant_integrals()
         except BaseException:
             self.close()
@@ -76,38 +78,27 @@ class ReferenceDrive:
             for conn in (x for x in c.connections if x.target.unit == to):
                 names[conn.source.unit].append(conn.source.variable)
                 self.feeds[to].append((conn.target.variable, conn.source.unit, len(names[conn.source.unit]) - 1))
-        self.out = {r: _Outputs(self.units[r], names[r]) for r in c.roles}
+        self.out = {r: (self.units[r].vrs(*names[r]), (c_double * len(names[r]))()) for r in c.roles}
         self._i = [names["plant"].index(x) for x in ("i_d", "i_q")]
-        self._steps = [(f.dll.fmi2DoStep, f) for f in self.units.values()]
         self._sets = []
         for to, feeds in self.feeds.items():
             f = self.units[to]
-            for src in {s for _, s, _ in feeds}:
+            for src in dict.fromkeys(s for _, s, _ in feeds):
                 mine = [(v, i) for v, s, i in feeds if s == src]
-                at = ctypes.addressof(self.out[src].values) + mine[0][1] * ctypes.sizeof(c_double)
-                self._sets.append((f.dll.fmi2SetReal, f, f.vrs(*(v for v, _ in mine)), len(mine),
-                                   ctypes.cast(at, ctypes.POINTER(c_double))))
-
-    def _read(self, role: str) -> None:
-        f, o = self.units[role], self.out[role]
-        status = f.dll.fmi2GetReal(f.c, o.vrs, o.n, o.values) if o.n else 0
-        if status > FMI2_WARNING:
-            f.fail("fmi2GetReal", status)
-        o.ready = True
+                at = ctypes.addressof(self.out[src][1]) + mine[0][1] * ctypes.sizeof(c_double)
+                self._sets.append((f, f.vrs(*(v for v, _ in mine)), ctypes.cast(at, ctypes.POINTER(c_double))))
 
     def get(self, *names: str):
-        """Variables by name, "role.variable" or a variable of the first unit that has it."""
-        out = [self._unit(n).get(n.rpartition(".")[2]) for n in names]
+        """Variables by name: "role.variable", or a variable of the first unit that has it."""
+        def unit(name):
+            role, dot, _ = name.partition(".")
+            return self.units[role] if dot else next(f for f in self.units.values() if role in f.vars)
+        out = [unit(n).get(n.rpartition(".")[2]) for n in names]
         return out[0] if len(out) == 1 else out
 
-    def _unit(self, name: str) -> Fmu:
-        role, dot, var = name.partition(".")
-        return self.units[role] if dot else next(f for f in self.units.values() if role in f.vars)
-
     def _plant_integrals(self) -> list[float]:
-        plant = self.units["plant"]
-        plant.dll.fmi2GetReal(plant.c, self._integral_vr, len(PLANT_INTEGRALS), self._integral)
-        return self._integral[:]
+        self.units["plant"].read(*self._integral)
+        return self._integral[1][:]
 
     def advance(self, dt: float, T_ref: float, w_m: float, u_dc: float, T_magnet: float,
                 T_winding: float) -> DriveStep:
@@ -116,24 +107,23 @@ class ReferenceDrive:
         self.held.update(T_ref=T_ref, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet, T_winding=T_winding)
         for role, f in self.units.items():  # a refused input raises with k unchanged: fix it and call again
             f.set(**{v: self.held[x] for x, v in self.external[role]})
-        plant = self.out["plant"].values
-        d, q = self._i
+        reads = [(f, *self.out[role]) for role, f in self.units.items()]
+        plant, (d, q) = self.out["plant"][1], self._i
         s_abs = s_sq = 0.0
         try:
             for _ in range(n):
-                for set_real, f, vrs, m, values in self._sets:  # the outputs after the previous step
-                    status = set_real(f.c, vrs, m, values)
-                    if status > FMI2_WARNING:
+                for f, vrs, values in self._sets:  # the outputs after the previous step
+                    if (status := f.dll.fmi2SetReal(f.c, vrs, len(vrs), values)) > FMI2_WARNING:
                         f.fail("fmi2SetReal", status)
                 t, h_k = (k * h, h) if self._clock is None else self._clock(k)
-                for do_step, f in self._steps:
+                for f in self.units.values():
                     f.t = t
-                    status = do_step(f.c, t, h_k, 1)
-                    if status > FMI2_WARNING:
+                    if (status := f.dll.fmi2DoStep(f.c, t, h_k, 1)) > FMI2_WARNING:
                         f.fail("fmi2DoStep", status)
                 k += 1
-                for role in self.out:
-                    self._read(role)
+                for f, vrs, values in reads:
+                    if (status := f.dll.fmi2GetReal(f.c, vrs, len(vrs), values)) > FMI2_WARNING:
+                        f.fail("fmi2GetReal", status)
                 sq = plant[d] * plant[d] + plant[q] * plant[q]
                 s_abs += math.sqrt(sq)
                 s_sq += sq
@@ -149,14 +139,13 @@ class ReferenceDrive:
         self._integrals = now
         P_inv = self._loss(s_abs / n, s_sq / n, u_dc, P_elec) if self._loss else 0.0
         self.E_inv += P_inv * duration
-        c = self.units["controller"]
-        c.dll.fmi2GetReal(c.c, self._end_vr, len(CONTROLLER_END), self._end)
-        c.dll.fmi2GetInteger(c.c, self._region_vr, 1, self._region)
-        T_cmd, T_max, i_d_ref, i_q_ref, u_ratio = self._end[:]
-        i_d, i_q = (self.out["plant"].values[i] for i in self._i)
+        controller = self.units["controller"]
+        controller.read(*self._end)
+        controller.read(*self._region, kind="Integer")
+        i_d, i_q = (self.out["plant"][1][i] for i in self._i)
         return DriveStep(T_e - P_fe / w_m if w_m != 0.0 else T_e, T_e, (P_elec + P_inv) / u_dc, P_elec + P_inv,
                          P_mech, P_cu, P_fe, P_inv, P_elec, now[0] + self.E_inv, now[1], now[2], now[3], self.E_inv,
-                         T_cmd, T_max, i_d, i_q, i_d_ref, i_q_ref, u_ratio, self._region[0])
+                         *self._end[1][:2], i_d, i_q, *self._end[1][2:], self._region[1][0])
 
     def close(self) -> None:
         for f in reversed(list(self.units.values())):
@@ -167,14 +156,3 @@ class ReferenceDrive:
 
     def __exit__(self, *exc):
         self.close()
-
-
-class _Outputs:
-    """A unit's outputs read after each step, in one fmi2GetReal."""
-
-    def __init__(self, unit: Fmu, names: list[str]):
-        self.n, self.vrs, self.values = len(names), unit.vrs(*names), (c_double * max(len(names), 1))()
-        self.ready = False
-
-    def __getitem__(self, i: int) -> float:
-        return self.values[i]

@@ -50,7 +50,7 @@ def compare(controller_fmu, map_path, fmap, params, points, recursion, k_u=0.95)
     return rows
 
 
-# What the README's accuracy table claims for the exact methods (recursion 2, and every recursion on
+# What docs/accuracy.md's table claims for the exact methods (recursion 2, and every recursion on
 # a linear machine), with margin for the brute force's own error: currents and voltages within
 # LIMIT_TOL of their limits, current above the brute-force optimum by at most CURRENT_TOL
 # (relative), T_max and the commanded torque within TORQUE_TOL of T_max.
