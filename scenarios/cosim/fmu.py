@@ -111,7 +111,7 @@ class Fmu:
         return " | ".join(m for _, _, m in list(self.messages)[-n:]) or "(the FMU logged no message)"
 
     def fail(self, what: str, status: int) -> None:
-        raise CosimError(f"{self.name}: {what} at t = {self.t:.9g} s returned status {status}; "
+        raise CosimError(f"{self.name}: {what} failed at t = {self.t:.9g} s (status {status}); "
                          f"the FMU says: {self.last_messages()}")
 
     def call(self, function: str, *args) -> None:

@@ -117,7 +117,7 @@ def test_failing_step_names_the_fmu(controller_fmu, plant_fmu):
         with pytest.raises(CosimError) as e:
             ref.advance(10 * H, 200.0, 1000.0, 355.0, 293.15, 293.15)
     msg = str(e.value)
-    assert msg.startswith("IpmsmPlant: fmi2DoStep at t = 0 s returned status 3") and "CVODE" in msg, msg
+    assert msg.startswith("IpmsmPlant: fmi2DoStep failed at t = 0 s (status 3)") and "CVODE" in msg, msg
 
 
 def test_initialisation_error_names_the_fmu(controller_fmu, plant_fmu, tmp_path):
