@@ -8,8 +8,8 @@ Six FMI calls from Python per 100 us: slow; IpmsmDrive is the fast path.
     with ReferenceDrive(controller_fmu, plant_fmu, w_m=100.0, inverter_loss=loss) as ref:
         s = ref.advance(0.01, T_ref=120.0, w_m=100.0, u_dc=355.0, T_magnet=353.15, T_winding=373.15)
 
-inverter_loss(I_mean, I2_mean, u_dc, P_ac_mean) -> W: the inverter's loss from the step's means of
-|i|, |i|^2 (sampled after each inner step) and P_elec (exact); None: no inverter (P_inv = 0).
+inverter_loss(I_mean, I2_mean, u_dc, P_ac_mean) -> W, from the step's means of |i|, |i|^2 (sampled
+after each inner step) and P_elec (exact); None: P_inv = 0 (docs/validation.md: the inverter).
 """
 from __future__ import annotations
 
@@ -41,6 +41,8 @@ class ReferenceDrive:
         self.h = self.sample_time = coupling.step if h is None else h
         if not (isinstance(self.h, (int, float)) and math.isfinite(self.h) and self.h > 0):
             raise ValueError(f"h = {self.h!r}: must be a finite number > 0")
+        if set(start) - set(START):
+            raise TypeError(f"unknown start input(s) {sorted(set(start) - set(START))}: one of {', '.join(START)}")
         self.k, self.E_inv, self._loss, self._clock, self.held = 0, 0.0, inverter_loss, clock, {**START, **start}
         paths, params = dict(controller=controller_fmu, plant=plant_fmu), \
             dict(controller=controller_params or {}, plant=plant_params or {})
@@ -53,8 +55,8 @@ class ReferenceDrive:
             self._resolve(coupling)
             ready = set()
             for role, f in self.units.items():  # in order: inputs, exit, outputs (the plant first)
-                f.set(**{v: self.held[x] for x, v in self.external[role]})
-                f.set(**{v: self.out[src][1][i] for v, src, i in self.feeds[role] if src in ready})
+                f.set(**{v: self.held[x] for x, v in self.external[role]},
+                      **{v: self.out[src][1][i] for v, src, i in self.feeds[role] if src in ready})
                 f.exit_initialization()
                 f.read(*self.out[role][:2])
                 ready.add(role)
@@ -90,10 +92,8 @@ class ReferenceDrive:
 
     def get(self, *names: str):
         """Variables by name: "role.variable", or a variable of the first unit that has it."""
-        def unit(name):
-            role, dot, _ = name.partition(".")
-            return self.units[role] if dot else next(f for f in self.units.values() if role in f.vars)
-        out = [unit(n).get(n.rpartition(".")[2]) for n in names]
+        out = [(self.units[n.partition(".")[0]] if "." in n else next(f for f in self.units.values() if n in f.vars))
+               .get(n.rpartition(".")[2]) for n in names]
         return out[0] if len(out) == 1 else out
 
     def _plant_integrals(self) -> list[float]:
