@@ -49,17 +49,6 @@ def get_values(fmu: FMU2Slave, variables: Mapping, *names: str):
     return out[0] if len(out) == 1 else out
 
 
-def start_values(path: str | Path, causality: str = "parameter") -> dict:
-    """The start values of an FMU's variables of that causality, by name, each of its type: the
-    FMU's own defaults, read from its modelDescription.xml, never copied."""
-    out = {}
-    for v in read_model_description(str(path)).modelVariables:
-        if v.causality == causality and v.start is not None:
-            convert = _SETTERS[v.type][1]
-            out[v.name] = (v.start.lower() == "true") if v.type == "Boolean" else convert(v.start)
-    return out
-
-
 class CosimError(RuntimeError):
     """An FMI call failed (the message names the FMU, the call and the time, and quotes the FMU's
     log), or a unit was used wrongly."""

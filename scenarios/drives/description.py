@@ -29,7 +29,7 @@ except ModuleNotFoundError:  # Python 3.10: the same parser as a package (pyproj
 
 
 from scenarios.core.paths import ROOT
-from scenarios.maps.flux_map import DEFAULT_MAP, METADATA_PARAMETERS, FluxMap, MotorData, read_flux_map
+from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
 from scenarios.vehicle.battery import OCV_FITS, BatteryParams
 from scenarios.vehicle.driver import P_AUX_DEFAULT
 from scenarios.vehicle.inverter import InverterParams
@@ -354,9 +354,12 @@ class DriveDescription:
 
 
 # -- the loader -----------------------------------------------------------------------------------
-#: controller key -> the flux map's metadata key that gives its default; the motor's: the others
-CONTROLLER_METADATA = {p: k for k, p in METADATA_PARAMETERS.items() if p in ("k_u", "lut_u_dc")}
-MOTOR_METADATA = {p: k for k, p in METADATA_PARAMETERS.items() if p not in CONTROLLER_METADATA}
+#: motor key -> the flux map's metadata key that gives its default
+MOTOR_METADATA = {"pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_A", "T_magnet_ref": "T_magnet_ref_K",
+                  "T_winding_ref": "T_winding_ref_K", "alpha_cu": "alpha_cu_per_K", "k_psi_T": "k_psi_T_per_K",
+                  "fe_k_h": "fe_k_h_W_per_Hz", "fe_alpha": "fe_alpha",
+                  "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb"}
+CONTROLLER_METADATA = {"k_u": "k_u", "lut_u_dc": "u_dc_V"}
 
 #: a hook for FEM exports: path -> a contract CSV (scenarios.maps.importer.contract_csv when present)
 MapResolver = Callable[[Path], Path]

@@ -55,17 +55,6 @@ class FluxMap:
 
 _LEADING_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
-#: The contract's '# key: value' metadata (INTERFACE.md, the flux-map format) -> the parameter
-#: of the FMUs each states, the one table in Python. The FMUs warn when a parameter differs from
-#: its map's statement (fmu_src/machine/flux_map_metadata), the scenarios take a drive's defaults
-#: from it (scenarios.drives.description), `map show` its parameters; tests/python/test_map_metadata.py
-#: holds this table and the FMUs' equal.
-METADATA_PARAMETERS = {
-    "pole_pairs": "pole_pairs", "R_s_ohm": "R_s", "T_winding_ref_K": "T_winding_ref", "alpha_cu_per_K": "alpha_cu",
-    "T_magnet_ref_K": "T_magnet_ref", "k_psi_T_per_K": "k_psi_T", "fe_k_h_W_per_Hz": "fe_k_h", "fe_alpha": "fe_alpha",
-    "fe_k_e_W_per_Hz2": "fe_k_e", "fe_psi_ref_Wb": "fe_psi_ref", "I_max_A": "I_max", "u_dc_V": "lut_u_dc", "k_u": "k_u",
-}
-
 #: the default motor's flux map (tools/default_motor/ makes it); its metadata is the motor's data sheet
 DEFAULT_MAP = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
 
@@ -84,9 +73,8 @@ class MotorData:
 
     @classmethod
     def of(cls, fmap: FluxMap) -> MotorData:
-        key = {p: k for k, p in METADATA_PARAMETERS.items()}
-        values = {name: fmap.number(key[name]) for name in cls.__dataclass_fields__}
-        return cls(**{**values, "pole_pairs": int(values["pole_pairs"])})
+        return cls(int(fmap.number("pole_pairs")), fmap.number("R_s_ohm"), fmap.number("T_winding_ref_K"),
+                   fmap.number("alpha_cu_per_K"), fmap.number("I_max_A"), fmap.number("k_u"))
 
     def R_s_at(self, T_winding: float) -> float:
         """Winding resistance at T_winding (K)."""

@@ -28,9 +28,9 @@ import numpy as np
 from scenarios.core.constants import U_DC_NOMINAL_V
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
-from scenarios.cosim.fmu import CosimError, Fmu, start_values
+from scenarios.cosim.fmu import CosimError, Fmu
 from scenarios.maps.error import MapImportError
-from scenarios.maps.flux_map import METADATA_PARAMETERS, FluxMap, read_flux_map
+from scenarios.maps.flux_map import FluxMap, read_flux_map
 from scenarios.maps.importer import contract_csv
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
@@ -41,15 +41,14 @@ DRIVE_DT = 0.01         # s, the drive's communication step (a vehicle tool's)
 DRIVE_SETTLE_REL = 1e-4  # P_dc steady when a step changes it by less than this (relative, + 1 W)
 DRIVE_MAX_STEPS = 6
 
-#: the machine's parameters that take the FMUs' defaults (their start values) when the map's
-#: metadata does not state them; the iron-loss ones default to the default motor's, scaled to the map
-DEFAULTED = ("pole_pairs", "R_s", "T_winding_ref", "alpha_cu", "T_magnet_ref", "k_psi_T", "k_u")
-
-
-def fmu_defaults(build: Path = BUILD_DIR) -> dict:
-    """The controller's and the plant's parameters' start values (the plant's where both have one)."""
-    fmu = build / "fmu"
-    return {**start_values(fmu / "IpmsmController.fmu"), **start_values(fmu / "IpmsmPlant.fmu")}
+# '# key: value' metadata -> FMU parameter (INTERFACE.md); absent ones take the FMUs' defaults
+METADATA_PARAMETERS = {
+    "pole_pairs": "pole_pairs", "R_s_ohm": "R_s", "T_winding_ref_K": "T_winding_ref", "alpha_cu_per_K": "alpha_cu",
+    "T_magnet_ref_K": "T_magnet_ref", "k_psi_T_per_K": "k_psi_T", "k_u": "k_u", "fe_k_h_W_per_Hz": "fe_k_h",
+    "fe_alpha": "fe_alpha", "fe_k_e_W_per_Hz2": "fe_k_e", "fe_psi_ref_Wb": "fe_psi_ref",
+}
+FMU_DEFAULTS = {"pole_pairs": 4, "R_s": 0.012, "T_winding_ref": 293.15, "alpha_cu": 0.00393, "T_magnet_ref": 293.15,
+                "k_psi_T": -0.0012, "k_u": 0.95}
 
 
 @dataclass(frozen=True)
@@ -87,19 +86,16 @@ class MachineSummary:
     wall_s: float = 0.0
 
 
-def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = None,
-                       build: Path = BUILD_DIR) -> tuple[dict, list, float]:
+def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = None) -> tuple[dict, list, float]:
     """FMU parameters from the map's metadata (else the FMUs' defaults, listed), and u_dc; u_dc and
     I_max given override the metadata."""
-    params, assumed, defaults = {}, [], fmu_defaults(build)
+    params, assumed = {}, []
     for key, name in METADATA_PARAMETERS.items():
-        if name in ("I_max", "lut_u_dc"):  # below: the current limit and the DC voltage
-            continue
         if key in fmap.metadata:
             params[name] = int(fmap.number(key)) if name == "pole_pairs" else fmap.number(key)
-        elif name in DEFAULTED:
-            params[name] = defaults[name]
-            assumed.append(f"{name} = {defaults[name]:g} (the FMUs' default)")
+        elif name in FMU_DEFAULTS:
+            params[name] = FMU_DEFAULTS[name]
+            assumed.append(f"{name} = {FMU_DEFAULTS[name]:g} (the FMUs' default)")
     if "fe_psi_ref" not in params:
         params["fe_psi_ref"] = fmap.psi_m
         assumed.append("iron loss: the default motor's coefficients, fe_psi_ref = this map's psi_m")
@@ -206,7 +202,7 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max
     path, out = Path(path), Path(out)
     csv = contract_csv(path)
     fmap = read_flux_map(csv)
-    params, assumed, u_dc = machine_parameters(fmap, u_dc, I_max, build)
+    params, assumed, u_dc = machine_parameters(fmap, u_dc, I_max)
     T_magnet = params["T_magnet_ref"]
     V_max = params["k_u"] * u_dc / SQRT3
     bar = Progress(spec.n_speed + spec.n_mtpa + spec.n_eff_speed * spec.n_eff_torque, "map show")
