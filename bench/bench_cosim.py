@@ -1,7 +1,8 @@
-"""Benchmark of the drive-cycle master: IpmsmController + IpmsmPlant coupled at 100 us, advanced
-in 10 ms chunks (as the vehicle side calls it) on a drive-like profile, for both backends.
+"""Benchmark of the drive at 100 us on a drive-like profile, advanced in 10 ms chunks (as the
+vehicle side calls it): the IpmsmDrive FMU (the fast path) and the reference loop (IpmsmController +
+IpmsmPlant coupled in Python, scenarios/cosim/reference.py).
 
-    python -m bench.bench_cosim --seconds 60            # native 60 s, fmpy 10 s
+    python -m bench.bench_cosim --seconds 60            # drive 60 s, reference loop 10 s
     python -m bench.bench_cosim --seconds 1800          # measures a WLTC-length run
     python -m bench.bench_cosim --seconds 60 --fmpy-seconds 60 --json out.json
 
@@ -22,7 +23,8 @@ import os
 import time
 from pathlib import Path
 
-from scenarios.cosim.master import DriveCosim, default_library
+from scenarios.cosim.drive_fmu import DriveFmu
+from scenarios.cosim.reference import ReferenceDrive
 
 ROOT = Path(__file__).resolve().parents[1]
 H = 1e-4
@@ -64,23 +66,23 @@ def profile(t: float, duration: float, kind: str = "drive") -> tuple[float, floa
     return T_ref, w_m, u_dc, 273.15 + 60.0 + 30.0 * x, 273.15 + 70.0 + 40.0 * x
 
 
-def run(backend: str, seconds: float, controller_fmu: Path, plant_fmu: Path, library: Path | None,
-        progress: bool = False, kind: str = "drive") -> dict:
+def run(backend: str, seconds: float, fmu_dir: Path, progress: bool = False, kind: str = "drive") -> dict:
     n_chunks = int(round(seconds / (CHUNK * H)))
     T_ref, w_m, u_dc, T_mag, T_win = profile(0.0, seconds, kind)
+    start = dict(w_m=w_m, u_dc=u_dc, T_magnet=T_mag, T_winding=T_win, T_ref=T_ref)
     energy = 0.0
-    with DriveCosim(controller_fmu, plant_fmu, backend=backend, library=library, w_m=w_m, u_dc=u_dc,
-                    T_magnet=T_mag, T_winding=T_win, T_ref=T_ref) as cosim:
+    with (DriveFmu(fmu_dir / "IpmsmDrive.fmu", **start) if backend == "drive" else
+          ReferenceDrive(fmu_dir / "IpmsmController.fmu", fmu_dir / "IpmsmPlant.fmu", **start)) as drive:
         wall0, cpu0 = time.perf_counter(), time.process_time()
         for j in range(n_chunks):
             T_ref, w_m, u_dc, T_mag, T_win = profile(j * CHUNK * H, seconds, kind)
-            r = cosim.advance(CHUNK, T_ref, w_m, u_dc, T_mag, T_win)
-            energy += r.mean.P_elec * CHUNK * H
+            r = drive.advance(CHUNK * H, T_ref, w_m, u_dc, T_mag, T_win)
+            energy += r.P_elec * CHUNK * H
             if progress and j % 1000 == 999:
                 el = time.perf_counter() - wall0
-                print(f"  {backend}: {r.t:.0f} s simulated, {el:.1f} s wall", flush=True)
+                print(f"  {backend}: {(j + 1) * CHUNK * H:.0f} s simulated, {el:.1f} s wall", flush=True)
         wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
-        steps = cosim.k
+        steps = n_chunks * CHUNK
     return {"backend": backend, "profile": kind, "simulated_s": steps * H, "steps": steps, "wall_s": wall, "cpu_s": cpu,
             "us_per_step_wall": wall / steps * 1e6, "us_per_step_cpu": cpu / steps * 1e6,
             "real_time_factor": steps * H / wall, "wltc_1800s_estimate_s": wall / steps * WLTC_S / H,
@@ -90,30 +92,27 @@ def run(backend: str, seconds: float, controller_fmu: Path, plant_fmu: Path, lib
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.bench_cosim", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds, native backend")
+    ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds, the drive FMU")
     ap.add_argument("--fmpy-seconds", type=float, default=None,
-                    help="simulated seconds, fmpy backend (default min(seconds, 10); 0: skip)")
+                    help="simulated seconds, the reference loop (default min(seconds, 10); 0: skip)")
     ap.add_argument("--fmu-dir", type=Path, default=Path(os.environ.get("IPMSM_FMU_DIR", ROOT / "build" / "fmu")))
-    ap.add_argument("--library", type=Path, default=None, help="libipmsm_cosim.so (default: next to the FMUs' build)")
     ap.add_argument("--json", type=Path, default=None, help="write the results here")
     ap.add_argument("--profile", choices=("drive", "stress"), default="drive",
                     help="drive: the profile above; stress: a new random torque in [-250, 250] N.m every 10 ms")
     ap.add_argument("--progress", action="store_true")
     args = ap.parse_args(argv)
-    c_fmu, p_fmu = args.fmu_dir / "IpmsmController.fmu", args.fmu_dir / "IpmsmPlant.fmu"
-    library = args.library or default_library(c_fmu)
     fmpy_s = min(args.seconds, 10.0) if args.fmpy_seconds is None else args.fmpy_seconds
-    print(f"coupled controller + plant at h = 100 us, 10 ms chunks; {os.cpu_count()} CPUs, "
+    print(f"the drive at h = 100 us, 10 ms chunks; {os.cpu_count()} CPUs, "
           f"load average {os.getloadavg()[0]:.2f}")
-    print(f"FMUs {args.fmu_dir}, library {library}; profile {args.profile}")
+    print(f"FMUs {args.fmu_dir}; profile {args.profile}")
     results = []
-    runs = [("native", args.seconds)]
+    runs = [("drive", args.seconds)]
     if fmpy_s > 0:
         runs.append(("fmpy", fmpy_s))
         if fmpy_s != args.seconds:
-            runs.append(("native", fmpy_s))  # the same (shorter) profile, for a direct comparison
+            runs.append(("drive", fmpy_s))  # the same (shorter) profile, for a direct comparison
     for backend, seconds in runs:
-        r = run(backend, seconds, c_fmu, p_fmu, library, args.progress, args.profile)
+        r = run(backend, seconds, args.fmu_dir, args.progress, args.profile)
         results.append(r)
     print()
     print(f"{'backend':8} {'sim s':>7} {'steps':>9} {'wall s':>8} {'CPU s':>8} {'us/step':>8} {'CPU us/step':>11} "

@@ -8,12 +8,10 @@ them). The optimum
 reference (an extra controller FMU call per vehicle step, for the copper-loss comparison) is left
 out unless --reference.
 
-    .venv/bin/python bench/bench_drive.py [--cycle WLTC3b] [--until SECONDS] [--backend drive|native|fmpy]
+    .venv/bin/python bench/bench_drive.py [--cycle WLTC3b] [--until SECONDS] [--backend drive|fmpy]
                                           [--reference] [--split]
 
-With --backend fmpy the split counts both FMUs' steps; with --backend native the co-simulation
-runs in the native master, not through fmpy's fmi2DoStep, and the split counts only the
-reference's steps.
+With --backend fmpy (the reference loop) the split counts both FMUs' steps.
 """
 from __future__ import annotations
 
@@ -23,44 +21,61 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-from fmpy.fmi2 import FMU2Slave
-
+from scenarios.cosim import BACKENDS
+from scenarios.cosim.fmu import Fmu
 from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
 from scenarios.vehicle.cycles import load_cycle, segment
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
+class _TimedDll:
+    """An FMU's loaded binary whose fmi2DoStep adds its wall and CPU time to `spent`."""
+
+    def __init__(self, dll, spent: dict):
+        self._dll, self._spent = dll, spent
+
+    def __getattr__(self, name):
+        f = getattr(self._dll, name)
+        if name != "fmi2DoStep":
+            return f
+        spent, wall, cpu = self._spent, time.perf_counter, time.process_time
+
+        def timed(*args):
+            w0, c0 = wall(), cpu()
+            try:
+                return f(*args)
+            finally:
+                spent["cpu"] += cpu() - c0
+                spent["wall"] += wall() - w0
+        return timed
+
+
 @contextmanager
 def do_step_clock():
-    """Accumulates the wall and CPU time spent inside every fmpy fmi2DoStep call while in the
-    block: yields a dict with "wall" and "cpu" seconds. The timing wrapper's own Python call is
-    counted on the Python side."""
+    """Accumulates the wall and CPU time spent inside every fmi2DoStep call of the FMUs opened
+    in the block (scenarios.cosim.fmu.Fmu): yields a dict with "wall" and "cpu" seconds. The
+    timing wrapper's own Python call is counted on the Python side."""
     spent = {"wall": 0.0, "cpu": 0.0}
-    do_step = FMU2Slave.fmi2DoStep
-    wall, cpu = time.perf_counter, time.process_time
+    init = Fmu.__init__
 
-    @functools.wraps(do_step)  # fmpy reads the C signature off the method
-    def timed(self, *args):
-        w0, c0 = wall(), cpu()
-        try:
-            return do_step(self, *args)
-        finally:
-            spent["cpu"] += cpu() - c0
-            spent["wall"] += wall() - w0
+    @functools.wraps(init)
+    def timed_init(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self.dll = _TimedDll(self.dll, spent)
 
-    FMU2Slave.fmi2DoStep = timed
+    Fmu.__init__ = timed_init
     try:
         yield spent
     finally:
-        FMU2Slave.fmi2DoStep = do_step
+        Fmu.__init__ = init
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cycle", default="WLTC3b")
     ap.add_argument("--until", type=float, default=None, help="run only the cycle's first SECONDS")
-    ap.add_argument("--backend", default="drive", choices=("drive", "native", "fmpy"))
+    ap.add_argument("--backend", default="drive", choices=BACKENDS)
     ap.add_argument("--reference", action="store_true")
     ap.add_argument("--split", action="store_true", help="add an instrumented run: time inside fmi2DoStep vs the rest")
     ap.add_argument("--build", type=Path, default=ROOT / "build")

@@ -10,6 +10,7 @@ from pathlib import Path
 from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR, OUT_DIR
 from scenarios.core.version import VERSION
+from scenarios.cosim import BACKENDS
 from scenarios.maps import cli as map_cli
 
 #: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
@@ -44,9 +45,9 @@ def main(argv=None) -> int:
                      help="default: the drive's controller.method")
     run.add_argument("--recursion", type=int, default=None, choices=(0, 1, 2),
                      help="default: the drive's controller.recursion")
-    run.add_argument("--backend", default="auto", choices=("auto", "native", "fmpy", "drive"),
-                     help="the two FMUs coupled at 100 us by the native or the fmpy master, or the IpmsmDrive FMU "
-                          "stepped at the vehicle's 10 ms through plain fmpy")
+    run.add_argument("--backend", default="drive", choices=BACKENDS,
+                     help="drive: the IpmsmDrive FMU stepped at the vehicle's 10 ms (the fast path); fmpy: the "
+                          "reference loop, IpmsmController and IpmsmPlant coupled at 100 us in Python (slow)")
     run.add_argument("--u-dc-scale", type=float, default=1.0, help="DC voltage seen by the drive / battery's")
     run.add_argument("--magnet-degC", type=float, default=T_REFERENCE_K - ZERO_CELSIUS_K)
     run.add_argument("--out", type=Path, default=None)

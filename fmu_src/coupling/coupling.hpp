@@ -1,8 +1,8 @@
 // The coupling description (ipmsm_drive.coupling, its syntax and semantics stated there), read
 // into names: which units, in which order, which output feeds which input, which external input
 // feeds which inputs. FMI-free: a master resolves the names to value references from the model
-// descriptions (scenarios/native/cosim.cpp), an FMU that holds both models to its models' fields.
-// scenarios/cosim/coupling.py reads the same file in Python.
+// descriptions, an FMU that holds both models (IpmsmDrive) to its models' fields. The reference
+// loop (scenarios/cosim/reference.py) reads the same file in Python (scenarios/cosim/coupling.py).
 #pragma once
 
 #include <cctype>

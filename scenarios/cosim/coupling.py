@@ -60,7 +60,7 @@ class Coupling:
     step: float              # s, the default communication step
     connections: tuple[Connection, ...]
     inputs: tuple[ExternalInput, ...]
-    text: str                # the description as read (the native master parses the same text)
+    text: str                # the description as read
 
     @property
     def roles(self) -> tuple[str, ...]:

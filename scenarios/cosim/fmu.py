@@ -1,66 +1,172 @@
-"""A thin, fast wrapper around fmpy's FMU2Slave: set and get variables by name, step."""
+"""The one Python handle on a co-simulation FMU (fmpy's FMU2Slave underneath): variables by name,
+value references resolved once, the FMU's log kept and passed to logging, every failed call a
+CosimError that quotes what the FMU logged.
+
+    with Fmu("build/fmu/IpmsmController.fmu", method="ferrari") as c:   # parameters; initialised
+        c.set(T_ref=100.0, w_m=300.0)
+        c.do_step(0.0, 1e-4)
+        c.get("i_d_ref", "i_q_ref")
+
+Fmu(..., initialise=False) stays in Initialization Mode (parameters set) until exit_initialization():
+a master initialising several units in order needs that. The per-step paths (the drive FMU, the
+reference loop) call the FMU's fmi2* functions on ctypes arrays made once (`reals`, `vrs`): fmpy's
+getReal/setReal build new arrays at every call, which costs 2-5 times the call itself.
+"""
 from __future__ import annotations
 
+import logging
 import shutil
+from collections import deque
+from collections.abc import Mapping
+from ctypes import c_uint
 from pathlib import Path
 
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+
+LOG = logging.getLogger("scenarios.cosim")
+#: fmi2Status values (fmi2FunctionTypes.h)
+FMI2_OK, FMI2_WARNING, FMI2_FATAL = 0, 1, 4
+_LEVEL = {FMI2_OK: logging.INFO, FMI2_WARNING: logging.WARNING}
+#: per variable type: the fmi2Set/Get<Type> that takes it and the conversion of a value to it
+_SETTERS = {"Real": ("Real", float), "Integer": ("Integer", int), "Enumeration": ("Integer", int),
+            "Boolean": ("Boolean", bool), "String": ("String", str)}
 
 
-def get_values(fmu: FMU2Slave, variables: dict, *names):
-    """The named variables' values (variables: name -> ScalarVariable), each through its type's
-    getter: one value for one name, else a list."""
-    out = [getattr(fmu, "get" + variables[n].type)([variables[n].valueReference])[0] for n in names]
+def set_values(fmu: FMU2Slave, variables: Mapping, **values) -> None:
+    """Set variables by name (variables: name -> ScalarVariable), each through its type's
+    fmi2Set<Type>, the value converted to that type."""
+    for name, value in values.items():
+        v = variables[name]
+        kind, convert = _SETTERS[v.type]
+        getattr(fmu, "set" + kind)([v.valueReference], [convert(value)])
+
+
+def get_values(fmu: FMU2Slave, variables: Mapping, *names: str):
+    """The named variables' values, each through its type's fmi2Get<Type>: one value for one
+    name, else a list."""
+    out = [getattr(fmu, "get" + _SETTERS[variables[n].type][0])([variables[n].valueReference])[0] for n in names]
     return out[0] if len(out) == 1 else out
 
 
-_AS_TYPE = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
-
-
-def set_values(fmu: FMU2Slave, variables: dict, **values) -> None:
-    """Set variables by name, each through its type's setter, the value converted to that type."""
-    for name, value in values.items():
-        v = variables[name]
-        getattr(fmu, "set" + v.type)([v.valueReference], [_AS_TYPE.get(v.type, lambda x: x)(value)])
+class CosimError(RuntimeError):
+    """An FMI call failed (the message names the FMU, the call and the time, and quotes the FMU's
+    log), or a unit was used wrongly."""
 
 
 class Fmu:
-    """One instance of a co-simulation FMU. Parameters go in at construction; then
-    step(t, h) with inputs set by name. Use as a context manager (frees the instance)."""
+    """One instance of a co-simulation FMU: set-up, parameters (by name, any type) and, unless
+    initialise=False, fmi2ExitInitializationMode at construction. A context manager (frees it)."""
 
-    def __init__(self, path: str | Path, instance_name: str | None = None, logging: bool = False, **parameters):
+    def __init__(self, path: str | Path, instance_name: str | None = None, logging: bool = False,
+                 initialise: bool = True, **parameters):
         self.path = Path(path)
         self.md = read_model_description(str(self.path))
-        self._dir = extract(str(self.path))
+        self.name = self.md.coSimulation.modelIdentifier
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self._dir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier,
-                             instanceName=instance_name or self.md.modelName)
-        self.fmu.instantiate(loggingOn=logging)
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        self.set(**parameters)
-        self.fmu.exitInitializationMode()
+        self.messages: deque = deque(maxlen=200)  # (status, category, message), the latest
+        self.t = 0.0
+        self.fmu = None
+        self._dir = extract(str(self.path))
+        try:
+            self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=self.name,
+                                 instanceName=instance_name or self.md.modelName)
+            self.fmu.instantiate(loggingOn=logging, callbacks=self._callbacks())
+            self.c = self.fmu.component
+            self.dll = self.fmu.dll
+            self.call("fmi2SetupExperiment", 0, 0.0, 0.0, 0, 0.0)
+            self.call("fmi2EnterInitializationMode")
+            self.set(**parameters)
+            if initialise:
+                self.exit_initialization()
+        except BaseException:
+            self.close()
+            raise
 
-    def vr(self, name: str) -> int:
-        return self.vars[name].valueReference
+    def _callbacks(self) -> fmi2CallbackFunctions:
+        def logger(env, instance, status, category, message):
+            text = (message or b"").decode(errors="replace").replace("%%", "%")  # as printf would
+            self.messages.append((status, (category or b"").decode(errors="replace"), text))
+            LOG.log(_LEVEL.get(status, logging.ERROR), "[%s] %s", self.name, text)
+
+        self._logger = fmi2CallbackLoggerTYPE(logger)  # alive as long as the instance
+        cb = fmi2CallbackFunctions()
+        cb.logger, cb.allocateMemory, cb.freeMemory = self._logger, defaultCallbacks.allocateMemory, \
+            defaultCallbacks.freeMemory
+        self._cb = cb
+        return cb
+
+    def last_messages(self, n: int = 3) -> str:
+        return " | ".join(m for _, _, m in list(self.messages)[-n:]) or "(the FMU logged no message)"
+
+    def fail(self, what: str, status: int) -> None:
+        raise CosimError(f"{self.name}: {what} failed at t = {self.t:.9g} s (status {status}); "
+                         f"the FMU says: {self.last_messages()}")
+
+    def call(self, function: str, *args) -> None:
+        """fmi2<function>(component, *args), its status checked."""
+        status = getattr(self.dll, function)(self.c, *args)
+        if status > FMI2_WARNING:
+            self.fail(function, status)
+
+    def exit_initialization(self) -> None:
+        self.call("fmi2ExitInitializationMode")
+
+    def variable(self, name: str):
+        try:
+            return self.vars[name]
+        except KeyError:
+            raise CosimError(f"{self.name} has no variable {name!r}") from None
+
+    def vrs(self, *names: str):
+        """The variables' value references, as an fmi2ValueReference array."""
+        return (c_uint * len(names))(*(self.variable(n).valueReference for n in names))
+
+    def read(self, vrs, out, kind: str = "Real") -> None:
+        """fmi2Get<kind> of the value references vrs (an array from `vrs`) into out, an array of
+        their length (made once by the caller: the per-step paths)."""
+        self.call(f"fmi2Get{kind}", vrs, len(vrs), out)
 
     def set(self, **values) -> None:
-        set_values(self.fmu, self.vars, **values)
+        """Variables by name (parameters, inputs), each converted to its type."""
+        for name in values:
+            if self.variable(name).causality not in ("parameter", "input"):
+                raise CosimError(f"{self.name}.{name} is {self.vars[name].causality}: only parameters and inputs "
+                                 "are set")
+        try:
+            set_values(self.fmu, self.vars, **values)
+        except Exception as e:  # fmpy raises on a status above fmi2Warning
+            raise CosimError(f"{self.name}: setting {', '.join(values)} failed ({e}); the FMU says: "
+                             f"{self.last_messages()}") from None
 
-    def get(self, *names):
+    def get(self, *names: str):
+        """The variables' values (Real, Integer, Boolean): one value for one name, else a list."""
+        for name in names:
+            self.variable(name)
         return get_values(self.fmu, self.vars, *names)
 
-    def step(self, t: float, h: float) -> None:
-        self.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+    def do_step(self, t: float, h: float) -> None:
+        self.t = t
+        self.call("fmi2DoStep", t, h, 1)
+        self.t = t + h
+
+    step = do_step
 
     def close(self) -> None:
-        try:
-            self.fmu.terminate()
-        finally:
-            self.fmu.freeInstance()
+        if self.fmu is not None:
+            fatal = any(s == FMI2_FATAL for s, _, _ in self.messages)
+            try:
+                if not fatal:
+                    self.fmu.terminate()
+            except Exception:  # noqa: S110 - a unit that failed may refuse to terminate: free it anyway
+                pass
+            try:
+                self.fmu.freeInstance()
+            finally:
+                self.fmu = None
+        if self._dir:
             shutil.rmtree(self._dir, ignore_errors=True)
+            self._dir = None
 
     def __enter__(self):
         return self

@@ -28,8 +28,7 @@ import numpy as np
 
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
-from scenarios.cosim.fmu import Fmu
-from scenarios.cosim.master import CosimError
+from scenarios.cosim.fmu import CosimError, Fmu
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import FluxMap, read_flux_map
 from scenarios.maps.importer import contract_csv

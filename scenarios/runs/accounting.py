@@ -57,12 +57,12 @@ class RunAccounts:
 
     def observe(self, s: VehicleStep) -> None:
         """One vehicle step has ended."""
-        dt, m, e = self.dt, s.drive.mean, s.drive.end
+        dt, m = self.dt, s.drive  # means over the step; T_cmd, u_ratio at its end
         # Voltage use, sampled at the vehicle step: above the planned V_max = k_u u_dc / sqrt 3
         # (the optimum's reserve for the regulator), and at the inverter's limit u_dc / sqrt 3.
-        if e.u_ratio > self.k_u * (1.0 + V_MAX_MARGIN):
+        if m.u_ratio > self.k_u * (1.0 + V_MAX_MARGIN):
             self.t_over += dt
-        if e.u_ratio >= 1.0 - U_LIMIT_TOLERANCE:
+        if m.u_ratio >= 1.0 - U_LIMIT_TOLERANCE:
             self.t_sat += dt
         self.E_elec += m.P_elec * dt
         self.E_mech += m.P_mech * dt

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from scenarios.core.paths import BUILD_DIR
+from scenarios.cosim import BACKENDS
 from scenarios.drives.description import LIMITS, DriveDescription, DriveDescriptionError, load_drive
 
 EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT = 0, 1, 2
@@ -62,7 +63,7 @@ def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[
     return out
 
 
-def run_cycles(drive: DriveDescription, build: Path, backend: str = "auto", progress: bool = True) -> dict:
+def run_cycles(drive: DriveDescription, build: Path, backend: str = "drive", progress: bool = True) -> dict:
     """cycle -> (summary dict, wall s), each of the drive's check cycles run whole."""
     from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
     from scenarios.vehicle.cycles import load_cycle
@@ -125,7 +126,7 @@ def write_atomically(path: Path, write) -> None:
 
 
 def check(drive_file: Path | None, junit_path: Path | None, out: Path, build: Path = BUILD_DIR,
-          backend: str = "auto", progress: bool = True) -> int:
+          backend: str = "drive", progress: bool = True) -> int:
     """The exit status (EXIT_PASS / EXIT_FAIL); a bad input raises DriveDescriptionError."""
     drive = load_drive(drive_file)
     for a in drive.assumed:  # the motor's values neither the file nor its map gives
@@ -151,7 +152,8 @@ def add_parser(sub) -> None:
     p.add_argument("drive", type=Path, help="drive description (TOML) with a [checks] table")
     p.add_argument("--junit", type=Path, default=None, help="write JUnit XML here")
     p.add_argument("--out", type=Path, default=Path("out") / "check", help="folder of check.md")
-    p.add_argument("--backend", default="auto", choices=("auto", "native", "fmpy", "drive"))
+    p.add_argument("--backend", default="drive", choices=BACKENDS,
+                   help="drive: the IpmsmDrive FMU; fmpy: the reference loop")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -10,7 +10,7 @@ from dataclasses import asdict, astuple, dataclass, field, fields
 from pathlib import Path
 
 from scenarios.core.version import VERSION
-from scenarios.cosim.master import AdvanceResult
+from scenarios.cosim.drive_fmu import DriveStep
 
 
 @dataclass(slots=True)  # made at every vehicle step: a frozen dataclass's __init__ costs 3x
@@ -26,7 +26,7 @@ class VehicleStep:
     u_dc: float        # V, DC-link voltage the drive sees (held)
     T_ref: float       # N m, torque command of the brake blending (held)
     F_brake: float     # N, friction-brake force (held)
-    drive: AdvanceResult  # the co-simulated drive's outputs: means over the step and values at t
+    drive: DriveStep   # the drive's outputs: means over the step, integrals, values at t
     P_inverter: float  # W, inverter loss
     P_dc: float        # W, DC-side power of the drive: P_elec + P_inverter
     I: float           # A, current magnitude, sqrt of the step's mean of i_d^2 + i_q^2
@@ -61,9 +61,9 @@ class TracePoint:
 
     @classmethod
     def of(cls, s: VehicleStep) -> TracePoint:
-        m, e = s.drive.mean, s.drive.end
-        return cls(s.t, s.v_ref, s.v, s.w_m, s.T_ref, e.T_cmd, e.T_max, m.T_e, m.T_shaft, e.i_d, e.i_q, s.I, s.I_opt,
-                   s.u_dc, m.P_elec, s.P_dc, s.F_brake, s.soc, int(e.region))
+        d = s.drive
+        return cls(s.t, s.v_ref, s.v, s.w_m, s.T_ref, d.T_cmd, d.T_max, d.T_e, d.T_shaft, d.i_d, d.i_q, s.I, s.I_opt,
+                   s.u_dc, d.P_elec, s.P_dc, s.F_brake, s.soc, int(d.region))
 
 
 TRACE_COLUMNS = tuple(f.name for f in fields(TracePoint))
@@ -127,7 +127,7 @@ class RunSummary:
     dt_s: float
     wall_s: float
     real_time_factor: float
-    backend: str                      # the co-simulation master's backend: native or fmpy
+    backend: str                      # how the drive was simulated: drive (IpmsmDrive) or fmpy (reference loop)
     drive: str = ""                   # the drive description's name (scenarios.drives.description)
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
     w_m_peak_rpm: float = 0.0         # the highest rotor speed of the run

@@ -1,6 +1,8 @@
 """One drive cycle with the FMUs: the vehicle side (driver, brake blending, vehicle, battery,
-inverter losses) at dt = 10 ms around the co-simulated drive (IpmsmController + IpmsmPlant at
-h = 100 us, scenarios.cosim.master). Results per the contract: summary.json and trace.csv
+inverter losses) at dt = 10 ms around the drive: the IpmsmDrive FMU (scenarios.cosim.drive_fmu),
+or the reference loop coupling IpmsmController and IpmsmPlant at h = 100 us in Python
+(scenarios.cosim.reference); both return the drive's step record. Results per the contract:
+summary.json and trace.csv
 (scenarios.runs.results).
 
 The loop (`vehicle_steps`) only simulates: it yields each vehicle step's signals, which the
@@ -24,9 +26,10 @@ import numpy as np
 from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
-from scenarios.cosim.drive_fmu import DriveAdvanceResult, DriveAsCosim
+from scenarios.cosim import BACKENDS
+from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
 from scenarios.cosim.fmu import Fmu
-from scenarios.cosim.master import DriveCosim
+from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, load_drive
 from scenarios.runs.accounting import RunAccounts
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
@@ -36,7 +39,7 @@ from scenarios.vehicle.driver import BlendParams, Driver, DriverParams, blend
 from scenarios.vehicle.inverter import inverter_loss
 from scenarios.vehicle.longitudinal import Vehicle, motor_speed, wheel_force
 
-__all__ = ["METHODS", "STUDY_CONDITIONS", "Conditions", "RunSpec", "fmu_paths", "simulate"]
+__all__ = ["BACKENDS", "METHODS", "STUDY_CONDITIONS", "Conditions", "RunSpec", "fmu_paths", "simulate"]
 
 #: N m, the blending's torque limit before the controller has reported its reach (T_max, after
 #: the first step): no limit
@@ -79,7 +82,7 @@ class RunSpec:
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
     trace_dt: float = 0.1     # s, trace.csv sampling
-    backend: str = "auto"     # master: native if built, else fmpy; "drive": the IpmsmDrive FMU
+    backend: str = "drive"    # one of BACKENDS
     reference: bool = True    # evaluate the exact optimum per vehicle step
     lut_grid: tuple[int, int] | None = None  # 2-D tables' points (torque, speed or V_max/w); None: the FMU's
     driver: DriverParams = field(default_factory=DriverParams)
@@ -111,6 +114,20 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
     return build / "fmu" / "IpmsmController.fmu", build / "fmu" / "IpmsmPlant.fmu"
 
 
+def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict, **start):
+    """The drive of a run by spec.backend: IpmsmDrive (built next to the controller's FMU), or the
+    reference loop with the drive description's inverter."""
+    inverter = spec.drive.inverter
+    if spec.backend == "drive":
+        return DriveFmu(Path(controller_fmu).parent / "IpmsmDrive.fmu",
+                        {**c_params, **p_params, **asdict(inverter), "sample_time": spec.h}, **start)
+    if spec.backend == "fmpy":
+        return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start,
+                              inverter_loss=lambda I, I2, u_dc, P_ac: inverter_loss(I, I2, u_dc, P_ac_mean=P_ac,
+                                                                                    p=inverter).P)
+    raise ValueError(f"backend = {spec.backend!r}: one of {', '.join(BACKENDS)}")
+
+
 class OptimumReference:
     """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
     given torque and conditions: its current magnitude and copper loss."""
@@ -140,15 +157,16 @@ class OptimumReference:
         self.close()
 
 
-def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], cosim: DriveCosim | DriveAsCosim,
+def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], drive: DriveFmu | ReferenceDrive,
                   vehicle: Vehicle, driver: Driver, battery: Battery,
                   reference: OptimumReference | None) -> Iterator[VehicleStep]:
     """The vehicle-side loop (scenarios/driver.py describes one step) over the cycle sampled at
-    t_ref (len(t_ref) - 1 steps of spec.dt), the drive co-simulated by `cosim`; yields each
-    step's signals once it has ended."""
+    t_ref (len(t_ref) - 1 steps of spec.dt) around `drive`; yields each step's signals once it
+    has ended."""
     cond, vp, dt = spec.conditions, spec.drive.vehicle, spec.dt
     P_aux = spec.drive.P_aux
-    n_inner = spec.steps_per_vehicle_step()
+    drive_dt = spec.steps_per_vehicle_step() * drive.sample_time
+    R = winding_resistance(drive, cond.T_winding)  # the copper loss's resistance: |i|^2 = P_cu / (1.5 R)
     T_max_known = T_MAX_UNKNOWN
     for k in range(len(t_ref) - 1):
         v = vehicle.v
@@ -156,25 +174,20 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         u_dc = battery.u * cond.u_dc_scale
         F_dem = driver.demand(v_ref[k], v_ref[k + 1], v, dt)
         b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
-        r = cosim.advance(n_inner, T_ref=b.T_ref, w_m=w_m, u_dc=u_dc, T_magnet=cond.T_magnet,
-                          T_winding=cond.T_winding)
-        m = r.mean
-        T_max_known = abs(r.end.T_max)
+        m = drive.advance(drive_dt, b.T_ref, w_m, u_dc, cond.T_magnet, cond.T_winding)
+        T_max_known = abs(m.T_max)
         F_w = wheel_force(m.T_shaft, vp)
         driver.applied(F_w - b.F_brake)
         vehicle.step(F_w, b.F_brake, dt)
-        # the drive FMU has the inverter inside; the two-FMU drive's loss from its means
-        P_inverter = (r.P_inverter if isinstance(r, DriveAdvanceResult) else
-                      inverter_loss(m.i_abs, m.i_abs_sq, u_dc, P_ac_mean=m.P_elec, p=spec.drive.inverter).P)
-        P_dc = m.P_elec + P_inverter
+        P_dc = m.P_elec + m.P_inv
         battery.step(P_dc + P_aux, dt)
-        I = math.sqrt(max(m.i_abs_sq, 0.0))
+        I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
         if reference is not None:
             I_opt = reference.current(m.T_e, w_m, u_dc, cond.T_magnet, k * dt, dt)
             P_cu_opt = reference.copper_loss(I_opt)
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
-                          F_brake=b.F_brake, drive=r, P_inverter=P_inverter, P_dc=P_dc, I=I, I_opt=I_opt,
+                          F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
                           P_cu_opt=P_cu_opt, soc=battery.soc)
 
 
@@ -210,13 +223,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
                          if spec.reference else None)
             start = dict(w_m=motor_speed(vehicle.v, vp), u_dc=battery.u * cond.u_dc_scale,
                          T_magnet=cond.T_magnet, T_winding=cond.T_winding)
-            cosim = stack.enter_context(
-                # the IpmsmDrive FMU (built next to the controller's) at the vehicle's step
-                DriveAsCosim(Path(controller_fmu).parent / "IpmsmDrive.fmu", c_params, p_params, h=spec.h,
-                             inverter_params=asdict(drive.inverter), **start)
-                if spec.backend == "drive" else
-                DriveCosim(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, backend=spec.backend, **start))
-            for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, cosim, vehicle, driver, battery, reference)):
+            sim = stack.enter_context(open_drive(spec, controller_fmu, plant_fmu, c_params, p_params, **start))
+            for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference)):
                 accounts.observe(step)
                 trace.observe(k, step)
                 if bar:
@@ -227,7 +235,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     wall = time.perf_counter() - wall0
     summary = accounts.summary(cycle=cycle.name, method=method, recursion=recursion, conditions=cond,
                                vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
-                               wall=wall, backend=cosim.backend_name)
+                               wall=wall, backend=spec.backend)
     summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256)
     if out is not None:
         write_results(out, summary, trace)

@@ -5,7 +5,7 @@ process per core (the FMUs and the co-simulation hold the GIL: processes, not th
 existing cluster by its scheduler's address.
 
 What travels (scenarios.study.ship): the FMUs are *shipped*: the client reads the build's three
-.fmu (and the native master's library, when built) once and scatters them to every worker, which
+.fmu once and scatters them to every worker, which
 unpacks them once; so the FMUs that ran are exactly the ones whose hash is in the rows, whatever
 is installed on the workers. Each drive description travels loaded, with its flux map and OCV
 curve, once per drive; each task carries its cycle's samples, not paths. The workers need the

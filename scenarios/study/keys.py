@@ -4,9 +4,7 @@ build (the content hash of the three .fmu) and the Python model's source. A stud
 whose key is already "ok" in runs.parquet; any change of these gives new keys, so new runs.
 
 The key does not cover the output-only modules (reports, plots, progress, the command line) nor
-the study machinery itself: changing those does not invalidate results; nor the native master's
-library (shipped with the FMUs), whose results are bit-identical to the fmpy master's
-(tests/python/test_master.py).
+the study machinery itself: changing those does not invalidate results.
 """
 from __future__ import annotations
 
@@ -21,7 +19,8 @@ from scenarios.vehicle.cycles import Cycle
 #: bump when the meaning of a key's parts changes
 KEY_VERSION = 1
 
-#: the FMUs a run uses (the controller and plant by the master, the drive by backend "drive")
+#: the FMUs a run uses (the drive by backend "drive"; the controller for the optimum, and with the
+#: plant by the reference loop, backend "fmpy")
 FMU_NAMES = ("IpmsmController.fmu", "IpmsmPlant.fmu", "IpmsmDrive.fmu")
 
 #: scenarios/ modules that do not change a run's numbers (presentation, the command line)

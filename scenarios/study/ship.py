@@ -1,5 +1,5 @@
 """What a study ships to its workers, so that they need nothing of the client's files: the
-build's FMUs (and the native master's library) once per worker, each drive description with
+build's FMUs once per worker, each drive description with
 the files it names (flux map, OCV curve) once per drive. A worker writes what it receives under
 its machine's temp directory, in folders named after the content's hash, once (temporary name,
 then rename: concurrent workers on one machine do not race)."""
@@ -13,9 +13,6 @@ from pathlib import Path
 
 from scenarios.drives.description import DriveDescription
 from scenarios.study import keys
-
-#: the native co-simulation master, relative to a build (scenarios.cosim.master.default_library finds it there)
-NATIVE_MASTER = "lib/libipmsm_cosim.so"
 
 
 def _sha(data: bytes) -> str:
@@ -44,7 +41,7 @@ def _cache() -> Path:
 
 @dataclass(frozen=True)
 class FmuBundle:
-    """The build's FMUs (and native master library) as bytes, by path relative to the build."""
+    """The build's FMUs as bytes, by path relative to the build."""
 
     hash: str                 # the FMUs' content hash (keys.fmu_hash), in every row
     files: tuple[tuple[str, bytes], ...]
@@ -56,8 +53,6 @@ class FmuBundle:
         if missing:
             raise FileNotFoundError(f"{build / 'fmu'}: {', '.join(missing)} missing: build first")
         rel = [f"fmu/{n}" for n in keys.FMU_NAMES]
-        if (build / NATIVE_MASTER).is_file():
-            rel.append(NATIVE_MASTER)
         return cls(keys.fmu_hash(build / "fmu"), tuple((r, (build / r).read_bytes()) for r in rel))
 
     def materialise(self) -> Path:

@@ -11,7 +11,7 @@ with their values at t_k (step index k: no floating-point test on the time); u_d
 T_winding are held at the FMUs' start values.
 
 Masters:
-- run_fmpy: this project's plain fmpy master (scenarios.cosim.master.DriveCosim, backend "fmpy"),
+- run_fmpy: this project's reference loop (scenarios.cosim.reference.ReferenceDrive),
   advanced one step at a time; time_grid="ns" passes the times as libcosim does (step_times).
 - run_libcosim: libcosim (PyPI libcosimpy), from scenarios/cosim/osp/OspSystemStructure.xml (its
   connections are the description's, test_importers checks it); T_ref and w_m through an
@@ -106,14 +106,15 @@ def step_times(k: int, time_grid: str = "kh") -> tuple[float, float]:
 
 
 def run_fmpy(controller_fmu: str | Path, plant_fmu: str | Path, time_grid: str = "kh") -> np.ndarray:
-    from scenarios.cosim.master import DriveCosim
+    from scenarios.cosim.reference import ReferenceDrive
 
     rows = []
-    with DriveCosim(controller_fmu, plant_fmu, h=H, backend="fmpy", T_ref=torque(0), w_m=speed(0), u_dc=U_DC,
-                    step_times=None if time_grid == "kh" else (lambda k: step_times(k, time_grid))) as cosim:
+    with ReferenceDrive(controller_fmu, plant_fmu, h=H, T_ref=torque(0), w_m=speed(0), u_dc=U_DC,
+                        clock=None if time_grid == "kh" else (lambda k: step_times(k, time_grid))) as ref:
+        held = dict(u_dc=U_DC, T_magnet=ref.held["T_magnet"], T_winding=ref.held["T_winding"])
         for k in range(N_STEPS):
-            cosim.advance(1, T_ref=torque(k), w_m=speed(k))
-            rows.append(_row(k, lambda fmu, name: cosim.value(f"{fmu}.{name}")))
+            ref.advance(H, T_ref=torque(k), w_m=speed(k), **held)
+            rows.append(_row(k, lambda fmu, name: ref.get(f"{fmu}.{name}")))
     return _table(rows)
 
 

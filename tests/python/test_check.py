@@ -33,7 +33,7 @@ def write_case(tmp_path: Path, limits: dict, cycles=("town.csv", "road.csv"), na
 
 def run_check(path: Path, tmp_path: Path, capsys) -> tuple[int, Path, Path, str]:
     out, junit = tmp_path / "out", tmp_path / "reports" / "report.xml"
-    status = cli.main(["check", str(path), "--out", str(out), "--junit", str(junit), "--backend", "native"])
+    status = cli.main(["check", str(path), "--out", str(out), "--junit", str(junit), "--backend", "drive"])
     return status, out, junit, capsys.readouterr()
 
 

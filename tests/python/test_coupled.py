@@ -1,16 +1,15 @@
-"""The IpmsmController and IpmsmPlant FMUs coupled by the plain fmpy master (DriveCosim,
-backend "fmpy", on the coupling description: Jacobi exchange, as a digital drive: the voltage the
+"""The IpmsmController and IpmsmPlant FMUs coupled by the reference loop (ReferenceDrive,
+scenarios/cosim/reference.py, on the coupling description: Jacobi exchange, as a digital drive: the voltage the
 controller computes at t_k is applied by the plant over [t_k + h, t_k + 2h]; the controller sees
 the plant's currents at t_k) at 100 us on the default map, speed held: torque steps
 0 -> 150 N.m -> -100 N.m settle to the commanded torque, with sane regions and currents.
 """
-import itertools
 import math
 
 import numpy as np
 import pytest
 
-from scenarios.cosim.master import SAMPLE_FIELDS, DriveCosim
+from scenarios.cosim.reference import ReferenceDrive
 
 H = 1e-4
 I_MAX = 500.0
@@ -18,25 +17,21 @@ RECORDED = ("T_cmd", "region", "T_e", "i_d", "i_q", "T_shaft")
 
 
 def run(controller_fmu, plant_fmu, rpm, torque, t_end):
-    """Rows (t_{k+1}, then RECORDED after the step from t_k)."""
+    """Rows (t_{k+1}, then RECORDED after the step from t_k: T_e, T_shaft its means)."""
     w_m = rpm * 2 * math.pi / 60
     n = int(round(t_end / H))
-    trace = np.zeros((n, 1 + len(SAMPLE_FIELDS)))
-    T_ref = np.array([torque(k * H) for k in range(n)])
-    with DriveCosim(controller_fmu, plant_fmu, h=H, backend="fmpy", w_m=w_m) as cosim:
+    rows = []
+    with ReferenceDrive(controller_fmu, plant_fmu, h=H, w_m=w_m) as ref:
         # The controller's outputs after initialisation hold the measured current (a flying start).
-        u_d, u_q = cosim.value("controller.u_d_ref"), cosim.value("controller.u_q_ref")
+        u_d, u_q = ref.get("controller.u_d_ref", "controller.u_q_ref")
         # (Above about 6000 r/min the back-EMF exceeds the inverter's u_dc / sqrt 3: the voltage
         # is limited and field-weakening current flows from the first step.)
-        u_hold, u_lim = 4 * w_m * cosim.value("plant.psi_d"), 355.0 / math.sqrt(3)
+        u_hold, u_lim = 4 * w_m * ref.get("plant.psi_d"), 355.0 / math.sqrt(3)
         assert math.hypot(u_d, u_q) == pytest.approx(min(u_hold, u_lim), rel=1e-9)
-        row = 0
-        for T, steps in itertools.groupby(T_ref):  # T_ref is piecewise constant: one advance per piece
-            m = len(list(steps))
-            cosim.advance(m, T_ref=T, w_m=w_m, trace=trace[row:])
-            row += m
-    columns = [1 + SAMPLE_FIELDS.index(name) for name in RECORDED]
-    return np.column_stack([trace[:, 0], trace[:, columns]])
+        for k in range(n):
+            s = ref.advance(H, torque(k * H), w_m, 355.0, 293.15, 293.15)
+            rows.append([(k + 1) * H] + [getattr(s, name) for name in RECORDED])
+    return np.array(rows, dtype=float)
 
 
 STEPS = [(5e-3, 150.0), (25e-3, -100.0)]  # the first 5 ms: start-up at zero torque

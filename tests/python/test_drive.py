@@ -1,13 +1,15 @@
-"""The IpmsmDrive FMU (issue 14) against the two FMUs coupled by the project's master at 100 us.
+"""The IpmsmDrive FMU (issue 14) against the two FMUs coupled by the reference loop at 100 us.
 
 The drive runs the controller's and the plant's models through the same coupling description, so
-at any communication step (100 us, 1 ms, 10 ms) its step means and integrals must equal those
-formed from the two-FMU master's per-step outputs (DriveCosim, fmpy backend), up to rounding: the
-inverter's loss is then computed in Python (scenarios/vehicle/inverter.py) from the master's means, which
-also checks the C++ loss model against the Python one. The run has torque steps, regeneration and
+at any communication step (100 us, 1 ms, 10 ms) its step means and integrals must equal the
+reference loop's (scenarios/cosim/reference.py) records of 1 ms, up to rounding: the reference
+loop's inverter loss is scenarios/vehicle/inverter.py's from its 1 ms means, which checks the
+drive's C++ loss model (evaluated per 100 us) against the Python one. The run has torque steps, regeneration and
 a speed ramp through every region.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -15,7 +17,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import fmi2Error, fmi2OK
 
 from scenarios.cosim.drive_fmu import DriveFmu
-from scenarios.cosim.master import DriveCosim, DriveInputs
+from scenarios.cosim.reference import ReferenceDrive
 from scenarios.maps.flux_map import linear_flux_map, write_flux_map
 from scenarios.vehicle.inverter import inverter_loss
 
@@ -24,6 +26,15 @@ from conftest import fmu_path
 H = 1e-4  # s, sample_time and the master's step
 BLOCK = 0.01  # s, the inputs change only at multiples of it (the coarsest step tested)
 U_DC, T_MAGNET, T_WINDING = 355.0, 353.15, 373.15
+
+
+@dataclass(frozen=True)
+class DriveInputs:
+    T_ref: float      # N.m
+    w_m: float        # rad/s
+    u_dc: float       # V
+    T_magnet: float   # K
+    T_winding: float  # K
 
 
 def profile() -> list[DriveInputs]:
@@ -41,36 +52,23 @@ def profile() -> list[DriveInputs]:
 POWERS = ("P_mech", "P_cu", "P_fe", "P_inv")
 
 
-PLANT_INTEGRALS = ("E_elec", "E_mech", "E_cu", "E_fe", "T_e_impulse")
-
-
 def reference_1ms(blocks):
-    """The two FMUs at 100 us, 1 ms means and the integrals after each 1 ms, from the plant's
-    exact integrals (its E_* and T_e_impulse outputs, read by the master after every 1 ms); the
-    inverter's loss per 100 us step from the current sampled at its end and the step's mean AC
-    power (the loss is linear in both: the 1 ms mean of the samples and the 1 ms mean power)."""
+    """The two FMUs coupled at 100 us by the reference loop, its record of every 1 ms: the means
+    from the plant's exact integrals; the inverter's loss from the 1 ms means of |i|, |i|^2 sampled
+    after each 100 us step and of P_elec (the loss is linear in all three: the same as the drive's
+    loss per 100 us step, averaged)."""
     first = blocks[0]
     rows = []
-    E_inv = 0.0
-    with DriveCosim(fmu_path("IpmsmController"), fmu_path("IpmsmPlant"), backend="fmpy", w_m=first.w_m,
-                    u_dc=first.u_dc, T_magnet=first.T_magnet, T_winding=first.T_winding, T_ref=first.T_ref) as c:
-        before = {name: c.value(f"plant.{name}") for name in PLANT_INTEGRALS}
+
+    def loss(I, I2, u_dc, P_ac):
+        return inverter_loss(I, I2, u_dc, P_ac_mean=P_ac).P
+
+    with ReferenceDrive(fmu_path("IpmsmController"), fmu_path("IpmsmPlant"), inverter_loss=loss, T_ref=first.T_ref,
+                        w_m=first.w_m, u_dc=first.u_dc, T_magnet=first.T_magnet, T_winding=first.T_winding) as c:
         for inp in blocks:
             for _ in range(10):
-                r = c.advance(10, **{f: getattr(inp, f) for f in ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")})
-                m, e = r.mean, r.end
-                after = {name: c.value(f"plant.{name}") for name in PLANT_INTEGRALS}
-                mean = {name: (after[name] - before[name]) / (10 * H) for name in PLANT_INTEGRALS}
-                before = after
-                P_inv = inverter_loss(m.i_abs, m.i_abs_sq, inp.u_dc, P_ac_mean=mean["E_elec"]).P
-                E_inv += P_inv * 10 * H
-                P_dc = mean["E_elec"] + P_inv
-                T_e = mean["T_e_impulse"]
-                T_shaft = T_e - mean["E_fe"] / inp.w_m if inp.w_m != 0.0 else T_e
-                rows.append(dict(T_shaft=T_shaft, T_e=T_e, i_dc=P_dc / inp.u_dc, P_dc=P_dc, P_mech=mean["E_mech"],
-                                 P_cu=mean["E_cu"], P_fe=mean["E_fe"], P_inv=P_inv, E_dc=after["E_elec"] + E_inv,
-                                 E_mech=after["E_mech"], E_cu=after["E_cu"], E_fe=after["E_fe"], E_inv=E_inv,
-                                 T_cmd=e.T_cmd, T_max=e.T_max, i_d=e.i_d, i_q=e.i_q, region=e.region))
+                s = c.advance(10 * H, inp.T_ref, inp.w_m, inp.u_dc, inp.T_magnet, inp.T_winding)
+                rows.append({name: getattr(s, name) for name in MEANS + INTEGRALS + ENDS})
     return rows
 
 
@@ -198,7 +196,7 @@ def test_leaving_the_flux_map_grid_returns_ok_at_every_step_and_logs_the_warning
         fmu, c = _raw(d)
         statuses = []
         for _ in range(50):
-            fmu.setReal(d._input_vrs, [0.0, w_m, u_dc, 293.15, 293.15])
+            d.set(T_ref=0.0, w_m=w_m, u_dc=u_dc, T_magnet=293.15, T_winding=293.15)
             statuses.append(fmu.fmi2DoStep(c, d.t, 1e-3, 1))
             d.t += 1e-3
         warnings = [(s, cat, m) for s, cat, m in d.messages if "left the flux map" in m]
@@ -248,36 +246,6 @@ def test_the_plant_fmu_leaving_the_grid_returns_ok_at_every_step_too():
     assert [(s, c) for s, c, m in records if "left the flux map" in m] == [(1, "logStatusWarning")]
 
 
-def test_drive_as_cosim_gives_the_vehicle_side_the_same_samples():
-    """DriveAsCosim (the scenarios' drive backend) against DriveCosim at 10 ms: the means the
-    vehicle side reads (P_elec, the mean |i|^2 derived from P_cu, T_shaft, T_e: exact, from the
-    plant's integrals) and the inverter loss of scenarios/vehicle/inverter.py, to 1e-9."""
-    from scenarios.cosim.drive_fmu import DriveAsCosim
-
-    blocks = profile()[::8]
-    first = blocks[0]
-    kw = dict(w_m=first.w_m, u_dc=U_DC, T_magnet=T_MAGNET, T_winding=T_WINDING, T_ref=first.T_ref)
-    with DriveCosim(fmu_path("IpmsmController"), fmu_path("IpmsmPlant"), backend="fmpy", **kw) as c, \
-            DriveAsCosim(fmu_path("IpmsmDrive"), **kw) as d:
-        before = {name: c.value(f"plant.{name}") for name in PLANT_INTEGRALS}
-        for inp in blocks:
-            args = dict(T_ref=inp.T_ref, w_m=inp.w_m, u_dc=inp.u_dc, T_magnet=inp.T_magnet, T_winding=inp.T_winding)
-            a, b = c.advance(100, **args), d.advance(100, **args)
-            assert (a.t, a.k) == (b.t, b.k)
-            after = {name: c.value(f"plant.{name}") for name in PLANT_INTEGRALS}
-            mean = {name: (after[name] - before[name]) / (100 * H) for name in PLANT_INTEGRALS}
-            before = after
-            T_e = mean["T_e_impulse"]
-            want = dict(T_shaft=T_e - mean["E_fe"] / inp.w_m, T_e=T_e, P_elec=mean["E_elec"], P_cu=mean["E_cu"],
-                        i_abs_sq=mean["E_cu"] / (1.5 * c.value("plant.R_s_T")), T_cmd=a.mean.T_cmd,
-                        u_ratio=a.end.u_ratio)
-            for name, x in want.items():
-                y = getattr(b.mean, name)
-                assert y == pytest.approx(x, rel=1e-9, abs=1e-9 * (1.0 + abs(x))), name
-            P_inv = inverter_loss(a.mean.i_abs, a.mean.i_abs_sq, inp.u_dc, P_ac_mean=mean["E_elec"]).P
-            assert b.P_inverter == pytest.approx(P_inv, rel=1e-12, abs=1e-12)
-
-
 def test_fmpy_validate():
     from fmpy.validation import validate_fmu
     assert validate_fmu(str(fmu_path("IpmsmDrive"))) == []
@@ -290,7 +258,7 @@ def test_fmu_state_round_trip_continues_bit_for_bit():
             DriveFmu(fmu_path("IpmsmDrive"), T_ref=0.0, w_m=0.0) as b:
         for k in range(5):
             a.advance(1e-2, 120.0 + 10 * k, 400.0 + 20 * k, U_DC, 293.15, 293.15)
-        state = a.fmu.serializeFMUstate(a.fmu.getFMUstate())
+        state = a.fmu.serializeFMUstate(a.fmu.getFMUstate())  # (fmpy's FMU2Slave underneath)
         b.fmu.setFMUstate(b.fmu.deSerializeFMUstate(state))
         b.t = a.t
         for k in range(5):

@@ -112,7 +112,7 @@ def perturbed_value(key: Key):
 
 def run_window(drive, fmus, **spec) -> dict:
     cycle = segment(load_cycle(WINDOW[0]), *WINDOW[1:])
-    s = simulate(cycle, RunSpec(drive=drive, backend="native", reference=False, **spec), fmus=fmus, progress=False)
+    s = simulate(cycle, RunSpec(drive=drive, backend="drive", reference=False, **spec), fmus=fmus, progress=False)
     d = s.to_dict()
     for k in ("wall_s", "real_time_factor", "drive_sha256"):
         d.pop(k)
@@ -167,7 +167,7 @@ def test_the_reference_optimum_uses_the_drives_motor(controller_fmu, plant_fmu):
     """Ferrari with recursion 2 is the optimum: its copper loss equals the reference's on the
     city drive's 12-pole motor too (a reference on the default motor would be far off)."""
     cycle = segment(load_cycle("UDDS"), 180.0, 220.0)
-    s = simulate(cycle, RunSpec(drive=load_drive(CITY_EV), backend="native"), fmus=(controller_fmu, plant_fmu),
+    s = simulate(cycle, RunSpec(drive=load_drive(CITY_EV), backend="drive"), fmus=(controller_fmu, plant_fmu),
                  progress=False)
     assert s.drive == "city_ev"
     assert s.copper_loss_optimal_Wh == pytest.approx(s.copper_loss_Wh, rel=0.01)
@@ -312,7 +312,7 @@ CITY_EV_PUBLISHED = {"UDDS": (86.0, 107.0), "HWFET": (106.0, 132.0)}
 @pytest.mark.slow
 @pytest.mark.parametrize("cycle", list(CITY_EV_PUBLISHED))
 def test_city_ev_consumption_in_published_range(cycle, controller_fmu, plant_fmu):
-    s = simulate(cycle, RunSpec(drive=load_drive(CITY_EV), backend="native"), fmus=(controller_fmu, plant_fmu),
+    s = simulate(cycle, RunSpec(drive=load_drive(CITY_EV), backend="drive"), fmus=(controller_fmu, plant_fmu),
                  progress=False)
     lo, hi = CITY_EV_PUBLISHED[cycle]
     print(f"\n[city_ev {cycle}] {s.Wh_per_km:.1f} Wh/km ({lo:g}-{hi:g}), {s.wall_s:.1f} s")
@@ -351,10 +351,11 @@ def test_a_drive_may_name_a_fem_export(tmp_path, monkeypatch):
 
 def test_the_drive_fmu_backend_follows_the_drive_too(controller_fmu, plant_fmu):
     """--backend drive (the IpmsmDrive FMU, inverter inside) on the city EV: the same energy as the
-    two FMUs with the Python inverter model, so its motor and inverter parameters came from the file."""
+    two FMUs in the reference loop with the Python inverter model, so its motor and inverter
+    parameters came from the file."""
     cycle = segment(load_cycle(WINDOW[0]), *WINDOW[1:])
     drive = load_drive(CITY_EV)
     a, b = (simulate(cycle, RunSpec(drive=drive, backend=backend, reference=False), fmus=(controller_fmu, plant_fmu),
-                     progress=False) for backend in ("native", "drive"))
+                     progress=False) for backend in ("fmpy", "drive"))
     assert b.backend == "drive" and b.Wh_per_km == pytest.approx(a.Wh_per_km, rel=1e-9)
     assert b.iron_loss_Wh == pytest.approx(a.iron_loss_Wh, rel=1e-9)

@@ -4,18 +4,16 @@ Python side of a drive run made cheaper without changing any result):
 - the battery's OCV lookups, evaluated once per SOC (Ocv.at), against the separate lookups and
   against scipy's PCHIP and a quadrature;
 - the battery's cached lookups against the same steps with every cache emptied before each call;
-- DriveFmu's fmi2GetReal/fmi2GetInteger on preallocated arrays against fmpy's getters by name,
-  and DriveAsCosim's Samples (built positionally) against the FMU's outputs by name.
+- DriveFmu's fmi2GetReal/fmi2GetInteger on preallocated arrays against fmpy's getters
+  by name.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from scenarios.cosim.drive_fmu import DriveAsCosim, DriveFmu, DriveStep
+from scenarios.cosim.drive_fmu import DriveFmu, DriveStep
 from scenarios.cosim.fmu import get_values
 from scenarios.vehicle.battery import OCV_FITS, Battery, BatteryParams
 
@@ -97,28 +95,3 @@ def test_drive_fmu_outputs_are_the_fmus_outputs_by_name():
             regions.add(s.region)
             assert type(s.region) is int
         assert len(regions) > 1   # the region (the one Integer) changed: it is read at every step
-
-
-def test_drive_as_cosim_samples_are_the_fmus_outputs_by_name():
-    """Every field of the Samples DriveAsCosim builds, against the FMU's variable of that name
-    (the end values) or its derivation (DriveAsCosim's docstring)."""
-    with DriveAsCosim(fmu_path("IpmsmDrive"), h=1e-4, w_m=100.0, T_winding=350.0) as c:
-        drive = c.drive
-        R_s, alpha, T_ref_w = get_values(drive.fmu, drive.vars, "R_s", "alpha_cu", "T_winding_ref")
-        for k in range(20):
-            inputs = _inputs(k)
-            r = c.advance(100, *inputs)
-            out = dict(zip(DriveStep.__dataclass_fields__, get_values(drive.fmu, drive.vars,
-                                                                     *DriveStep.__dataclass_fields__)))
-            same_as_output = ("T_shaft", "T_e", "P_elec", "P_mech", "P_cu", "P_fe", "i_d", "i_q", "T_cmd", "T_max",
-                              "u_ratio")
-            for sample in (r.mean, r.end):
-                for name in same_as_output:
-                    assert _bits(getattr(sample, name)) == _bits(out[name]), (k, name)
-                assert sample.region == float(out["region"]) and math.isnan(sample.iterations)
-            R = R_s * (1.0 + alpha * (inputs[4] - T_ref_w))
-            assert r.mean.i_abs_sq == out["P_cu"] / (1.5 * R) and math.isnan(r.mean.i_abs)
-            assert r.end.i_abs == math.hypot(out["i_d"], out["i_q"])
-            assert r.end.i_abs_sq == out["i_d"] ** 2 + out["i_q"] ** 2
-            assert r.P_inverter == out["P_inv"]
-            assert (r.k, r.rows) == (100 * (k + 1), 0) and r.t == pytest.approx(0.01 * (k + 1), rel=1e-12)

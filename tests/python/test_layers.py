@@ -50,4 +50,4 @@ def test_every_module_is_in_a_layer():
     top = sorted(p.name for p in PACKAGE_DIR.glob("*.py"))
     assert top == ["__init__.py", "__main__.py"], f"modules outside the layers: {top}"
     folders = sorted(p.name for p in PACKAGE_DIR.iterdir() if p.is_dir() and not p.name.startswith("__"))
-    assert set(folders) - {"data"} <= set(LAYERS) | {"native"}, folders
+    assert set(folders) - {"data"} <= set(LAYERS), folders

@@ -8,7 +8,7 @@ on PyPI.
   initial values), no String connector or binding, and the step where OMSimulator (oms:) and
   libcosim (osp:) read it; the FMUs inside are the ones built.
 - It runs: fmpy's simulate_ssp and libcosim (libcosimpy) each run the package, and the plant's
-  currents equal the project's coupled run (scenarios.cosim.master.DriveCosim, fmpy) at the
+  currents equal the project's coupled run (scenarios.cosim.reference.ReferenceDrive, fmpy) at the
   same step within TOLERANCE relative; the OSP structure likewise from t = 0, with no initial
   value set by the test (the structure's own). fmpy's simulate_ssp applies none of the SSD's
   bindings and passes 0 to every connected input before the first step (where the description
@@ -184,17 +184,18 @@ def test_fmpy_simulate_ssp_matches_the_coupled_run(controller_fmu, plant_fmu, ss
     from fmpy.ssp.simulation import simulate_ssp
     from fmpy.ssp.ssd import Parameter, ParameterSet
 
-    from scenarios.cosim.master import DriveCosim
+    from scenarios.cosim.reference import START, ReferenceDrive
 
     T_ref, w_m, n = 100.0, 0.0, 300
     start = ParameterSet(parameters=[Parameter(name="controller.T_ref", type="Real", value=T_ref)]
                          + [Parameter(name=t.text, type="Real", value=w_m) for t in ds.targets("w_m")])
     got = simulate_ssp(str(SSP), stop_time=(n - 0.5) * ds.H, step_size=ds.H, parameter_set=start)
     want = np.zeros(n, dtype=[(c, "f8") for c in CURRENTS])
-    with DriveCosim(controller_fmu, plant_fmu, h=ds.H, backend="fmpy", T_ref=T_ref, w_m=w_m) as cosim:
+    held = {**START, "T_ref": T_ref, "w_m": w_m}
+    with ReferenceDrive(controller_fmu, plant_fmu, h=ds.H, **held) as ref:
         for k in range(n):
-            cosim.advance(1, T_ref=T_ref, w_m=w_m)
-            want[k] = tuple(cosim.value(c) for c in CURRENTS)
+            ref.advance(ds.H, **held)
+            want[k] = tuple(ref.get(*CURRENTS))
     assert len(got) == n and np.max(np.abs(want["plant.i_q"])) > 100.0  # the current rises to the torque's
     diffs = {c: float(np.max(np.abs(got[c] - want[c])) / np.max(np.abs(want[c]))) for c in CURRENTS}
     print(f"\n[fmpy simulate_ssp vs the coupled run] relative differences: {diffs}")

@@ -150,7 +150,7 @@ def test_flux_follows_the_designed_first_order_response(controller_fmu, plant_fm
 
 # --- where the design stops ----------------------------------------------------------------------
 
-def test_a_step_too_long_for_the_speed_opens_the_loop_and_says_so(controller_fmu, capsys):
+def test_a_step_too_long_for_the_speed_opens_the_loop_and_says_so(controller_fmu):
     """At 12 000 r/min (omega = 5027 rad/s) a 1.2 ms step turns the frame by 6.0 rad, beyond
     0.9 of a turn: the current loop cannot be closed. The step is served (the current commands
     are valid), the voltage is the commands' steady-state voltage, and one warning names the
@@ -160,29 +160,30 @@ def test_a_step_too_long_for_the_speed_opens_the_loop_and_says_so(controller_fmu
         c.set(T_ref=50.0, w_m=w_m)
         c.step(0.0, 1e-4)
         commands = c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max")
-        capsys.readouterr()
+        c.messages.clear()
         for k in range(3):
             c.step(1e-4 + k * 1.2e-3, 1.2e-3)
             assert c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max") == commands
-        log = capsys.readouterr().out
-        lines = [line for line in log.splitlines() if "too long for the current loop" in line]
+        log = [m for _, _, m in c.messages]
+        lines = [line for line in log if "too long for the current loop" in line]
         assert len(lines) == 1, log
         assert "h = 0.0012 s" in lines[0] and "1256.6" in lines[0] and "use a step below 0.001125" in lines[0], lines[0]
         u_d, u_q = c.get("u_d_ref", "u_q_ref")
         assert math.hypot(u_d, u_q) <= 355.0 / math.sqrt(3) * (1 + 1e-12)
+        c.messages.clear()
         c.step(1e-4 + 3.6e-3, 1e-3)
-        assert "too long" not in capsys.readouterr().out
+        assert not any("too long" in m for _, _, m in c.messages)
 
 
-def test_a_lowered_bandwidth_is_logged_once(controller_fmu, capsys):
+def test_a_lowered_bandwidth_is_logged_once(controller_fmu):
     """Steps above (pi/2) / alpha_c = 0.5 ms lower the bandwidth: one warning per instance."""
     with Fmu(controller_fmu, logging=True) as c:
         for k in range(5):
             c.step(k * 1e-3, 1e-3)
-    lines = [line for line in capsys.readouterr().out.splitlines() if "current_bandwidth" in line]
+        lines = [m for _, _, m in c.messages if "current_bandwidth" in m]
     assert len(lines) == 1, lines
     assert "h = 0.001 s" in lines[0] and "1570.8" in lines[0], lines[0]
     with Fmu(controller_fmu, logging=True) as c:
         for k in range(5):
             c.step(k * 4e-4, 4e-4)
-    assert "current_bandwidth" not in capsys.readouterr().out
+        assert not any("current_bandwidth" in m for _, _, m in c.messages)

@@ -1,7 +1,7 @@
 // Importing an unzipped FMU in C++: the GUID and value references of its modelDescription.xml
 // (read with a plain attribute search, enough for the files this project generates), and its
 // binary's FMI 2.0 co-simulation functions, dlopened. Written once for every C++ importer in the
-// repository: the native master (cosim.cpp) and its drivers, the plant benchmark
+// repository: the plant benchmark
 // (bench/bench_plant.cpp), the plant's valgrind harness and the C-API fuzzer (tests/cpp).
 #pragma once
 

@@ -1,5 +1,5 @@
-// CHECK(cond) for the C++ programs that drive FMUs without a test framework (cosim_check,
-// plant_fmu_harness; run under valgrind): a failed check is reported with its line and counted,
+// CHECK(cond) for the C++ programs that drive FMUs without a test framework
+// (plant_fmu_harness; run under valgrind): a failed check is reported with its line and counted,
 // and the run goes on, so that one run reports every failure.
 #pragma once
 
