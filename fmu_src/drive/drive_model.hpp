@@ -69,6 +69,9 @@ public:
     double u_ratio = 0.0;  // the controller's voltage use, at the end of the step
     // --- parameters: the drive's own
     double sample_time = 1e-4;  // s
+    // The most inner steps one fmi2DoStep computes (10 s at the default sample_time): a step cannot be
+    // interrupted, so a larger one is refused rather than computed for minutes.
+    static constexpr double max_samples_per_step = 1e5;
     // the inverter's (inverter/inverter_loss.hpp; start values from InverterParams)
     double V_T0 = 0, r_T = 0, V_D0 = 0, r_D = 0, E_on = 0, E_off = 0, E_rec = 0, I_ref = 0, V_ref = 0, k_v = 0;
     double f_sw = 0;

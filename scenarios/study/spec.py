@@ -29,7 +29,8 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
+from scenarios.core.constants import T_REFERENCE_K, U_DC_SCALE_MAX, ZERO_CELSIUS_K
+from scenarios.core.fmu_ranges import fmu_ranges
 from scenarios.drives.description import DriveDescription, load_drive
 from scenarios.runs.simulate import METHODS, STUDY_CONDITIONS, Conditions, RunSpec
 from scenarios.vehicle.cycles import STANDARD_CYCLES
@@ -167,10 +168,14 @@ def _value(field: str, v, path: Path | None, key: str):
             raise SpecError(f"{_where(path, key)}: expected one of {RECURSIONS}, got {r}")
         return r
     x = _number(v, path, key)
-    if field == "u_dc_scale" and not 0.0 < x <= 2.0:
-        raise SpecError(f"{_where(path, key)}: expected 0 < u_dc_scale <= 2, got {x}")
-    if field.endswith("_degC") and not -273.15 < x < 1000.0:
-        raise SpecError(f"{_where(path, key)}: expected a temperature in degC above absolute zero, got {x}")
+    if field == "u_dc_scale" and not 0.0 < x <= U_DC_SCALE_MAX:
+        raise SpecError(f"{_where(path, key)}: expected 0 < u_dc_scale <= {U_DC_SCALE_MAX:g}, got {x}")
+    if field.endswith("_degC"):
+        r = fmu_ranges()["T_magnet_ref"]  # the FMUs' temperature range
+        lo, hi = r.lo - ZERO_CELSIUS_K, r.hi - ZERO_CELSIUS_K
+        if not lo <= x <= hi:
+            raise SpecError(f"{_where(path, key)}: expected a temperature in [{lo:g}, {hi:g}] degC (the FMUs' "
+                            f"range), got {x}")
     return x
 
 
