@@ -80,7 +80,7 @@ def main(argv=None) -> int:
 def _slug(text: str) -> str:
     """A file-name part of `text`: letters, digits, '.', '-' and '_' only (a drive named
     x/../../evil stays one name inside out/)."""
-    s = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "run"
+    s = re.sub(r"_{2,}", "_", re.sub(r"[^A-Za-z0-9._-]+", "_", re.sub(r"\.{2,}", "_", text))).strip("._") or "run"
     return s[:100]
 
 

@@ -124,7 +124,11 @@ def _where(path: Path | None, key: str) -> str:
 def _number(v, path, key, integer=False):
     if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
         raise SpecError(f"{_where(path, key)}: expected {'an integer' if integer else 'a number'}, got {v!r}")
-    if not math.isfinite(v):
+    try:
+        ok = math.isfinite(v)
+    except OverflowError:  # an integer beyond a float's range
+        ok = False
+    if not ok:
         raise SpecError(f"{_where(path, key)}: expected a finite number, got {v!r}")
     return int(v) if integer else float(v)
 
