@@ -84,6 +84,17 @@ def _slug(text: str) -> str:
     return s[:100]
 
 
+def _number_as_key(value: float | None, option: str, key: str) -> None:
+    """A command-line number checked by a drive-description key's rule (None: not given)."""
+    from scenarios.core.boundary import InputError
+    from scenarios.drives.description import SCHEMA
+    if value is None:
+        return
+    bad = next(k.rule for k in SCHEMA if k.path == key).check(value)
+    if bad:
+        raise InputError("(command line)", option, f"{bad}, got {value!r}")
+
+
 def _run_args(args) -> None:
     """run's numbers, refused (exit 2) before anything runs."""
     from scenarios.core.boundary import finite
@@ -101,12 +112,8 @@ def _dispatch(args) -> int:
         return check.main(args)
     if args.cmd == "sweep":
         from scenarios.runs.sweep import SweepSpec, run_sweep
+        _number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
         drive = load_drive(args.drive)
-        if args.u_dc is not None:
-            from scenarios.core.boundary import finite
-            from scenarios.drives.description import SCHEMA
-            rule = next(k.rule for k in SCHEMA if k.path == "controller.lut_u_dc")
-            finite(args.u_dc, "(command line)", "--u-dc", rule.lo, rule.hi, lo_open=True)
         check_writable(args.out)
         s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
                       SweepSpec(drive=drive, recursion=args.recursion, u_dc=args.u_dc))
@@ -140,6 +147,9 @@ def _dispatch(args) -> int:
                   scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "map":
+        if args.map_cmd == "show":  # the numbers as a drive's would be: the FMUs' ranges
+            _number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
+            _number_as_key(args.I_max, "--I-max", "motor.I_max")
         return map_cli.main(args)
     elif args.cmd == "study":
         from scenarios.study import cli as study_cli

@@ -17,7 +17,6 @@ defaults (the project's default motor), each such assumption listed in map.md.
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -25,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.core.constants import U_DC_NOMINAL_V
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
@@ -244,7 +244,7 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max
     out.mkdir(parents=True, exist_ok=True)
     plot_machine(out / "map.png", fmap, s, env, speeds, mtpa, mismatch, eff_speeds, eff_torques, eta)
     s.wall_s = time.perf_counter() - t0
-    (out / "map.json").write_text(json.dumps(asdict(s), indent=1))
+    write_atomically(out / "map.json", strict_json(asdict(s), indent=1))  # an undefined figure: null
     (out / "map.md").write_text(markdown(s, P_cu, P_fe, P_inv))
     return s
 

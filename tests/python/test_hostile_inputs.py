@@ -198,6 +198,9 @@ def test_a_week_long_cycle_samples_lazily():
     (["run", "UDDS", "--magnet-degC", "1e308"], "--magnet-degC"),
     (["sweep", "--u-dc", "nan"], "--u-dc"),
     (["sweep", "--u-dc", "1e308"], "--u-dc"),
+    (["map", "show", str(DEFAULT_MAP), "--u-dc", "1e308"], "--u-dc"),
+    (["map", "show", str(DEFAULT_MAP), "--I-max", "nan"], "--I-max"),
+    (["map", "show", str(DEFAULT_MAP), "--I-max", "-1"], "--I-max"),
     (["study", "x.toml", "--scheduler", "garbage"], "--scheduler"),
     (["study", "x.toml", "--scheduler", "inproc://x"], "--scheduler"),
 ])
@@ -283,7 +286,13 @@ def test_twenty_thousand_runs_are_planned_in_linear_time(tmp_path):
     t0 = time.perf_counter()
     spec = parse({"study": study}, tmp_path / "s.toml")
     wall = time.perf_counter() - t0
-    assert len(spec.runs) == 20_000 and wall < 10.0, wall   # quadratic: 110 s before
+    assert len(spec.runs) == 20_000 and wall < 10.0, wall
+    from scenarios.study.spec import SpecError
+    runs = [{"u_dc_scale": 0.5 + i * 1e-5} for i in range(20_000)] + [{"u_dc_scale": 0.5 + 19_999e-5}]
+    t0 = time.perf_counter()
+    with pytest.raises(SpecError, match="the same run twice"):   # the duplicate last: the worst case
+        parse({"run": runs}, tmp_path / "s.toml")
+    assert time.perf_counter() - t0 < 10.0
 
 
 # -- map show / import (bounded) ------------------------------------------------------------------------
