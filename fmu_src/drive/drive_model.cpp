@@ -314,8 +314,8 @@ void DriveModel::do_step(double t, double h) {
     if (!(n_real <= max_samples_per_step + 0.5)) {  // NaN too; before llround, which overflows
         std::ostringstream os;
         os << "the communication step " << fmi::number_text(h) << " s is more than "
-           << fmi::number_text(max_samples_per_step) << " sample times (sample_time = "
-           << fmi::number_text(sample_time) << " s): one fmi2DoStep computes at most that many; step in parts";
+           << fmi::number_text(max_samples_per_step) << " sample times (sample_time = " << fmi::number_text(sample_time)
+           << " s): one fmi2DoStep computes at most that many; step in parts";
         throw fmi::Error(os.str());
     }
     const long long n = std::llround(n_real);
