@@ -95,6 +95,18 @@ def _number_as_key(value: float | None, option: str, key: str) -> None:
         raise InputError("(command line)", option, f"{bad}, got {value!r}")
 
 
+def _cycle_arg(name: str, option: str):
+    """A cycle named on the command line, loaded (a missing or malformed one: exit 2)."""
+    from scenarios.core.boundary import InputError
+    from scenarios.vehicle.cycles import load_cycle
+    try:
+        return load_cycle(name)
+    except InputError:
+        raise
+    except (OSError, ValueError) as e:
+        raise InputError("(command line)", option, f"a standard cycle or a CSV of time_s,speed_mps ({e})") from None
+
+
 def _run_args(args) -> None:
     """run's numbers, refused (exit 2) before anything runs."""
     from scenarios.core.boundary import finite
@@ -122,14 +134,13 @@ def _dispatch(args) -> int:
     elif args.cmd == "run":
         from scenarios.runs.plots import plot_run
         from scenarios.runs.simulate import Conditions, RunSpec, fmu_paths, simulate
-        from scenarios.vehicle.cycles import load_cycle
         _run_args(args)
         drive = load_drive(args.drive)
         method = args.method or drive.controller.method
         T = args.magnet_degC + ZERO_CELSIUS_K
         custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
-        cycle = load_cycle(args.cycle)
+        cycle = _cycle_arg(args.cycle, "cycle")
         stem = Path(args.cycle).stem + ("" if args.drive is None else f"_{drive.name}")
         out = args.out or inside(ROOT / "out", _slug(f"{stem}_{method}"), "run's output folder")
         check_writable(out)
@@ -142,6 +153,8 @@ def _dispatch(args) -> int:
     elif args.cmd == "compare":
         from scenarios.study.compare import run_study
         load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant
+        for c in args.cycles:
+            _cycle_arg(c, "--cycles")
         check_writable(args.out)
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers,
                   scheduler=args.scheduler, drive=args.drive)

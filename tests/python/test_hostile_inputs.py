@@ -201,6 +201,8 @@ def test_a_week_long_cycle_samples_lazily():
     (["map", "show", str(DEFAULT_MAP), "--u-dc", "1e308"], "--u-dc"),
     (["map", "show", str(DEFAULT_MAP), "--I-max", "nan"], "--I-max"),
     (["map", "show", str(DEFAULT_MAP), "--I-max", "-1"], "--I-max"),
+    (["compare", "--cycles", "UDDS", "nosuch.csv"], "--cycles"),
+    (["run", "nosuch.csv"], "cycle"),
     (["study", "x.toml", "--scheduler", "garbage"], "--scheduler"),
     (["study", "x.toml", "--scheduler", "inproc://x"], "--scheduler"),
 ])
