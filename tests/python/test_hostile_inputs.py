@@ -307,3 +307,18 @@ def test_a_mat_file_that_inflates_beyond_the_limit_is_refused_unread(tmp_path):
     r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"), timeout=30)
     assert r.returncode == 2 and str(m) in r.err and "inflated" in r.err, r.err
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_run_in_which_the_car_stands_writes_strict_json(controller_fmu, plant_fmu, tmp_path):
+    """UDDS's first 5 s: no distance, Wh_per_km undefined: null in summary.json (listed in
+    `undefined`), never NaN; the file 0644."""
+    import json
+
+    from scenarios.runs.simulate import RunSpec, simulate
+    from scenarios.vehicle.cycles import load_cycle, segment
+    simulate(segment(load_cycle("UDDS"), 0.0, 5.0), RunSpec(), fmus=(controller_fmu, plant_fmu), out=tmp_path,
+             progress=False)
+    text = (tmp_path / "summary.json").read_text()
+    d = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in summary.json"))
+    assert d["Wh_per_km"] is None and "Wh_per_km" in d["undefined"]
+    assert (tmp_path / "summary.json").stat().st_mode & 0o777 == 0o644
