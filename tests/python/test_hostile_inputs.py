@@ -322,3 +322,19 @@ def test_a_run_in_which_the_car_stands_writes_strict_json(controller_fmu, plant_
     d = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in summary.json"))
     assert d["Wh_per_km"] is None and "Wh_per_km" in d["undefined"]
     assert (tmp_path / "summary.json").stat().st_mode & 0o777 == 0o644
+
+
+@pytest.mark.parametrize("cmd", ["run", "check", "study"])
+def test_an_out_that_cannot_be_a_folder_is_refused_before_any_run(cmd, tmp_path):
+    """--out below a regular file (the one unwritable folder even root meets)."""
+    f = tmp_path / "file"
+    f.write_text("x")
+    out = f / "out"
+    spec = tmp_path / "s.toml"
+    spec.write_text('[study]\ncycles = ["UDDS"]\nwindow_s = [0.0, 5.0]\n')
+    d = drive(tmp_path, '[checks]\ncycles = ["UDDS"]\nWh_per_km_max = 500.0\n', name="d.toml")
+    argv = {"run": ["run", "UDDS"], "check": ["check", str(d)], "study": ["study", str(spec)]}[cmd]
+    t0 = time.perf_counter()
+    r = cli(*argv, "--out", str(out))
+    assert r.returncode == 2 and "--out" in r.err and str(out) in r.err and "Traceback" not in r.err, r.err
+    assert time.perf_counter() - t0 < 30.0   # refused before the cycle (minutes) ran
