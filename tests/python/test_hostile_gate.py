@@ -180,3 +180,15 @@ def test_xml_text_replaces_everything_xml_forbids():
         assert ch not in s and s.startswith("a\\u") and s.endswith("b")
         ET.fromstring(f"<x a='{s}'>{s}</x>")
     assert xml_text("a\tb\nc") == "a\tb\nc"
+
+
+def test_a_non_utf8_folder_and_drive_path_give_a_report(tmp_path, capsys, fake_runs):
+    """A folder whose name is not UTF-8 (bytes 0xff): check.md and the JUnit are written, the
+    names escaped, nothing raised after the runs."""
+    odd = tmp_path / os.fsdecode(b"caf\xff")
+    odd.mkdir()
+    cycle(odd, "x.csv", 5.0)
+    path = drive(odd, ["x.csv"])   # relative: a TOML file holds UTF-8 only
+    status, junit, io = run(odd, path, capsys, junit=odd / "j.xml")
+    assert status == 0, io.err
+    assert cases_of(junit) and "\\udcff" in (odd / "out" / "check.md").read_text()
