@@ -14,6 +14,7 @@
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
 #include "machine/map_file.hpp"
+#include "machine/operating_region.hpp"
 
 namespace ipmsm {
 
@@ -34,20 +35,32 @@ std::string num(double x) {
     return os.str();
 }
 
-// The inverse of a map, built once per map (the maps are shared by content, flux_map_cache.hpp):
-// Initialization Mode's previews and a second instance do not build it again. Bounded like the
-// map cache; thread-safe.
-std::shared_ptr<const InverseFluxMap> shared_inverse(const std::shared_ptr<const FluxMap>& map) {
+// The inverse of a map on its legal box, built once per map and box (the maps are shared by
+// content, flux_map_cache.hpp): Initialization Mode's previews and a second instance do not build
+// it again. Bounded like the map cache; thread-safe.
+std::shared_ptr<const InverseFluxMap> shared_inverse(const std::shared_ptr<const FluxMap>& map,
+                                                     const CurrentBox& legal) {
+    struct Entry {
+        std::shared_ptr<const FluxMap> map;
+        CurrentBox legal;
+        std::shared_ptr<const InverseFluxMap> inverse;
+    };
     static std::mutex mutex;
-    static std::deque<std::pair<std::shared_ptr<const FluxMap>, std::shared_ptr<const InverseFluxMap>>> cache;
+    static std::deque<Entry> cache;
+    auto same = [&](const CurrentBox& b) {
+        return b.i_d_min == legal.i_d_min && b.i_d_max == legal.i_d_max && b.i_q_min == legal.i_q_min &&
+               b.i_q_max == legal.i_q_max;
+    };
     {
         std::lock_guard<std::mutex> lock(mutex);
         for (const auto& e : cache)
-            if (e.first == map) return e.second;
+            if (e.map == map && same(e.legal)) return e.inverse;
     }
-    auto inverse = std::make_shared<const InverseFluxMap>(*map);  // outside the lock: it takes milliseconds
+    InverseFluxMapOptions options;
+    options.legal = legal;
+    auto inverse = std::make_shared<const InverseFluxMap>(*map, options);  // outside the lock: milliseconds
     std::lock_guard<std::mutex> lock(mutex);
-    cache.emplace_front(map, inverse);
+    cache.push_front(Entry{map, legal, inverse});
     if (cache.size() > 4) cache.pop_back();
     return inverse;
 }
@@ -135,6 +148,10 @@ const std::vector<V>& PlantModel::variables() {
          "Iron loss: eddy-current coefficient, W/Hz^2 (0: no eddy-current loss)", 0.0, 1e3},
         {"fe_psi_ref", &M::fe_psi_ref, Causality::parameter, Variability::fixed, "Wb", "",
          "Iron loss: flux linkage at which b = 1", 0.0, 1e3, true},
+        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "",
+         "Peak current limit of the drive (the controller's): the flux map must be legal in its operating region "
+         "(docs/maps.md)",
+         0.0, kInf, true},
         {"i_d_start", &M::i_d_start, Causality::parameter, Variability::fixed, "A", "",
          "Initial d-axis current (the initial fluxes are the map's at the initial currents)", -1e5, 1e5},
         {"i_q_start", &M::i_q_start, Causality::parameter, Variability::fixed, "A", "", "Initial q-axis current", -1e5,
@@ -202,8 +219,12 @@ void PlantModel::exit_initialization() {
     } catch (const FluxMapError& e) {
         throw fmi::Error(e.what());  // says file and line, in the controller's words
     }
+    MapAcceptance acceptance;
     try {
-        inverse = shared_inverse(map);  // the map must be invertible
+        acceptance = accept_flux_map(*map, I_max, path);  // the map must be legal where the drive operates
+        inverse = shared_inverse(map, acceptance.legal);  // ... and is inverted there, continued beyond
+    } catch (const FluxMapError& e) {
+        throw fmi::Error(e.what());
     } catch (const std::exception& e) {
         throw fmi::Error(std::string("flux map: ") + e.what());
     }
@@ -224,6 +245,7 @@ void PlantModel::exit_initialization() {
                                                        {"fe_k_e_W_per_Hz2", "fe_k_e", fe_k_e},
                                                        {"fe_psi_ref_Wb", "fe_psi_ref", fe_psi_ref}}))
             ctx.log_warning(w);
+    if (ctx.log_warning && !acceptance.warning.empty()) ctx.log_warning(acceptance.warning);
 
     // Initial state: the fluxes at the initial currents and the present magnet temperature.
     // Currents outside the grid would start the machine on the map's extrapolation: refused.
@@ -233,7 +255,7 @@ void PlantModel::exit_initialization() {
                          " A are outside the flux map's grid [" + num(map->i_d_min()) + ", " + num(map->i_d_max()) +
                          "] x [" + num(map->i_q_min()) + ", " + num(map->i_q_max()) + "] A (" + path + ")");
     const double shift = magnet_flux_shift(*map, k_psi_T, T_magnet, T_magnet_ref);
-    const FluxPoint p0 = map->eval(i_d_start, i_q_start);
+    const FluxPoint p0 = inverse->forward_eval(i_d_start, i_q_start);  // the map the plant inverts
     CvodeIntegrator integrator(settings());
     integrator.reset(0.0, p0.psi_d + shift, p0.psi_q);
     CvodeState start = integrator.state();  // the start currents: exactly those at the start fluxes
@@ -339,14 +361,14 @@ void PlantModel::do_step(double t, double h) {
     const fmi::Context& ctx = *context_;
     if (!integrator_.warnings().empty() && ctx.log_warning)
         ctx.log_warning("CVODE at t = " + num(t) + " s: " + integrator_.warnings());
-    const bool outside =
-        i_d < map_->i_d_min() || i_d > map_->i_d_max() || i_q < map_->i_q_min() || i_q > map_->i_q_max();
+    const CurrentBox& legal = inverse_->legal();
+    const bool outside = !legal.contains(i_d, i_q);
     if (outside && !outside_warned_ && ctx.log_warning) {
         std::ostringstream os;
         os << "at t = " << num(t + h) << " s the currents i_d = " << num(i_d) << " A, i_q = " << num(i_q)
-           << " A left the flux map's grid [" << num(map_->i_d_min()) << ", " << num(map_->i_d_max()) << "] x ["
-           << num(map_->i_q_min()) << ", " << num(map_->i_q_max())
-           << "] A: the map is extrapolated linearly there (warned once per excursion)";
+           << " A left the flux map's legal box (" << describe(legal)
+           << "): the plant continues the map there with positive-definite incremental inductances (docs/maps.md; "
+              "warned once per excursion)";
         ctx.log_warning(os.str());
     }
     outside_warned_ = outside;

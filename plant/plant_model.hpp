@@ -106,6 +106,7 @@ public:
     double fe_alpha = 2.0;
     double fe_k_e = 0.00581807649193;         // W/Hz^2
     double fe_psi_ref = 0.0780669432093;      // Wb
+    double I_max = 500.0;                     // A, the drive's current limit (the controller's default)
     double i_d_start = 0.0, i_q_start = 0.0;  // A
     double rtol = 1e-6;
     double atol = 1e-8;           // Wb (what CVODE's error control sees: cvode_integrator.hpp)

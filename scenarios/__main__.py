@@ -1,5 +1,5 @@
-"""python -m scenarios {sweep, run, compare, check, study} ... (see --help of each). A bad drive description
-or input exits 2 with the file, the key and what was expected."""
+"""python -m scenarios {sweep, run, compare, check, study, map, fmu-path} ... (see --help of each). A bad drive
+description or input exits 2 with the file, the key and what was expected."""
 from __future__ import annotations
 
 import argparse
@@ -9,7 +9,8 @@ import sys
 from pathlib import Path
 
 from scenarios.core.constants import T_REFERENCE_K, U_DC_SCALE_MAX, ZERO_CELSIUS_K
-from scenarios.core.paths import BUILD_DIR, ROOT
+from scenarios.core.paths import BUILD_DIR, OUT_DIR
+from scenarios.core.version import VERSION
 from scenarios.maps import cli as map_cli
 
 #: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
@@ -17,18 +18,24 @@ DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drive
 
 #: exit status: bad input (file, key, what was expected); a run that could not finish
 EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
+#: what `fmu-path` finds: the FMUs (build/fmu/NAME.fmu) and the SSP package (build/ssp/NAME.ssp)
+FMU_NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
+SSP_NAME = "IpmsmControllerPlant"
 
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
-               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "steps", "wall_s", "real_time_factor")
+               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
+               "steps", "wall_s", "real_time_factor")
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m scenarios", description=__doc__)
-    ap.add_argument("--build", type=Path, default=BUILD_DIR, help="build folder with fmu/ (and lib/, bin/)")
+    ap.add_argument("--version", action="version", version=f"ipmsm-fmu {VERSION}")
+    ap.add_argument("--build", type=Path, default=BUILD_DIR, help="build folder with fmu/ (and ssp/); default: "
+                    "the repository's build/, or the installed wheel's copies")
     sub = ap.add_subparsers(dest="cmd", required=True)
 
     sw = sub.add_parser("sweep", help="torque-speed sweep of the controller: table and plot of the optimal currents")
-    sw.add_argument("--out", type=Path, default=ROOT / "out" / "sweep")
+    sw.add_argument("--out", type=Path, default=OUT_DIR / "sweep")
     sw.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
     sw.add_argument("--u-dc", type=float, default=None, help="V; default: the drive's controller.lut_u_dc")
     sw.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
@@ -49,10 +56,12 @@ def main(argv=None) -> int:
 
     cmp_ = sub.add_parser("compare", help="Ferrari versus 2-D tables over cycles and conditions: report.md")
     cmp_.add_argument("--cycles", nargs="+", default=["WLTC3b"])
-    cmp_.add_argument("--out", type=Path, default=ROOT / "out" / "compare")
+    cmp_.add_argument("--out", type=Path, default=OUT_DIR / "compare")
     cmp_.add_argument("--workers", type=int, default=None)
     cmp_.add_argument("--scheduler", default=None, help="an existing dask scheduler (as for study)")
     cmp_.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
+    fp = sub.add_parser("fmu-path", help="where the FMUs (and the SSP package) are: print the file's path")
+    fp.add_argument("name", choices=FMU_NAMES + (SSP_NAME,), help="an FMU's model identifier, or the SSP package")
     from scenarios.runs import check
     check.add_parser(sub)
     map_cli.add_parser(sub)
@@ -117,6 +126,14 @@ def _run_args(args) -> None:
 
 
 def _dispatch(args) -> int:
+    if args.cmd == "fmu-path":
+        path = (args.build / "ssp" / f"{SSP_NAME}.ssp" if args.name == SSP_NAME
+                else args.build / "fmu" / f"{args.name}.fmu")
+        if not path.is_file():
+            print(f"error: {path} is missing: build it (cmake --build build)", file=sys.stderr)
+            return 2
+        print(path)
+        return 0
     from scenarios.core.boundary import check_writable, inside
     from scenarios.drives.description import load_drive
     if args.cmd == "check":
@@ -142,11 +159,13 @@ def _dispatch(args) -> int:
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
         cycle = _cycle_arg(args.cycle, "cycle")
         stem = Path(args.cycle).stem + ("" if args.drive is None else f"_{drive.name}")
-        out = args.out or inside(ROOT / "out", _slug(f"{stem}_{method}"), "run's output folder")
+        out = args.out or inside(OUT_DIR, _slug(f"{stem}_{method}"), "run's output folder")
         check_writable(out)
         s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"))
+        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"), drive)
+        for a in drive.assumed:
+            print(f"assumed: {a}", file=sys.stderr)
         d = s.to_dict()
         print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
         print(f"wrote {out}/summary.json, trace.csv, run.png")
@@ -163,6 +182,7 @@ def _dispatch(args) -> int:
         if args.map_cmd == "show":  # the numbers as a drive's would be: the FMUs' ranges
             _number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
             _number_as_key(args.I_max, "--I-max", "motor.I_max")
+        args.drive_description = load_drive(args.drive) if getattr(args, "drive", None) is not None else None
         return map_cli.main(args)
     elif args.cmd == "study":
         from scenarios.study import cli as study_cli

@@ -35,7 +35,8 @@ fi
 declared=$(cat requirements.txt pyproject.toml | sha256sum)
 if [ "$declared" != "$(cat .venv/.requirements.installed 2>/dev/null)" ]; then
   say "installing the Python side (pip install -e .[test])"
-  .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+  # setuptools >= 70.1 in the venv: the wheel's build (cmake/wheel.cmake) runs without isolation
+  .venv/bin/python -m pip install -q --upgrade pip "setuptools>=70.1" >/dev/null
   .venv/bin/python -m pip install -q -r requirements.txt
   echo "$declared" > .venv/.requirements.installed
 fi

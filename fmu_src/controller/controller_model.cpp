@@ -8,6 +8,7 @@
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
 #include "machine/map_file.hpp"
+#include "machine/operating_region.hpp"
 
 namespace ipmsm {
 
@@ -111,7 +112,10 @@ void ControllerModel::exit_initialization() {
                                                        {"T_magnet_ref_K", "T_magnet_ref", T_magnet_ref},
                                                        {"k_psi_T_per_K", "k_psi_T", k_psi_T}}))
             context_->log_warning(w);
+    // The map must be legal where the drive operates (operating_region.hpp); beyond, one warning.
+    const MapAcceptance acceptance = accept_flux_map(*map, I_max, path);
     check_current_limit_within_map(*map, I_max);
+    if (context_->log_warning && !acceptance.warning.empty()) context_->log_warning(acceptance.warning);
     SaturatedOptimalCurrent solver(map, pole_pairs);
     std::shared_ptr<const TorqueTable> table;
     if (method == 2 || method == 3) {

@@ -53,7 +53,8 @@ struct FluxMapTable {
 // Read the contract's CSV format ('#' lines, header i_d,i_q,psi_d,psi_q, rows in any order).
 // Throws FluxMapError naming the file and line for: missing or unreadable file, no header,
 // no rows, text in numbers, non-finite values, duplicate points, a grid that is not full and
-// rectangular (at least 4 x 4), psi_d not increasing in i_d or psi_q not increasing in i_q.
+// rectangular (at least 4 x 4). Not monotone grid lines are read: whether they matter depends on
+// where the drive operates (operating_region.hpp: accept_flux_map, the FMUs' rule).
 // Also refused, before anything large is allocated: a path that is not a regular file (a
 // directory, a FIFO, a device: refused at once, map_file.hpp), more than kMaxMapFileBytes,
 // kMaxLineChars in a line, kMaxGridPoints rows or kMaxGridAxis values on an axis, a UTF-16 file.
@@ -62,9 +63,7 @@ struct FluxMapTable {
 // anywhere, a leading '+'. Numbers are parsed independently of the C locale and must be
 // consumed whole. '# key: value' lines (key: letters, digits, _ . -, starting with a letter or
 // _) become metadata; a repeated key keeps the last value. Axis values closer than 1e-9 of the
-// axis' span are the same node. Monotonicity is strict along every grid line (a positive
-// incremental self-inductance between nodes: a convex co-energy; the plant needs currents as a
-// function of flux linkages); the measured Baldor map satisfies it with margin.
+// axis' span are the same node.
 FluxMapTable read_flux_map(const std::string& path);
 FluxMapTable parse_flux_map(std::istream& in, const std::string& source_name);
 FluxMapTable parse_flux_map_text(const std::string& text, const std::string& source_name);
@@ -106,7 +105,8 @@ struct FluxPoint2 : FluxPoint {
 // tangential variation grows with distance (beyond the i_q edge, d psi_d / d i_d =
 // L_dd(i_b) + dL_dd/di_q (i_q - i_q,b)), so far outside a strongly cross-saturated map the
 // continuation can lose monotonicity (Baldor: L_dd < 0 some 9 A beyond its +-26 A i_q edge).
-// Keep the operating range inside the map.
+// Keep the operating range inside the map. (The plant does not invert this continuation but one
+// that cannot fold: InverseFluxMap::forward_eval, inverse_flux_map.hpp.)
 // A FluxMap may also be built from a table with as few as 2 x 2 points (linear_flux_map with
 // n = 2); read_flux_map requires 4 x 4.
 class FluxMap {

@@ -18,14 +18,12 @@ double max_abs(double a, double b) { return std::max(std::abs(a), std::abs(b)); 
 // 23 MB, built in 80-95 ms, eval 157-272 ns; 151 x 151, 15-21 ms, 132-189 ns; 101 x 101, 277 ns).
 constexpr double kMaxTableCells = 150.0;
 
-}  // namespace
-
-bool InverseFluxMap::invert(const FluxMap& map, double psi_d, double psi_q, double& i_d, double& i_q, double tol,
-                            int* iterations) {
+template <class Map>
+bool damped_newton(const Map& map, double psi_d, double psi_q, double& i_d, double& i_q, double tol, int* iterations,
+                   double cap) {
     // Damped Newton on r(i) = psi(i) - psi*, backtracking on the max-norm of r. The step size
-    // is also capped at a quarter of the grid's extent so that a poor start cannot throw the
+    // is also capped (at a quarter of the grid's extent) so that a poor start cannot throw the
     // iterate far into the extrapolated region in one step.
-    const double cap = 0.25 * std::max(map.i_d_max() - map.i_d_min(), map.i_q_max() - map.i_q_min());
     FluxPoint p = map.eval(i_d, i_q);
     double rd = p.psi_d - psi_d, rq = p.psi_q - psi_q;
     double rn = max_abs(rd, rq);
@@ -86,87 +84,78 @@ bool InverseFluxMap::invert(const FluxMap& map, double psi_d, double psi_q, doub
     return ok;
 }
 
+double step_cap(const FluxMap& map) {
+    return 0.25 * std::max(map.i_d_max() - map.i_d_min(), map.i_q_max() - map.i_q_min());
+}
+// The regularised map as damped_newton sees it.
+struct Regularised {
+    const InverseFluxMap& inverse;
+    FluxPoint eval(double i_d, double i_q) const { return inverse.forward_eval(i_d, i_q); }
+};
+}  // namespace
+
+bool InverseFluxMap::invert(const FluxMap& map, double psi_d, double psi_q, double& i_d, double& i_q, double tol,
+                            int* iterations) {
+    return damped_newton(map, psi_d, psi_q, i_d, i_q, tol, iterations, step_cap(map));
+}
+
+bool InverseFluxMap::invert_regularised(double psi_d, double psi_q, double& i_d, double& i_q, double tol,
+                                        int* iterations) const {
+    return damped_newton(Regularised{*this}, psi_d, psi_q, i_d, i_q, tol, iterations, step_cap(forward_));
+}
+
 void InverseFluxMap::nearest_node(double psi_d, double psi_q, double& i_d, double& i_q) const {
-    const FluxMapTable& t = forward_.table();
-    const std::size_t nd = t.i_d.size(), nq = t.i_q.size();
-    double best = std::numeric_limits<double>::infinity();
-    for (std::size_t k = 0; k < nq; ++k)
-        for (std::size_t j = 0; j < nd; ++j) {
-            const std::size_t i = k * nd + j;
-            const double e = std::hypot((t.psi_d[i] - psi_d) / psi_width_[0], (t.psi_q[i] - psi_q) / psi_width_[1]);
-            if (e < best) {
-                best = e;
-                i_d = t.i_d[j];
-                i_q = t.i_q[k];
-            }
-        }
+    const std::ptrdiff_t n = nodes_.nearest(psi_d / psi_width_[0], psi_q / psi_width_[1]);
+    if (n < 0) return;  // a NaN flux: keep the start, Newton fails on it
+    i_d = node_i_d_[static_cast<std::size_t>(n)];
+    i_q = node_i_q_[static_cast<std::size_t>(n)];
 }
 
-double InverseFluxMap::outside_grid(double i_d, double i_q) const {
-    return std::max(
-        {forward_.i_d_min() - i_d, i_d - forward_.i_d_max(), forward_.i_q_min() - i_q, i_q - forward_.i_q_max(), 0.0});
+double InverseFluxMap::outside_legal(double i_d, double i_q) const {
+    return std::max({legal_.i_d_min - i_d, i_d - legal_.i_d_max, legal_.i_q_min - i_q, i_q - legal_.i_q_max, 0.0});
 }
 
-InverseFluxPoint InverseFluxMap::search(double psi_d, double psi_q, const double* fast) const {
-    // Candidates: the fast Newton's solution (if it converged), damped Newton from the table's
-    // guess and from the grid node with the nearest fluxes. Beyond the grid a map's linear
-    // continuation may fold, so the same fluxes can have several preimages: the one nearest
-    // the grid is the machine's (it is reached continuously from inside).
+InverseFluxPoint InverseFluxMap::search(double psi_d, double psi_q) const {
+    // The regularised map is one-to-one (inverse_flux_map.hpp): the first converged search is it.
     constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-    double best[2] = {kNaN, kNaN}, best_out = std::numeric_limits<double>::infinity();
-    auto consider = [&](double i_d, double i_q) {
-        const double out = outside_grid(i_d, i_q);
-        if (out < best_out) {
-            best_out = out;
-            best[0] = i_d;
-            best[1] = i_q;
-        }
-    };
-    if (fast != nullptr) consider(fast[0], fast[1]);
-    if (best_out > 0) {
-        SplineValue s[2];
-        spline_.eval<2>(psi_d, psi_q, s);
-        double i_d = s[0].f, i_q = s[1].f;
-        if (invert(forward_, psi_d, psi_q, i_d, i_q, flux_tol_)) consider(i_d, i_q);
-    }
-    if (best_out > 0) {
-        double i_d = 0, i_q = 0;
+    SplineValue s[2];
+    spline_.eval<2>(psi_d, psi_q, s);
+    double i_d = s[0].f, i_q = s[1].f;
+    bool ok = invert_regularised(psi_d, psi_q, i_d, i_q, flux_tol_);
+    if (!ok) {
         nearest_node(psi_d, psi_q, i_d, i_q);
-        if (invert(forward_, psi_d, psi_q, i_d, i_q, flux_tol_)) consider(i_d, i_q);
+        ok = invert_regularised(psi_d, psi_q, i_d, i_q, flux_tol_);
     }
-    if (!std::isfinite(best_out)) return InverseFluxPoint{kNaN, kNaN, kNaN, kNaN, kNaN, kNaN};
-    const FluxPoint p = forward_.eval(best[0], best[1]);
+    if (!ok) return InverseFluxPoint{kNaN, kNaN, kNaN, kNaN, kNaN, kNaN};
+    const FluxPoint p = forward_eval(i_d, i_q);
     const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
-    return InverseFluxPoint{best[0], best[1], p.L_qq / det, -p.L_dq / det, -p.L_qd / det, p.L_dd / det};
+    return InverseFluxPoint{i_d, i_q, p.L_qq / det, -p.L_dq / det, -p.L_qd / det, p.L_dd / det};
 }
 
 InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options) : forward_(map) {
     const FluxMapTable& t = map.table();
+    legal_ = options.legal.value_or(CurrentBox{map.i_d_min(), map.i_d_max(), map.i_q_min(), map.i_q_max()});
+    // B's grid nodes: j0..j1 along i_d, k0..k1 along i_q.
     const int nd = static_cast<int>(t.i_d.size()), nq = static_cast<int>(t.i_q.size());
+    const double tol_d = 1e-9 * (map.i_d_max() - map.i_d_min()), tol_q = 1e-9 * (map.i_q_max() - map.i_q_min());
+    int j0 = nd, j1 = -1, k0 = nq, k1 = -1;
+    for (int j = 0; j < nd; ++j)
+        if (t.i_d[j] >= legal_.i_d_min - tol_d && t.i_d[j] <= legal_.i_d_max + tol_d) j0 = std::min(j0, j), j1 = j;
+    for (int k = 0; k < nq; ++k)
+        if (t.i_q[k] >= legal_.i_q_min - tol_q && t.i_q[k] <= legal_.i_q_max + tol_q) k0 = std::min(k0, k), k1 = k;
+    if (j1 - j0 < 1 || k1 - k0 < 1)
+        throw FluxMapError("InverseFluxMap: the legal box " + describe(legal_) + " spans less than one grid cell");
+    legal_ = CurrentBox{t.i_d[j0], t.i_d[j1], t.i_q[k0], t.i_q[k1]};  // on the nodes exactly
 
-    // Currents must be a function of the flux linkages on the grid: the incremental inductance
-    // matrix d psi / d i nonsingular with a positive determinant (the contract's monotone grid
-    // lines do not imply it for a non-reciprocal map). Checked at the nodes and at the cells'
-    // and edges' midpoints; refused with where it fails, since the inverse would be ambiguous.
-    for (int k = 0; k < 2 * nq - 1; ++k)
-        for (int j = 0; j < 2 * nd - 1; ++j) {
-            const double id = j % 2 == 0 ? t.i_d[j / 2] : 0.5 * (t.i_d[j / 2] + t.i_d[j / 2 + 1]);
-            const double iq = k % 2 == 0 ? t.i_q[k / 2] : 0.5 * (t.i_q[k / 2] + t.i_q[k / 2 + 1]);
-            const FluxPoint p = map.eval(id, iq);
-            const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
-            if (!(det > 1e-12 * std::abs(p.L_dd * p.L_qq))) {
-                char b[320];
-                std::snprintf(b, sizeof b,
-                              "InverseFluxMap: the flux map folds at i_d = %.6g A, i_q = %.6g A: the incremental "
-                              "inductances L_dd = %.4g, L_dq = %.4g, L_qd = %.4g, L_qq = %.4g H have a determinant "
-                              "%.3g H^2 <= 0, so several currents give the same flux linkages there",
-                              id, iq, p.L_dd, p.L_dq, p.L_qd, p.L_qq, det);
-                throw FluxMapError(b);
-            }
-        }
+    // Currents must be a function of the flux linkages in B: the rule's defects (grid lines not
+    // monotone, L not a P-matrix at a node or a midpoint) must all lie beyond it.
+    for (const MapDefect& e : map_defects(map).list)
+        if (e.d0 <= 2 * j1 && e.d1 >= 2 * j0 && e.q0 <= 2 * k1 && e.q1 >= 2 * k0)
+            throw FluxMapError("InverseFluxMap: " + e.what + ", where the map is to be inverted (" + describe(legal_) +
+                               "): several currents give the same flux linkages there");
 
-    // The psi box: bounding box of the images of the grid nodes and of the grid's edges (the
-    // spline between edge nodes may bulge slightly beyond the node values).
+    // The psi box: bounding box of the images of B's nodes and of its edges (the spline between
+    // edge nodes may bulge slightly beyond the node values).
     double dmin = std::numeric_limits<double>::infinity(), dmax = -dmin, qmin = dmin, qmax = -dmin;
     auto take = [&](double id, double iq) {
         const FluxPoint p = map.eval(id, iq);
@@ -176,13 +165,13 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
         qmax = std::max(qmax, p.psi_q);
     };
     constexpr int kSub = 8;
-    for (int k = 0; k < nq; ++k)
-        for (int j = 0; j < nd; ++j) {
+    for (int k = k0; k <= k1; ++k)
+        for (int j = j0; j <= j1; ++j) {
             take(t.i_d[j], t.i_q[k]);
-            const bool edge_q = k == 0 || k == nq - 1, edge_d = j == 0 || j == nd - 1;
+            const bool edge_q = k == k0 || k == k1, edge_d = j == j0 || j == j1;
             for (int s = 1; s < kSub; ++s) {
-                if (edge_q && j + 1 < nd) take(t.i_d[j] + (t.i_d[j + 1] - t.i_d[j]) * s / kSub, t.i_q[k]);
-                if (edge_d && k + 1 < nq) take(t.i_d[j], t.i_q[k] + (t.i_q[k + 1] - t.i_q[k]) * s / kSub);
+                if (edge_q && j < j1) take(t.i_d[j] + (t.i_d[j + 1] - t.i_d[j]) * s / kSub, t.i_q[k]);
+                if (edge_d && k < k1) take(t.i_d[j], t.i_q[k] + (t.i_q[k + 1] - t.i_q[k]) * s / kSub);
             }
         }
     const double wd = dmax - dmin, wq = qmax - qmin;
@@ -196,19 +185,19 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
     // grid nodes along that axis (the most saturated cell then still spans two psi cells), at
     // least three psi cells per current cell, at most kMaxTableCells (or one per current cell).
     double step_d = std::numeric_limits<double>::infinity(), step_q = step_d;
-    for (int k = 0; k < nq; ++k)
-        for (int j = 0; j < nd; ++j) {
+    for (int k = k0; k <= k1; ++k)
+        for (int j = j0; j <= j1; ++j) {
             const std::size_t i = static_cast<std::size_t>(k) * nd + j;
-            if (j + 1 < nd) step_d = std::min(step_d, std::abs(t.psi_d[i + 1] - t.psi_d[i]));
-            if (k + 1 < nq) step_q = std::min(step_q, std::abs(t.psi_q[i + nd] - t.psi_q[i]));
+            if (j < j1) step_d = std::min(step_d, std::abs(t.psi_d[i + 1] - t.psi_d[i]));
+            if (k < k1) step_q = std::min(step_q, std::abs(t.psi_q[i + nd] - t.psi_q[i]));
         }
     auto automatic = [](double width, double step, int n_current) {
         const double cells = step > 0 ? std::ceil(width / (0.5 * step)) : kMaxTableCells;
         const double lo = 3.0 * (n_current - 1), hi = std::max(kMaxTableCells, n_current - 1.0);
         return static_cast<int>(std::min(std::max(cells, lo), hi)) + 1;
     };
-    const int md = options.n_psi_d > 0 ? options.n_psi_d : automatic(dmax - dmin, step_d, nd);
-    const int mq = options.n_psi_q > 0 ? options.n_psi_q : automatic(qmax - qmin, step_q, nq);
+    const int md = options.n_psi_d > 0 ? options.n_psi_d : automatic(dmax - dmin, step_d, j1 - j0 + 1);
+    const int mq = options.n_psi_q > 0 ? options.n_psi_q : automatic(qmax - qmin, step_q, k1 - k0 + 1);
     if (md < 2 || mq < 2) throw FluxMapError("InverseFluxMap: the psi grid needs at least 2 x 2 nodes");
     std::vector<double> pd(md), pq(mq);
     for (int j = 0; j < md; ++j) pd[j] = dmin + (dmax - dmin) * j / (md - 1);
@@ -223,10 +212,22 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
     std::vector<char> inverted(cd.size(), 0);
 
     // Start guesses: the previous node of the row (continuation), else the node below, else
-    // the current-grid node whose flux linkages are nearest.
+    // the node of B whose flux linkages are nearest (a k-d tree over them, in units of the
+    // image's extent).
     psi_width_[0] = wd;
     psi_width_[1] = wq;
-    const double gd0 = map.i_d_min(), gd1 = map.i_d_max(), gq0 = map.i_q_min(), gq1 = map.i_q_max();
+    {
+        std::vector<double> x, y;
+        for (int k = k0; k <= k1; ++k)
+            for (int j = j0; j <= j1; ++j) {
+                const std::size_t i = static_cast<std::size_t>(k) * nd + j;
+                x.push_back(t.psi_d[i] / wd);
+                y.push_back(t.psi_q[i] / wq);
+                node_i_d_.push_back(t.i_d[j]);
+                node_i_q_.push_back(t.i_q[k]);
+            }
+        nodes_ = NearestPoint2D(x, y);
+    }
     for (int k = 0; k < mq; ++k)
         for (int j = 0; j < md; ++j) {
             const std::size_t idx = static_cast<std::size_t>(k) * md + j;
@@ -242,17 +243,17 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
                 } else {
                     nearest_node(pd[j], pq[k], id, iq);
                 }
-                ok = invert(map, pd[j], pq[k], id, iq, tol);
+                ok = invert_regularised(pd[j], pq[k], id, iq, tol);
             }
             if (!ok) {
                 ++unreachable_nodes_;
                 continue;
             }
             inverted[idx] = 1;
-            const FluxPoint p = map.eval(id, iq);
+            const FluxPoint p = forward_eval(id, iq);
             max_residual_ = std::max(max_residual_, max_abs(p.psi_d - pd[j], p.psi_q - pq[k]));
-            const double out = std::max({gd0 - id, id - gd1, gq0 - iq, iq - gq1});
-            if (out > 1e-9 * std::max(gd1 - gd0, gq1 - gq0)) {
+            const double out = outside_legal(id, iq);
+            if (out > 1e-9 * std::max(legal_.i_d_max - legal_.i_d_min, legal_.i_q_max - legal_.i_q_min)) {
                 ++outside_nodes_;
                 max_outside_ = std::max(max_outside_, out);
             }
@@ -275,7 +276,7 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
                 if (n[0] < 0 || n[0] >= md || n[1] < 0 || n[1] >= mq) continue;
                 const std::size_t to = static_cast<std::size_t>(n[1]) * md + n[0];
                 if (inverted[to]) continue;
-                const FluxPoint p = map.eval(cd[from], cq[from]);
+                const FluxPoint p = forward_eval(cd[from], cq[from]);
                 const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
                 const double rd = pd[n[0]] - p.psi_d, rq = pq[n[1]] - p.psi_q;
                 cd[to] = cd[from] + (p.L_qq * rd - p.L_dq * rq) / det;
@@ -292,9 +293,9 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
     }
     spline_ = BicubicSpline2D(pd, pq, {cd.data(), cq.data()});
 
-    // The honest error: at each current-grid cell's centre, whose fluxes are the map's there.
-    for (int k = 0; k + 1 < nq; ++k)
-        for (int j = 0; j + 1 < nd; ++j) {
+    // The honest error: at each current-grid cell's centre in B, whose fluxes are the map's there.
+    for (int k = k0; k < k1; ++k)
+        for (int j = j0; j < j1; ++j) {
             const double id = 0.5 * (t.i_d[j] + t.i_d[j + 1]), iq = 0.5 * (t.i_q[k] + t.i_q[k + 1]);
             const FluxPoint p = map.eval(id, iq);
             const InverseFluxPoint e = eval(p.psi_d, p.psi_q), g = table(p.psi_d, p.psi_q);

@@ -1,38 +1,54 @@
 // The inverse flux map i_d(psi_d, psi_q), i_q(psi_d, psi_q), for the plant: it integrates the
 // flux linkages as states and needs the currents (and d i / d psi for the solver's Jacobian).
 //
-// eval() is exact: it inverts the forward spline (FluxMap::eval, with its linear continuation
-// outside the current grid) by Newton's method to rounding, starting from a table. So the
-// currents are the map's own inverse at every flux linkage the map (or its continuation)
-// reaches, whatever the grid or the saturation; G = (d psi / d i)^-1 at the solution.
+// What is inverted is the map regularised beyond its legal box B (operating_region.hpp: a
+// grid-aligned box on which the incremental inductance matrix L = d psi / d i is a P-matrix,
+// L_dd > 0, L_qq > 0, det L > 0; by default the whole grid): inside B the forward spline
+// (FluxMap::eval); beyond B, with P(i) the nearest point of B (i clamped to it),
+//
+//     psi_d(i) = psi_d(P(i)) + L_dd(P(i)) (i_d - P_d(i)),   psi_q(i) = psi_q(P(i)) + L_qq(P(i)) (i_q - P_q(i)).
+//
+// Beyond an i_d edge the Jacobian is [[L_dd(P), *], [0, L_qq(P)]], beyond an i_q edge
+// [[L_dd(P), 0], [*, L_qq(P)]], beyond a corner diag(L_dd, L_qq) of the corner: a P-matrix by
+// construction, whatever the map does beyond B (data that fold, a cross-saturated map's tangent
+// continuation that would fold: its off-diagonal growth cannot change a triangular determinant).
+// Across B's edges every convex combination of the two sides' Jacobians is a P-matrix too
+// (det = a det_inside + (1 - a) L_dd L_qq). A continuous map whose (generalised) Jacobian is a
+// P-matrix on the whole plane is injective (Gale & Nikaido, Math. Annalen 159, 1965), and it
+// grows at least linearly with the distance from B, so every flux linkage has exactly one
+// current: transients past the grid run. The self-inductances are continuous across B's edges,
+// the cross terms drop to zero beyond (a first-order continuation of the saturated edge).
+//
+// eval() is exact: it inverts the regularised map by Newton's method to rounding, starting from
+// a table. G = (d psi / d i)^-1 at the solution.
 //
 // The table (the start guess): on a uniform rectangular psi grid covering the bounding box of
-// the image of the current grid, each node's currents from a damped Newton inversion, then the
-// same C2 bicubic spline (bicubic_spline.hpp). Nodes of the box that are images of currents
-// outside the grid (its corners: the image is a curved quadrilateral) are inverted on the
-// forward map's linear continuation (outside_nodes(), max_outside_A()); nodes that not even the
-// continuation reaches (a strongly cross-saturated map's continuation can lose monotonicity far
-// out) get a first-order continuation of the inverse from their nearest inverted neighbour
-// (unreachable_nodes()). Newton then converges from the table's guess in 1-3 steps inside the
-// image (2-3 forward evaluations per eval()). Where it does not, or converges to currents beyond
-// the grid (where the continuation may fold, giving the same fluxes more than one preimage), a
-// damped Newton search from the table's guess and from the grid node with the nearest fluxes
-// takes over and keeps the preimage nearest the grid; where no search converges the currents
-// are NaN: no current gives those flux linkages on the map or its continuation.
+// the image of B, each node's currents from a damped Newton inversion, then the same C2 bicubic
+// spline (bicubic_spline.hpp). Nodes of the box that are images of currents beyond B (its
+// corners: the image is a curved quadrilateral) are inverted on the continuation
+// (outside_nodes(), max_outside_A()). Newton converges from the table's guess in 1-3 steps inside
+// the image (2-3 forward evaluations per eval()); where it does not, a damped Newton search from
+// the table's guess and then from the node of B with the nearest fluxes (a k-d tree,
+// nearest_point.hpp: O(log N)) takes over; where none converges the currents are NaN.
 //
 // The error is measured, not assumed: at construction, eval() and the table alone are checked
-// against the currents at the centre of every current-grid cell (known exactly: their fluxes
-// are the forward map's there): max_error_A(), max_table_error_A().
+// against the currents at the centre of every current-grid cell in B (known exactly: their
+// fluxes are the forward map's there): max_error_A(), max_table_error_A().
 //
 // Magnet temperature: a PM flux changed by delta_psi_m shifts the forward map to
 // psi_d(i) + delta_psi_m, so its inverse is i(psi_d - delta_psi_m, psi_q): pass the shifted
 // psi_d (or use the three-argument eval).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
+#include <optional>
+
 #include "machine/flux_map.hpp"
+#include "machine/nearest_point.hpp"
+#include "machine/operating_region.hpp"
 #include "numerics/bicubic_spline.hpp"
 
 namespace ipmsm {
@@ -51,14 +67,17 @@ struct InverseFluxMapOptions {
     int n_psi_d = 0, n_psi_q = 0;
     // Extra width of the psi box on each side, as a fraction of its width.
     double margin = 0.0;
+    // The legal box B (MapAcceptance::legal): the map is used inside, continued beyond (above).
+    // Unset: the whole grid.
+    std::optional<CurrentBox> legal;
 };
 
 class InverseFluxMap {
 public:
     // Keeps a copy of the map (eval() inverts it). Throws FluxMapError, saying where, if the map
-    // folds on its grid (the incremental inductance matrix has a determinant <= 0 at a node or a
-    // cell's or edge's midpoint: the currents would not be a function of the fluxes), if its
-    // image has no extent, or if no node of the table could be inverted.
+    // is not legal in B (map_defects(): a grid line not monotone, or L not a P-matrix at a node,
+    // an edge's or a cell's midpoint: the currents would not be a function of the fluxes), if
+    // its image has no extent, or if no node of the table could be inverted.
     explicit InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options = {});
 
     // The currents at (psi_d, psi_q), exact to rounding; NaN where no current reaches them.
@@ -68,6 +87,10 @@ public:
     // the guess is within the step tolerance. Where Newton does not converge inside the grid
     // from there, eval()'s way.
     InverseFluxPoint eval_near(double psi_d, double psi_q, double i_d_guess, double i_q_guess) const;
+    // The regularised forward map that eval() inverts (above): the spline inside B, the
+    // continuation beyond.
+    FluxPoint forward_eval(double i_d, double i_q) const;
+    const CurrentBox& legal() const { return legal_; }
     // The table's interpolated start guess alone (for the benchmark and the tests).
     InverseFluxPoint table(double psi_d, double psi_q) const;
     // The machine whose PM flux is delta_psi_m above the map's (magnet temperature).
@@ -82,11 +105,12 @@ public:
     int n_psi_d() const { return static_cast<int>(spline_.x().size()); }
     int n_psi_q() const { return static_cast<int>(spline_.y().size()); }
 
-    // psi nodes whose currents lie outside the forward map's current grid, and the largest
-    // distance (A, max norm) by which such a current lies outside it.
+    // psi nodes whose currents lie outside B, and the largest distance (A, max norm) by which
+    // such a current lies outside it.
     int outside_nodes() const { return outside_nodes_; }
     double max_outside_A() const { return max_outside_; }
-    // psi nodes that no current reaches (filled by continuation of the inverse, above).
+    // psi nodes whose inversion failed (filled by a first-order continuation of the inverse from
+    // their neighbours; none is expected: the regularised map is onto).
     int unreachable_nodes() const { return unreachable_nodes_; }
     // Largest Newton residual |psi(i) - psi_node| (max norm, Wb) over the inverted nodes.
     double max_residual() const { return max_residual_; }
@@ -104,17 +128,22 @@ public:
     // residual in Wb. iterations (optional): Newton steps taken.
     static bool invert(const FluxMap& map, double psi_d, double psi_q, double& i_d, double& i_q, double tol,
                        int* iterations = nullptr);
+    // ... of the regularised map (forward_eval).
+    bool invert_regularised(double psi_d, double psi_q, double& i_d, double& i_q, double tol,
+                            int* iterations = nullptr) const;
 
 private:
     static constexpr int kNewtonSteps = 8;  // from the table's guess, before the damped search
     bool newton(double psi_d, double psi_q, double& i_d, double& i_q, InverseFluxPoint& out) const;
-    bool inside_grid(double i_d, double i_q) const;
-    // The slow path: fast = the fast Newton's converged currents, nullptr if it did not converge.
-    InverseFluxPoint search(double psi_d, double psi_q, const double* fast) const;
+    // The slow path: damped Newton from the table's guess, then from the nearest node.
+    InverseFluxPoint search(double psi_d, double psi_q) const;
     void nearest_node(double psi_d, double psi_q, double& i_d, double& i_q) const;
-    double outside_grid(double i_d, double i_q) const;  // A, max norm; 0 inside
+    double outside_legal(double i_d, double i_q) const;  // A, max norm; 0 inside B
 
     FluxMap forward_;
+    CurrentBox legal_;
+    NearestPoint2D nodes_;                     // the grid nodes in B, at their fluxes / psi_width_
+    std::vector<double> node_i_d_, node_i_q_;  // their currents
     BicubicSpline2D spline_;
     double step_tol_ = 0;           // A: a Newton correction this small leaves rounding-level error
     double flux_tol_ = 0;           // Wb: the damped search's residual
@@ -136,7 +165,7 @@ inline InverseFluxPoint InverseFluxMap::table(double psi_d, double psi_q) const 
 // (out: the currents and G there).
 inline bool InverseFluxMap::newton(double psi_d, double psi_q, double& i_d, double& i_q, InverseFluxPoint& out) const {
     for (int k = 0; k < kNewtonSteps; ++k) {
-        const FluxPoint p = forward_.eval(i_d, i_q);
+        const FluxPoint p = forward_eval(i_d, i_q);
         const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
         if (!(std::abs(det) > 0) || !std::isfinite(det)) return false;
         const double G_dd = p.L_qq / det, G_dq = -p.L_dq / det, G_qd = -p.L_qd / det, G_qq = p.L_dd / det;
@@ -152,9 +181,21 @@ inline bool InverseFluxMap::newton(double psi_d, double psi_q, double& i_d, doub
     return false;
 }
 
-inline bool InverseFluxMap::inside_grid(double i_d, double i_q) const {
-    return i_d >= forward_.i_d_min() && i_d <= forward_.i_d_max() && i_q >= forward_.i_q_min() &&
-           i_q <= forward_.i_q_max();
+inline FluxPoint InverseFluxMap::forward_eval(double i_d, double i_q) const {
+    const double cd = std::min(std::max(i_d, legal_.i_d_min), legal_.i_d_max);
+    const double cq = std::min(std::max(i_q, legal_.i_q_min), legal_.i_q_max);
+    const double ed = i_d - cd, eq = i_q - cq;  // how far beyond B (0 inside)
+    if (ed == 0.0 && eq == 0.0) return forward_.eval(i_d, i_q);
+    const FluxPoint2 p = forward_.eval2(cd, cq);
+    FluxPoint r;
+    r.psi_d = p.psi_d + p.L_dd * ed;
+    r.psi_q = p.psi_q + p.L_qq * eq;
+    r.L_dd = p.L_dd;
+    r.L_qq = p.L_qq;
+    // A cross derivative survives only along an edge (P moves with the tangential current).
+    r.L_dq = eq == 0.0 ? p.L_dq + p.psi_d_dq * ed : 0.0;
+    r.L_qd = ed == 0.0 ? p.L_qd + p.psi_q_dq * eq : 0.0;
+    return r;
 }
 
 inline InverseFluxPoint InverseFluxMap::eval(double psi_d, double psi_q) const {
@@ -162,17 +203,14 @@ inline InverseFluxPoint InverseFluxMap::eval(double psi_d, double psi_q) const {
     spline_.eval<2>(psi_d, psi_q, s);
     double i_d = s[0].f, i_q = s[1].f;
     InverseFluxPoint out;
-    if (!newton(psi_d, psi_q, i_d, i_q, out)) return search(psi_d, psi_q, nullptr);
-    if (inside_grid(out.i_d, out.i_q)) return out;
-    const double fast[2] = {out.i_d, out.i_q};  // beyond the grid: is there a preimage nearer to it?
-    return search(psi_d, psi_q, fast);
+    if (newton(psi_d, psi_q, i_d, i_q, out)) return out;  // the only preimage (above)
+    return search(psi_d, psi_q);
 }
 
 inline InverseFluxPoint InverseFluxMap::eval_near(double psi_d, double psi_q, double i_d_guess,
                                                   double i_q_guess) const {
     InverseFluxPoint out;
-    if (std::isfinite(i_d_guess) && std::isfinite(i_q_guess) && newton(psi_d, psi_q, i_d_guess, i_q_guess, out) &&
-        inside_grid(out.i_d, out.i_q))
+    if (std::isfinite(i_d_guess) && std::isfinite(i_q_guess) && newton(psi_d, psi_q, i_d_guess, i_q_guess, out))
         return out;
     return eval(psi_d, psi_q);
 }

@@ -14,7 +14,9 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-COUPLING_FILE = Path(__file__).resolve().parents[2] / "fmu_src" / "coupling" / "ipmsm_drive.coupling"
+from scenarios.core.paths import located
+
+COUPLING_FILE = located("fmu_src/coupling/ipmsm_drive.coupling")
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 

@@ -9,7 +9,8 @@ The schema is written once, in SCHEMA: a key's section, name, kind, unit, the ru
 must obey and where its default comes from. The defaults are the project's default EV: the
 dataclasses of the vehicle side (VehicleParams, BatteryParams, InverterParams, P_AUX_DEFAULT)
 and, for the motor, the `# key: value` metadata of the named flux map (the map's own data
-sheet), else of the default motor's map. Paths are relative to the file. A bad file raises
+sheet), else of the default motor's map, each such value named in `DriveDescription.assumed`
+(scenarios.maps.machine). Paths are relative to the file. A bad file raises
 DriveDescriptionError naming the file, the key and what was expected.
 """
 from __future__ import annotations
@@ -24,15 +25,16 @@ from typing import Any
 
 from scenarios.core.boundary import InputError, load_toml
 from scenarios.core.fmu_ranges import Range, fmu_ranges
-from scenarios.core.paths import ROOT
+from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
+from scenarios.maps.machine import machine_values
 from scenarios.vehicle.battery import OCV_FITS, BatteryParams
 from scenarios.vehicle.driver import P_AUX_DEFAULT
 from scenarios.vehicle.inverter import InverterParams
 from scenarios.vehicle.longitudinal import VehicleParams
 
 #: the project's drives; `default.toml` is what no --drive means
-DRIVES_DIR = ROOT / "scenarios" / "drives"
+DRIVES_DIR = PACKAGE_DIR / "drives"
 DEFAULT_DRIVE = DRIVES_DIR / "default.toml"
 
 #: the controller's methods by the contract's names (the FMU's `method` parameter)
@@ -176,8 +178,8 @@ SCHEMA: tuple[Key, ...] = (
         _dc(VehicleParams, "J_motor")),
     Key("motor", "w_m_max", Rule("real", lo=0.0, hi=1e5, lo_open=True),
         "rad/s", "top speed: the end of the 2-D tables' speed axis (and of "
-        "`sweep`'s speeds)", "the controller FMU's default (its modelDescription start, 12 000 r/min)",
-        acts="method lut_speed"),
+        "`sweep`'s speeds); the vehicle side flags a run above it (summary `time_above_top_speed_s`)",
+        _meta("w_m_max_rad_s"), acts="method lut_speed"),
     Key("motor", "fe_k_h", NON_NEGATIVE, "W/Hz", "iron loss: hysteresis coefficient at fe_psi_ref",
         _meta("fe_k_h_W_per_Hz")),
     Key("motor", "fe_alpha", Rule("real", lo=1.0, hi=3.0), "1", "iron loss: Steinmetz exponent",
@@ -271,10 +273,11 @@ LIMITS = {
     "current_excess_rms_A_max": ("current_excess_rms_A", "max"),
     "regen_curtailed_Wh_max": ("regen_curtailed_Wh", "max"),
     "soc_end_min": ("soc_end", "min"),
+    "time_above_top_speed_s_max": ("time_above_top_speed_s", "max"),
 }
 _LIMIT_UNITS = {"Wh_per_km": "Wh/km", "speed_rmse_mps": "m/s", "torque_rmse_Nm": "N m",
                 "torque_error_max_Nm": "N m", "time_voltage_limited_pct": "%", "current_excess_rms_A": "A",
-                "regen_curtailed_Wh": "Wh", "soc_end": "1"}
+                "regen_curtailed_Wh": "Wh", "soc_end": "1", "time_above_top_speed_s": "s"}
 SCHEMA = SCHEMA + tuple(
     Key("checks", name, NON_NEGATIVE, _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
         f"{'at most' if d == 'max' else 'at least'} this on every cycle", "no limit", acts="check")
@@ -351,6 +354,7 @@ class DriveDescription:
     P_aux: float                  # W, the [vehicle] table's auxiliary load
     controller: ControllerSpec
     checks: ChecksSpec
+    assumed: tuple[str, ...] = ()  # the motor's values neither the file nor its map gives, in words
 
     def value(self, path: str):
         """The value of a schema key ("vehicle.mass", "name", ...) in this description."""
@@ -462,7 +466,8 @@ def _relative(path: Path, value: str, key: str = "(path)") -> Path:
     (an unknown user, a symlink loop, a NUL): DriveDescriptionError naming the key."""
     try:
         p = Path(value).expanduser()
-        return p.resolve() if p.is_absolute() else (path.parent / p).resolve()
+        # located: the shipped drives' paths into the repository (the default map) resolve in a wheel too
+        return located(p.resolve() if p.is_absolute() else (path.parent / p).resolve())
     except (RuntimeError, OSError, ValueError) as e:
         raise DriveDescriptionError(path, key, f"a path that resolves ({e})") from None
 
@@ -485,33 +490,6 @@ def _load_map(path: Path, value: str, resolve: MapResolver) -> tuple[Path, FluxM
         raise
     except Exception as e:  # the readers' own words: which file, which line or field
         raise DriveDescriptionError(path, "motor.flux_map", f"a readable flux map ({e})") from None
-
-
-def _metadata_number(fmap: FluxMap, key: str, default_map: FluxMap, path: Path, what: str) -> float:
-    """The map's (else the default map's) metadata `key` as the value of schema key `what`,
-    checked by that key's rule as a value in the file would be."""
-    try:
-        x = fmap.number(key) if key in fmap.metadata else default_map.number(key)
-    except (KeyError, ValueError, OverflowError) as e:
-        raise DriveDescriptionError(path, what, f"a value in the file or a number in the map's metadata ({e})") \
-            from None
-    rule = _BY_PATH[what].rule
-    if rule.kind == "int" and math.isfinite(x) and x == int(x):
-        x = int(x)
-    bad = rule.check(x)
-    if bad:
-        raise DriveDescriptionError(path, what, f"{bad}, got {x!r} (from the map's metadata `{key}`)")
-    return x
-
-
-def _default_map() -> FluxMap:
-    global _DEFAULT_MAP_CACHE
-    if _DEFAULT_MAP_CACHE is None:
-        _DEFAULT_MAP_CACHE = read_flux_map(DEFAULT_MAP)
-    return _DEFAULT_MAP_CACHE
-
-
-_DEFAULT_MAP_CACHE: FluxMap | None = None
 
 
 def _cycle_entry(path: Path, name: str) -> str:
@@ -539,17 +517,27 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
     if "flux_map" not in sec["motor"]:
         raise DriveDescriptionError(path, "motor.flux_map", "a flux-map file: the one key every drive must give")
     map_path, fmap = _load_map(path, sec["motor"]["flux_map"], resolve_map or _map_resolver())
-    dmap = _default_map()
 
     given = sec["motor"]
-    motor_values = {}
-    for key, meta in MOTOR_METADATA.items():
-        motor_values[key] = given[key] if key in given else _metadata_number(fmap, meta, dmap, path, f"motor.{key}")
-    motor_values["pole_pairs"] = int(motor_values["pole_pairs"])
+    c = sec["controller"]
+    from_file = {**{k: given[k] for k in MOTOR_METADATA if k in given},
+                 **({"w_m_max": given["w_m_max"]} if "w_m_max" in given else {}),
+                 **{m: c[k] for k, m in (("k_u", "k_u"), ("lut_u_dc", "u_dc")) if k in c}}
+    try:
+        values, assumed = machine_values(fmap, from_file)
+        for k in ("pole_pairs",):  # an integer key from the metadata: a whole finite number
+            if not _finite(values[k]) or float(values[k]) != int(values[k]):
+                raise ValueError(f"{k} = {values[k]!r} is not a whole number")
+    except (KeyError, ValueError, OverflowError) as e:
+        raise DriveDescriptionError(path, "motor", f"values in the file or numbers in the map's metadata ({e})") \
+            from None
     vp_default = VehicleParams()
-    motor = MotorSpec(flux_map=map_path, J=float(given.get("J", vp_default.J_motor)),
-                      w_m_max=float(given["w_m_max"]) if "w_m_max" in given else None,
-                      **{k: (v if k == "pole_pairs" else float(v)) for k, v in motor_values.items()})
+    motor = MotorSpec(flux_map=map_path, J=float(given.get("J", fmap.metadata.get("J_kg_m2", vp_default.J_motor))),
+                      w_m_max=None if values["w_m_max"] is None else float(values["w_m_max"]),
+                      **{k: (int(values[k]) if k == "pole_pairs" else float(values[k])) for k in MOTOR_METADATA})
+    if "J" not in given and "J_kg_m2" not in fmap.metadata and map_path != DEFAULT_MAP.resolve():
+        assumed.append(f"J = {vp_default.J_motor:.4g} kg m^2: the default motor's rotor (no `J_kg_m2` in the map's "
+                       "metadata)")
     for key in MOTOR_METADATA:   # metadata values obey the same rules as the file's
         bad = _BY_PATH[f"motor.{key}"].rule.check(getattr(motor, key))
         if bad:
@@ -580,20 +568,21 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
     P_aux = float(v.pop("P_aux", P_AUX_DEFAULT))
     vehicle = replace(vp_default, J_motor=motor.J, **{k: float(x) for k, x in v.items()})
 
-    c = sec["controller"]
     controller = ControllerSpec(
         method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
-        k_u=float(c["k_u"]) if "k_u" in c else _metadata_number(fmap, "k_u", dmap, path, "controller.k_u"),
-        current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
-        lut_u_dc=float(c["lut_u_dc"]) if "lut_u_dc" in c else
-        _metadata_number(fmap, "u_dc_V", dmap, path, "controller.lut_u_dc"))
+        k_u=float(values["k_u"]), current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
+        lut_u_dc=float(values["u_dc"]))
+    for key in ("k_u", "lut_u_dc"):   # from the map's metadata too: the same rules as the file's
+        bad = _BY_PATH[f"controller.{key}"].rule.check(getattr(controller, key))
+        if bad:
+            raise DriveDescriptionError(path, f"controller.{key}", f"{bad} (from the file or the map's metadata)")
 
     ch = sec["checks"]
     checks = ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),
                         limits={k: float(x) for k, x in ch.items() if k in LIMITS})
     return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),
                             motor=motor, inverter=inverter, battery=battery, vehicle=vehicle, P_aux=P_aux,
-                            controller=controller, checks=checks)
+                            controller=controller, checks=checks, assumed=tuple(assumed))
 
 
 def schema_markdown() -> str:

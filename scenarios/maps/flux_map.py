@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from scenarios.core.paths import ROOT
+from scenarios.core.paths import located
 
 
 @dataclass
@@ -41,6 +41,11 @@ class FluxMap:
         shift = psi_d_shift if dx == dy == 0 else 0.0
         return self._sd.ev(i_d, i_q, dx=dx, dy=dy) + shift, self._sq.ev(i_d, i_q, dx=dx, dy=dy)
 
+    def flux_on_grid(self, i_d, i_q, dx: int = 0, dy: int = 0):
+        """flux() on the grid i_d x i_q (1-D ascending axes; arrays indexed [i_d, i_q]): the splines'
+        tensor-product evaluation, far faster than flux() at the same points scattered."""
+        return (self._sd(i_d, i_q, dx=dx, dy=dy, grid=True), self._sq(i_d, i_q, dx=dx, dy=dy, grid=True))
+
     def number(self, key: str, default: float | None = None) -> float:
         """The leading number of a '# key: value' line; trailing words ('4 (8 poles)') are ignored,
         as the FMUs' reader does (fmu_src/machine/flux_map_metadata)."""
@@ -57,7 +62,7 @@ class FluxMap:
 _LEADING_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 #: the default motor's flux map (tools/default_motor/ makes it); its metadata is the motor's data sheet
-DEFAULT_MAP = ROOT / "fmu_src" / "resources" / "ev_ipmsm_default.csv"
+DEFAULT_MAP = located("fmu_src/resources/ev_ipmsm_default.csv")
 
 
 @dataclass(frozen=True)
@@ -92,7 +97,8 @@ def read_flux_map(path: str | Path) -> FluxMap:
     lim = map_limits()
     text = decode_utf8(path, read_bounded(path, lim.max_bytes, "flux map (CSV)"), "flux map (CSV)")
     metadata = {}
-    rows = []
+    rows: list[str] = []
+    linenos: list[int] = []
     header_seen = False
     for lineno, line in enumerate(text.splitlines(), 1):
         if len(line) > lim.max_line_chars:
@@ -112,16 +118,23 @@ def read_flux_map(path: str | Path) -> FluxMap:
             continue
         if len(rows) >= lim.max_points:
             raise InputError(path, f"line {lineno}", f"at most {lim.max_points} grid points, the FMUs' limit")
-        try:
-            row = [float(x) for x in s.split(",")]
-        except ValueError:
-            raise InputError(path, f"line {lineno}", f"four numbers i_d,i_q,psi_d,psi_q, got {s[:80]!r}") from None
-        if len(row) != 4 or not all(math.isfinite(x) for x in row):
-            raise InputError(path, f"line {lineno}", f"four finite numbers i_d,i_q,psi_d,psi_q, got {s[:80]!r}")
-        rows.append(row)
+        rows.append(s)
+        linenos.append(lineno)
     if not rows:
         raise InputError(path, "(file)", "a header i_d,i_q,psi_d,psi_q and grid rows")
-    data = np.array(rows)
+    try:
+        data = _parse_rows(rows)
+        ok = data.ndim == 2 and data.shape[1] == 4 and bool(np.isfinite(data).all())
+    except ValueError:
+        ok = False
+    if not ok:  # the first bad row, by its line
+        for lineno, row in zip(linenos, rows):
+            try:
+                x = [float(v) for v in row.split(",")]
+            except ValueError:
+                x = []
+            if len(x) != 4 or not all(math.isfinite(v) for v in x):
+                raise InputError(path, f"line {lineno}", f"four finite numbers i_d,i_q,psi_d,psi_q, got {row[:80]!r}")
     i_d = np.unique(data[:, 0])
     i_q = np.unique(data[:, 1])
     if max(len(i_d), len(i_q)) > lim.max_axis:
@@ -138,6 +151,18 @@ def read_flux_map(path: str | Path) -> FluxMap:
     if np.isnan(psi_d).any():
         raise ValueError(f"{path}: duplicate or missing grid points")
     return FluxMap(i_d, i_q, psi_d, psi_q, metadata)
+
+
+def _parse_rows(rows: list[str]) -> np.ndarray:
+    """The data rows as an (n, 4) array: numpy's C parser (a 511 x 511 map in 0.2 s, not 2 s), and
+    where it refuses a row, the rows one by one, so that float() names the bad value."""
+    try:
+        data = np.loadtxt(rows, delimiter=",", ndmin=2, dtype=float)
+        if data.shape[1] == 4:
+            return data
+    except ValueError:
+        pass
+    return np.array([[float(x) for x in s.split(",")] for s in rows])
 
 
 def write_flux_map(path: str | Path, fmap: FluxMap, comment: str = "") -> None:

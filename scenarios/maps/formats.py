@@ -18,6 +18,14 @@ Motor-CAD (Ansys), the Lab "Saturation and Loss Map" export (.mat):
   also name RMS currents `Id_RMS`, `Iq_RMS`, `Stator_Current_Phase_RMS`. Optional:
   `Phase_Resistance_DC_at_20C` (Ohm), `Frequency` (Hz) and `Speed` (r/min) give R_s and the
   pole pairs.
+PLECS (Plexim), the look-up-table layout of its "Look-up table based PMSM" demo:
+  `imd` (1 x n_d), `imq` (1 x n_q) the current axes (peak A), `Psid`, `Psiq` (n_d x n_q, Vs):
+  rows i_d, columns i_q (PLECS' 2-D look-up table of the demo's model); amplitude-invariant
+  dq, PM flux on +d. The file holds no machine data (the demo's model sets pole pairs and R_s).
+SyR-e's motor model also holds the machine's data (`motorModel.data`: `p` pole pairs, `Rs`
+  Ohm at `tempCu` degC, `i0` rated and `Imax` largest current (peak A), `Vdc` V, `nmax` top
+  speed and `n0` base speed (r/min), `P0` rated power (W), `J` rotor inertia (kg m^2), `tempPM`
+  degC) and an iron-loss map (`motorModel.IronPMLossMap_dq`, see iron_loss.py).
 """
 from __future__ import annotations
 
@@ -47,6 +55,8 @@ class RawMap:
     square_axis0: str      # with 1-D axes and a square flux array: which current runs along axis 0
     notes: list = field(default_factory=list)
     metadata: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+    iron_loss: dict | None = None  # SyR-e: Id, Iq (its grid), P_h, P_c (W at f0), f0 (Hz), expH, expC
 
 
 #: bytes a .mat file may hold once its compressed variables are inflated: the FMUs' limit of a
@@ -137,6 +147,21 @@ def is_syre(mat: dict) -> bool:
     return {"Id", "Iq", "Fd", "Fq"} <= mat.keys() or "motorModel" in mat
 
 
+def is_plecs(mat: dict) -> bool:
+    return {"imd", "imq", "Psid", "Psiq"} <= mat.keys()
+
+
+def read_plecs(path: Path, mat: dict) -> RawMap:
+    keys = ("imd", "imq", "Psid", "Psiq")
+    i_d, i_q, psi_d, psi_q = (_array(path, mat, k, lab) for k, lab in
+                              zip(keys, ("d current axis, A peak", "q current axis, A peak", "d flux linkage, Vs",
+                                         "q flux linkage, Vs")))
+    return RawMap("PLECS", i_d, i_q, psi_d, psi_q, keys, square_axis0="i_d",
+                  notes=["PLECS look-up-table fields imd, imq (axes), Psid, Psiq (rows i_d, columns i_q; peak A, Vs)"],
+                  warnings=["the PLECS table holds no machine data: pole pairs, R_s, I_max and u_dc come from a "
+                            "drive description (or add '# key: value' lines to the CSV)"])
+
+
 def is_motorcad(mat: dict) -> bool:
     return any(k in mat for k in ("Flux_Linkage_D", "Angular_Flux_Linkage_D", "Id_Peak", "Id_RMS"))
 
@@ -160,8 +185,68 @@ def read_syre(path: Path, mat: dict) -> RawMap:
     i_d, i_q, psi_d, psi_q = (_array(path, src, k, lab) for k, lab in
                               zip(("Id", "Iq", "Fd", "Fq"), ("d current, A peak", "q current, A peak",
                                                              "d flux linkage, Vs", "q flux linkage, Vs")))
-    return RawMap("SyR-e", i_d, i_q, psi_d, psi_q, keys, square_axis0="i_q",
-                  notes=[f"SyR-e {prefix or 'fdfq_idiq'} fields Id, Iq, Fd, Fq (peak A, Vs)"])
+    raw = RawMap("SyR-e", i_d, i_q, psi_d, psi_q, keys, square_axis0="i_q",
+                 notes=[f"SyR-e {prefix or 'fdfq_idiq'} fields Id, Iq, Fd, Fq (peak A, Vs)"])
+    if prefix:
+        _syre_machine_data(path, mat["motorModel"], raw)
+    return raw
+
+
+#: SyR-e motorModel.data field -> (contract metadata key, conversion to SI)
+RPM = 2.0 * math.pi / 60.0
+ZERO_CELSIUS_K = 273.15
+SYRE_DATA = {
+    "p": ("pole_pairs", lambda x: int(round(x))),
+    "Rs": ("R_s_ohm", float),
+    "tempCu": ("T_winding_ref_K", lambda x: x + ZERO_CELSIUS_K),
+    "tempPM": ("T_magnet_ref_K", lambda x: x + ZERO_CELSIUS_K),
+    "Imax": ("I_max_A", float),
+    "i0": ("I_rated_A", float),
+    "Vdc": ("u_dc_V", float),
+    "nmax": ("w_m_max_rad_s", lambda x: x * RPM),
+    "n0": ("w_m_base_rad_s", lambda x: x * RPM),
+    "P0": ("P_rated_W", float),
+    "J": ("J_kg_m2", float),
+}
+
+
+def _syre_scalar(rec, name: str) -> float | None:
+    try:
+        v = np.asarray(rec[name][0, 0], dtype=float).ravel()
+    except (ValueError, IndexError, KeyError, TypeError):
+        return None
+    return float(v[0]) if v.size and np.isfinite(v[0]) else None
+
+
+def _syre_machine_data(path: Path, model, raw: RawMap) -> None:
+    """motorModel.data into the contract's metadata, and the iron-loss map for the fit."""
+    try:
+        data = model["data"][0, 0]
+    except (ValueError, IndexError, KeyError, TypeError):
+        raw.warnings.append("motorModel.data absent: no machine data (pole pairs, R_s, ratings) carried")
+        data = None
+    if data is not None:
+        got = []
+        for field_name, (key, conv) in SYRE_DATA.items():
+            x = _syre_scalar(data, field_name)
+            if x is not None and x > 0:
+                raw.metadata[key] = conv(x)
+                got.append(f"{field_name} -> {key}")
+        raw.notes.append("SyR-e machine data motorModel.data: " + ", ".join(got))
+    try:
+        loss = model["IronPMLossMap_dq"][0, 0]
+        grid = {k: np.asarray(loss[k][0, 0], dtype=float) for k in ("Id", "Iq", "Pfes_h", "Pfes_c", "Pfer_h", "Pfer_c")}
+        f0, expH, expC = (_syre_scalar(loss, k) for k in ("f0", "expH", "expC"))
+    except (ValueError, IndexError, KeyError, TypeError):
+        raw.warnings.append("no iron-loss map (motorModel.IronPMLossMap_dq): no iron-loss coefficients")
+        return
+    shape = raw.psi_d.shape
+    P_h = sum(np.broadcast_to(grid[k], shape) for k in ("Pfes_h", "Pfer_h"))
+    P_c = sum(np.broadcast_to(grid[k], shape) for k in ("Pfes_c", "Pfer_c"))
+    if grid["Id"].shape != shape or not (np.allclose(grid["Id"], raw.i_d) and np.allclose(grid["Iq"], raw.i_q)):
+        raw.warnings.append("the iron-loss map is on another grid than the flux map: no iron-loss coefficients")
+        return
+    raw.iron_loss = dict(P_h=P_h, P_c=P_c, f0=f0, expH=expH, expC=expC)
 
 
 def read_motorcad(path: Path, mat: dict) -> RawMap:

@@ -10,8 +10,7 @@ it changed in a note, so that an imported map states how it was made:
 - phase-advance grids (current magnitude x advance angle): resampled onto a rectangular grid
   covering them by a bicubic spline in (|i|, angle); corners outside the sampled disc are
   extrapolated linearly in |i| from its rim.
-- half maps (i_q >= 0 only, or <= 0): mirrored by the symmetry of the magnetic circuit about
-  the d axis, psi_d(i_d, -i_q) = psi_d(i_d, i_q), psi_q(i_d, -i_q) = -psi_q(i_d, i_q).
+- half and quarter maps: completed by the machine's symmetry in symmetry.py.
 """
 from __future__ import annotations
 
@@ -226,27 +225,9 @@ def resample_polar(mags, angles, psi_d, psi_q):
     return i_d, i_q, out[0], out[1], note
 
 
-def mirror_half(i_d, i_q, psi_d, psi_q):
-    """A map with i_q of one sign only, completed by psi_d(i_d, -i_q) = psi_d(i_d, i_q),
-    psi_q(i_d, -i_q) = -psi_q(i_d, i_q). Returns the four arrays and a note (None: full map)."""
-    tol = GRID_TOL * max(np.abs(i_q).max(), 1e-300)
-    if i_q[0] < -tol and i_q[-1] > tol:
-        return i_d, i_q, psi_d, psi_q, None
-    negative = i_q[-1] <= tol
-    if negative:  # mirror the other way round: flip, complete, flip back
-        i_q, psi_d, psi_q = -i_q[::-1], psi_d[:, ::-1], -psi_q[:, ::-1]
-    k = 1 if abs(i_q[0]) <= tol else 0  # the i_q = 0 line is its own mirror image
-    i_q = np.concatenate([-i_q[k:][::-1], i_q])
-    psi_d = np.concatenate([psi_d[:, k:][:, ::-1], psi_d], axis=1)
-    psi_q = np.concatenate([-psi_q[:, k:][:, ::-1], psi_q], axis=1)
-    if k == 1:
-        i_q[len(i_q) // 2] = 0.0
-    if negative:
-        i_q, psi_d, psi_q = -i_q[::-1], psi_d[:, ::-1], -psi_q[:, ::-1]
-    note = f"half map (i_q {'<=' if negative else '>='} 0 only) mirrored: psi_d even, psi_q odd in i_q"
-    if k == 1:
-        j0 = len(i_q) // 2
-        off = np.abs(psi_q[:, j0]).max()
-        if off > 1e-3 * np.abs(psi_q).max():
-            note += f" (psi_q on i_q = 0 is up to {off:.3g} Wb, not 0: the mirrored map has a step there)"
-    return i_d, i_q, psi_d, psi_q, note
+def magnet_free(i_d, i_q, psi_d, psi_q) -> bool:
+    """No PM flux: the flux at the sample nearest zero current below PM_FLUX_MIN_RATIO of the largest."""
+    if np.ndim(i_d) == 1:
+        i_d, i_q = np.meshgrid(i_d, i_q, indexing="ij")
+    k0 = np.unravel_index(np.argmin(np.hypot(i_d, i_q)), np.shape(psi_d))
+    return bool(math.hypot(psi_d[k0], psi_q[k0]) < PM_FLUX_MIN_RATIO * np.hypot(psi_d, psi_q).max())

@@ -4,10 +4,12 @@
     contract_csv(path) -> Path          # a CSV the FMUs read: the file itself, or its cached import
     write_contract_csv(imported, out)   # write it (temp file + rename: nothing half-written)
 
-Formats (map_formats.py has their field names and sources): the contract CSV, SyR-e's
-`fdfq_idiq_n*.mat` and motor-model `.mat`, Motor-CAD's Lab saturation-map `.mat` export.
-Conversions (map_grid.py): RMS to peak, dq frame turned to put the PM on +d, meshgrid or
-ndgrid layout, phase-advance grids resampled, half maps mirrored. Bad files raise
+Formats (formats.py has their field names and sources): the contract CSV, SyR-e's
+`fdfq_idiq_n*.mat` and motor-model `.mat` (with its machine data and iron-loss map, fitted
+by iron_loss.py), Motor-CAD's Lab saturation-map `.mat` export, PLECS' look-up table.
+Conversions (grid.py): RMS to peak, dq frame turned to put the PM on +d, meshgrid or
+ndgrid layout, phase-advance grids resampled; half and quarter maps completed by the
+machine's symmetry (symmetry.py). Bad files raise
 MapImportError naming the file, the field and what was expected.
 """
 from __future__ import annotations
@@ -22,13 +24,14 @@ import numpy as np
 
 from scenarios.maps import formats as map_formats
 from scenarios.maps import grid as map_grid
+from scenarios.maps import iron_loss, symmetry
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
 
 __all__ = ["ImportedMap", "MapImportError", "contract_csv", "import_map", "write_contract_csv", "cache_dir"]
 
 #: bump when a conversion changes, so that cached imports are made again
-IMPORTER_VERSION = 2
+IMPORTER_VERSION = 3
 
 
 @dataclass
@@ -47,7 +50,8 @@ class ImportedMap:
     warnings: list = field(default_factory=list)  # what the map lacks, in words (nothing was changed)
 
     def flux_map(self) -> FluxMap:
-        return FluxMap(self.i_d, self.i_q, self.psi_d, self.psi_q, dict(self.metadata))
+        # metadata as the CSV holds it: text (FluxMap.number reads the leading number)
+        return FluxMap(self.i_d, self.i_q, self.psi_d, self.psi_q, {k: str(v) for k, v in self.metadata.items()})
 
 
 def import_map(path: str | Path) -> ImportedMap:
@@ -71,14 +75,16 @@ def _import(path: Path) -> ImportedMap:
         raise MapImportError(path, "file", "a flux map: a contract .csv or a SyR-e / Motor-CAD .mat",
                              f"a '{path.suffix}' file")
     mat = map_formats.load_mat(path)
-    if map_formats.is_motorcad(mat):
+    if map_formats.is_plecs(mat):
+        raw = map_formats.read_plecs(path, mat)
+    elif map_formats.is_motorcad(mat):
         raw = map_formats.read_motorcad(path, mat)
     elif map_formats.is_syre(mat):
         raw = map_formats.read_syre(path, mat)
     else:
         names = ", ".join(sorted(k for k in mat if not k.startswith("__"))[:12]) or "none"
-        raise MapImportError(path, "variables", "SyR-e's Id, Iq, Fd, Fq (or motorModel.FluxMap_dq) or Motor-CAD's "
-                             "Id_Peak, Iq_Peak, Flux_Linkage_D, Flux_Linkage_Q", names)
+        raise MapImportError(path, "variables", "SyR-e's Id, Iq, Fd, Fq (or motorModel.FluxMap_dq), Motor-CAD's "
+                             "Id_Peak, Iq_Peak, Flux_Linkage_D, Flux_Linkage_Q or PLECS' imd, imq, Psid, Psiq", names)
     return _to_contract(raw, path)
 
 
@@ -107,6 +113,11 @@ def _check_csv_numbers(path: Path) -> None:
     except (InputError, UnicodeDecodeError) as e:
         raise MapImportError(path, "file", "a text file (the contract CSV)", f"unreadable ({e})") from e
     data = [(n, s) for n, s in enumerate(lines, 1) if s.strip() and not s.strip().startswith("#")][1:]
+    try:  # the common case at numpy's speed: every value a finite number
+        if np.isfinite(np.loadtxt([s for _, s in data], delimiter=",", ndmin=2, dtype=float)).all():
+            return
+    except ValueError:
+        pass  # a malformed row: read_flux_map names it
     for n, s in data:
         for col, x in zip(CSV_COLUMNS, s.split(",")):
             try:
@@ -121,7 +132,10 @@ def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
     notes = list(raw.notes)
     i_d, i_q, psi_d, psi_q, more = map_grid.as_2d(raw)
     notes += more
-    warnings = []
+    warnings = list(raw.warnings)
+    metadata = dict(raw.metadata)
+    if raw.iron_loss is not None:
+        _fit_iron_loss(raw, i_d, i_q, psi_d, psi_q, metadata, notes, warnings)
     i_d, i_q, psi_d, psi_q, said, turned = map_grid.rotate_pm_onto_d(i_d, i_q, psi_d, psi_q, raw.keys[2])
     (notes if turned else warnings).extend([said] if said else [])
     grid = map_grid.rectangular(i_d, i_q, psi_d, psi_q, raw.keys)
@@ -133,13 +147,32 @@ def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
         grid = map_grid.resample_polar(*pol)
     i_d, i_q, psi_d, psi_q, note = grid
     notes += [note] if note else []
-    i_d, i_q, psi_d, psi_q, mirrored = map_grid.mirror_half(i_d, i_q, psi_d, psi_q)
-    notes += [mirrored] if mirrored else []
+    magnet_free = map_grid.magnet_free(i_d, i_q, psi_d, psi_q)
+    i_d, i_q, psi_d, psi_q, mirrored, _ = symmetry.complete(i_d, i_q, psi_d, psi_q, magnet_free)
+    notes += mirrored
     _check(i_d, i_q, raw.keys)
     if i_d[-1] <= 0.0:
-        warnings.append("no i_d > 0 in the map (no symmetry completes it): where an optimum lies at i_d > 0 "
-                        "the FMUs extrapolate beyond the grid")
-    return ImportedMap(i_d, i_q, psi_d, psi_q, raw.source_format, notes, dict(raw.metadata), path, warnings)
+        warnings.append("no i_d > 0 in the map (a PM machine: no symmetry completes it): where an optimum lies at "
+                        "i_d > 0 the FMUs extrapolate beyond the grid")
+    return ImportedMap(i_d, i_q, psi_d, psi_q, raw.source_format, notes, metadata, path, warnings)
+
+
+def _fit_iron_loss(raw, i_d, i_q, psi_d, psi_q, metadata: dict, notes: list, warnings: list) -> None:
+    """The contract's iron-loss coefficients from the tool's loss map (iron_loss.py), over the
+    points inside I_max (all, without it); the fit's error goes into the metadata and the notes."""
+    loss = raw.iron_loss
+    if loss["f0"] is None or not loss["f0"] > 0:
+        warnings.append("the iron-loss map has no frequency f0: no iron-loss coefficients")
+        return
+    I = np.hypot(i_d, i_q)
+    I_max = metadata.get("I_max_A")
+    inside = I <= float(I_max) * (1 + 1e-9) if I_max else np.ones(I.shape, bool)
+    fit = iron_loss.fit(np.hypot(psi_d, psi_q), loss["P_h"], loss["P_c"], loss["f0"], inside)
+    metadata.update(fit.metadata())
+    notes.append(fit.describe())
+    if (loss["expH"], loss["expC"]) != (1.0, 2.0):
+        warnings.append(f"the loss map scales as f^{loss['expH']:g} (hysteresis) and f^{loss['expC']:g} (eddy), the "
+                        f"contract's model as f and f^2: the coefficients hold at {loss['f0']:g} Hz")
 
 
 def _check(i_d, i_q, keys) -> None:
@@ -192,8 +225,16 @@ def contract_csv(path: str | Path) -> Path:
     cached = _cached_name(path) if path.is_file() else None
     if cached is not None and cached.is_file():
         return cached  # imported before, from these very bytes
+    as_is = cached.with_suffix(".as-is") if cached is not None else None
+    if as_is is not None and as_is.is_file():
+        return path  # checked before, these very bytes: a contract CSV that needs no conversion
     imported = import_map(path)
     if imported.source_format == "contract CSV" and not imported.notes:
+        try:
+            as_is.parent.mkdir(parents=True, exist_ok=True)
+            as_is.write_text(f"{path}\n")
+        except OSError:
+            pass  # no cache: checked again next time
         return path
     return write_contract_csv(imported, cached)
 

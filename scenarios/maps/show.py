@@ -12,8 +12,9 @@ Where each number comes from:
   the first step; more steps while P_dc still moves): eta = P_mech / P_dc, so the motor's copper
   and iron losses (plant) and the inverter's conduction and switching losses are all in it.
 
-Machine parameters: the map's '# key: value' metadata where it has them, else the FMUs'
-defaults (the project's default motor), each such assumption listed in map.md.
+Machine parameters: a drive description's (--drive), else the map's '# key: value' metadata
+where it has them, else the default motor's, each such assumption listed in map.md
+(scenarios.maps.machine).
 """
 from __future__ import annotations
 
@@ -25,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.core.boundary import strict_json, write_atomically
-from scenarios.core.constants import U_DC_NOMINAL_V
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
 from scenarios.cosim.fmu import Fmu
@@ -33,6 +33,7 @@ from scenarios.cosim.master import CosimError
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import FluxMap, read_flux_map
 from scenarios.maps.importer import contract_csv
+from scenarios.maps.machine import machine_values
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
 SQRT3 = math.sqrt(3.0)
@@ -41,16 +42,6 @@ STEP = 1e-4             # s, the controller's step (its default sample time)
 DRIVE_DT = 0.01         # s, the drive's communication step (a vehicle tool's)
 DRIVE_SETTLE_REL = 1e-4  # P_dc steady when a step changes it by less than this (relative, + 1 W)
 DRIVE_MAX_STEPS = 6
-
-# '# key: value' metadata -> FMU parameter (INTERFACE.md); absent ones take the FMUs' defaults
-METADATA_PARAMETERS = {
-    "pole_pairs": "pole_pairs", "R_s_ohm": "R_s", "T_winding_ref_K": "T_winding_ref", "alpha_cu_per_K": "alpha_cu",
-    "T_magnet_ref_K": "T_magnet_ref", "k_psi_T_per_K": "k_psi_T", "k_u": "k_u", "fe_k_h_W_per_Hz": "fe_k_h",
-    "fe_alpha": "fe_alpha", "fe_k_e_W_per_Hz2": "fe_k_e", "fe_psi_ref_Wb": "fe_psi_ref",
-}
-FMU_DEFAULTS = {"pole_pairs": 4, "R_s": 0.012, "T_winding_ref": 293.15, "alpha_cu": 0.00393, "T_magnet_ref": 293.15,
-                "k_psi_T": -0.0012, "k_u": 0.95}
-
 
 @dataclass(frozen=True)
 class ShowSpec:
@@ -87,34 +78,30 @@ class MachineSummary:
     wall_s: float = 0.0
 
 
-def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = None) -> tuple[dict, list, float]:
-    """FMU parameters from the map's metadata (else the FMUs' defaults, listed), and u_dc; u_dc and
-    I_max given override the metadata."""
-    params, assumed = {}, []
-    for key, name in METADATA_PARAMETERS.items():
-        if key in fmap.metadata:
-            params[name] = int(fmap.number(key)) if name == "pole_pairs" else fmap.number(key)
-        elif name in FMU_DEFAULTS:
-            params[name] = FMU_DEFAULTS[name]
-            assumed.append(f"{name} = {FMU_DEFAULTS[name]:g} (the FMUs' default)")
-    if "fe_psi_ref" not in params:
-        params["fe_psi_ref"] = fmap.psi_m
-        assumed.append("iron loss: the default motor's coefficients, fe_psi_ref = this map's psi_m")
-    reach = min(-fmap.i_d[0], -fmap.i_q[0], fmap.i_q[-1])
-    if I_max is not None:
-        params["I_max"] = float(I_max)
-    elif "I_max_A" in fmap.metadata:
-        params["I_max"] = fmap.number("I_max_A")
+def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = None,
+                       drive=None) -> tuple[dict, list, float]:
+    """FMU parameters: a drive description's motor (scenarios.drives.description) if given, else
+    the map's metadata with each missing value named (scenarios.maps.machine); u_dc and I_max
+    given override both."""
+    if drive is not None:
+        m = drive.motor
+        given = {k: getattr(m, k) for k in ("pole_pairs", "R_s", "I_max", "T_magnet_ref", "T_winding_ref", "alpha_cu",
+                                            "k_psi_T", "fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref", "w_m_max")}
+        given.update(k_u=drive.controller.k_u, u_dc=drive.controller.lut_u_dc)
+        assumed = [f"{a} (drive {drive.name})" for a in drive.assumed]
+        values, _ = machine_values(fmap, given)
     else:
-        params["I_max"] = float(reach)
-        assumed.append(f"I_max = {reach:g} A (the largest current the grid covers in every direction)")
-    if u_dc is None:
-        u_dc = fmap.number("u_dc_V", U_DC_NOMINAL_V)
-        if "u_dc_V" not in fmap.metadata:
-            assumed.append(f"u_dc = {u_dc:g} V (the project's nominal)")
-    if "w_m_max_rad_s" in fmap.metadata:
-        params["w_m_max"] = fmap.number("w_m_max_rad_s")
-    return params, assumed, float(u_dc)
+        values, assumed = machine_values(fmap, {})
+    if I_max is not None:
+        values["I_max"] = float(I_max)
+        assumed = [a for a in assumed if not a.startswith("I_max")]
+    if u_dc is not None:
+        values["u_dc"] = float(u_dc)
+        assumed = [a for a in assumed if not a.startswith("u_dc")]
+    u = float(values.pop("u_dc"))
+    if values["w_m_max"] is None:
+        values.pop("w_m_max")
+    return values, assumed, u
 
 
 CONTROLLER_PARAMS = ("pole_pairs", "R_s", "I_max", "k_u", "T_magnet_ref", "k_psi_T")
@@ -124,9 +111,8 @@ def reciprocity(fmap: FluxMap, I_max: float):
     """dpsi_d/di_q - dpsi_q/di_d on the grid (H), and its largest magnitude inside |i| <= I_max:
     (mismatch grid, max, max relative to the largest incremental self-inductance, (i_d, i_q))."""
     I_d, I_q = np.meshgrid(fmap.i_d, fmap.i_q, indexing="ij")
-    L_dd, _ = fmap.flux(I_d, I_q, dx=1)
-    L_dq, L_qd = fmap.flux(I_d, I_q, dy=1)[0], fmap.flux(I_d, I_q, dx=1)[1]
-    _, L_qq = fmap.flux(I_d, I_q, dy=1)
+    L_dd, L_qd = fmap.flux_on_grid(fmap.i_d, fmap.i_q, dx=1)
+    L_dq, L_qq = fmap.flux_on_grid(fmap.i_d, fmap.i_q, dy=1)
     mismatch = L_dq - L_qd
     inside = np.hypot(I_d, I_q) <= I_max * (1 + 1e-12)
     k = np.unravel_index(np.argmax(np.where(inside, np.abs(mismatch), -1.0)), mismatch.shape)
@@ -135,7 +121,7 @@ def reciprocity(fmap: FluxMap, I_max: float):
 
 
 def controller_curves(fmu_path: Path, csv: Path, params: dict, u_dc: float, T_magnet: float, spec: ShowSpec,
-                      w_top: float | None, bar: Progress):
+                      w_top: float | None, bar: Progress, fmap: FluxMap):
     """Envelope (speeds, T_max, region, i_d, i_q), MTPA (i_d, i_q, T) from the controller FMU."""
     cp = {k: v for k, v in params.items() if k in CONTROLLER_PARAMS}
     with Fmu(fmu_path, flux_map=str(csv), recursion=2, **cp) as c:
@@ -149,7 +135,7 @@ def controller_curves(fmu_path: Path, csv: Path, params: dict, u_dc: float, T_ma
 
         T_peak, i_d0, i_q0, _ = at(T_REF_HUGE, 0.0)
         if w_top is None:  # four times the speed where the peak-torque flux meets the voltage limit
-            fm = read_flux_map(csv)
+            fm = fmap
             psi = math.hypot(*(float(x) for x in fm.flux(i_d0, i_q0)))
             w_top = 4.0 * (params["k_u"] * u_dc / SQRT3) / (psi * params["pole_pairs"])
         speeds = np.linspace(0.0, w_top, spec.n_speed)
@@ -194,7 +180,7 @@ def efficiency_map(drive_path: Path, csv: Path, params: dict, u_dc: float, T_mag
 
 
 def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max: float | None = None,
-             build: Path = BUILD_DIR, spec: ShowSpec | None = None) -> MachineSummary:
+             build: Path = BUILD_DIR, spec: ShowSpec | None = None, drive=None) -> MachineSummary:
     """Write out/map.png, out/map.md and out/map.json for the flux map at `path` (CSV or .mat)."""
     from scenarios.maps.show_plot import plot_machine
 
@@ -203,13 +189,13 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max
     path, out = Path(path), Path(out)
     csv = contract_csv(path)
     fmap = read_flux_map(csv)
-    params, assumed, u_dc = machine_parameters(fmap, u_dc, I_max)
+    params, assumed, u_dc = machine_parameters(fmap, u_dc, I_max, drive)
     T_magnet = params["T_magnet_ref"]
     V_max = params["k_u"] * u_dc / SQRT3
     bar = Progress(spec.n_speed + spec.n_mtpa + spec.n_eff_speed * spec.n_eff_torque, "map show")
     try:
         speeds, env, mtpa, T_peak = controller_curves(build / "fmu" / "IpmsmController.fmu", csv, params, u_dc,
-                                                      T_magnet, spec, params.get("w_m_max"), bar)
+                                                      T_magnet, spec, params.get("w_m_max"), bar, fmap)
     except Exception as e:  # fmpy raises Exception on an fmi2Error status
         raise MapImportError(path, "flux_map", "a map and parameters the IpmsmController FMU accepts "
                              f"({', '.join(f'{k} = {v:g}' for k, v in params.items())})", str(e)) from e

@@ -87,6 +87,8 @@ def plot_machine(png, fmap: FluxMap, s, env, speeds, mtpa, mismatch, eff_speeds,
         top = 100 * np.nanmax(eta)  # 1 % steps where drives differ, coarser below
         levels = np.unique(np.r_[100 * lo, [60, 70, 80, 85, 88], np.arange(90, 100, 1.0), top])
         levels = levels[(levels >= 100 * lo) & (levels <= top)]
+        if len(levels) < 2:  # (nearly) one efficiency everywhere: two levels around it
+            levels = np.array([100 * np.nanmin(eta) - 0.5, top + 0.5])
         cs = a.contourf(W, Tq, 100 * eta, levels=levels, cmap="jet")
         fig.colorbar(cs, ax=a, label="efficiency (%)")
     a.plot(speeds / RPM, env[:, 0], "k")

@@ -21,6 +21,12 @@ U_LIMIT_TOLERANCE = 1e-9
 #: A, below this the current excess is not counted (near zero torque its ratio means nothing)
 I_EXCESS_MIN = 1.0
 
+#: rotor speed above w_m_max by more than this (relative) counts as above the top speed (the
+#: vehicle's speed is a state of an explicit step: rounding must not count)
+TOP_SPEED_MARGIN = 1e-9
+
+RPM = math.pi / 30.0  # rad/s per r/min
+
 
 @dataclass
 class RunAccounts:
@@ -30,6 +36,9 @@ class RunAccounts:
     dt: float
     k_u: float
     reference: bool
+    w_m_max: float | None = None  # rad/s, the motor's top speed (None: not known, nothing flagged)
+    w_m_peak: float = 0.0     # rad/s, the highest rotor speed
+    t_above_top: float = 0.0  # s above w_m_max
     E_elec: float = 0.0       # J, motor electric input
     E_mech: float = 0.0       # J, shaft
     E_cu: float = 0.0         # J, copper loss
@@ -67,6 +76,9 @@ class RunAccounts:
         self.T_err_max = max(self.T_err_max, abs(T_err))
         self.n_T += 1
         self.speed_err2 += (s.v - s.v_ref) ** 2
+        self.w_m_peak = max(self.w_m_peak, abs(s.w_m))
+        if self.w_m_max is not None and abs(s.w_m) > self.w_m_max * (1.0 + TOP_SPEED_MARGIN):
+            self.t_above_top += dt
         if self.reference:
             self.E_cu_opt += s.P_cu_opt * dt
             if s.I > I_EXCESS_MIN:
@@ -97,5 +109,7 @@ class RunAccounts:
             aux_Wh=P_aux * n * dt * WH, friction_brake_Wh=vehicle.E_brake * WH,
             regen_curtailed_Wh=battery.E_curtailed * WH, soc_end=battery.soc,
             steps=n * n_inner, vehicle_steps=n, h_s=h, dt_s=dt, wall_s=wall, real_time_factor=n * dt / wall,
-            backend=backend,
+            backend=backend, w_m_peak_rpm=self.w_m_peak / RPM,
+            w_m_max_rpm=None if self.w_m_max is None else self.w_m_max / RPM,
+            time_above_top_speed_s=self.t_above_top,
         )

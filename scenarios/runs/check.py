@@ -205,6 +205,8 @@ def check(drive_file: Path | None, junit_path: Path | None, out: Path, build: Pa
     """The exit status (EXIT_PASS / EXIT_FAIL / EXIT_BAD_INPUT for a cycle that could not run); a
     bad input raises DriveDescriptionError or InputError before anything runs."""
     drive = load_drive(drive_file)
+    for a in drive.assumed:  # the motor's values neither the file nor its map gives
+        print(f"assumed: {a}", file=sys.stderr)
     if not drive.checks.cycles:
         raise DriveDescriptionError(drive.source, "checks.cycles", "at least one cycle to check")
     if not drive.checks.limits:

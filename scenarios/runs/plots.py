@@ -6,9 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.core.constants import U_DC_NOMINAL_V
-from scenarios.core.paths import ROOT
-from scenarios.maps.flux_map import DEFAULT_MAP, MotorData, read_flux_map
+from scenarios.core.paths import located
+from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map
 
 RPM = 2 * math.pi / 60  # rad/s per r/min
 REGION_NAMES = {0: "zero torque", 1: "MTPA", 2: "voltage limit", 3: "current + voltage limit", 4: "MTPV"}
@@ -19,9 +18,14 @@ def load_trace(path: Path) -> dict:
     return {name: data[name] for name in data.dtype.names}
 
 
-def plot_run(run_dir: Path, title: str = "", u_dc_nominal: float = U_DC_NOMINAL_V) -> Path:
+def plot_run(run_dir: Path, title: str = "", drive=None) -> Path:
     """run.png in run_dir: speed tracking, torque, operating points on the envelope, currents in
-    the i_d-i_q plane, u_dc and the region over time."""
+    the i_d-i_q plane, u_dc and the region over time. The current limit, the voltage ellipses and
+    the efficiency contours are the drive's own motor's (a scenarios.drives.description
+    DriveDescription; None: the default drive)."""
+    if drive is None:
+        from scenarios.drives.description import load_drive
+        drive = load_drive(None)
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -51,22 +55,14 @@ def plot_run(run_dir: Path, title: str = "", u_dc_nominal: float = U_DC_NOMINAL_
     a.set(xlabel="speed (r/min)", ylabel="T_e (N·m)", title="Operating points (colour: region)")
     cb = fig.colorbar(sc, ax=a, ticks=list(REGION_NAMES))
     cb.ax.set_yticklabels([REGION_NAMES[k] for k in REGION_NAMES], fontsize=7)
-    _efficiency_background(a, run_dir)
+    if drive.motor.w_m_max is not None:
+        a.axvline(drive.motor.w_m_max / RPM, color="C3", ls=":", lw=0.8, label="top speed w_m_max")
+        a.legend(fontsize=7, loc="upper right")
+    if drive.motor.flux_map.resolve() == DEFAULT_MAP.resolve():
+        _efficiency_background(a, run_dir)  # the default motor's map (docs/motor); none drawn for another motor
 
     a = ax[1, 1]
-    fmap = read_flux_map(DEFAULT_MAP)
-    motor = MotorData.of(fmap)
-    I_max = motor.I_max
-    th = np.linspace(0, 2 * np.pi, 300)
-    a.plot(I_max * np.cos(th), I_max * np.sin(th), "k--", lw=0.8, label=f"current limit {I_max:.0f} A")
-    a.scatter(tr["i_d_A"], tr["i_q_A"], c=tr["region"], cmap="viridis", s=3, vmin=0, vmax=4)
-    g_d, g_q = np.meshgrid(np.linspace(-560, 150, 240), np.linspace(-560, 560, 300))
-    psi_d, psi_q = fmap.flux(g_d, g_q)
-    V_max = motor.k_u * u_dc_nominal / math.sqrt(3)
-    for n_e, col in ((6000, "C2"), (9000, "C1"), (12000, "C3")):
-        w = motor.pole_pairs * n_e * RPM
-        a.contour(g_d, g_q, np.hypot(-w * psi_q, w * psi_d), levels=[V_max], colors=[col], linewidths=0.8)
-        a.plot([], [], color=col, lw=0.8, label=f"voltage limit {n_e} r/min")
+    _current_plane(a, tr, drive)
     a.set(xlabel="i_d (A)", ylabel="i_q (A)", title="Currents in the i_d–i_q plane", aspect="equal")
     a.legend(fontsize=7, loc="lower left")
 
@@ -92,10 +88,39 @@ def plot_run(run_dir: Path, title: str = "", u_dc_nominal: float = U_DC_NOMINAL_
     return path
 
 
+#: the voltage ellipses drawn: these fractions of the top speed (the motor's w_m_max, else the run's
+#: highest speed)
+ELLIPSE_SPEEDS = (0.5, 0.75, 1.0)
+
+
+def _current_plane(a, tr: dict, drive) -> None:
+    """The run's currents on the drive's motor: its current limit and its voltage limit
+    (k_u u_dc / sqrt 3 at the run's median u_dc) at ELLIPSE_SPEEDS of its top speed."""
+    m = drive.motor
+    fmap = read_flux_map(m.flux_map)
+    I_max = m.I_max
+    th = np.linspace(0, 2 * np.pi, 300)
+    a.plot(I_max * np.cos(th), I_max * np.sin(th), "k--", lw=0.8, label=f"current limit {I_max:.0f} A")
+    a.scatter(tr["i_d_A"], tr["i_q_A"], c=tr["region"], cmap="viridis", s=3, vmin=0, vmax=4)
+    reach = 1.12 * I_max
+    g_d = np.linspace(max(fmap.i_d[0], -reach), min(fmap.i_d[-1], reach), 240)
+    g_q = np.linspace(max(fmap.i_q[0], -reach), min(fmap.i_q[-1], reach), 300)
+    psi_d, psi_q = fmap.flux_on_grid(g_d, g_q)
+    u_dc = float(np.median(tr["u_dc_V"]))
+    V_max = drive.controller.k_u * u_dc / math.sqrt(3)
+    w_top = m.w_m_max if m.w_m_max is not None else float(np.max(tr["w_m_rad_s"]))
+    for frac, col in zip(ELLIPSE_SPEEDS, ("C2", "C1", "C3")):
+        w = m.pole_pairs * frac * w_top
+        if w <= 0:
+            continue
+        a.contour(g_d, g_q, np.hypot(w * psi_q, w * psi_d).T, levels=[V_max], colors=[col], linewidths=0.8)
+        a.plot([], [], color=col, lw=0.8, label=f"voltage limit {frac * w_top / RPM:.0f} r/min, {u_dc:.0f} V")
+
+
 def _efficiency_background(ax, run_dir: Path) -> None:
     """The motor's efficiency map (docs/motor, brute force over the map) as grey contours, if present."""
     import json
-    p = ROOT / "docs" / "motor" / "efficiency_map.json"
+    p = located("docs/motor/efficiency_map.json")
     if not p.exists():
         return
     d = json.loads(p.read_text())

@@ -12,6 +12,7 @@ from dataclasses import asdict, astuple, dataclass, field, fields
 from pathlib import Path
 
 from scenarios.core.boundary import strict_json, write_atomically
+from scenarios.core.version import VERSION
 from scenarios.cosim.master import AdvanceResult
 
 
@@ -152,6 +153,10 @@ class RunSummary:
     backend: str                      # the co-simulation master's backend: native or fmpy
     drive: str = ""                   # the drive description's name (scenarios.drives.description)
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
+    w_m_peak_rpm: float = 0.0         # the highest rotor speed of the run
+    w_m_max_rpm: float | None = None  # the motor's top speed (motor.w_m_max; None: not known)
+    time_above_top_speed_s: float = 0.0  # time the rotor spent above w_m_max
+    version: str = VERSION            # the ipmsm-fmu release that ran it (pyproject.toml, the FMUs' version)
 
     def to_dict(self) -> dict:
         return asdict(self)

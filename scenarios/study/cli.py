@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from scenarios.core.paths import ROOT
+from scenarios.core.paths import OUT_DIR
 
 
 def add_parser(sub) -> None:
@@ -43,7 +43,7 @@ def main(args) -> int:
         if args.scheduler is not None:
             scheduler_address(args.scheduler)
         spec = load_spec(args.spec)
-        out = args.out or ROOT / "out" / "study" / args.spec.stem
+        out = args.out or OUT_DIR / "study" / args.spec.stem
         check_writable(out)
     except (SpecError, InputError) as e:
         print(f"study: {printable(str(e), limit=2000)}", file=sys.stderr)

@@ -107,7 +107,8 @@ def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, varian
         table.write_trace_csv(table.trace_path(out, key), run_dir / "trace.csv")
         results.append(StudyRun(v.label, str(run_dir.relative_to(out)), s))
     costs = controller_costs(build)
-    write_report(out, results, costs)
+    from scenarios.drives.description import load_drive
+    write_report(out, results, costs, load_drive(drive))
     return results
 
 
@@ -126,7 +127,7 @@ def _copper_excess(s: RunSummary) -> float:
     return s.copper_loss_Wh / s.copper_loss_optimal_Wh - 1
 
 
-def write_report(out: Path, results: list[StudyRun], costs: dict) -> None:
+def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) -> None:
     keys = ("cycle", "conditions", "variant", "Wh_per_km", "energy_battery_Wh", "distance_km", "speed_rmse_mps",
             "torque_rmse_Nm", "torque_error_max_Nm", "copper_loss_Wh", "copper_loss_optimal_Wh",
             "current_excess_rms_A", "iron_loss_Wh", "inverter_loss_Wh", "wall_s", "run_dir")
@@ -138,7 +139,7 @@ def write_report(out: Path, results: list[StudyRun], costs: dict) -> None:
             w.writerow([r.condition if k == "conditions" else d[k] for k in keys])
     write_atomically(out / "summary.json", strict_json(dict(results=[r.to_dict() for r in results],
                                                             controller_ns_per_call=costs)))
-    plot_study(out, results)
+    plot_study(out, results, drive)
 
     lines = ["# Ferrari versus 2-D tables on a drive cycle", "",
              "Produced by `python -m scenarios compare`. Every run couples the IpmsmController and IpmsmPlant",
@@ -174,7 +175,7 @@ def write_report(out: Path, results: list[StudyRun], costs: dict) -> None:
     (out / "report.md").write_text("\n".join(lines) + "\n")
 
 
-def plot_study(out: Path, results: list[StudyRun]) -> None:
+def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -182,7 +183,7 @@ def plot_study(out: Path, results: list[StudyRun]) -> None:
 
     from scenarios.runs.plots import plot_run
     for r in results:
-        plot_run(out / r.run_dir, f"{r.summary.cycle}, {r.condition}, {r.variant}")
+        plot_run(out / r.run_dir, f"{r.summary.cycle}, {r.condition}, {r.variant}", drive)
     conds = list(dict.fromkeys(r.condition for r in results))
     variants = list(dict.fromkeys(r.variant for r in results))
     cycle = results[0].summary.cycle

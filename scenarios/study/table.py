@@ -20,6 +20,7 @@ import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
+from scenarios.core.version import VERSION
 from scenarios.runs.results import RunSummary
 from scenarios.runs.simulate import Conditions
 from scenarios.study.spec import Run
@@ -69,6 +70,8 @@ def row_of(run: Run, meta: dict, summary: RunSummary | None) -> dict:
         row[column] = d.get(name)
     if summary is not None:  # the tables' conditions, as the run resolved them from its drive
         row["lut_u_dc"], row["lut_T_magnet"] = summary.conditions["lut_u_dc"], summary.conditions["lut_T_magnet"]
+    else:  # a failed run too says which release it failed in
+        row["version"] = VERSION
     return row
 
 

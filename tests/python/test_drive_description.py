@@ -185,7 +185,9 @@ def test_default_drive_is_the_dataclasses_defaults():
     assert d.source == DEFAULT_DRIVE and d.name == "default"
     assert d.vehicle == VehicleParams() and d.battery == BatteryParams() and d.inverter == InverterParams()
     assert d.motor_data() == MotorData.of(read_flux_map(DEFAULT_MAP))
-    assert d.controller.current_bandwidth is None and d.motor.w_m_max is None  # the FMU's own defaults
+    assert d.controller.current_bandwidth is None  # the FMU's own default
+    assert d.motor.w_m_max == read_flux_map(DEFAULT_MAP).number("w_m_max_rad_s")  # the map's top speed
+    assert d.assumed == ()  # the default motor's map gives every value
     assert pickle.loads(pickle.dumps(d)) == d
 
 

@@ -73,7 +73,7 @@ def test_the_osp_configuration_is_the_coupling_description():
     ns = {"osp": "http://opensimulationplatform.com/MSMI/OSPSystemStructure"}
     root = ET.parse(ds.OSP_DIR / "OspSystemStructure.xml").getroot()
     sims = {s.get("name"): s.get("source") for s in root.findall(".//osp:Simulator", ns)}
-    assert sims == {u.role: f"../../build/fmu/{u.model_identifier}.fmu" for u in DRIVE.units}
+    assert sims == {u.role: f"../../../build/fmu/{u.model_identifier}.fmu" for u in DRIVE.units}
     assert float(root.find("osp:BaseStepSize", ns).text) == DRIVE.step == ds.H
     pairs = {(c[0].get("simulator"), c[0].get("name"), c[1].get("simulator"), c[1].get("name"))
              for c in root.findall(".//osp:VariableConnection", ns)}
