@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
-from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
+from scenarios.core.constants import T_REFERENCE_K, U_DC_SCALE_MAX, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR, OUT_DIR
 from scenarios.core.version import VERSION
 from scenarios.cosim import BACKENDS
@@ -16,6 +17,8 @@ from scenarios.maps import cli as map_cli
 #: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
 
+#: exit status: bad input (file, key, what was expected); a run that could not finish
+EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
 #: what `fmu-path` finds: the FMUs (build/fmu/NAME.fmu) and the SSP package (build/ssp/NAME.ssp)
 FMU_NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
 SSP_NAME = "IpmsmControllerPlant"
@@ -66,12 +69,61 @@ def main(argv=None) -> int:
     from scenarios.study import cli as study_cli
     study_cli.add_parser(sub)
     args = ap.parse_args(argv)
-    from scenarios.drives.description import DriveDescriptionError
+    from scenarios.core.boundary import InputError, printable
+    from scenarios.maps.error import MapImportError
     try:
         return _dispatch(args)
-    except DriveDescriptionError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+    except (InputError, MapImportError) as e:  # the one boundary: file, key or line, what was expected
+        print(f"error: {printable(str(e), limit=2000)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except OSError as e:  # an output that could not be written, a file that vanished
+        print(f"error: {printable(str(e.filename or ''))}: {e.strerror or e}", file=sys.stderr)
+        return EXIT_FAILED
+    except Exception as e:  # a run that failed (an FMU refused, the battery ran flat): one line, no traceback
+        print(f"error: {type(e).__name__}: {printable(str(e), limit=2000)}", file=sys.stderr)
+        return EXIT_FAILED
+
+
+def _slug(text: str) -> str:
+    """A file-name part of `text`: letters, digits, '.', '-' and '_' only (a drive named
+    x/../../evil stays one name inside out/)."""
+    s = re.sub(r"_{2,}", "_", re.sub(r"[^A-Za-z0-9._-]+", "_", re.sub(r"\.{2,}", "_", text))).strip("._") or "run"
+    return s[:100]
+
+
+def _number_as_key(value: float | None, option: str, key: str) -> None:
+    """A command-line number checked by a drive-description key's rule (None: not given)."""
+    from scenarios.core.boundary import InputError
+    from scenarios.drives.description import SCHEMA
+    if value is None:
+        return
+    bad = next(k.rule for k in SCHEMA if k.path == key).check(value)
+    if bad:
+        raise InputError("(command line)", option, f"{bad}, got {value!r}")
+
+
+def _cycle_arg(name: str, option: str):
+    """A cycle named on the command line, loaded (a missing or malformed one: exit 2)."""
+    from scenarios.core.boundary import InputError
+    from scenarios.vehicle.cycles import load_cycle
+    try:
+        return load_cycle(name)
+    except InputError:
+        raise
+    except (OSError, ValueError) as e:
+        raise InputError("(command line)", option, f"a standard cycle or a CSV of time_s,speed_mps ({e})") from None
+
+
+def _run_args(args) -> None:
+    """run's numbers, refused (exit 2) before anything runs."""
+    from scenarios.core.boundary import finite
+    from scenarios.core.fmu_ranges import fmu_ranges
+    finite(args.u_dc_scale, "(command line)", "--u-dc-scale", 0.0, U_DC_SCALE_MAX, lo_open=True)
+    r = fmu_ranges()["T_magnet_ref"]  # the FMUs' temperature range
+    finite(args.magnet_degC, "(command line)", "--magnet-degC", r.lo - ZERO_CELSIUS_K, r.hi - ZERO_CELSIUS_K)
 
 
 def _dispatch(args) -> int:
@@ -83,13 +135,16 @@ def _dispatch(args) -> int:
             return 2
         print(path)
         return 0
+    from scenarios.core.boundary import check_writable, inside
     from scenarios.drives.description import load_drive
     if args.cmd == "check":
         from scenarios.runs import check
         return check.main(args)
     if args.cmd == "sweep":
         from scenarios.runs.sweep import SweepSpec, run_sweep
+        _number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
         drive = load_drive(args.drive)
+        check_writable(args.out)
         s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
                       SweepSpec(drive=drive, recursion=args.recursion, u_dc=args.u_dc))
         print(json.dumps({k: s.to_dict()[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
@@ -97,14 +152,17 @@ def _dispatch(args) -> int:
     elif args.cmd == "run":
         from scenarios.runs.plots import plot_run
         from scenarios.runs.simulate import Conditions, RunSpec, fmu_paths, simulate
+        _run_args(args)
         drive = load_drive(args.drive)
         method = args.method or drive.controller.method
         T = args.magnet_degC + ZERO_CELSIUS_K
         custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
+        cycle = _cycle_arg(args.cycle, "cycle")
         stem = Path(args.cycle).stem + ("" if args.drive is None else f"_{drive.name}")
-        out = args.out or OUT_DIR / f"{stem}_{method}"
-        s = simulate(args.cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
+        out = args.out or inside(OUT_DIR, _slug(f"{stem}_{method}"), "run's output folder")
+        check_writable(out)
+        s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
         plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"), drive)
         for a in drive.assumed:
@@ -115,10 +173,16 @@ def _dispatch(args) -> int:
     elif args.cmd == "compare":
         from scenarios.study.compare import run_study
         load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant
+        for c in args.cycles:
+            _cycle_arg(c, "--cycles")
+        check_writable(args.out)
         run_study(args.out, cycles=tuple(args.cycles), build=args.build, workers=args.workers,
                   scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "map":
+        if args.map_cmd == "show":  # the numbers as a drive's would be: the FMUs' ranges
+            _number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
+            _number_as_key(args.I_max, "--I-max", "motor.I_max")
         args.drive_description = load_drive(args.drive) if getattr(args, "drive", None) is not None else None
         return map_cli.main(args)
     elif args.cmd == "study":

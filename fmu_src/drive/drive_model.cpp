@@ -282,6 +282,13 @@ void DriveModel::exit_initialization() {
 void DriveModel::do_step(double t, double h) {
     // h = n sample_time; the tolerance covers a master's h = t_{k+1} - t_k at large t.
     const double n_real = h / sample_time;
+    if (!(n_real <= max_samples_per_step + 0.5)) {  // NaN too; before llround, which overflows
+        std::ostringstream os;
+        os << "the communication step " << fmi::number_text(h) << " s is more than "
+           << fmi::number_text(max_samples_per_step) << " sample times (sample_time = " << fmi::number_text(sample_time)
+           << " s): one fmi2DoStep computes at most that many; step in parts";
+        throw fmi::Error(os.str());
+    }
     const long long n = std::llround(n_real);
     const double tolerance =
         std::max(1e-9 * sample_time, 8.0 * std::numeric_limits<double>::epsilon() * (std::abs(t) + h));

@@ -70,6 +70,9 @@ public:
     double u_ratio = 0.0;  // the controller's voltage use, at the end of the step
     // --- parameters: the drive's own (the others live in controller_, plant_ and inverter_)
     double sample_time = 1e-4;  // s
+    // The most inner steps one fmi2DoStep computes (10 s at the default sample_time): a step cannot be
+    // interrupted, so a larger one is refused rather than computed for minutes.
+    static constexpr double max_samples_per_step = 1e5;
 
 private:
     // The sub-model's variables (its coupled inputs and outputs are not the drive's variables,

@@ -15,3 +15,8 @@ T_REFERENCE_K = ZERO_CELSIUS_K + 20.0
 #: in series at 3.7 V nominal (the 2018+ Nissan Leaf 40 kWh pack's 96s2p, 350 V nominal class);
 #: the flux map's `u_dc_V` metadata (tools/default_motor/make_default_map.py writes it from here)
 U_DC_NOMINAL_V = 355.0
+
+#: the DC-link voltage a run may give the drive, relative to the battery's (Conditions.u_dc_scale):
+#: at most twice, what a boost stage between battery and inverter commonly provides; below 1 models
+#: a sagging or derated link. The CLI's --u-dc-scale and a study's u_dc_scale obey it.
+U_DC_SCALE_MAX = 2.0

@@ -23,12 +23,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: the same parser as a package (pyproject.toml)
-    import tomli as tomllib
-
-
+from scenarios.core.boundary import InputError, load_toml
+from scenarios.core.fmu_ranges import Range, fmu_ranges
 from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
 from scenarios.maps.machine import machine_values
@@ -45,15 +41,8 @@ DEFAULT_DRIVE = DRIVES_DIR / "default.toml"
 METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
 
 
-class DriveDescriptionError(ValueError):
+class DriveDescriptionError(InputError):
     """A drive description that cannot be used: which file, which key, what was expected."""
-
-    def __init__(self, file: Path | str | None, key: str, expected: str):
-        self.file, self.key, self.expected = file, key, expected
-        super().__init__(f"{file}: {key}: {expected}")
-
-    def __reduce__(self):  # picklable (Dask sends errors back from its workers)
-        return type(self), (self.file, self.key, self.expected)
 
 
 # -- the schema ---------------------------------------------------------------------------------
@@ -81,11 +70,22 @@ class Rule:
             what += f" {'<' if self.hi_open else '<='} {self.hi:g}"
         return what
 
+    def within(self, r: Range | None) -> Rule:
+        """This rule narrowed to an FMU parameter's range (scenarios.core.fmu_ranges)."""
+        if r is None:
+            return self
+        lo, lo_open, hi, hi_open = self.lo, self.lo_open, self.hi, self.hi_open
+        if r.lo is not None and (lo is None or r.lo > lo):
+            lo, lo_open = r.lo, False
+        if r.hi is not None and (hi is None or r.hi < hi):
+            hi, hi_open = r.hi, False
+        return replace(self, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open)
+
     def check(self, value: Any) -> str | None:
         """None if `value` obeys the rule, else what was expected (for the error)."""
         k = self.kind
         if k == "real":
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
                 return self.describe()
         elif k == "int":
             if isinstance(value, bool) or not isinstance(value, int):
@@ -93,18 +93,35 @@ class Rule:
         elif k in ("str", "path"):
             if not isinstance(value, str) or not value:
                 return self.describe()
+            if "\0" in value or len(value) > MAX_TEXT:
+                return self.describe() + f" without NUL characters, at most {MAX_TEXT} characters"
         elif k == "strings":
-            if not isinstance(value, list) or not value or not all(isinstance(s, str) and s for s in value):
-                return "a non-empty list of strings"
+            if (not isinstance(value, list) or not value or len(value) > MAX_LIST or
+                    not all(isinstance(s, str) and s and "\0" not in s and len(s) <= MAX_TEXT for s in value)):
+                return f"a non-empty list of at most {MAX_LIST} strings (no NUL, at most {MAX_TEXT} characters each)"
         if self.choices and value not in self.choices:
             return self.describe()
         if k in ("real", "int"):
+            if k == "int" and abs(value) > 2**53:
+                return self.describe() + f", got an integer of {len(str(abs(value)))} digits"
             if self.lo is not None and (value < self.lo or (self.lo_open and value == self.lo)):
                 return self.describe() + f", got {value!r}"
             if self.hi is not None and (value > self.hi or (self.hi_open and value == self.hi)):
                 return self.describe() + f", got {value!r}"
         return None
 
+
+def _finite(x) -> bool:
+    try:
+        return math.isfinite(x)
+    except OverflowError:  # an integer beyond a float's range (TOML allows 400 digits)
+        return False
+
+
+#: a name or path longer than this is no name (the FMUs' log lines are shorter)
+MAX_TEXT = 1024
+#: checks.cycles: more cycles than this is no CI gate
+MAX_LIST = 100
 
 POSITIVE = Rule("real", lo=0.0, lo_open=True)
 NON_NEGATIVE = Rule("real", lo=0.0)
@@ -147,7 +164,7 @@ SCHEMA: tuple[Key, ...] = (
         "import), relative to this file; REQUIRED", "none: required"),
     Key("motor", "pole_pairs", Rule("int", lo=1, hi=100), "", "pole pairs p", _meta("pole_pairs")),
     Key("motor", "R_s", POSITIVE, "Ohm", "stator resistance per phase at T_winding_ref", _meta("R_s_ohm")),
-    Key("motor", "I_max", POSITIVE, "A", "peak current limit", _meta("I_max_A")),
+    Key("motor", "I_max", Rule("real", lo=0.0, hi=1e5, lo_open=True), "A", "peak current limit", _meta("I_max_A")),
     Key("motor", "T_magnet_ref", TEMPERATURE, "K", "magnet temperature at which the map holds",
         _meta("T_magnet_ref_K")),
     Key("motor", "T_winding_ref", TEMPERATURE, "K", "winding temperature at which R_s holds",
@@ -156,9 +173,11 @@ SCHEMA: tuple[Key, ...] = (
         _meta("alpha_cu_per_K")),
     Key("motor", "k_psi_T", COEFFICIENT, "1/K", "relative change of the magnet flux per kelvin",
         _meta("k_psi_T_per_K")),
-    Key("motor", "J", POSITIVE, "kg m^2", "rotor inertia (and what turns at motor speed)",
+    Key("motor", "J", Rule("real", lo=0.0, hi=100.0, lo_open=True),
+        "kg m^2", "rotor inertia (and what turns at motor speed)",
         _dc(VehicleParams, "J_motor")),
-    Key("motor", "w_m_max", POSITIVE, "rad/s", "top speed: the end of the 2-D tables' speed axis (and of "
+    Key("motor", "w_m_max", Rule("real", lo=0.0, hi=1e5, lo_open=True),
+        "rad/s", "top speed: the end of the 2-D tables' speed axis (and of "
         "`sweep`'s speeds); the vehicle side flags a run above it (summary `time_above_top_speed_s`)",
         _meta("w_m_max_rad_s"), acts="method lut_speed"),
     Key("motor", "fe_k_h", NON_NEGATIVE, "W/Hz", "iron loss: hysteresis coefficient at fe_psi_ref",
@@ -179,39 +198,52 @@ SCHEMA: tuple[Key, ...] = (
     Key("inverter", "E_off", NON_NEGATIVE, "J", "turn-off energy at I_ref, V_ref", _dc(InverterParams, "E_off")),
     Key("inverter", "E_rec", NON_NEGATIVE, "J", "diode recovery energy at I_ref, V_ref",
         _dc(InverterParams, "E_rec")),
-    Key("inverter", "I_ref", POSITIVE, "A", "test current of the switching energies", _dc(InverterParams, "I_ref")),
-    Key("inverter", "V_ref", POSITIVE, "V", "test DC voltage of the switching energies",
+    Key("inverter", "I_ref", Rule("real", lo=0.0, hi=1e5, lo_open=True),
+        "A", "test current of the switching energies", _dc(InverterParams, "I_ref")),
+    Key("inverter", "V_ref", Rule("real", lo=0.0, hi=1e5, lo_open=True),
+        "V", "test DC voltage of the switching energies",
         _dc(InverterParams, "V_ref")),
     Key("inverter", "k_v", Rule("real", lo=0.0, hi=3.0), "1", "exponent of the switching energies' voltage "
         "scaling", _dc(InverterParams, "k_v")),
     # [battery]: scenarios/battery.py's equivalent circuit
-    Key("battery", "n_series", Rule("int", lo=1), "", "cells in series", _dc(BatteryParams, "n_series")),
-    Key("battery", "n_parallel", Rule("int", lo=1), "", "cells in parallel", _dc(BatteryParams, "n_parallel")),
-    Key("battery", "cell_capacity_Ah", POSITIVE, "Ah", "capacity of one cell", _dc(BatteryParams, "cell_capacity_Ah"),
+    Key("battery", "n_series", Rule("int", lo=1, hi=10_000), "", "cells in series", _dc(BatteryParams, "n_series")),
+    Key("battery", "n_parallel", Rule("int", lo=1, hi=10_000),
+        "", "cells in parallel", _dc(BatteryParams, "n_parallel")),
+    Key("battery", "cell_capacity_Ah", Rule("real", lo=0.0, hi=1e4, lo_open=True),
+        "Ah", "capacity of one cell", _dc(BatteryParams, "cell_capacity_Ah"),
         acts="always (SOC moves)"),
-    Key("battery", "R0", NON_NEGATIVE, "Ohm", "pack series resistance", _dc(BatteryParams, "R0")),
-    Key("battery", "R1", POSITIVE, "Ohm", "pack polarisation resistance", _dc(BatteryParams, "R1")),
-    Key("battery", "tau1", POSITIVE, "s", "polarisation time constant R1 C1", _dc(BatteryParams, "tau1")),
-    Key("battery", "u_cell_max", POSITIVE, "V", "charge cut-off voltage per cell",
+    Key("battery", "R0", Rule("real", lo=0.0, hi=100.0, lo_open=True),
+        "Ohm", "pack series resistance", _dc(BatteryParams, "R0")),
+    Key("battery", "R1", Rule("real", lo=0.0, hi=100.0, lo_open=True),
+        "Ohm", "pack polarisation resistance", _dc(BatteryParams, "R1")),
+    Key("battery", "tau1", Rule("real", lo=1e-3, hi=1e5),
+        "s", "polarisation time constant R1 C1", _dc(BatteryParams, "tau1")),
+    Key("battery", "u_cell_max", Rule("real", lo=0.0, hi=10.0, lo_open=True), "V", "charge cut-off voltage per cell",
         _dc(BatteryParams, "u_cell_max"), acts="regenerative braking near a full pack"),
     Key("battery", "soc0", Rule("real", lo=0.0, hi=1.0), "1", "state of charge at the start",
         _dc(BatteryParams, "soc0")),
     Key("battery", "ocv", Rule("str"), "", "cell open-circuit voltage: a shipped fit (" + ", ".join(OCV_FITS) +
         ") or a CSV of soc,ocv_cell_V relative to this file", _dc(BatteryParams, "ocv_fit")),
     # [vehicle]: scenarios/vehicle.py's longitudinal model and the auxiliary load
-    Key("vehicle", "mass", POSITIVE, "kg", "test mass", _dc(VehicleParams, "mass")),
-    Key("vehicle", "road_load_A", NON_NEGATIVE, "N", "road load F = A + B v + C v^2: A",
+    Key("vehicle", "mass", Rule("real", lo=1.0, hi=1e5), "kg", "test mass", _dc(VehicleParams, "mass")),
+    Key("vehicle", "road_load_A", Rule("real", lo=0.0, hi=1e5), "N", "road load F = A + B v + C v^2: A",
         _dc(VehicleParams, "road_load_A")),
-    Key("vehicle", "road_load_B", NON_NEGATIVE, "N/(m/s)", "road load: B", _dc(VehicleParams, "road_load_B")),
-    Key("vehicle", "road_load_C", NON_NEGATIVE, "N/(m/s)^2", "road load: C", _dc(VehicleParams, "road_load_C")),
-    Key("vehicle", "gear_ratio", POSITIVE, "1", "motor speed / wheel speed", _dc(VehicleParams, "gear_ratio")),
-    Key("vehicle", "wheel_radius", POSITIVE, "m", "dynamic rolling radius", _dc(VehicleParams, "wheel_radius")),
+    Key("vehicle", "road_load_B", Rule("real", lo=0.0, hi=1e4),
+        "N/(m/s)", "road load: B", _dc(VehicleParams, "road_load_B")),
+    Key("vehicle", "road_load_C", Rule("real", lo=0.0, hi=1e3),
+        "N/(m/s)^2", "road load: C", _dc(VehicleParams, "road_load_C")),
+    Key("vehicle", "gear_ratio", Rule("real", lo=0.1, hi=100.0),
+        "1", "motor speed / wheel speed", _dc(VehicleParams, "gear_ratio")),
+    Key("vehicle", "wheel_radius", Rule("real", lo=0.01, hi=10.0),
+        "m", "dynamic rolling radius", _dc(VehicleParams, "wheel_radius")),
     Key("vehicle", "driveline_efficiency", FRACTION, "1", "gear efficiency under load",
         _dc(VehicleParams, "driveline_efficiency")),
-    Key("vehicle", "J_wheels", NON_NEGATIVE, "kg m^2", "inertia of all road wheels", _dc(VehicleParams, "J_wheels")),
-    Key("vehicle", "tyre_road_friction", POSITIVE, "1", "tyre-road friction coefficient (friction-brake limit)",
+    Key("vehicle", "J_wheels", Rule("real", lo=0.0, hi=1e4),
+        "kg m^2", "inertia of all road wheels", _dc(VehicleParams, "J_wheels")),
+    Key("vehicle", "tyre_road_friction", Rule("real", lo=0.0, hi=5.0, lo_open=True),
+        "1", "tyre-road friction coefficient (friction-brake limit)",
         _dc(VehicleParams, "tyre_road_friction"), acts="braking harder than mu m g"),
-    Key("vehicle", "P_aux", NON_NEGATIVE, "W", "auxiliary load on the DC link",
+    Key("vehicle", "P_aux", Rule("real", lo=0.0, hi=1e6), "W", "auxiliary load on the DC link",
         "scenarios.vehicle.driver.P_AUX_DEFAULT"),
     # [controller]: the controller FMU's settings
     Key("controller", "method", Rule("str", choices=tuple(METHODS)), "", "torque-to-current method",
@@ -220,9 +252,11 @@ SCHEMA: tuple[Key, ...] = (
         "2 (the FMU's default)"),
     Key("controller", "k_u", Rule("real", lo=0.0, hi=1.0, lo_open=True), "1",
         "voltage utilisation: V_max = k_u u_dc / sqrt 3", _meta("k_u")),
-    Key("controller", "current_bandwidth", POSITIVE, "rad/s", "current regulator's closed-loop bandwidth",
+    Key("controller", "current_bandwidth", Rule("real", lo=0.0, hi=1e6, lo_open=True),
+        "rad/s", "current regulator's closed-loop bandwidth",
         "the FMU's default (its modelDescription start, 2 pi 500 rad/s)"),
-    Key("controller", "lut_u_dc", POSITIVE, "V", "DC voltage the 2-D tables are built at (lut_* methods)",
+    Key("controller", "lut_u_dc", Rule("real", lo=0.0, hi=1e5, lo_open=True),
+        "V", "DC voltage the 2-D tables are built at (lut_* methods)",
         _meta("u_dc_V"), acts="method lut_speed"),
     # [checks]: what `python -m scenarios check` runs and gates on
     Key("checks", "cycles", Rule("strings"), "", "cycles to run: names (WLTC3b, UDDS, HWFET, US06, NEDC) or CSVs "
@@ -248,6 +282,17 @@ SCHEMA = SCHEMA + tuple(
     Key("checks", name, NON_NEGATIVE, _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
         f"{'at most' if d == 'max' else 'at least'} this on every cycle", "no limit", acts="check")
     for name, (s, d) in LIMITS.items())
+
+#: schema key -> the FMU parameter it sets: its rule is narrowed to that parameter's range in the
+#: FMUs' model descriptions (the ranges above are the Python models' own: no road vehicle leaves
+#: them, and within them every product the vehicle side forms stays finite)
+FMU_PARAMETER = {f"motor.{n}": n for n in ("pole_pairs", "R_s", "I_max", "T_magnet_ref", "T_winding_ref", "alpha_cu",
+                                         "k_psi_T", "w_m_max", "fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref")}
+FMU_PARAMETER.update({f"controller.{n}": n for n in ("k_u", "current_bandwidth", "lut_u_dc")})
+FMU_PARAMETER.update({f"inverter.{n}": n for n in ("f_sw", "V_T0", "r_T", "V_D0", "r_D", "E_on", "E_off", "E_rec",
+                                                   "I_ref", "V_ref", "k_v")})
+SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get(FMU_PARAMETER[k.path]))) if k.path in FMU_PARAMETER
+               else k for k in SCHEMA)
 
 SECTIONS = ("motor", "inverter", "battery", "vehicle", "controller", "checks")
 _BY_PATH = {k.path: k for k in SCHEMA}
@@ -384,15 +429,11 @@ def _nearest(name: str, known) -> str:
 
 def _read_toml(path: Path) -> tuple[dict, bytes]:
     try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise DriveDescriptionError(path, "(file)", f"a readable TOML file ({e.strerror or e})") from None
-    try:
-        return tomllib.loads(raw.decode("utf-8")), raw
-    except UnicodeDecodeError:
-        raise DriveDescriptionError(path, "(file)", "UTF-8 text") from None
-    except tomllib.TOMLDecodeError as e:
-        raise DriveDescriptionError(path, "(syntax)", f"valid TOML ({e})") from None
+        return load_toml(path, "drive description (TOML)")
+    except DriveDescriptionError:
+        raise
+    except InputError as e:
+        raise DriveDescriptionError(e.file, e.key, e.expected) from None
 
 
 def _check_keys(path: Path, doc: dict) -> None:
@@ -420,15 +461,27 @@ def _check_keys(path: Path, doc: dict) -> None:
                                         _nearest(top, known))
 
 
-def _relative(path: Path, value: str) -> Path:
-    p = Path(value).expanduser()
-    # located: the shipped drives' paths into the repository (the default map) resolve in a wheel too
-    return located(p if p.is_absolute() else (path.parent / p).resolve())
+def _relative(path: Path, value: str, key: str = "(path)") -> Path:
+    """`value` relative to the file's folder (~ expanded), resolved; a path that cannot be
+    (an unknown user, a symlink loop, a NUL): DriveDescriptionError naming the key."""
+    try:
+        p = Path(value).expanduser()
+        # located: the shipped drives' paths into the repository (the default map) resolve in a wheel too
+        return located(p.resolve() if p.is_absolute() else (path.parent / p).resolve())
+    except (RuntimeError, OSError, ValueError) as e:
+        raise DriveDescriptionError(path, key, f"a path that resolves ({e})") from None
+
+
+def _is_file(p: Path) -> bool:
+    try:
+        return p.is_file()
+    except (OSError, ValueError):
+        return False
 
 
 def _load_map(path: Path, value: str, resolve: MapResolver) -> tuple[Path, FluxMap]:
-    map_path = _relative(path, value)
-    if not map_path.is_file():
+    map_path = _relative(path, value, "motor.flux_map")
+    if not _is_file(map_path):
         raise DriveDescriptionError(path, "motor.flux_map", f"an existing flux-map file, {map_path} is not one")
     try:
         csv_path = Path(resolve(map_path))
@@ -444,8 +497,8 @@ def _cycle_entry(path: Path, name: str) -> str:
     from scenarios.vehicle.cycles import STANDARD_CYCLES
     if name.lower() in {n.lower() for n in STANDARD_CYCLES}:
         return name
-    p = _relative(path, name)
-    if not p.is_file():
+    p = _relative(path, name, "checks.cycles")
+    if not _is_file(p):
         raise DriveDescriptionError(path, "checks.cycles", f"a standard cycle ({', '.join(STANDARD_CYCLES)}) or an "
                                     f"existing CSV of time_s,speed_mps; {name!r} is neither")
     return str(p)
@@ -454,7 +507,10 @@ def _cycle_entry(path: Path, name: str) -> str:
 def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None = None) -> DriveDescription:
     """Read and check a drive description (None: scenarios/drives/default.toml). Raises
     DriveDescriptionError (file, key, expectation) for anything the schema does not allow."""
-    path = Path(DEFAULT_DRIVE if path is None else path).expanduser().resolve()
+    try:
+        path = Path(DEFAULT_DRIVE if path is None else path).expanduser().resolve()
+    except (RuntimeError, OSError, ValueError) as e:
+        raise DriveDescriptionError(path, "(file)", f"a path that resolves ({e})") from None
     doc, raw = _read_toml(path)
     _check_keys(path, doc)
     sec = {s: doc.get(s, {}) for s in SECTIONS}
@@ -469,7 +525,10 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
                  **{m: c[k] for k, m in (("k_u", "k_u"), ("lut_u_dc", "u_dc")) if k in c}}
     try:
         values, assumed = machine_values(fmap, from_file)
-    except (KeyError, ValueError) as e:
+        for k in ("pole_pairs",):  # an integer key from the metadata: a whole finite number
+            if not _finite(values[k]) or float(values[k]) != int(values[k]):
+                raise ValueError(f"{k} = {values[k]!r} is not a whole number")
+    except (KeyError, ValueError, OverflowError) as e:
         raise DriveDescriptionError(path, "motor", f"values in the file or numbers in the map's metadata ({e})") \
             from None
     vp_default = VehicleParams()
@@ -494,15 +553,15 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
         if ocv in OCV_FITS:
             battery = replace(battery, ocv_fit=ocv)
         else:
-            csv_path = _relative(path, ocv)
-            if not csv_path.is_file():
+            csv_path = _relative(path, ocv, "battery.ocv")
+            if not _is_file(csv_path):
                 raise DriveDescriptionError(path, "battery.ocv", f"a shipped fit ({', '.join(OCV_FITS)}) or an "
                                             f"existing CSV of soc,ocv_cell_V; {ocv!r} is neither")
             battery = replace(battery, ocv_fit="csv", ocv_csv=csv_path)
     try:
         from scenarios.vehicle.battery import Ocv
         Ocv(battery)
-    except (OSError, ValueError, KeyError) as e:
+    except Exception as e:  # the reader's own words (a short or huge row, a negative voltage)
         raise DriveDescriptionError(path, "battery.ocv", f"a usable OCV curve ({e})") from None
 
     v = dict(sec["vehicle"])
@@ -513,6 +572,10 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
         method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
         k_u=float(values["k_u"]), current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
         lut_u_dc=float(values["u_dc"]))
+    for key in ("k_u", "lut_u_dc"):   # from the map's metadata too: the same rules as the file's
+        bad = _BY_PATH[f"controller.{key}"].rule.check(getattr(controller, key))
+        if bad:
+            raise DriveDescriptionError(path, f"controller.{key}", f"{bad} (from the file or the map's metadata)")
 
     ch = sec["checks"]
     checks = ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),

@@ -3,6 +3,7 @@ with scipy: an implementation independent of the FMUs' C++ one, used by the scen
 the reference in the tests."""
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -87,12 +88,21 @@ class MotorData:
 
 
 def read_flux_map(path: str | Path) -> FluxMap:
-    """Read the contract's CSV: '#' lines (with '# key: value' metadata), header i_d,i_q,psi_d,psi_q."""
+    """Read the contract's CSV: '#' lines (with '# key: value' metadata), header i_d,i_q,psi_d,psi_q.
+    Within the FMUs' limits (scenarios.core.fmu_ranges.map_limits: a regular file of bounded
+    bytes, lines and grid), refused before more than the limit is read; errors name file and line."""
+    from scenarios.core.boundary import InputError, decode_utf8, read_bounded
+    from scenarios.core.fmu_ranges import map_limits
     path = Path(path)
+    lim = map_limits()
+    text = decode_utf8(path, read_bounded(path, lim.max_bytes, "flux map (CSV)"), "flux map (CSV)")
     metadata = {}
-    rows = []
+    rows: list[str] = []
+    linenos: list[int] = []
     header_seen = False
-    for line in path.read_text().splitlines():
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if len(line) > lim.max_line_chars:
+            raise InputError(path, f"line {lineno}", f"at most {lim.max_line_chars} characters, the FMUs' limit")
         s = line.strip()
         if not s:
             continue
@@ -103,13 +113,33 @@ def read_flux_map(path: str | Path) -> FluxMap:
             continue
         if not header_seen:
             if [c.strip() for c in s.split(",")] != ["i_d", "i_q", "psi_d", "psi_q"]:
-                raise ValueError(f"{path}: expected header i_d,i_q,psi_d,psi_q, got {s!r}")
+                raise ValueError(f"{path}: expected header i_d,i_q,psi_d,psi_q, got {s[:80]!r}")
             header_seen = True
             continue
+        if len(rows) >= lim.max_points:
+            raise InputError(path, f"line {lineno}", f"at most {lim.max_points} grid points, the FMUs' limit")
         rows.append(s)
-    data = _parse_rows(rows)
+        linenos.append(lineno)
+    if not rows:
+        raise InputError(path, "(file)", "a header i_d,i_q,psi_d,psi_q and grid rows")
+    try:
+        data = _parse_rows(rows)
+        ok = data.ndim == 2 and data.shape[1] == 4 and bool(np.isfinite(data).all())
+    except ValueError:
+        ok = False
+    if not ok:  # the first bad row, by its line
+        for lineno, row in zip(linenos, rows):
+            try:
+                x = [float(v) for v in row.split(",")]
+            except ValueError:
+                x = []
+            if len(x) != 4 or not all(math.isfinite(v) for v in x):
+                raise InputError(path, f"line {lineno}", f"four finite numbers i_d,i_q,psi_d,psi_q, got {row[:80]!r}")
     i_d = np.unique(data[:, 0])
     i_q = np.unique(data[:, 1])
+    if max(len(i_d), len(i_q)) > lim.max_axis:
+        raise InputError(path, "(grid)", f"at most {lim.max_axis} points per axis, the FMUs' limit; "
+                         f"got {len(i_d)} x {len(i_q)}")
     if len(i_d) * len(i_q) != len(data):
         raise ValueError(f"{path}: not a full rectangular grid")
     psi_d = np.full((len(i_d), len(i_q)), np.nan)

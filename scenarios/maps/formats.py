@@ -59,9 +59,69 @@ class RawMap:
     iron_loss: dict | None = None  # SyR-e: Id, Iq (its grid), P_h, P_c (W at f0), f0 (Hz), expH, expC
 
 
+#: bytes a .mat file may hold once its compressed variables are inflated: the FMUs' limit of a
+#: flux-map file (scenarios.core.fmu_ranges.map_limits), as four double arrays at most
+def _mat_max_bytes() -> int:
+    from scenarios.core.fmu_ranges import map_limits
+    return map_limits().max_bytes
+
+
+def _check_mat_size(path: Path, max_bytes: int) -> None:
+    """Refuse a .mat file (before scipy reads it) that is not a regular file, is larger than
+    `max_bytes`, or whose compressed variables inflate to more: a small file may declare
+    gigabytes (zlib compresses zeros 1000:1), and loadmat allocates what it inflates."""
+    import stat
+    import struct
+    import zlib
+    try:
+        st = path.stat()
+    except (OSError, ValueError) as e:
+        raise MapImportError(path, "file", "a readable .mat file", f"{e}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise MapImportError(path, "file", "a regular file", "a folder, device or pipe")
+    if st.st_size > max_bytes:
+        raise MapImportError(path, "file", f"a .mat file of at most {max_bytes} bytes", f"{st.st_size} bytes")
+    with open(path, "rb") as f:
+        head = f.read(128)
+        if len(head) < 128 or head[126:128] not in (b"IM", b"MI"):
+            return  # not a v5/v7 file (v4 has no compression: its size is its content); loadmat decides
+        order = "<" if head[126:128] == b"IM" else ">"
+        total = 0
+        while True:
+            tag = f.read(8)
+            if len(tag) < 8:
+                return
+            dtype, nbytes = struct.unpack(order + "II", tag)
+            if dtype >> 16:  # the small data element format: data in the tag's second half
+                continue
+            if dtype != 15:  # miCOMPRESSED; anything else is in the file, bounded by its size
+                f.seek(nbytes + (-nbytes % 8), 1)
+                total += nbytes
+                continue
+            inflate = zlib.decompressobj()
+            left = nbytes
+            while left > 0:
+                chunk = f.read(min(left, 1 << 16))
+                if not chunk:
+                    break
+                left -= len(chunk)
+                data = inflate.decompress(chunk, max_bytes + 1 - total)
+                total += len(data)
+                while inflate.unconsumed_tail and total <= max_bytes:
+                    data = inflate.decompress(inflate.unconsumed_tail, max_bytes + 1 - total)
+                    total += len(data)
+                    if not data:
+                        break
+                if total > max_bytes:
+                    raise MapImportError(path, "file", f"variables of at most {max_bytes} bytes inflated (the FMUs' "
+                                         "flux-map limit)", "more: compressed arrays larger than any flux map")
+
+
 def load_mat(path: Path) -> dict:
-    """The variables of a MATLAB .mat file (v4 to v7; v7.3 is HDF5, which scipy.io does not read)."""
+    """The variables of a MATLAB .mat file (v4 to v7; v7.3 is HDF5, which scipy.io does not read),
+    bounded: see _check_mat_size."""
     from scipy.io import loadmat
+    _check_mat_size(path, _mat_max_bytes())
     try:
         return loadmat(str(path), squeeze_me=False, struct_as_record=True)
     except NotImplementedError as e:  # scipy: "Please use HDF reader for matlab v7.3 files"
@@ -74,8 +134,10 @@ def load_mat(path: Path) -> dict:
 def _array(path: Path, mat: dict, key: str, label: str) -> np.ndarray:
     if key not in mat:
         raise MapImportError(path, key, f"the variable {key} ({label})", "no such variable")
+    if np.iscomplexobj(mat[key]) and np.any(np.imag(mat[key]) != 0):
+        raise MapImportError(path, key, f"a real array ({label})", "complex values with a non-zero imaginary part")
     try:
-        a = np.asarray(mat[key], dtype=float)
+        a = np.asarray(np.real(mat[key]) if np.iscomplexobj(mat[key]) else mat[key], dtype=float)
     except (TypeError, ValueError) as e:
         raise MapImportError(path, key, f"a numeric array ({label})", f"{type(mat[key]).__name__}") from e
     return a

@@ -106,9 +106,11 @@ CSV_COLUMNS = ("i_d", "i_q", "psi_d", "psi_q")
 
 def _check_csv_numbers(path: Path) -> None:
     """NaN or Inf in a contract CSV, named by column and line (read_flux_map would only see a hole)."""
+    from scenarios.core.boundary import InputError, read_bounded
+    from scenarios.core.fmu_ranges import map_limits
     try:
-        lines = path.read_text().splitlines()
-    except (OSError, UnicodeDecodeError) as e:
+        lines = read_bounded(path, map_limits().max_bytes, "flux map (CSV)").decode("utf-8").splitlines()
+    except (InputError, UnicodeDecodeError) as e:
         raise MapImportError(path, "file", "a text file (the contract CSV)", f"unreadable ({e})") from e
     data = [(n, s) for n, s in enumerate(lines, 1) if s.strip() and not s.strip().startswith("#")][1:]
     try:  # the common case at numpy's speed: every value a finite number
@@ -175,7 +177,10 @@ def _fit_iron_loss(raw, i_d, i_q, psi_d, psi_q, metadata: dict, notes: list, war
 
 def _check(i_d, i_q, keys) -> None:
     """What the FMUs' reader needs beyond the grid: enough points, and zero current inside it."""
+    from scenarios.core.fmu_ranges import map_limits
     for k, ax in ((keys[0], i_d), (keys[1], i_q)):
+        if len(ax) > map_limits().max_axis:  # a CSV the FMUs would refuse is not written
+            raise MapImportError(None, k, f"<= {map_limits().max_axis} grid values (the FMUs' limit)", f"{len(ax)}")
         if len(ax) < map_grid.MIN_POINTS:
             raise MapImportError(None, k, f">= {map_grid.MIN_POINTS} grid values", f"{len(ax)}")
         if not ax[0] <= 0.0 <= ax[-1]:

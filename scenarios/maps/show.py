@@ -18,7 +18,6 @@ where it has them, else the default motor's, each such assumption listed in map.
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -26,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
 from scenarios.cosim.fmu import CosimError, Fmu
@@ -229,7 +229,7 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max
     out.mkdir(parents=True, exist_ok=True)
     plot_machine(out / "map.png", fmap, s, env, speeds, mtpa, mismatch, eff_speeds, eff_torques, eta)
     s.wall_s = time.perf_counter() - t0
-    (out / "map.json").write_text(json.dumps(asdict(s), indent=1))
+    write_atomically(out / "map.json", strict_json(asdict(s), indent=1))  # an undefined figure: null
     (out / "map.md").write_text(markdown(s, P_cu, P_fe, P_inv))
     return s
 

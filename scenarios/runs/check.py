@@ -3,24 +3,31 @@ CI gate. Runs the file's `checks.cycles` (whole cycles), compares each of its li
 run's summary, writes DIR/check.md (Markdown) and, with --junit, JUnit XML (one <testsuite> per
 drive, one <testcase> per cycle x limit, classname = drive/cycle), and exits
 
-    0  every limit holds,
+    0  every limit holds on every cycle,
     1  a limit failed,
-    2  bad input: a bad drive description, an unknown cycle, nothing to check, a run that failed.
+    2  bad input (a bad drive description, an unknown or malformed cycle, nothing to check, an
+       output that cannot be written), or a cycle that could not run: its limits are <error>
+       test cases, never passes.
 
-Files are written to a temporary name beside the target and renamed, so a reader (or CI) never
-sees half a file; on bad input nothing is written.
+A cycle is known by its full identity (a standard cycle's name, else its resolved path), so two
+files of one name are two cycles. Names reach the XML with everything XML 1.0 forbids replaced,
+and the file is parsed back before it is renamed into place; a reader (or CI) never sees half a
+file. The output folders are checked writable before the first run; on bad input nothing is
+written.
 """
 from __future__ import annotations
 
 import argparse
 import math
 import os
+import re
 import sys
-import tempfile
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
+from scenarios.core import boundary
+from scenarios.core.boundary import InputError, check_writable, printable
 from scenarios.core.paths import BUILD_DIR
 from scenarios.cosim import BACKENDS
 from scenarios.drives.description import LIMITS, DriveDescription, DriveDescriptionError, load_drive
@@ -30,15 +37,16 @@ EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT = 0, 1, 2
 
 @dataclass(frozen=True)
 class Verdict:
-    """One limit on one cycle."""
+    """One limit on one cycle; `error` set: the cycle could not run (no figure, not a pass)."""
 
-    cycle: str
+    cycle: str      # the cycle's label (unique within a check: see cycle_labels)
     limit: str      # the [checks] key, e.g. Wh_per_km_max
     key: str        # the summary key it bounds
     figure: float
     bound: float
     passed: bool
     wall_s: float   # the cycle's run time (each of its verdicts reports it)
+    error: str | None = None
 
     @property
     def rel(self) -> str:
@@ -47,6 +55,8 @@ class Verdict:
 
     @property
     def message(self) -> str:
+        if self.error is not None:
+            return f"{self.key}: the cycle could not run: {self.error}"
         state = "holds" if self.passed else "FAILED"
         return f"{self.key} = {self.figure:.6g}, limit {self.rel} {self.bound:.6g}: {state}"
 
@@ -57,77 +67,144 @@ def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[
     out = []
     for name, bound in limits.items():
         key, direction = LIMITS[name]
-        x = math.nan if summary[key] is None else float(summary[key])
+        value = summary.get(key)
+        try:
+            x = math.nan if value is None else float(value)
+        except (TypeError, ValueError):
+            x = math.nan
         ok = math.isfinite(x) and (x <= bound if direction == "max" else x >= bound)
         out.append(Verdict(cycle, name, key, x, bound, ok, wall_s))
     return out
 
 
-def run_cycles(drive: DriveDescription, build: Path, backend: str = "drive", progress: bool = True) -> dict:
-    """cycle -> (summary dict, wall s), each of the drive's check cycles run whole."""
-    from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
+def errored(cycle: str, limits: dict, error: str, wall_s: float = 0.0) -> list[Verdict]:
+    """The verdicts of a cycle that could not run: every limit an error."""
+    return [Verdict(cycle, name, LIMITS[name][0], math.nan, bound, False, wall_s, error)
+            for name, bound in limits.items()]
+
+
+def cycle_labels(drive: DriveDescription) -> dict[str, str]:
+    """Each check cycle's identity -> its label: a standard cycle's name, a CSV's path relative
+    to the drive file's folder when inside it (else absolute). Distinct identities, distinct labels."""
+    base = drive.source.parent if drive.source is not None else None
+    labels = {}
+    for c in dict.fromkeys(drive.checks.cycles):
+        p = Path(c)
+        label = c
+        if p.is_absolute() and base is not None:
+            try:
+                label = p.relative_to(base).as_posix()
+            except ValueError:
+                label = c
+        labels[c] = label
+    return labels
+
+
+def load_cycles(drive: DriveDescription) -> dict:
+    """identity -> Cycle, all read before any run (a bad cycle: exit 2, nothing run)."""
     from scenarios.vehicle.cycles import load_cycle
     cycles = {}
-    for c in drive.checks.cycles:
+    for c in dict.fromkeys(drive.checks.cycles):
         try:
             cycles[c] = load_cycle(c)
         except (OSError, ValueError, KeyError) as e:
             raise DriveDescriptionError(drive.source, "checks.cycles", f"a loadable cycle ({e})") from None
+    return cycles
+
+
+def run_cycles(drive: DriveDescription, build: Path, backend: str = "drive", progress: bool = True,
+               cycles: dict | None = None) -> dict:
+    """cycle identity -> (summary dict, wall s) or (None, wall s, error text), each of the drive's
+    check cycles run whole; a run that raises is recorded, the others still run."""
+    import time
+
+    from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
+    cycles = load_cycles(drive) if cycles is None else cycles
     results = {}
-    for cycle in cycles.values():
-        s = simulate(cycle, RunSpec(drive=drive, backend=backend), fmus=fmu_paths(build), progress=progress)
-        results[cycle.name] = (s.to_dict(), s.wall_s)
+    for ident, cycle in cycles.items():
+        t0 = time.perf_counter()
+        try:
+            s = simulate(cycle, RunSpec(drive=drive, backend=backend), fmus=fmu_paths(build), progress=progress)
+            results[ident] = (s.to_dict(), s.wall_s, None)
+        except Exception as e:  # an FMU error, an empty battery: this cycle has no verdict, an error
+            results[ident] = (None, time.perf_counter() - t0, f"{type(e).__name__}: {e}")
     return results
+
+
+def _md_cell(text: str) -> str:
+    return printable(text).replace("|", "\\|").replace("`", "'")
 
 
 def markdown(drive: DriveDescription, verdicts: list[Verdict]) -> str:
     ok = all(v.passed for v in verdicts)
-    lines = [f"# check: {drive.name} — {'PASS' if ok else 'FAIL'}", "",
-             f"Drive description `{drive.source}` (SHA-256 `{drive.sha256[:12]}`), "
+    errors = any(v.error is not None for v in verdicts)
+    state = "PASS" if ok else ("ERROR" if errors else "FAIL")
+    lines = [f"# check: {_md_cell(drive.name)} — {state}", "",
+             f"Drive description `{_md_cell(str(drive.source))}` (SHA-256 `{drive.sha256[:12]}`), "
              f"{len(verdicts)} limits on {len({v.cycle for v in verdicts})} cycles.", "",
              "| cycle | limit | figure | bound | result |", "|---|---|---|---|---|"]
     for v in verdicts:
-        lines.append(f"| {v.cycle} | `{v.limit}` | {v.figure:.6g} | {v.rel} {v.bound:.6g} | "
-                     f"{'pass' if v.passed else '**FAIL**'} |")
+        result = "pass" if v.passed else ("**ERROR**: " + _md_cell(v.error) if v.error is not None else "**FAIL**")
+        lines.append(f"| {_md_cell(v.cycle)} | `{v.limit}` | {v.figure:.6g} | {v.rel} {v.bound:.6g} | {result} |")
     return "\n".join(lines) + "\n"
+
+
+#: what XML 1.0 forbids in a document (its Char production): C0 controls but tab, LF and CR;
+#: surrogates (Python's stand-ins for undecodable bytes); U+FFFE and U+FFFF
+_XML_FORBIDDEN = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(text: str) -> str:
+    """`text` with every character XML 1.0 cannot carry written as \\uXXXX (ElementTree escapes
+    the rest: & < > and quotes)."""
+    return _XML_FORBIDDEN.sub(lambda m: f"\\u{ord(m.group()):04x}", str(text))
 
 
 def junit(drive: DriveDescription, verdicts: list[Verdict]) -> ET.ElementTree:
     """<testsuites><testsuite name=drive>, a <testcase> per verdict (classname drive/cycle,
-    name the limit), a <failure> with the figure and the bound when it does not hold."""
+    name the limit), a <failure> with the figure and the bound when it does not hold, an <error>
+    when its cycle could not run."""
     suites = ET.Element("testsuites")
-    failures = sum(not v.passed for v in verdicts)
-    suite = ET.SubElement(suites, "testsuite", name=drive.name, tests=str(len(verdicts)), failures=str(failures),
-                          errors="0", skipped="0", time=f"{sum({v.cycle: v.wall_s for v in verdicts}.values()):.3f}")
+    failures = sum(not v.passed and v.error is None for v in verdicts)
+    errors = sum(v.error is not None for v in verdicts)
+    suite = ET.SubElement(suites, "testsuite", name=xml_text(drive.name), tests=str(len(verdicts)),
+                          failures=str(failures), errors=str(errors), skipped="0",
+                          time=f"{sum({v.cycle: v.wall_s for v in verdicts}.values()):.3f}")
     props = ET.SubElement(suite, "properties")
-    ET.SubElement(props, "property", name="drive_file", value=str(drive.source))
+    ET.SubElement(props, "property", name="drive_file", value=xml_text(str(drive.source)))
     ET.SubElement(props, "property", name="drive_sha256", value=drive.sha256)
     for v in verdicts:
-        case = ET.SubElement(suite, "testcase", classname=f"{drive.name}/{v.cycle}", name=v.limit, time="0")
-        if not v.passed:
-            ET.SubElement(case, "failure", message=v.message, type="LimitExceeded").text = v.message
+        case = ET.SubElement(suite, "testcase", classname=xml_text(f"{drive.name}/{v.cycle}"), name=v.limit,
+                             time=f"{v.wall_s:.3f}")
+        msg = xml_text(v.message)
+        if v.error is not None:
+            ET.SubElement(case, "error", message=msg, type="RunFailed").text = msg
+        elif not v.passed:
+            ET.SubElement(case, "failure", message=msg, type="LimitExceeded").text = msg
         else:
-            ET.SubElement(case, "system-out").text = v.message
+            ET.SubElement(case, "system-out").text = msg
     ET.indent(suites)
     return ET.ElementTree(suites)
 
 
+def _parses_as_junit(expected_cases: int):
+    def verify(path: Path) -> None:
+        root = ET.parse(path).getroot()  # raises ParseError on anything a reader could not read
+        n = sum(1 for _ in root.iter("testcase"))
+        if n != expected_cases:
+            raise RuntimeError(f"JUnit XML written with {n} test cases, {expected_cases} expected")
+    return verify
+
+
 def write_atomically(path: Path, write) -> None:
-    """write(tmp_path) then rename over `path`: never half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """write(tmp_path) then rename over `path`: never half a file (scenarios.core.boundary)."""
+    boundary.write_atomically(path, write)
 
 
 def check(drive_file: Path | None, junit_path: Path | None, out: Path, build: Path = BUILD_DIR,
           backend: str = "drive", progress: bool = True) -> int:
-    """The exit status (EXIT_PASS / EXIT_FAIL); a bad input raises DriveDescriptionError."""
+    """The exit status (EXIT_PASS / EXIT_FAIL / EXIT_BAD_INPUT for a cycle that could not run); a
+    bad input raises DriveDescriptionError or InputError before anything runs."""
     drive = load_drive(drive_file)
     for a in drive.assumed:  # the motor's values neither the file nor its map gives
         print(f"assumed: {a}", file=sys.stderr)
@@ -135,20 +212,33 @@ def check(drive_file: Path | None, junit_path: Path | None, out: Path, build: Pa
         raise DriveDescriptionError(drive.source, "checks.cycles", "at least one cycle to check")
     if not drive.checks.limits:
         raise DriveDescriptionError(drive.source, "checks", "at least one limit (" + ", ".join(LIMITS) + ")")
-    verdicts = []
-    for cycle, (summary, wall) in run_cycles(drive, build, backend, progress).items():
-        verdicts += judge(cycle, summary, drive.checks.limits, wall)
-    write_atomically(out / "check.md", lambda p: p.write_text(markdown(drive, verdicts)))
+    cycles = load_cycles(drive)
+    check_writable(out, "--out")
     if junit_path is not None:
-        write_atomically(junit_path, lambda p: junit(drive, verdicts).write(p, encoding="utf-8", xml_declaration=True))
+        if junit_path.is_dir():
+            raise InputError(junit_path, "--junit", "a file name, not a folder")
+        check_writable(Path(os.path.realpath(junit_path)).parent, "--junit")
+    labels = cycle_labels(drive)
+    verdicts = []
+    for ident, (summary, wall, error) in run_cycles(drive, build, backend, progress, cycles).items():
+        verdicts += (judge(labels[ident], summary, drive.checks.limits, wall) if error is None else
+                     errored(labels[ident], drive.checks.limits, error, wall))
+    if junit_path is not None:
+        tree = junit(drive, verdicts)
+        boundary.write_atomically(junit_path, lambda p: tree.write(p, encoding="utf-8", xml_declaration=True),
+                                  verify=_parses_as_junit(len(verdicts)))
+    write_atomically(out / "check.md", lambda p: p.write_text(markdown(drive, verdicts), encoding="utf-8"))
     for v in verdicts:
-        print(f"{'ok  ' if v.passed else 'FAIL'} {drive.name}/{v.cycle} {v.message}")
+        state = "ok  " if v.passed else ("ERROR" if v.error is not None else "FAIL")
+        print(printable(f"{state} {drive.name}/{v.cycle} {v.message}", limit=2000))
+    if any(v.error is not None for v in verdicts):
+        return EXIT_BAD_INPUT
     return EXIT_PASS if all(v.passed for v in verdicts) else EXIT_FAIL
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("check", help="CI gate: run a drive description's checks.cycles against its limits "
-                       "(exit 0 pass, 1 a limit failed, 2 bad input)")
+                       "(exit 0 pass, 1 a limit failed, 2 bad input or a cycle that could not run)")
     p.add_argument("drive", type=Path, help="drive description (TOML) with a [checks] table")
     p.add_argument("--junit", type=Path, default=None, help="write JUnit XML here")
     p.add_argument("--out", type=Path, default=Path("out") / "check", help="folder of check.md")
@@ -159,11 +249,13 @@ def add_parser(sub) -> None:
 def main(args: argparse.Namespace) -> int:
     try:
         status = check(args.drive, args.junit, args.out, build=args.build, backend=args.backend)
-    except DriveDescriptionError as e:
-        print(f"error: {e}", file=sys.stderr)
+    except (DriveDescriptionError, InputError) as e:
+        print(f"error: {printable(str(e), limit=2000)}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except Exception as e:  # a run that could not finish (an FMU error, an empty battery): not a verdict
-        print(f"error: {type(e).__name__}: {e}", file=sys.stderr)
+    except OSError as e:  # an output that could not be written after all (a full disk)
+        print(f"error: {printable(str(e.filename))}: could not write ({e.strerror or e})", file=sys.stderr)
         return EXIT_BAD_INPUT
-    print(f"wrote {args.out}/check.md" + (f", {args.junit}" if args.junit else ""))
+    print(printable(f"wrote {args.out}/check.md" + (f", {args.junit}" if args.junit else ""), limit=2000))
+    if status == EXIT_BAD_INPUT:
+        print("error: a cycle could not run (its limits are errors in the report)", file=sys.stderr)
     return status

@@ -5,10 +5,13 @@ run's summary (`RunSummary`, summary.json). SI units; energies in Wh, as the con
 from __future__ import annotations
 
 import csv
-import json
+import math
+import shutil
+import tempfile
 from dataclasses import asdict, astuple, dataclass, field, fields
 from pathlib import Path
 
+from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.core.version import VERSION
 from scenarios.cosim.drive_fmu import DriveStep
 
@@ -71,21 +74,41 @@ TRACE_COLUMNS = tuple(f.name for f in fields(TracePoint))
 
 @dataclass
 class Trace:
-    """trace.csv: every `every`-th vehicle step (every = trace_dt / dt)."""
+    """trace.csv: every `every`-th vehicle step (every = trace_dt / dt), streamed as CSV rows to
+    an unlinked temporary file as the run goes (a long cycle needs bounded memory); `keep=False`
+    (no output folder): nothing is kept."""
 
     every: int = 1
-    points: list[TracePoint] = field(default_factory=list)
+    keep: bool = True
+    rows: int = 0
+    _file: object = field(default=None, repr=False)
+    _csv: object = field(default=None, repr=False)
 
     def observe(self, k: int, step: VehicleStep) -> None:
         """Vehicle step k (from 0) has ended."""
-        if (k + 1) % self.every == 0:
-            self.points.append(TracePoint.of(step))
+        if (k + 1) % self.every == 0 and self.keep:
+            if self._file is None:
+                self._file = tempfile.TemporaryFile("w+", newline="", encoding="utf-8")
+                self._csv = csv.writer(self._file)
+            self._csv.writerow(astuple(TracePoint.of(step)))
+            self.rows += 1
 
     def write_csv(self, path: Path) -> None:
-        with open(path, "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(TRACE_COLUMNS)
-            w.writerows(astuple(p) for p in self.points)
+        """The header and the rows so far to `path`, atomically."""
+        def write(tmp: Path) -> None:
+            with open(tmp, "w", newline="", encoding="utf-8") as f:
+                csv.writer(f).writerow(TRACE_COLUMNS)
+                if self._file is not None:
+                    self._file.flush()
+                    self._file.seek(0)
+                    shutil.copyfileobj(self._file, f)
+                    self._file.seek(0, 2)
+        write_atomically(path, write)
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = self._csv = None
 
 
 @dataclass(frozen=True)
@@ -139,11 +162,15 @@ class RunSummary:
         return asdict(self)
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
+        """Strict JSON: a figure that is undefined (NaN, e.g. Wh_per_km of a run that stood still)
+        is null, and `undefined` names those keys."""
+        d = self.to_dict()
+        d["undefined"] = [k for k, v in d.items() if v is None or (isinstance(v, float) and not math.isfinite(v))]
+        return strict_json(d)
 
 
 def write_results(out: Path, summary: RunSummary, trace: Trace) -> None:
     """summary.json and trace.csv in `out`."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "summary.json").write_text(summary.to_json())
+    write_atomically(out / "summary.json", summary.to_json())
     trace.write_csv(out / "trace.csv")

@@ -21,8 +21,6 @@ from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
-
 from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
@@ -34,7 +32,7 @@ from scenarios.drives.description import METHODS, DriveDescription, load_drive
 from scenarios.runs.accounting import RunAccounts
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
-from scenarios.vehicle.cycles import Cycle, load_cycle
+from scenarios.vehicle.cycles import Cycle, load_cycle, sampled
 from scenarios.vehicle.driver import BlendParams, Driver, DriverParams, blend
 from scenarios.vehicle.inverter import inverter_loss
 from scenarios.vehicle.longitudinal import Vehicle, motor_speed, wheel_force
@@ -208,13 +206,12 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
         c_params.update(lut_n_torque=spec.lut_grid[0], lut_n_speed=spec.lut_grid[1])
     p_params = drive.plant_params()
     n = int(round(cycle.duration_s / dt))
-    t_ref = cycle.time_s[0] + dt * np.arange(n + 1)
-    v_ref = cycle.speed_at(t_ref).tolist()
+    t_ref, v_ref = sampled(cycle, dt, n)  # computed block by block: bounded memory for any length
     # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
     vehicle, driver = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver)
     battery = Battery(drive.battery)
     accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max)
-    trace = Trace(every=max(1, int(round(spec.trace_dt / dt))))
+    trace = Trace(every=max(1, int(round(spec.trace_dt / dt))), keep=out is not None)
     bar = Progress(n, f"{cycle.name} {method} [{cond.name}]") if progress else None
     wall0 = time.perf_counter()
     try:
@@ -237,6 +234,9 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
                                vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
                                wall=wall, backend=spec.backend)
     summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256)
-    if out is not None:
-        write_results(out, summary, trace)
+    try:
+        if out is not None:
+            write_results(out, summary, trace)
+    finally:
+        trace.close()
     return summary

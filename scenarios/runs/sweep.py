@@ -8,7 +8,6 @@ torque-speed envelope.
 from __future__ import annotations
 
 import csv
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -16,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.core.constants import T_REFERENCE_K
 from scenarios.core.progress import Progress
 from scenarios.cosim.fmu import Fmu
@@ -91,7 +91,7 @@ class SweepSummary:
         return asdict(self)
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=2)
+        return strict_json(self.to_dict())
 
 
 def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec | None = None) -> SweepSummary:
@@ -129,7 +129,7 @@ def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec | None = None) ->
     envelope = {n: max(r["T_max_Nm"] for r in rows if r["speed_rpm"] == n) for n in spec.speeds()}
     summary = SweepSummary(spec=spec.to_dict(), points=len(rows), wall_s=wall, T_max_Nm_by_speed_rpm=envelope,
                            P_max_kW_by_speed_rpm={n: T * n * RPM / 1e3 for n, T in envelope.items()})
-    (out / "summary.json").write_text(summary.to_json())
+    write_atomically(out / "summary.json", summary.to_json())
     plot_sweep(rows, spec, out / "current_trajectories.png")
     return summary
 

@@ -37,13 +37,18 @@ def main(args) -> int:
     if args.workers is not None and args.workers < 1:
         print(f"study: --workers {args.workers}: must be >= 1", file=sys.stderr)
         return 2
+    from scenarios.core.boundary import InputError, check_writable, printable
+    from scenarios.study.runner import scheduler_address
     try:
+        if args.scheduler is not None:
+            scheduler_address(args.scheduler)
         spec = load_spec(args.spec)
-    except SpecError as e:
-        print(f"study: {e}", file=sys.stderr)
+        out = args.out or OUT_DIR / "study" / args.spec.stem
+        check_writable(out)
+    except (SpecError, InputError) as e:
+        print(f"study: {printable(str(e), limit=2000)}", file=sys.stderr)
         return 2
-    out = args.out or OUT_DIR / "study" / args.spec.stem
-    print(f"study: {len(spec.runs)} runs of {args.spec} -> {out}", flush=True)
+    print(printable(f"study: {len(spec.runs)} runs of {args.spec} -> {out}"), flush=True)
     try:
         result = run_study(spec.runs, out, scheduler=args.scheduler, workers=args.workers, build=args.build)
     except StudyError as e:

@@ -9,12 +9,12 @@ dask cluster or --scheduler's), land in runs.parquet and are skipped when run ag
 from __future__ import annotations
 
 import csv
-import json
 import re
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
+from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.core.constants import T_REFERENCE_K, U_DC_NOMINAL_V, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR
 from scenarios.runs.results import RunSummary
@@ -103,7 +103,7 @@ def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, varian
         s = table.summary_of(rows[key])
         run_dir = out / "runs" / f"{_slug(run.cycle)}__{_slug(s.conditions['name'])}__{_slug(v.label)}"
         run_dir.mkdir(parents=True, exist_ok=True)
-        (run_dir / "summary.json").write_text(s.to_json())
+        write_atomically(run_dir / "summary.json", s.to_json())
         table.write_trace_csv(table.trace_path(out, key), run_dir / "trace.csv")
         results.append(StudyRun(v.label, str(run_dir.relative_to(out)), s))
     costs = controller_costs(build)
@@ -137,8 +137,8 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
         for r in results:
             d = r.to_dict()
             w.writerow([r.condition if k == "conditions" else d[k] for k in keys])
-    (out / "summary.json").write_text(json.dumps(dict(results=[r.to_dict() for r in results],
-                                                      controller_ns_per_call=costs), indent=2))
+    write_atomically(out / "summary.json", strict_json(dict(results=[r.to_dict() for r in results],
+                                                            controller_ns_per_call=costs)))
     plot_study(out, results, drive)
 
     lines = ["# Ferrari versus 2-D tables on a drive cycle", "",

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
+from scenarios.core.boundary import write_atomically
 from scenarios.study import table
 
 #: groups (drive, cycle, condition) drawn in study.png at most: a picture, not the table
@@ -28,8 +29,14 @@ def _label(r: dict) -> str:
 
 def _copper_excess(r: dict) -> float:
     """The run's copper loss over the optimum's, less 1 (NaN without the optimum)."""
-    opt = r["copper_loss_optimal_Wh"]
-    return r["copper_loss_Wh"] / opt - 1 if opt else math.nan
+    opt, cu = r["copper_loss_optimal_Wh"], r["copper_loss_Wh"]
+    return cu / opt - 1 if opt and not table.is_nan(opt) and not table.is_nan(cu) else math.nan
+
+
+def _num(x, fmt: str, scale: float = 1.0) -> str:
+    """A figure of the table, or "–" where it is undefined (None or NaN: e.g. Wh/km of a window
+    in which the car stands)."""
+    return "–" if table.is_nan(x) else format(x * scale, fmt)
 
 
 def _where(r: dict) -> str:
@@ -69,12 +76,13 @@ def write_report(out: Path, runs: pa.Table | None = None) -> Path:
                   "| current excess RMS (A) | time above V_max / voltage-limited | run wall (s) | key |",
                   "|---|---|---|---|---|---|---|---|---|"]
         for r in rs:
-            lines.append(f"| {_label(r)} | {r['Wh_per_km']:.2f} | "
-                         f"{r['speed_rmse_mps'] * 3.6:.2f} | "
-                         f"{r['torque_rmse_Nm']:.3f} / {r['torque_error_max_Nm']:.2f} | {_copper_excess(r):+.2%} | "
-                         f"{r['current_excess_rms_A']:.2f} | "
-                         f"{r['time_above_V_max_pct']:.1f} % / {r['time_voltage_limited_pct']:.1f} % | "
-                         f"{r['run_wall_s']:.1f} | `{r['key']}` |")
+            lines.append(f"| {_label(r)} | {_num(r['Wh_per_km'], '.2f')} | "
+                         f"{_num(r['speed_rmse_mps'], '.2f', 3.6)} | "
+                         f"{_num(r['torque_rmse_Nm'], '.3f')} / {_num(r['torque_error_max_Nm'], '.2f')} | "
+                         f"{_num(_copper_excess(r), '+.2%')} | {_num(r['current_excess_rms_A'], '.2f')} | "
+                         f"{_num(r['time_above_V_max_pct'], '.1f')} % / "
+                         f"{_num(r['time_voltage_limited_pct'], '.1f')} % | "
+                         f"{_num(r['run_wall_s'], '.1f')} | `{r['key']}` |")
         lines.append("")
     if failed:
         lines += ["## Failed runs", "", "| run | method | key | error |", "|---|---|---|---|"]
@@ -85,9 +93,7 @@ def write_report(out: Path, runs: pa.Table | None = None) -> Path:
     if ok:
         plot_study(out, groups)
         lines += ["![Study](study.png)", ""]
-    path = out / "report.md"
-    path.write_text("\n".join(lines))
-    return path
+    return write_atomically(out / "report.md", "\n".join(lines))
 
 
 def plot_study(out: Path, groups: dict[str, list[dict]]) -> Path:
@@ -105,7 +111,7 @@ def plot_study(out: Path, groups: dict[str, list[dict]]) -> Path:
     for j, v in enumerate(variants):
         sel = [{_label(r): r for r in groups[n]}.get(v) for n in names]
         def col(f, sel=sel):
-            return [f(r) if r else np.nan for r in sel]
+            return [np.nan if not r or table.is_nan(f(r)) else f(r) for r in sel]
         ax[0].barh(x + j * wdt, col(lambda r: r["torque_rmse_Nm"]), wdt, label=v)
         ax[1].barh(x + j * wdt, col(lambda r: 100 * _copper_excess(r)), wdt)
         ax[2].barh(x + j * wdt, col(lambda r: r["Wh_per_km"]), wdt)

@@ -32,8 +32,58 @@ IN_FLIGHT_PER_THREAD = 2
 WORKER_WAIT_S = 600
 
 
+#: s, how long connecting to an existing scheduler and its first words may take
+CONNECT_TIMEOUT_S = 20.0
+#: bytes: a dask comm's handshake is a few hundred; a peer announcing more is no dask scheduler
+HANDSHAKE_MAX_BYTES = 1 << 20
+
+
 class StudyError(RuntimeError):
     """The study cannot run at all (no FMUs, workers with other code, no scheduler)."""
+
+
+def scheduler_address(address: str) -> tuple[str, int]:
+    """(host, port) of a tcp://host:port address; anything else: InputError (exit 2)."""
+    from urllib.parse import urlsplit
+
+    from scenarios.core.boundary import InputError
+    try:
+        u = urlsplit(address)
+        port = u.port
+    except ValueError:
+        port = None
+        u = None
+    if u is None or u.scheme != "tcp" or not u.hostname or port is None or u.path not in ("", "/"):
+        raise InputError("(command line)", "--scheduler", f"the address of a running dask scheduler, "
+                         f"tcp://HOST:PORT, got {address!r}")
+    return u.hostname, port
+
+
+def probe_scheduler(address: str, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Before distributed's Client (which waits without end for a peer that accepts and never
+    speaks, and allocates whatever length a stranger's first 8 bytes announce): connect, read the
+    peer's handshake frame header within `timeout` and check it is one a scheduler sends."""
+    import socket
+    import struct
+    host, port = scheduler_address(address)
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as sock:
+            sock.settimeout(timeout)
+            head = b""
+            while len(head) < 8:
+                b = sock.recv(8 - len(head))
+                if not b:
+                    raise StudyError(f"the server at {address} closed the connection: not a dask scheduler")
+                head += b
+    except TimeoutError:
+        raise StudyError(f"the server at {address} did not answer within {timeout:g} s: "
+                         "not a dask scheduler, or one that hangs") from None
+    except OSError as e:
+        raise StudyError(f"no dask scheduler at {address}: {e.strerror or e}") from None
+    (n,) = struct.unpack("<Q", head)
+    if not 0 < n <= HANDSHAKE_MAX_BYTES:
+        raise StudyError(f"the server at {address} does not speak dask's protocol (its first frame announces "
+                         f"{n} bytes)")
 
 
 @dataclass(frozen=True)
@@ -56,9 +106,10 @@ def open_client(scheduler: str | None, workers: int | None, n_runs: int):
     from distributed import Client, LocalCluster
 
     if scheduler:
+        probe_scheduler(scheduler)
         try:
-            client = Client(scheduler, timeout="20s")
-        except OSError as e:
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+        except (OSError, TimeoutError) as e:
             raise StudyError(f"no dask scheduler at {scheduler}: {e}") from None
         with client:
             try:

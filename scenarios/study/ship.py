@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import hashlib
 import os
+import stat
 import tempfile
+import uuid
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -19,24 +21,46 @@ def _sha(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+def _same_content(path: Path, data: bytes) -> bool:
+    """`path` is a regular file of this user (not a link) whose bytes hash as `data`'s."""
+    try:
+        st = os.lstat(path)
+        if not stat.S_ISREG(st.st_mode) or st.st_uid != os.getuid() or st.st_size != len(data):
+            return False
+        return _sha(path.read_bytes()) == _sha(data)
+    except OSError:
+        return False
+
+
 def _write_once(folder: Path, files) -> Path:
-    """`files` ((relative path, bytes), ...) in `folder`, unless already complete."""
-    done = folder / ".complete"
-    if done.exists():
-        return folder
+    """`files` ((relative path, bytes), ...) in `folder`: each file verified by its content hash
+    (a marker file proves nothing: anything found that differs is written again)."""
     for rel, data in files:
         dest = folder / rel
+        if _same_content(dest, data):
+            continue
         dest.parent.mkdir(parents=True, exist_ok=True)
-        tmp = dest.with_name(f".{dest.name}.{os.getpid()}.tmp")
+        tmp = dest.with_name(f".{dest.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
         tmp.write_bytes(data)
         os.chmod(tmp, 0o755)
         os.replace(tmp, dest)
-    done.touch()
     return folder
 
 
 def _cache() -> Path:
-    return Path(tempfile.gettempdir()) / "ipmsm-study"
+    """This user's cache under the temp directory, 0700: another local user can neither plant
+    files in it nor read them; a path that is not this user's own folder is not used."""
+    d = Path(tempfile.gettempdir()) / f"ipmsm-study-{os.getuid()}"
+    try:
+        d.mkdir(mode=0o700, exist_ok=True)
+        st = os.lstat(d)
+        if stat.S_ISDIR(st.st_mode) and st.st_uid == os.getuid():
+            if stat.S_IMODE(st.st_mode) != 0o700:
+                os.chmod(d, 0o700)
+            return d
+    except OSError:
+        pass
+    return Path(tempfile.mkdtemp(prefix="ipmsm-study-"))
 
 
 @dataclass(frozen=True)

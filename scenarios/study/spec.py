@@ -24,12 +24,8 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
-
-from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
+from scenarios.core.constants import T_REFERENCE_K, U_DC_SCALE_MAX, ZERO_CELSIUS_K
+from scenarios.core.fmu_ranges import fmu_ranges
 from scenarios.drives.description import DriveDescription, load_drive
 from scenarios.runs.simulate import METHODS, STUDY_CONDITIONS, Conditions, RunSpec
 from scenarios.vehicle.cycles import STANDARD_CYCLES
@@ -107,6 +103,9 @@ RUN_KEYS = tuple(AXES.values()) + ("window_s",)
 #: the controller's bounds of lut_n_torque and lut_n_speed (its modelDescription)
 LUT_POINTS_MIN, LUT_POINTS_MAX = 3, 1001
 RUN_COLUMNS = tuple(f.name for f in fields(Run))
+#: the most runs one study may hold: at a run a second on every core of a large machine this is
+#: already a day; the plan is counted against it before any run is built
+MAX_RUNS = 100_000
 
 
 @dataclass(frozen=True)
@@ -125,7 +124,11 @@ def _where(path: Path | None, key: str) -> str:
 def _number(v, path, key, integer=False):
     if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
         raise SpecError(f"{_where(path, key)}: expected {'an integer' if integer else 'a number'}, got {v!r}")
-    if not math.isfinite(v):
+    try:
+        ok = math.isfinite(v)
+    except OverflowError:  # an integer beyond a float's range
+        ok = False
+    if not ok:
         raise SpecError(f"{_where(path, key)}: expected a finite number, got {v!r}")
     return int(v) if integer else float(v)
 
@@ -167,10 +170,14 @@ def _value(field: str, v, path: Path | None, key: str):
             raise SpecError(f"{_where(path, key)}: expected one of {RECURSIONS}, got {r}")
         return r
     x = _number(v, path, key)
-    if field == "u_dc_scale" and not 0.0 < x <= 2.0:
-        raise SpecError(f"{_where(path, key)}: expected 0 < u_dc_scale <= 2, got {x}")
-    if field.endswith("_degC") and not -273.15 < x < 1000.0:
-        raise SpecError(f"{_where(path, key)}: expected a temperature in degC above absolute zero, got {x}")
+    if field == "u_dc_scale" and not 0.0 < x <= U_DC_SCALE_MAX:
+        raise SpecError(f"{_where(path, key)}: expected 0 < u_dc_scale <= {U_DC_SCALE_MAX:g}, got {x}")
+    if field.endswith("_degC"):
+        r = fmu_ranges()["T_magnet_ref"]  # the FMUs' temperature range
+        lo, hi = r.lo - ZERO_CELSIUS_K, r.hi - ZERO_CELSIUS_K
+        if not lo <= x <= hi:
+            raise SpecError(f"{_where(path, key)}: expected a temperature in [{lo:g}, {hi:g}] degC (the FMUs' "
+                            f"range), got {x}")
     return x
 
 
@@ -187,13 +194,16 @@ def _check_cycles(runs: list[Run], path: Path | None, cycle_key: str, window_key
     """Each cycle readable and each window inside its cycle: a bad cycle is a bad spec, not a
     failed run (the client reads the cycles anyway: their samples enter the runs' keys)."""
     from scenarios.vehicle.cycles import load_cycle
-    for cycle in dict.fromkeys(r.cycle for r in runs):
+    by_cycle: dict[str, list[Run]] = {}
+    for r in runs:
+        by_cycle.setdefault(r.cycle, []).append(r)
+    for cycle, its_runs in by_cycle.items():
         try:
             c = load_cycle(cycle)
         except (OSError, ValueError) as e:
             raise SpecError(f"{_where(path, cycle_key)}: {e}") from None
-        for r in runs:
-            if r.cycle == cycle and r.window and not (c.time_s[0] <= r.window[0] and r.window[1] <= c.time_s[-1]):
+        for r in its_runs:
+            if r.window and not (c.time_s[0] <= r.window[0] and r.window[1] <= c.time_s[-1]):
                 raise SpecError(f"{_where(path, window_key)}: window [{r.window[0]:g}, {r.window[1]:g}] s is not "
                                 f"inside {cycle} [{c.time_s[0]:g}, {c.time_s[-1]:g}] s")
 
@@ -228,6 +238,8 @@ def parse(data: dict, path: Path | None = None) -> StudySpec:
         if axes_given:
             raise SpecError(f"{_where(path, 'study.' + axes_given[0])}: the axes' product and an explicit [[run]] "
                             "list exclude each other (only study.window_s may go with [[run]])")
+        if len(explicit) > MAX_RUNS:
+            raise SpecError(f"{_where(path, 'run')}: at most {MAX_RUNS} runs in a study, got {len(explicit)}")
         for i, r in enumerate(explicit):
             values = {}
             for k, v in r.items():
@@ -242,6 +254,7 @@ def parse(data: dict, path: Path | None = None) -> StudySpec:
         _check_cycles(runs, path, "run[].cycle", "run[].window_s")
     else:
         lists = []
+        count = 1
         for key, field in AXES.items():
             if key not in study:
                 lists.append([getattr(Run(), field)])
@@ -251,25 +264,30 @@ def parse(data: dict, path: Path | None = None) -> StudySpec:
             v = v if isinstance(v, list) and (field != "lut_grid" or all(isinstance(x, list) for x in v)) else [v]
             if not v:
                 raise SpecError(f"{_where(path, 'study.' + key)}: empty list")
+            count *= len(v)
+            if count > MAX_RUNS:  # counted before a run is built or a value checked
+                raise SpecError(f"{_where(path, 'study.' + key)}: at most {MAX_RUNS} runs in a study, the axes' "
+                                f"product has more")
             lists.append([_value(field, x, path, f"study.{key}") for x in v])
         for combo in itertools.product(*lists):
             runs.append(_run(dict(zip(AXES.values(), combo)), window))
         _check_cycles(runs, path, "study.cycles", "study.window_s")
-    if len(set(runs)) != len(runs):
-        dup = next(r for r in runs if runs.count(r) > 1)
-        raise SpecError(f"{_where(path, 'run' if explicit else 'study')}: the same run twice: {dup}")
+    seen: set[Run] = set()
+    for r in runs:  # linear: a set, not a count per run
+        if r in seen:
+            raise SpecError(f"{_where(path, 'run' if explicit else 'study')}: the same run twice: {r}")
+        seen.add(r)
     return StudySpec(path, tuple(runs))
 
 
 def load_spec(path: str | Path) -> StudySpec:
-    """Read and check a study specification file."""
+    """Read and check a study specification file (bounded: scenarios.core.boundary.load_toml)."""
+    from scenarios.core.boundary import InputError, load_toml
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise SpecError(f"{path}: file not found") from None
-    except tomllib.TOMLDecodeError as e:
-        raise SpecError(f"{path}: not valid TOML: {e}") from None
+        data, _ = load_toml(path, "study specification (TOML)")
+    except InputError as e:
+        raise SpecError(str(e)) from None
     return parse(data, path)
 
 

@@ -100,8 +100,13 @@ def write_trace_csv(trace_parquet: Path, dest: Path) -> None:
 
 def _atomic_write_table(table: pa.Table, path: Path) -> None:
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    pq.write_table(table, tmp)
-    os.replace(tmp, path)
+    try:
+        pq.write_table(table, tmp)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def write_part(out: Path, row: dict) -> Path:
@@ -113,17 +118,76 @@ def write_part(out: Path, row: dict) -> Path:
     return path
 
 
+#: the columns without which a file is not a study's: the run's identity and its outcome
+REQUIRED = ("key", "status", *(f.name for f in fields(Run)))
+QUARANTINE_DIR = "quarantine"
+
+
+class Foreign(ValueError):
+    """A file in a study's folder that is not one of its tables (corrupt, empty, another schema)."""
+
+
 def _read(path: Path) -> pa.Table:
-    t = pq.read_table(path)
-    # columns added since the file was written are null; unknown ones are dropped
-    cols = [t.column(n).cast(f.type) if n in t.column_names else pa.nulls(t.num_rows, f.type)
-            for n, f in zip(SCHEMA.names, SCHEMA)]
-    return pa.Table.from_arrays(cols, schema=SCHEMA)
+    try:
+        t = pq.read_table(path)
+    except Exception as e:  # ArrowInvalid, OSError: a torn or foreign file
+        raise Foreign(f"not a Parquet table ({type(e).__name__}: {e})") from None
+    missing = [n for n in REQUIRED if n not in t.column_names]
+    if missing:
+        raise Foreign(f"not a study's table: no column {missing[0]!r}")
+    unknown = [n for n in t.column_names if n not in SCHEMA.names]
+    if unknown:
+        raise Foreign(f"not this study's schema: unknown column {unknown[0]!r}")
+    # columns added since the file was written are null
+    try:
+        cols = [t.column(n).cast(f.type) if n in t.column_names else pa.nulls(t.num_rows, f.type)
+                for n, f in zip(SCHEMA.names, SCHEMA)]
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError) as e:
+        raise Foreign(f"not this study's schema ({e})") from None
+    table = pa.Table.from_arrays(cols, schema=SCHEMA)
+    if table.column("key").null_count:
+        raise Foreign("rows without a key")
+    return table
 
 
-def _parts(out: Path) -> list[Path]:
+def quarantine(out: Path, path: Path, why: str) -> Path | None:
+    """Move a file that cannot be read as a study's table to DIR/quarantine/ (kept for a look, out
+    of the way of every resume: the runs it held are run again) and say so on stderr."""
+    import sys
+    import time
+    dest_dir = Path(out) / QUARANTINE_DIR
+    dest_dir.mkdir(parents=True, exist_ok=True)
+    dest = dest_dir / f"{path.name}.{time.strftime('%Y%m%dT%H%M%S')}.{uuid.uuid4().hex[:8]}"
+    try:
+        os.replace(path, dest)
+    except FileNotFoundError:  # gone meanwhile (a writer's rename): nothing to keep
+        return None
+    print(f"study: {path}: {why}; moved to {dest}, its runs will run again", file=sys.stderr)
+    return dest
+
+
+def _read_or_quarantine(out: Path, path: Path) -> pa.Table | None:
+    try:
+        return _read(path)
+    except Foreign as e:
+        quarantine(out, path, str(e))
+        return None
+    except FileNotFoundError:
+        return None
+
+
+def _parts(out: Path) -> list[tuple[Path, tuple[int, int]]]:
+    """The parts, oldest first, each with its (inode, mtime) when listed; a part that vanishes
+    meanwhile (a writer's rename, a parallel consolidate) is left out."""
     d = Path(out) / PARTS_DIR
-    return sorted(d.glob("*.parquet"), key=lambda p: p.stat().st_mtime_ns) if d.is_dir() else []
+    found = []
+    for p in (d.glob("*.parquet") if d.is_dir() else ()):
+        try:
+            st = p.stat()
+        except FileNotFoundError:
+            continue
+        found.append((p, (st.st_ino, st.st_mtime_ns)))
+    return sorted(found, key=lambda x: x[1][1])
 
 
 def _latest(tables: list[pa.Table]) -> pa.Table:
@@ -135,24 +199,37 @@ def _latest(tables: list[pa.Table]) -> pa.Table:
     return t.take(pa.array(sorted(last.values()), type=pa.int64()))
 
 
-def read_runs(out: Path, parts: list[Path] | None = None) -> pa.Table:
-    """runs.parquet with the parts not yet folded in (read only)."""
+def read_runs(out: Path, parts: list | None = None) -> pa.Table:
+    """runs.parquet with the parts not yet folded in; corrupt or foreign files are quarantined."""
     runs = Path(out) / RUNS_FILE
     parts = _parts(out) if parts is None else parts
-    tables = [_read(runs)] if runs.exists() else []
+    tables = []
+    if runs.exists():
+        t = _read_or_quarantine(out, runs)
+        if t is not None:
+            tables.append(t)
     for i in range(0, len(parts), FOLD_BATCH):  # a few large tables, not one small table per part
-        tables.append(pa.concat_tables([_read(p) for p in parts[i:i + FOLD_BATCH]]).combine_chunks())
+        batch = [t for t in (_read_or_quarantine(out, p) for p, _ in parts[i:i + FOLD_BATCH]) if t is not None]
+        if batch:
+            tables.append(pa.concat_tables(batch).combine_chunks())
     return _latest(tables)
 
 
 def consolidate(out: Path) -> pa.Table:
-    """Fold DIR/parts/* into DIR/runs.parquet; returns the table. Only while no run is in flight."""
+    """Fold DIR/parts/* into DIR/runs.parquet; returns the table. Safe beside running writers: a
+    part that appears meanwhile stays for the next fold, and a part is removed only if it is still
+    the very file that was read (same inode and mtime)."""
     parts = _parts(out)
     table = read_runs(out, parts)
     if parts:
         _atomic_write_table(table, Path(out) / RUNS_FILE)
-        for p in parts:
-            p.unlink(missing_ok=True)
+        for p, seen in parts:
+            try:
+                st = p.stat()
+            except FileNotFoundError:
+                continue
+            if (st.st_ino, st.st_mtime_ns) == seen:
+                p.unlink(missing_ok=True)
     return table
 
 

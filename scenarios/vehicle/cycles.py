@@ -13,6 +13,7 @@ speed at whole seconds and the driver follows the straight line between them).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,48 +82,75 @@ def _resolve(name_or_path: str | Path) -> tuple[str, Path]:
     return p.stem, p
 
 
+#: a cycle file of more bytes than this is no drive cycle: a week at 10 Hz is 6 million rows,
+#: about 90 MB; a longer trace is a unit error (or an attack), refused before it is read
+CYCLE_MAX_BYTES = 128 << 20
+#: the longest cycle a run drives: a week; the vehicle side steps at 10 ms, and even streamed a
+#: longer run is hours of computing for one command
+CYCLE_MAX_DURATION_S = 7 * 86_400.0
+#: the shortest: one second, the schedules' own resolution (they give the speed at whole seconds)
+CYCLE_MIN_DURATION_S = 1.0
+#: characters a line: two numbers and a comment never need more
+CYCLE_MAX_LINE = 1024
+
+
 def read_cycle_csv(path: str | Path, name: str | None = None) -> Cycle:
     """Read a `time_s,speed_mps` CSV strictly: the header first (blank lines and '#' comment
     lines are skipped), two finite numbers per row, time strictly increasing, 0 <= speed
-    <= SPEED_PLAUSIBLE_MAX, at least two rows. Errors name the file and the line."""
+    <= SPEED_PLAUSIBLE_MAX, at least two rows, a duration in [CYCLE_MIN_DURATION_S,
+    CYCLE_MAX_DURATION_S], a regular UTF-8 file of at most CYCLE_MAX_BYTES. Errors
+    (scenarios.core.boundary.InputError, a ValueError) name the file and the line."""
+    from scenarios.core.boundary import InputError, decode_utf8, read_bounded
     path = Path(path)
-    if not path.is_file():
+    try:
+        exists = path.exists()
+    except (OSError, ValueError):
+        exists = False
+    if not exists:
         raise FileNotFoundError(f"cycle file not found: {path}")
-    rows = []
+    text = decode_utf8(path, read_bounded(path, CYCLE_MAX_BYTES, "drive cycle (CSV)"), "drive cycle (CSV)")
+    times, speeds = [], []
     header_seen = False
-    with open(path, newline="") as f:
-        for lineno, line in enumerate(f, 1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            cells = [c.strip() for c in s.split(",")]
-            if not header_seen:
-                if tuple(cells) != HEADER:
-                    raise ValueError(f"{path}:{lineno}: expected header 'time_s,speed_mps', got {s!r}")
-                header_seen = True
-                continue
-            if len(cells) != 2:
-                raise ValueError(f"{path}:{lineno}: expected 2 columns, got {len(cells)}: {s!r}")
-            try:
-                t, v = float(cells[0]), float(cells[1])
-            except ValueError:
-                raise ValueError(f"{path}:{lineno}: not a number: {s!r}") from None
-            if not (math.isfinite(t) and math.isfinite(v)):
-                raise ValueError(f"{path}:{lineno}: NaN or Inf: {s!r}")
-            if v < 0.0:
-                raise ValueError(f"{path}:{lineno}: negative speed {v} m/s (reverse driving is not modelled)")
-            if v > SPEED_PLAUSIBLE_MAX:
-                raise ValueError(f"{path}:{lineno}: speed {v} m/s > {SPEED_PLAUSIBLE_MAX} m/s: "
-                                 f"is the column in km/h or mph? It must be m/s")
-            if rows and t <= rows[-1][0]:
-                raise ValueError(f"{path}:{lineno}: time {t} s does not increase (previous {rows[-1][0]} s)")
-            rows.append((t, v))
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if len(line) > CYCLE_MAX_LINE:
+            raise InputError(path, f"line {lineno}", f"at most {CYCLE_MAX_LINE} characters, it has {len(line)}")
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        cells = [c.strip() for c in s.split(",")]
+        if not header_seen:
+            if tuple(cells) != HEADER:
+                raise InputError(path, f"line {lineno}", f"the header 'time_s,speed_mps', got {s[:80]!r}")
+            header_seen = True
+            continue
+        if len(cells) != 2:
+            raise InputError(path, f"line {lineno}", f"2 columns, got {len(cells)}: {s[:80]!r}")
+        try:
+            t, v = float(cells[0]), float(cells[1])
+        except ValueError:
+            raise InputError(path, f"line {lineno}", f"two numbers, got {s[:80]!r}") from None
+        if not (math.isfinite(t) and math.isfinite(v)):
+            raise InputError(path, f"line {lineno}", f"finite numbers, got NaN or Inf: {s[:80]!r}")
+        if v < 0.0:
+            raise InputError(path, f"line {lineno}", f"a speed >= 0 m/s, got {v} (reverse driving is not modelled)")
+        if v > SPEED_PLAUSIBLE_MAX:
+            raise InputError(path, f"line {lineno}", f"a speed <= {SPEED_PLAUSIBLE_MAX} m/s, got {v}: is the "
+                             f"column in km/h or mph? It must be m/s")
+        if times and t <= times[-1]:
+            raise InputError(path, f"line {lineno}", f"time increasing, got {t} s after {times[-1]} s")
+        if times and t - times[0] > CYCLE_MAX_DURATION_S:
+            raise InputError(path, f"line {lineno}", f"a cycle of at most {CYCLE_MAX_DURATION_S:g} s, time {t} s "
+                             f"is {t - times[0]:g} s after the start")
+        times.append(t)
+        speeds.append(v)
     if not header_seen:
-        raise ValueError(f"{path}: empty file (expected header 'time_s,speed_mps')")
-    if len(rows) < 2:
-        raise ValueError(f"{path}: needs at least 2 samples, got {len(rows)}")
-    a = np.array(rows)
-    return Cycle(name or path.stem, a[:, 0].copy(), a[:, 1].copy())
+        raise InputError(path, "(file)", "the header 'time_s,speed_mps' (the file is empty)")
+    if len(times) < 2:
+        raise InputError(path, "(file)", f"at least 2 samples, got {len(times)}")
+    if times[-1] - times[0] < CYCLE_MIN_DURATION_S:
+        raise InputError(path, "(file)", f"a cycle of at least {CYCLE_MIN_DURATION_S:g} s, got "
+                         f"{times[-1] - times[0]:g} s")
+    return Cycle(name or path.stem, np.array(times), np.array(speeds))
 
 
 def load_cycle(name_or_path: str | Path) -> Cycle:
@@ -130,6 +158,40 @@ def load_cycle(name_or_path: str | Path) -> Cycle:
     CSV with a `time_s,speed_mps` header. Unpacks as (time_s, speed_mps)."""
     name, path = _resolve(name_or_path)
     return read_cycle_csv(path, name)
+
+
+class _Sampled(Sequence):
+    """t0 + k dt (times) or the cycle's speed there (speeds), k = 0..n, computed a block at a
+    time when indexed: the vehicle loop reads them in order, and a week-long cycle at 10 ms
+    (60 million samples) never sits in memory."""
+
+    BLOCK = 1 << 16
+
+    def __init__(self, cycle: Cycle, dt: float, n: int, speeds: bool):
+        self._cycle, self._dt, self._n, self._speeds = cycle, dt, n, speeds
+        self._start, self._block = -1, None
+
+    def __len__(self) -> int:
+        return self._n + 1
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        if k < 0:
+            k += len(self)
+        if not 0 <= k < len(self):
+            raise IndexError(k)
+        start = k - k % self.BLOCK
+        if start != self._start:
+            t = self._cycle.time_s[0] + self._dt * np.arange(start, min(start + self.BLOCK, len(self)))
+            self._block = (self._cycle.speed_at(t) if self._speeds else t).tolist()
+            self._start = start
+        return self._block[k - start]
+
+
+def sampled(cycle: Cycle, dt: float, n: int) -> tuple[Sequence[float], Sequence[float]]:
+    """The times t0 + k dt and the cycle's speeds at them, k = 0..n, as lazy sequences."""
+    return _Sampled(cycle, dt, n, False), _Sampled(cycle, dt, n, True)
 
 
 def segment(cycle: Cycle, t0: float, t1: float, rebase: bool = True) -> Cycle:

@@ -50,7 +50,7 @@ def test_passing_drive_exits_0_with_a_clean_report(tmp_path, capsys):
     cases = suites[0].findall("testcase")
     assert len(cases) == 2 * len(PASSING) and suites[0].get("tests") == str(len(cases))
     assert suites[0].get("failures") == "0" and not list(root.iter("failure"))
-    assert {c.get("classname") for c in cases} == {"gate/town", "gate/road"}
+    assert {c.get("classname") for c in cases} == {"gate/town.csv", "gate/road.csv"}
     assert {c.get("name") for c in cases} == set(PASSING)
     md = (out / "check.md").read_text()
     assert "PASS" in md and md.count("| pass |") == len(cases)
@@ -64,15 +64,15 @@ def test_failing_limit_exits_1_and_names_figure_and_limit(tmp_path, capsys):
     suite = ET.parse(junit).getroot().find("testsuite")
     failures = [(c.get("classname"), c.get("name"), c.find("failure")) for c in suite.findall("testcase")
                 if c.find("failure") is not None]
-    assert [(cls, name) for cls, name, _ in failures] == [("gate/town", "Wh_per_km_max"),
-                                                          ("gate/road", "Wh_per_km_max")]
+    assert [(cls, name) for cls, name, _ in failures] == [("gate/town.csv", "Wh_per_km_max"),
+                                                          ("gate/road.csv", "Wh_per_km_max")]
     assert suite.get("failures") == "2" and suite.get("tests") == str(2 * len(limits))
     for _, _, f in failures:
         msg = f.get("message")
         figure = float(msg.split("Wh_per_km = ")[1].split(",")[0])
         assert figure > 1.0 and "limit <= 1" in msg and "FAILED" in msg
     assert "FAIL" in (out / "check.md").read_text()
-    assert "FAIL gate/town Wh_per_km = " in io.out
+    assert "FAIL gate/town.csv Wh_per_km = " in io.out
 
 
 @pytest.mark.parametrize("case", ["no limits", "no cycles", "malformed cycle", "unknown cycle"])

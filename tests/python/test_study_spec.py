@@ -102,7 +102,7 @@ def test_cli_exit_2_on_a_bad_spec(tmp_path):
     assert not (tmp_path / "o").exists()
     r = subprocess.run([sys.executable, "-m", "scenarios", "study", str(tmp_path / "none.toml")],
                        cwd=ROOT, capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2 and "file not found" in r.stderr
+    assert r.returncode == 2 and "No such file or directory" in r.stderr
 
 
 def test_progress_line():

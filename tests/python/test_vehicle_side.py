@@ -412,11 +412,11 @@ def test_segment_and_user_csv(tmp_path, wltc):
 
 
 @pytest.mark.parametrize("text,msg", [
-    ("t,v\n0,0\n1,1\n", "expected header"),
-    ("time_s,speed_mps\n0,0\n1,abc\n", "not a number"),
-    ("time_s,speed_mps\n0,0\n1,1,2\n", "expected 2 columns"),
-    ("time_s,speed_mps\n0,0\n1,1\n1,2\n", "does not increase"),
-    ("time_s,speed_mps\n0,0\n1,-1\n", "negative speed"),
+    ("t,v\n0,0\n1,1\n", "line 1: the header"),
+    ("time_s,speed_mps\n0,0\n1,abc\n", "line 3: two numbers"),
+    ("time_s,speed_mps\n0,0\n1,1,2\n", "line 3: 2 columns, got 3"),
+    ("time_s,speed_mps\n0,0\n1,1\n1,2\n", "line 4: time increasing"),
+    ("time_s,speed_mps\n0,0\n1,-1\n", "line 3: a speed >= 0"),
     ("time_s,speed_mps\n0,0\n1,120\n", "km/h or mph"),
     ("time_s,speed_mps\n0,0\n1,nan\n", "NaN"),
     ("time_s,speed_mps\n0,0\n", "at least 2"),
