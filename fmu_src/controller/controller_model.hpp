@@ -46,6 +46,7 @@ public:
         field(r.v_d), field(r.v_q), field(r.u_d_prev), field(r.u_q_prev), field(r.psi_ref_d), field(r.psi_ref_q);
         field(r.primed);
         field(warned_unreachable_);
+        field(check_failures), field(warned_check_);
         CommandCache& c = cache_;
         field(c.valid), field(c.T_ref), field(c.w_m), field(c.u_dc), field(c.T_magnet);
         field(c.cmd.i_d), field(c.cmd.i_q), field(c.cmd.torque), field(c.cmd.torque_max), field(c.cmd.region);
@@ -70,6 +71,7 @@ public:
     bool voltage_saturated = false;
     double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
+    int check_failures = 0;  // commands that failed the check on the map (docs/controller.md)
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     int method = 1;        // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
     int recursion = 2;     // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
@@ -99,6 +101,7 @@ private:
     void publish(const CurrentCommand& cmd, const MagnetFlux& flux);  // the command outputs (u_*_ref set)
     void observe(const MagnetFlux& flux);
     void initial_outputs();
+    void report_check(const CheckRecord& r);  // counts; logs the first
 
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc and T_magnet
     // stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
@@ -119,6 +122,7 @@ private:
     std::optional<SaturatedOptimalCurrent> solver_;  // its warm-start memory is state
     CurrentRegulator regulator_{0.0, 0.0};
     bool warned_unreachable_ = false;
+    bool warned_check_ = false;
 };
 
 }  // namespace ipmsm
