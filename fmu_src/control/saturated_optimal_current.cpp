@@ -247,13 +247,27 @@ struct MapView {
             solve(System::mtpv, 0.0, seed, q))
             consider(q);
         if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
-        return found && !(found_inside && on_arc && arc.c[0].T > torque(p));
+        if (!found) return false;
+        // A local maximum on the voltage limit is T_max only if the current circle within the
+        // limit gives no more: its polished points decide (a sampled estimate is off by the
+        // torque's curvature over a sample, which on a coarse grid exceeds the difference).
+        return !(found_inside && on_arc && current_voltage_intersection(q) && torque(q) > torque(p));
     }
     // The best point of the current circle within the voltage limit: where the circle meets the
     // voltage limit, or a local maximum of the torque along the circle between two such points.
     // Every candidate of the scan (circle_within_voltage) whose estimate comes within
     // kCandidateMargin of the best polished one is polished; the most torque wins.
     bool current_voltage_intersection(CurrentPoint& p) {
+        if (intersection_done) {
+            p = intersection;
+            return intersection_found;
+        }
+        intersection_done = true;
+        intersection_found = polish_arc(intersection);
+        p = intersection;
+        return intersection_found;
+    }
+    bool polish_arc(CurrentPoint& p) {
         const CircleCandidates& arc = circle_within_voltage();
         bool found = false;
         for (int i = 0; i < arc.n; ++i) {
@@ -406,6 +420,8 @@ struct MapView {
     int iterations = 0;
     bool arc_scanned = false;
     CircleCandidates arc;
+    bool intersection_done = false, intersection_found = false;
+    CurrentPoint intersection{0.0, 0.0};
     CurrentPoint mtpa_point{0.0, 0.0};
     bool have_mtpa_point = false;
     CurrentPoint top_point{0.0, 0.0};  // T_max's, once decided

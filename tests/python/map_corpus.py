@@ -1,0 +1,90 @@
+"""The corpus of flux maps the controller is checked on, in one place for every test that wants it:
+the default motor, the city-EV motor, the measured Baldor PM-SyRM, the Prius-class map of the PLECS
+demo, SyR-e's RAWP synchronous-reluctance machine (no magnet) and a strongly saturating map from
+tools/saturating_map.py. Each entry names its drive's data (pole pairs, R_s, I_max, u_dc, top
+speed) from its source (scenarios/data/fluxmaps/real/SOURCES.md, the map's metadata).
+
+Two maps cannot be loaded as published yet (issue 23, item 3, is another branch's work): the
+Prius map is cropped to i_d <= 90 A, RAWP's import to |i_q| < 47 A (where SyR-e's psi_q stops
+being monotone). `CorpusMap.path(tmp)` writes what is needed into tmp and returns the CSV to load.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from scenarios.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
+from scenarios.paths import DATA_DIR, ROOT
+
+RPM = math.pi / 30.0  # rad/s per r/min
+FLUXMAPS = DATA_DIR / "fluxmaps"
+
+
+@dataclass(frozen=True)
+class CorpusMap:
+    name: str
+    pole_pairs: int
+    R_s: float         # Ohm
+    I_max: float       # A peak
+    u_dc: float        # V
+    w_m_max: float     # rad/s
+    make: Callable[[Path], Path] = field(compare=False, repr=False)  # tmp dir -> contract CSV
+    magnet_free: bool = False  # optima tie in mirror pairs: the controller keeps to i_d <= 0
+
+    def path(self, tmp: Path) -> Path:
+        return self.make(Path(tmp))
+
+
+def _as_is(path: Path) -> Callable[[Path], Path]:
+    return lambda tmp: path
+
+
+def _cropped(fmap: FluxMap, keep_d, keep_q) -> FluxMap:
+    jd, jq = keep_d(fmap.i_d), keep_q(fmap.i_q)
+    return FluxMap(fmap.i_d[jd], fmap.i_q[jq], fmap.psi_d[np.ix_(jd, jq)], fmap.psi_q[np.ix_(jd, jq)],
+                   dict(fmap.metadata))
+
+
+def _prius(tmp: Path) -> Path:
+    out = tmp / "prius_id_le_90A.csv"
+    if not out.exists():
+        fmap = read_flux_map(FLUXMAPS / "real" / "plecs_prius_as_published.csv")
+        write_flux_map(out, _cropped(fmap, lambda d: d <= 90.0, lambda q: np.ones_like(q, bool)),
+                       "PLECS Prius map as published, rows i_d > 90 A dropped (psi_d folds at 130 A)")
+    return out
+
+
+def _rawp(tmp: Path) -> Path:
+    out = tmp / "syre_rawp_iq_lt_47A.csv"
+    if not out.exists():
+        from scenarios.map_import import import_map
+        fmap = import_map(FLUXMAPS / "real" / "syre_RAWP.mat").flux_map()
+        write_flux_map(out, _cropped(fmap, lambda d: np.ones_like(d, bool), lambda q: np.abs(q) < 47.0),
+                       "SyR-e RAWP as imported, |i_q| >= 47 A dropped (psi_q not monotone there)")
+    return out
+
+
+def _saturating(tmp: Path) -> Path:
+    from tools.saturating_map import SaturatingMachine, write_map
+    out = tmp / "saturating_Is0.2_x0.15.csv"
+    if not out.exists():
+        write_map(out, SaturatingMachine(0.2, None, 0.15))
+    return out
+
+
+CORPUS = [
+    CorpusMap("default", 4, 0.012, 500.0, 355.0, 12000 * RPM, _as_is(DEFAULT_MAP)),
+    CorpusMap("city_ev", 6, 0.015, 470.0, 355.0, 11400 * RPM, _as_is(ROOT / "scenarios" / "drives" / "city_ev_motor.csv")),
+    # the Baldor's drive as the existing tests run it (test_controller_optimal.py)
+    CorpusMap("baldor_measured", 2, 0.63, 18.0, 540.0, 500.0, _as_is(FLUXMAPS / "baldor_5p6kW_pmsyrm_measured.csv")),
+    # PLECS demo: 4 pole pairs, R_s 0.015 Ohm; I_max 200 A (the grid's reach), 500 V (ORNL, OSTI 890029), 6000 r/min
+    CorpusMap("prius", 4, 0.015, 200.0, 500.0, 6000 * RPM, _prius),
+    # SyR-e's motorModel.data: p 3, Rs 0.44 Ohm, Imax 30 A, Vdc 565 V, nmax 3000 r/min
+    CorpusMap("syre_rawp", 3, 0.44, 30.0, 565.0, 3000 * RPM, _rawp, magnet_free=True),
+    CorpusMap("saturating", 4, 0.012, 500.0, 355.0, 12000 * RPM, _saturating),
+]
+BY_NAME = {m.name: m for m in CORPUS}
