@@ -147,6 +147,9 @@ constexpr double kClearlyOutside = 1.1025;
 // Candidates for T_max on the current circle are polished while their sampled estimate is within
 // this of the best polished torque (an estimate is off by the torque's curvature over a sample).
 constexpr double kCandidateMargin = 0.01;  // from a Ferrari seed, 2 to 4 are usual
+// Case i's seeds from one interpolated point only where the circles' MTPA points are closer than
+// this fraction of the map's grid spacing.
+constexpr double kOneBranchGridFraction = 0.25;
 
 // The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s. Each
 // condition is Newton on the map (map_newton.hpp); where the map can have several local optima
@@ -300,10 +303,16 @@ struct MapView {
         const double t = T1 > T0 ? std::clamp((T_red - T0) / (T1 - T0), 0.0, 1.0) : 1.0;
         const CurrentPoint a = maxima.mtpa[k - 1], b = maxima.mtpa[k];
         const double r = circles.radius(k - 1) + t * (circles.radius(k) - circles.radius(k - 1));
-        // One maximum: the two points are less than two samples apart in angle (the origin is on every one).
+        // One maximum: the two points are less than two samples apart in angle (the origin is on
+        // every one), and at radius r less than a fraction of the map's grid spacing apart: a
+        // spline bends on the grid's scale, and on a coarse grid (the Prius map's 10/20 A) the
+        // least current's angle can hop between shallow minima of |i| along the torque curve
+        // within a cell; then Newton starts from both circles' points and the least current wins.
         const double sample_angle = 2.0 * kPi / CurrentCircles::kAngles;
-        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d),
-                                                                  2.0 * kPi)) < 2.0 * sample_angle;
+        const double angle =
+            std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * kPi));
+        const bool one_branch =
+            k == 1 || (angle < 2.0 * sample_angle && r * angle < kOneBranchGridFraction * solver.resolution());
         auto scaled = [&](CurrentPoint x, double radius) {
             return CurrentPoint{x.i_d * r / radius, x.i_q * r / radius};
         };

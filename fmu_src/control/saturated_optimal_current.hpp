@@ -117,6 +117,7 @@ public:
     // No magnet (psi_d(0, 0) a negligible fraction of the map's flux): its optima come in mirror
     // pairs i, -i (psi(-i) = -psi(i)), and every method keeps to the branch i_d <= 0.
     bool magnet_free() const { return magnet_free_; }
+    double resolution() const { return resolution_; }  // the map's smallest grid spacing, A
     // |psi_d(0, 0)| below this fraction of the largest |psi| on the grid is no magnet (PM machines
     // have tens of per cent, PM-assisted synchronous-reluctance machines several per cent).
     static constexpr double kMagnetFreeFluxRatio = 1e-3;

@@ -113,7 +113,7 @@ class LevelScan:
     bound on the least current, within (curvature x angle step^2) of it: an independent
     reference for dense torque sweeps, where SLSQP per point would take minutes."""
 
-    def __init__(self, d: Drive, sign: float, n_rays: int = 2048, n_r: int = 400):
+    def __init__(self, d: Drive, sign: float, n_rays: int = 1024, n_r: int = 200):
         lo, hi = (0.5 * np.pi, 1.5 * np.pi) if d.left_half else (-np.pi, np.pi)
         self.d, self.sign = d, sign
         self.theta = np.linspace(lo, hi, n_rays, endpoint=not d.left_half)
@@ -121,7 +121,7 @@ class LevelScan:
         R, TH = np.meshgrid(self.r, self.theta, indexing="ij")
         self.T = sign * d.torque(R * np.cos(TH), R * np.sin(TH))  # (n_r, n_rays)
 
-    def _roots(self, T_target: float, theta: np.ndarray, lo: np.ndarray, hi: np.ndarray, n: int = 60):
+    def _roots(self, T_target: float, theta: np.ndarray, lo: np.ndarray, hi: np.ndarray, n: int = 45):
         c, s = np.cos(theta), np.sin(theta)
         for _ in range(n):
             m = 0.5 * (lo + hi)
