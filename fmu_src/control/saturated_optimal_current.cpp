@@ -309,8 +309,7 @@ struct MapView {
         // least current's angle can hop between shallow minima of |i| along the torque curve
         // within a cell; then Newton starts from both circles' points and the least current wins.
         const double sample_angle = 2.0 * kPi / CurrentCircles::kAngles;
-        const double angle =
-            std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * kPi));
+        const double angle = std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * kPi));
         const bool one_branch =
             k == 1 || (angle < 2.0 * sample_angle && r * angle < kOneBranchGridFraction * solver.resolution());
         auto scaled = [&](CurrentPoint x, double radius) {
@@ -653,8 +652,7 @@ CurrentCommand SaturatedOptimalCurrent::checked(const CurrentCommand& cmd, doubl
             lim.V_max * lim.V_max * (1.0 + kLimitTolerance))
             fail(CheckFinding::voltage_limit, T);
         if (std::abs(T - T_cmd) > kTorqueTolerance * scale) fail(CheckFinding::torque, T);
-        if (std::abs(cmd.torque_max - exact.torque_max) > kTorqueTolerance * scale)
-            fail(CheckFinding::torque_max, T);
+        if (std::abs(cmd.torque_max - exact.torque_max) > kTorqueTolerance * scale) fail(CheckFinding::torque_max, T);
         if (std::abs(T_ref) < exact.torque_max && I > I_exact * (1.0 + kCurrentTolerance) + kSmallCurrent * lim.I_max)
             fail(CheckFinding::not_least_current, T);
     }

@@ -65,10 +65,11 @@ TEST(CommandCheck, PriusCommandsMakeTheirTorqueWithTheLeastCurrent) {
     const double kT = torque_factor(kPolePairs);
     for (double rpm : {0.0, 700.0, 1400.0, 1600.0}) {
         for (double T = 248.0; T <= 256.0; T += 0.25) {
-            const CurrentCommand c = solver.solve(T, {kPolePairs * rpm * kRpm, kVMax, kIMax}, kRs, 0.0, Recursion::optimal);
+            const CurrentCommand c =
+                solver.solve(T, {kPolePairs * rpm * kRpm, kVMax, kIMax}, kRs, 0.0, Recursion::optimal);
             const double made = kT * flux.reduced_torque(c.i_d, c.i_q);
-            ASSERT_NEAR(made, T, 1e-6 * c.torque_max) << rpm << " r/min, " << T << " N.m: (" << c.i_d << ", " << c.i_q
-                                                      << ")";
+            ASSERT_NEAR(made, T, 1e-6 * c.torque_max)
+                << rpm << " r/min, " << T << " N.m: (" << c.i_d << ", " << c.i_q << ")";
             const double I = std::hypot(c.i_d, c.i_q), I_scan = least_current_scan(flux, T / kT);
             // The scan's rays are an upper bound on the least current, within curvature x step^2.
             EXPECT_LE(I, I_scan * (1 + 1e-4)) << rpm << " r/min, " << T << " N.m";

@@ -11,9 +11,9 @@ being monotone). `CorpusMap.path(tmp)` writes what is needed into tmp and return
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -78,7 +78,8 @@ def _saturating(tmp: Path) -> Path:
 
 CORPUS = [
     CorpusMap("default", 4, 0.012, 500.0, 355.0, 12000 * RPM, _as_is(DEFAULT_MAP)),
-    CorpusMap("city_ev", 6, 0.015, 470.0, 355.0, 11400 * RPM, _as_is(ROOT / "scenarios" / "drives" / "city_ev_motor.csv")),
+    CorpusMap("city_ev", 6, 0.015, 470.0, 355.0, 11400 * RPM,
+              _as_is(ROOT / "scenarios" / "drives" / "city_ev_motor.csv")),
     # the Baldor's drive as the existing tests run it (test_controller_optimal.py)
     CorpusMap("baldor_measured", 2, 0.63, 18.0, 540.0, 500.0, _as_is(FLUXMAPS / "baldor_5p6kW_pmsyrm_measured.csv")),
     # PLECS demo: 4 pole pairs, R_s 0.015 Ohm; I_max 200 A (the grid's reach), 500 V (ORNL, OSTI 890029), 6000 r/min
@@ -88,3 +89,38 @@ CORPUS = [
     CorpusMap("saturating", 4, 0.012, 500.0, 355.0, 12000 * RPM, _saturating),
 ]
 BY_NAME = {m.name: m for m in CORPUS}
+
+
+def bench_arguments(tmp: Path) -> list[str]:
+    """bench_controller's --map arguments for the whole corpus, its maps written into tmp."""
+    args = []
+    for m in CORPUS:
+        args += ["--map", m.name, str(m.path(tmp)), str(m.pole_pairs), repr(m.R_s), repr(m.I_max), repr(m.u_dc),
+                 repr(m.w_m_max)]
+    return args
+
+
+def main(argv=None) -> int:
+    """python tests/python/map_corpus.py --bench [DIR]: write the corpus into DIR (a temporary
+    folder by default) and run build/bin/bench_controller on it (recursion 2 with its check)."""
+    import argparse
+    import subprocess
+    import sys
+    import tempfile
+    ap = argparse.ArgumentParser(description=main.__doc__)
+    ap.add_argument("--bench", action="store_true")
+    ap.add_argument("dir", nargs="?")
+    ns = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(ns.dir or tmp)
+        folder.mkdir(parents=True, exist_ok=True)
+        args = bench_arguments(folder)
+        if not ns.bench:
+            print(" ".join(args))
+            return 0
+        return subprocess.call([str(ROOT / "build" / "bin" / "bench_controller"), "--corpus-only", *args],
+                               stdout=sys.stdout)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -14,12 +14,12 @@ import math
 
 import numpy as np
 import pytest
+from map_corpus import BY_NAME, CORPUS, RPM, CorpusMap
 
 from scenarios.flux_map import FluxMap, linear_flux_map, read_flux_map, write_flux_map
 from scenarios.fmu import Fmu
 
 from brute_force import Drive, LevelScan, max_torque, min_current
-from map_corpus import BY_NAME, CORPUS, RPM, CorpusMap
 
 H = 1e-4                  # s, communication step
 K_U = 0.95

@@ -13,8 +13,8 @@ using namespace ipmsm;
 
 TEST(FaultInjection, TheCheckCatchesACorruptedCommand) {
     // The default motor's nominal inductances on a saturating map (a q axis levelling off).
-    const auto map = std::make_shared<const FluxMap>(
-        saturating_flux_map(2.0e-4, 6.0e-4, 0.078, 150.0, 0.1, 500.0, 650.0, 53));
+    const auto map =
+        std::make_shared<const FluxMap>(saturating_flux_map(2.0e-4, 6.0e-4, 0.078, 150.0, 0.1, 500.0, 650.0, 53));
     const MagnetFlux flux(*map, 0.0);
     SaturatedOptimalCurrent solver(map, 4);
     const OperatingLimits lim{4 * 300.0, 0.95 * 355.0 / std::sqrt(3.0), 500.0};
