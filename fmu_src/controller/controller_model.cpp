@@ -88,6 +88,10 @@ const std::vector<V>& ControllerModel::variables() {
         {"current_bandwidth", &M::current_bandwidth, Causality::parameter, Variability::fixed, "rad/s", "",
          "Closed-loop bandwidth of the current regulator", 0.0, kInf, true},
         // appended: the value references above stay as they were
+        {"command_check", &M::command_check, Causality::parameter, Variability::fixed, "", "",
+         "1: a command that fails its check on the flux map is replaced by a checked one; 0: it is sent as the "
+         "method made it, counted in check_failures and logged once (to study a method's own commands)",
+         0, 1},
         {"check_failures", &M::check_failures, Causality::output, Variability::discrete, "", "",
          "Commands that failed the check on the flux map so far (each replaced by a checked one where found; the "
          "first is logged)"},
@@ -168,7 +172,14 @@ CurrentCommand ControllerModel::current_command(const Conditions& c) {
                                        : table_->lookup(T_ref, w_m, c.V_max);
         cmd = solver_->checked(raw, T_ref, lim, R_s, c.shift);
     }
-    if (solver_->last_check.finding != CheckFinding::passed) report_check(solver_->last_check);
+    if (solver_->last_check.finding != CheckFinding::passed) {
+        report_check(solver_->last_check);
+        if (command_check == 0 && solver_->last_check.replaced) {  // reported, sent as the method made it
+            const int used = cmd.iterations;
+            cmd = solver_->last_check.rejected;
+            cmd.iterations = used;
+        }
+    }
     return cmd;
 }
 
@@ -182,7 +193,8 @@ void ControllerModel::report_check(const CheckRecord& r) {
        << recursion << " commanded (" << x.i_d << ", " << x.i_q << ") A for T_ref = " << T_ref
        << " N.m at w_m = " << w_m << " rad/s, u_dc = " << u_dc << " V: " << describe(r.finding)
        << " (T_cmd = " << r.T_target << " N.m, it makes " << r.T_made << " N.m on the map); "
-       << (!r.replaced ? "no better command found: sent as is"
+       << (!r.replaced         ? "no better command found: sent as is"
+           : command_check == 0 ? "sent as is (command_check = 0)"
            : method == 1 && recursion == static_cast<int>(Recursion::optimal)
                ? "replaced by the robust search's command"
                : "replaced by recursion 2's checked command");

@@ -88,6 +88,7 @@ public:
     int lut_n_speed = 41;
     double w_m_max = 1256.6370614359173;            // rad/s (12 000 r/min): top of the tables' speed axis
     double current_bandwidth = 3141.5926535897932;  // rad/s (500 Hz)
+    int command_check = 1;  // 1: failing commands replaced; 0: reported only (docs/controller.md)
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 

@@ -247,6 +247,21 @@ def test_check_replaces_and_logs_once(controller_fmu, corpus, capsys):
     assert_exact("prius, recursion 0 checked", ops, answers, devs)
 
 
+def test_command_check_0_reports_and_sends_the_methods_own(controller_fmu, corpus, capsys):
+    """command_check = 0: the check still counts and logs, but recursion 0's own command leaves
+    (its torque off on the saturated map), as a study of the method wants it."""
+    m, path, fmap = corpus("prius")
+    op = dict(T_ref=250.0, w_m=0.0, u_dc=500.0, T_magnet=T_MAGNET_REF)
+    with Fmu(controller_fmu, logging=True, recursion=0, command_check=0, **parameters(m, path)) as c:
+        c.set(**op)
+        c.step(0.0, H)
+        a = answer(c)
+    out = capsys.readouterr().out
+    assert out.count("command check failed") == 1 and "sent as is (command_check = 0)" in out, out
+    assert a["check_failures"] >= 1
+    assert abs(deviations(m, fmap, op, a)["torque"]) > 1e-3
+
+
 # --- magnet-free machines: one branch --------------------------------------------------------------
 
 def linear_syrm(tmp) -> tuple[CorpusMap, object, FluxMap]:
