@@ -193,7 +193,7 @@ void ControllerModel::report_check(const CheckRecord& r) {
        << recursion << " commanded (" << x.i_d << ", " << x.i_q << ") A for T_ref = " << T_ref
        << " N.m at w_m = " << w_m << " rad/s, u_dc = " << u_dc << " V: " << describe(r.finding)
        << " (T_cmd = " << r.T_target << " N.m, it makes " << r.T_made << " N.m on the map); "
-       << (!r.replaced         ? "no better command found: sent as is"
+       << (!r.replaced          ? "no better command found: sent as is"
            : command_check == 0 ? "sent as is (command_check = 0)"
            : method == 1 && recursion == static_cast<int>(Recursion::optimal)
                ? "replaced by the robust search's command"
