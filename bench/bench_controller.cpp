@@ -6,11 +6,16 @@
 // Saturated cases are timed two ways: "trajectory" (consecutive calls along a smooth
 // torque/speed ramp, as in a drive, warm starts) and "random" (every call a new operating point).
 //
-// Usage: build/bin/bench_controller [flux_map.csv]
+// Then recursion 2 with its command check on each map given with --map (the corpus of
+// tests/python/map_corpus.py: `python tests/python/map_corpus.py --bench` writes its maps and
+// runs this with them): every call timed on its own, median and 99th percentile.
+//
+// Usage: build/bin/bench_controller [flux_map.csv] [--map NAME CSV POLE_PAIRS R_S I_MAX U_DC W_M_MAX]...
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <random>
 #include <string>
@@ -86,9 +91,69 @@ void row(const char* name, double ns, const char* note = "") { std::printf("%-58
 
 }  // namespace
 
+struct CorpusMap {
+    std::string name, path;
+    int pole_pairs;
+    double R_s, I_max, u_dc, w_m_max;
+};
+
+// Recursion 2 with the check on one map: each call timed alone (steady_clock, some 20 ns of its
+// own), random operating points in four quadrants up to 1.3 times the zero-speed peak and the top
+// speed, and a drive-like trajectory; the first call (the circles' sampling) left out.
+void corpus_rows(const CorpusMap& c) {
+    const auto map = std::make_shared<const FluxMap>(read_flux_map(c.path));
+    const double V_max = 0.95 * c.u_dc / std::sqrt(3.0);
+    SaturatedOptimalCurrent solver(map, c.pole_pairs);
+    const double T_peak = solver.solve(1e12, {0.0, V_max, c.I_max}, c.R_s, 0.0, Recursion::optimal).torque_max;
+    const int n = 100000;
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<Op> rnd(n), traj(n);
+    for (auto& o : rnd) o = {(2 * u(rng) - 1) * 1.3 * T_peak, (2 * u(rng) - 1) * c.w_m_max};
+    for (int k = 0; k < n; ++k) {
+        const double t = 1e-4 * k;
+        traj[k] = {0.9 * T_peak * std::sin(2 * M_PI * 0.7 * t),
+                   c.w_m_max * (0.5 + 0.45 * std::sin(2 * M_PI * 0.13 * t))};
+    }
+    for (const auto& [label, ops] : {std::pair{"random", &rnd}, std::pair{"trajectory", &traj}}) {
+        std::vector<double> ns(ops->size());
+        long failed = 0;
+        for (std::size_t k = 0; k < ops->size(); ++k) {
+            const Op& o = (*ops)[k];
+            const auto t0 = Clock::now();
+            const auto cmd = solver.solve(o.T, {c.pole_pairs * o.w_m, V_max, c.I_max}, c.R_s, 0.0, Recursion::optimal);
+            ns[k] = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
+            g_sink = cmd.i_d;
+            failed += solver.last_check.finding != CheckFinding::passed;
+        }
+        std::sort(ns.begin(), ns.end());
+        char name[96], note[96];
+        std::snprintf(name, sizeof name, "recursion 2 + check, %s, %s", c.name.c_str(), label);
+        std::snprintf(note, sizeof note, "median; p99 %.0f ns; %ld of %zu failed the check; budget <= 1500 ns",
+                      ns[ns.size() * 99 / 100], failed, ns.size());
+        row(name, ns[ns.size() / 2], note);
+    }
+}
+
 int main(int argc, char** argv) {
-    const std::string path =
-        argc > 1 ? argv[1] : std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    std::vector<CorpusMap> corpus;
+    std::string path = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    for (int a = 1; a < argc; ++a) {
+        const std::string arg = argv[a];
+        if (arg == "--map" && a + 7 < argc) {
+            corpus.push_back({argv[a + 1], argv[a + 2], std::atoi(argv[a + 3]), std::atof(argv[a + 4]),
+                              std::atof(argv[a + 5]), std::atof(argv[a + 6]), std::atof(argv[a + 7])});
+            a += 7;
+        } else if (arg == "--corpus-only") {
+            path.clear();
+        } else {
+            path = arg;
+        }
+    }
+    if (path.empty()) {
+        for (const CorpusMap& c : corpus) corpus_rows(c);
+        return 0;
+    }
     auto map = std::make_shared<const FluxMap>(read_flux_map(path));
     const int N = 200000, R = 5;
     const auto rnd = random_ops(N, 7);
@@ -230,5 +295,6 @@ int main(int argc, char** argv) {
         row(name, ns_per_call(rnd, R, call));
     }
     if (nl_fail) std::printf("\nNewton-Lagrange did not converge in %d calls\n", nl_fail);
+    for (const CorpusMap& c : corpus) corpus_rows(c);
     return 0;
 }

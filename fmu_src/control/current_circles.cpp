@@ -15,10 +15,11 @@ CurrentCircles::CurrentCircles(const FluxMap& map, double I_max) : I_max_(I_max)
     }
 }
 
-int CurrentCircles::best_angle(int k, double s, double shift) const {
-    int best = 0;
+int CurrentCircles::best_angle(int k, double s, double shift, bool left_half) const {
+    int best = kAngles / 2;
     double T_best = -INFINITY;
     for (int j = 0; j < kAngles; ++j) {
+        if (left_half && at(k, j).i_d > 0) continue;
         const double T = s * at(k, j).torque(shift);
         if (T > T_best) T_best = T, best = j;
     }

@@ -31,8 +31,9 @@ public:
     double radius(int k) const { return I_max_ * k / kRadii; }
     // Circle k = 1..K, angle j (any integer: taken modulo N).
     const Sample& at(int k, int j) const { return samples_[(k - 1) * kAngles + ((j % kAngles) + kAngles) % kAngles]; }
-    // The angle of most s T' on circle k (s = +-1), at a magnet shift.
-    int best_angle(int k, double s, double shift) const;
+    // The angle of most s T' on circle k (s = +-1), at a magnet shift; with left_half, among the
+    // angles with i_d <= 0 only (the tie convention of magnet-free machines, docs/controller.md).
+    int best_angle(int k, double s, double shift, bool left_half = false) const;
 
 private:
     double I_max_ = 0;

@@ -7,6 +7,8 @@
 
 #include "control/current_circles.hpp"
 #include "control/decision.hpp"
+#include "control/fault_injection.hpp"
+#include "control/level_search.hpp"
 #include "control/map_newton.hpp"
 
 namespace ipmsm {
@@ -16,6 +18,8 @@ namespace {
 constexpr double kApparentMinCurrent_A = 1e-3;
 // Relative slack on the limits for points computed on a limit.
 constexpr double kLimitSlack = 1e-9;
+// A magnet-free machine's command at i_d above this (relative to I_max) is off the convention's branch.
+constexpr double kBranchTolerance = 1e-9;
 
 double sign_of(double T) { return T < 0 ? -1.0 : 1.0; }
 
@@ -31,8 +35,28 @@ void check_current_limit_within_map(const FluxMap& map, double I_max) {
     throw std::invalid_argument(os.str());
 }
 
+const char* describe(CheckFinding f) {
+    switch (f) {
+        case CheckFinding::passed: return "passed";
+        case CheckFinding::torque: return "its torque on the map is not T_cmd";
+        case CheckFinding::current_limit: return "its current is above I_max";
+        case CheckFinding::voltage_limit: return "its voltage is above V_max";
+        case CheckFinding::not_least_current: return "a point of less current makes the torque within the limits";
+        case CheckFinding::torque_max: return "its T_max is not the map's";
+        case CheckFinding::not_finite: return "it is not finite";
+        case CheckFinding::branch:
+            return "i_d > 0 on a magnet-free machine, whose optima tie in mirror pairs: the convention is i_d <= 0";
+    }
+    return "?";
+}
+
 SaturatedOptimalCurrent::SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs)
     : map_(std::move(map)), pole_pairs_(pole_pairs), linear_(pole_pairs) {
+    resolution_ = level_search::grid_resolution(*map_);
+    double psi_scale = 0;
+    for (const std::vector<double>* v : {&map_->table().psi_d, &map_->table().psi_q})
+        for (double x : *v) psi_scale = std::max(psi_scale, std::abs(x));
+    magnet_free_ = std::abs(map_->psi_m()) <= kMagnetFreeFluxRatio * psi_scale;
     const FluxPoint f0 = map_->eval(0.0, 0.0);
     nominal_L_d_ = f0.L_dd;
     nominal_L_q_ = f0.L_qq;
@@ -59,7 +83,11 @@ CurrentCommand SaturatedOptimalCurrent::solve(double T_ref, const OperatingLimit
     switch (mode) {
         case Recursion::nominal: cmd = linear_(nominal_machine(R_s, psi_d_shift), T_ref, lim); break;
         case Recursion::apparent: cmd = solve_recursive(T_ref, lim, R_s, flux); break;
-        case Recursion::optimal: cmd = solve_optimal(T_ref, lim, R_s, flux); break;
+        case Recursion::optimal:
+            cmd = solve_optimal(T_ref, lim, R_s, flux);
+            fault_injection::apply(cmd);
+            cmd = check_optimal(cmd, T_ref, lim, R_s, flux);
+            break;
     }
     memory.op_i_d = cmd.i_d;
     memory.op_i_q = cmd.i_q;
@@ -119,6 +147,9 @@ constexpr double kClearlyOutside = 1.1025;
 // Candidates for T_max on the current circle are polished while their sampled estimate is within
 // this of the best polished torque (an estimate is off by the torque's curvature over a sample).
 constexpr double kCandidateMargin = 0.01;  // from a Ferrari seed, 2 to 4 are usual
+// Case i's seeds from one interpolated point only where the circles' MTPA points are closer than
+// this fraction of the map's grid spacing.
+constexpr double kOneBranchGridFraction = 0.25;
 
 // The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s. Each
 // condition is Newton on the map (map_newton.hpp); where the map can have several local optima
@@ -219,13 +250,27 @@ struct MapView {
             solve(System::mtpv, 0.0, seed, q))
             consider(q);
         if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
-        return found && !(found_inside && on_arc && arc.c[0].T > torque(p));
+        if (!found) return false;
+        // A local maximum on the voltage limit is T_max only if the current circle within the
+        // limit gives no more: its polished points decide (a sampled estimate is off by the
+        // torque's curvature over a sample, which on a coarse grid exceeds the difference).
+        return !(found_inside && on_arc && current_voltage_intersection(q) && torque(q) > torque(p));
     }
     // The best point of the current circle within the voltage limit: where the circle meets the
     // voltage limit, or a local maximum of the torque along the circle between two such points.
     // Every candidate of the scan (circle_within_voltage) whose estimate comes within
     // kCandidateMargin of the best polished one is polished; the most torque wins.
     bool current_voltage_intersection(CurrentPoint& p) {
+        if (intersection_done) {
+            p = intersection;
+            return intersection_found;
+        }
+        intersection_done = true;
+        intersection_found = polish_arc(intersection);
+        p = intersection;
+        return intersection_found;
+    }
+    bool polish_arc(CurrentPoint& p) {
         const CircleCandidates& arc = circle_within_voltage();
         bool found = false;
         for (int i = 0; i < arc.n; ++i) {
@@ -258,10 +303,15 @@ struct MapView {
         const double t = T1 > T0 ? std::clamp((T_red - T0) / (T1 - T0), 0.0, 1.0) : 1.0;
         const CurrentPoint a = maxima.mtpa[k - 1], b = maxima.mtpa[k];
         const double r = circles.radius(k - 1) + t * (circles.radius(k) - circles.radius(k - 1));
-        // One maximum: the two points are less than two samples apart in angle (the origin is on every one).
+        // One maximum: the two points are less than two samples apart in angle (the origin is on
+        // every one), and at radius r less than a fraction of the map's grid spacing apart: a
+        // spline bends on the grid's scale, and on a coarse grid (the Prius map's 10/20 A) the
+        // least current's angle can hop between shallow minima of |i| along the torque curve
+        // within a cell; then Newton starts from both circles' points and the least current wins.
         const double sample_angle = 2.0 * kPi / CurrentCircles::kAngles;
-        const bool one_branch = k == 1 || std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d),
-                                                                  2.0 * kPi)) < 2.0 * sample_angle;
+        const double angle = std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * kPi));
+        const bool one_branch =
+            k == 1 || (angle < 2.0 * sample_angle && r * angle < kOneBranchGridFraction * solver.resolution());
         auto scaled = [&](CurrentPoint x, double radius) {
             return CurrentPoint{x.i_d * r / radius, x.i_q * r / radius};
         };
@@ -328,10 +378,12 @@ struct MapView {
             T[j] = s * x.torque(flux.shift());
             g[j] = voltage_sq(x) - V2;
         }
+        const bool left_half = solver.magnet_free();
         for (int j = 0; j < N; ++j) {
             if (!(g[j] <= 0)) continue;
             const int prev = (j + N - 1) % N, next = (j + 1) % N;
             const CircleSample& x = circles.at(K, j);
+            if (left_half && x.i_d > 0) continue;
             if (g[prev] <= 0 && g[next] <= 0 && T[j] >= T[prev] && T[j] >= T[next])
                 arc.add({{x.i_d, x.i_q}, T[j], true});
             for (int o : {prev, next}) {
@@ -376,6 +428,8 @@ struct MapView {
     int iterations = 0;
     bool arc_scanned = false;
     CircleCandidates arc;
+    bool intersection_done = false, intersection_found = false;
+    CurrentPoint intersection{0.0, 0.0};
     CurrentPoint mtpa_point{0.0, 0.0};
     bool have_mtpa_point = false;
     CurrentPoint top_point{0.0, 0.0};  // T_max's, once decided
@@ -401,7 +455,7 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
         for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
             // Newton stays on the best sample's maximum: the samples are 2.8 degrees apart, each
             // maximum's basin far wider.
-            const CurrentCircles::Sample& x = circles_->at(k, circles_->best_angle(k, s, shift));
+            const CurrentCircles::Sample& x = circles_->at(k, circles_->best_angle(k, s, shift, magnet_free_));
             const map_newton::Problem P{System::mtpa_at_current, 0.0, 0.0, 0.0, 0.0, circles_->radius(k)};
             const auto r =
                 map_newton::solve(rounded, P, x.i_d, x.i_q, kNewtonMaxIterations, kNewtonStepTolerance * I_max);
@@ -426,6 +480,7 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
     for (int k = 1; k <= K; ++k)
         for (int j = 0; j < N; ++j) {
             const CurrentCircles::Sample &x = circles_->at(k, j), &y = circles_->at(k, j + 1);
+            if (magnet_free_ && (x.i_d > 0 || y.i_d > 0)) continue;
             const double a = psi_of(x), b = psi_of(y);
             const double lo = std::min(a, b), hi = std::max(a, b);
             const double step = (maxima_.psi_max - maxima_.psi_min) / (L - 1);
@@ -478,6 +533,136 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
     // Below T_max the command is T_max's point only at the edge of reach (neither case had a point).
     cmd.converged = T_red >= T_top || c.point.i_d != top.point.i_d || c.point.i_q != top.point.i_q;
     return cmd;
+}
+
+namespace {
+
+// The mirror of a command through the origin, where the map is symmetric there (a magnet-free
+// machine: psi(-i) = -psi(i), so torque and |v| are the same at -i): the tie convention takes the
+// one with i_d <= 0. Symmetric means the mirror's torque and voltage agree to kTieTolerance.
+bool mirror_ties(const MagnetFlux& flux, double omega, double R_s, CurrentPoint p, double T_scale, double V2) {
+    if (!(p.i_d > 0.0)) return false;
+    const double T = flux.reduced_torque(p.i_d, p.i_q), T_m = flux.reduced_torque(-p.i_d, -p.i_q);
+    if (!(std::abs(T - T_m) <= level_search::kTieTolerance * T_scale)) return false;
+    const double g = map_newton::voltage_sq(flux, omega, R_s, p.i_d, p.i_q);
+    const double g_m = map_newton::voltage_sq(flux, omega, R_s, -p.i_d, -p.i_q);
+    return g_m <= V2 || std::abs(g - g_m) <= level_search::kTieTolerance * V2;
+}
+
+}  // namespace
+
+CurrentCommand SaturatedOptimalCurrent::check_optimal(CurrentCommand cmd, double T_ref, const OperatingLimits& lim,
+                                                      double R_s, const MagnetFlux& flux) {
+    last_check = CheckRecord{};
+    const double s = sign_of(T_ref);
+    const double kT = torque_factor(pole_pairs_);
+    const double T_top = cmd.torque_max / kT;  // reduced, >= 0
+    const double T_red = std::min(std::abs(T_ref) / kT, T_top);
+    const bool clamped = std::abs(T_ref) / kT >= T_top;
+    const double V2 = lim.V_max * lim.V_max * (1.0 + kLimitTolerance);
+    const double I2 = lim.I_max * lim.I_max * (1.0 + kLimitTolerance);
+    const double scale = std::max(T_top, 1e-12);
+    auto fail = [&](CheckFinding f, double T_made) {
+        if (last_check.finding != CheckFinding::passed) return;
+        last_check.finding = f;
+        last_check.rejected = cmd;
+        last_check.T_target = s * kT * T_red;
+        last_check.T_made = kT * T_made;
+    };
+    if (!cmd.feasible) return cmd;  // above the maximum speed: the controller warns of it
+    const CurrentPoint p{cmd.i_d, cmd.i_q};
+    // The tie convention: of two mirror optima, the one with i_d <= 0.
+    if (magnet_free_ && mirror_ties(flux, lim.omega, R_s, p, scale, V2)) cmd.i_d = -cmd.i_d, cmd.i_q = -cmd.i_q;
+    if (magnet_free_ && cmd.i_d > kBranchTolerance * lim.I_max) fail(CheckFinding::branch, NAN);
+    if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q))) {
+        fail(CheckFinding::not_finite, NAN);
+    } else {
+        const FluxPoint f = flux.eval(cmd.i_d, cmd.i_q);
+        const double T = f.psi_d * cmd.i_q - f.psi_q * cmd.i_d;
+        const double vd = R_s * cmd.i_d - lim.omega * f.psi_q, vq = R_s * cmd.i_q + lim.omega * f.psi_d;
+        const double c = cmd.i_d * cmd.i_d + cmd.i_q * cmd.i_q;
+        if (last_check.finding == CheckFinding::branch) last_check.T_made = kT * T;
+        if (c > I2) fail(CheckFinding::current_limit, T);
+        if (vd * vd + vq * vq > V2) fail(CheckFinding::voltage_limit, T);
+        if (std::abs(s * T - T_red) > kTorqueTolerance * scale) fail(CheckFinding::torque, T);
+        if (!clamped && T_red > 0 && last_check.finding == CheckFinding::passed) {
+            // Least current, globally: no current circle inside the command's holds a point
+            // (its polished MTPA) that makes the torque within the voltage limit.
+            const CircleMaxima& maxima = circle_maxima(flux, lim.I_max);
+            const CircleMaxima::Side& side = maxima.side(s);
+            const double r = std::sqrt(c) * (1.0 - kCurrentTolerance) - kSmallCurrent * lim.I_max;
+            const int k = std::min(CurrentCircles::kRadii, static_cast<int>(std::floor(r / circles_->radius(1))));
+            if (k >= 1 && side.converged[k] && side.T[k] >= T_red &&
+                map_newton::voltage_sq(flux, lim.omega, R_s, side.mtpa[k].i_d, side.mtpa[k].i_q) <= V2)
+                fail(CheckFinding::not_least_current, T);
+            // And locally: on the voltage limit, the voltage must bind (its KKT multiplier >= 0:
+            // along the torque curve, less current means more voltage).
+            if (cmd.region == Region::voltage_limit) {
+                const double Td = f.L_dd * cmd.i_q - f.L_qd * cmd.i_d - f.psi_q;
+                const double Tq = f.L_dq * cmd.i_q + f.psi_d - f.L_qq * cmd.i_d;
+                const double gd = 2.0 * (vd * (R_s - lim.omega * f.L_qd) + vq * lim.omega * f.L_dd);
+                const double gq = 2.0 * (vd * -lim.omega * f.L_qq + vq * (R_s + lim.omega * f.L_dq));
+                // grad c = lambda grad T - mu grad g; crossed with grad T: mu = -(c x T) / (g x T).
+                const double cxT = 2.0 * (cmd.i_d * Tq - cmd.i_q * Td), gxT = gd * Tq - gq * Td;
+                const double mu = -cxT / gxT;
+                const double scale_mu = std::hypot(cmd.i_d, cmd.i_q) / std::max(std::hypot(gd, gq), 1e-300);
+                if (mu < -1e-6 * scale_mu) fail(CheckFinding::not_least_current, T);
+            }
+        }
+    }
+    if (last_check.finding == CheckFinding::passed || T_red <= 0 || clamped) return cmd;
+    // The robust search takes over.
+    const level_search::Result r =
+        level_search::least_current(flux, *circles_, s, T_red, lim, R_s, resolution_, magnet_free_);
+    if (!r.found) return cmd;
+    CurrentCommand out = cmd;
+    out.i_d = r.point.i_d;
+    out.i_q = r.point.i_q;
+    out.region = r.region;
+    out.torque = kT * flux.reduced_torque(out.i_d, out.i_q);
+    out.iterations += r.evaluations;
+    out.converged = true;
+    last_check.replaced = true;
+    return out;
+}
+
+CurrentCommand SaturatedOptimalCurrent::checked(const CurrentCommand& cmd, double T_ref, const OperatingLimits& lim,
+                                                double R_s, double psi_d_shift) {
+    const MagnetFlux flux(*map_, psi_d_shift);
+    CurrentCommand exact = check_optimal(solve_optimal(T_ref, lim, R_s, flux), T_ref, lim, R_s, flux);
+    const CheckRecord exact_check = last_check;
+    last_check = CheckRecord{};
+    const double s = sign_of(T_ref), kT = torque_factor(pole_pairs_);
+    const double T_cmd = s * std::min(std::abs(T_ref), exact.torque_max);
+    const double scale = std::max(exact.torque_max, 1e-12);
+    auto fail = [&](CheckFinding f, double T_made) {
+        if (last_check.finding != CheckFinding::passed) return;
+        last_check.finding = f;
+        last_check.rejected = cmd;
+        last_check.T_target = T_cmd;
+        last_check.T_made = T_made;
+    };
+    if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q))) {
+        fail(CheckFinding::not_finite, NAN);
+    } else if (exact.feasible) {
+        const double T = kT * flux.reduced_torque(cmd.i_d, cmd.i_q);
+        const double I = std::hypot(cmd.i_d, cmd.i_q), I_exact = std::hypot(exact.i_d, exact.i_q);
+        if (I > lim.I_max * (1.0 + kLimitTolerance)) fail(CheckFinding::current_limit, T);
+        if (map_newton::voltage_sq(flux, lim.omega, R_s, cmd.i_d, cmd.i_q) >
+            lim.V_max * lim.V_max * (1.0 + kLimitTolerance))
+            fail(CheckFinding::voltage_limit, T);
+        if (std::abs(T - T_cmd) > kTorqueTolerance * scale) fail(CheckFinding::torque, T);
+        if (std::abs(cmd.torque_max - exact.torque_max) > kTorqueTolerance * scale) fail(CheckFinding::torque_max, T);
+        if (std::abs(T_ref) < exact.torque_max && I > I_exact * (1.0 + kCurrentTolerance) + kSmallCurrent * lim.I_max)
+            fail(CheckFinding::not_least_current, T);
+    }
+    if (last_check.finding == CheckFinding::passed) {
+        if (exact_check.finding != CheckFinding::passed) last_check = exact_check;
+        return cmd;
+    }
+    exact.iterations += cmd.iterations;
+    last_check.replaced = true;
+    return exact;
 }
 
 }  // namespace ipmsm

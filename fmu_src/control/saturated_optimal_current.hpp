@@ -49,6 +49,29 @@ struct CircleMaxima {
     const Side& side(double s) const { return sides[s < 0 ? 1 : 0]; }
 };
 
+// What the check of a command found (docs/controller.md, "Commands checked before they leave"):
+// every command is verified on the map before it leaves; where the check fails, the robust search
+// (level_search.hpp) or, for the approximate methods, the exact solver's command takes over.
+enum class CheckFinding : int {
+    passed = 0,
+    torque,             // its torque on the map is not T_cmd
+    current_limit,      // |i| above I_max
+    voltage_limit,      // |v| above V_max
+    not_least_current,  // a point of less current makes the torque within the limits
+    torque_max,         // its T_max is not the map's
+    branch,             // i_d > 0 on a magnet-free machine (the tie convention: i_d <= 0)
+    not_finite,
+};
+const char* describe(CheckFinding f);
+
+struct CheckRecord {
+    CheckFinding finding = CheckFinding::passed;
+    CurrentCommand rejected;  // the command that failed (finding != passed)
+    double T_target = 0;      // N.m, the torque it should have made (signed)
+    double T_made = 0;        // N.m, what it makes on the map
+    bool replaced = false;    // a command that passes took its place
+};
+
 // The paper's recursion (recursion 1) starts from its last solutions.
 struct SolverMemory {
     double op_i_d = 0, op_i_q = 0;        // last command
@@ -71,8 +94,25 @@ class SaturatedOptimalCurrent {
 public:
     SaturatedOptimalCurrent(std::shared_ptr<const FluxMap> map, int pole_pairs);
 
-    // psi_d_shift: magnet-temperature shift of psi_d (magnet_flux_shift()).
+    // psi_d_shift: magnet-temperature shift of psi_d (magnet_flux_shift()). Recursion 2's
+    // commands are checked (and replaced where the check fails) before they are returned;
+    // last_check says what the check found.
     CurrentCommand solve(double T_ref, const OperatingLimits& lim, double R_s, double psi_d_shift, Recursion mode);
+
+    // The check of another method's command (recursions 0 and 1, the 2-D tables): against the
+    // exact solver's checked command for the same inputs. Returns `cmd` where it is that command
+    // to the check's tolerances (torque within kTorqueTolerance of T_max, limits, current within
+    // kCurrentTolerance of the least), else the exact one (last_check says why).
+    CurrentCommand checked(const CurrentCommand& cmd, double T_ref, const OperatingLimits& lim, double R_s,
+                           double psi_d_shift);
+    CheckRecord last_check;
+
+    // Tolerances of the check: torque relative to T_max, current relative to the least current
+    // (with an absolute floor of kSmallCurrent I_max), limits relative.
+    static constexpr double kTorqueTolerance = 1e-7;
+    static constexpr double kCurrentTolerance = 1e-5;
+    static constexpr double kSmallCurrent = 1e-9;
+    static constexpr double kLimitTolerance = 1e-9;
 
     // The linear model a recursion step would use at (i_d, i_q).
     LinearMachine apparent_machine(const MagnetFlux& flux, double i_d, double i_q, double R_s) const;
@@ -80,6 +120,13 @@ public:
 
     const FluxMap& map() const { return *map_; }
     int pole_pairs() const { return pole_pairs_; }
+    // No magnet (psi_d(0, 0) a negligible fraction of the map's flux): its optima come in mirror
+    // pairs i, -i (psi(-i) = -psi(i)), and every method keeps to the branch i_d <= 0.
+    bool magnet_free() const { return magnet_free_; }
+    double resolution() const { return resolution_; }  // the map's smallest grid spacing, A
+    // |psi_d(0, 0)| below this fraction of the largest |psi| on the grid is no magnet (PM machines
+    // have tens of per cent, PM-assisted synchronous-reluctance machines several per cent).
+    static constexpr double kMagnetFreeFluxRatio = 1e-3;
     SolverMemory memory;
 
     // Convergence threshold of the paper's recursion (seed: 0.05 A).
@@ -89,6 +136,10 @@ public:
 private:
     CurrentCommand solve_recursive(double T_ref, const OperatingLimits& lim, double R_s, const MagnetFlux& flux);
     CurrentCommand solve_optimal(double T_ref, const OperatingLimits& lim, double R_s, const MagnetFlux& flux);
+    // The check of recursion 2's command (cheap: the map at the command and at one circle's MTPA
+    // point); where it fails, the robust search's command.
+    CurrentCommand check_optimal(CurrentCommand cmd, double T_ref, const OperatingLimits& lim, double R_s,
+                                 const MagnetFlux& flux);
 
     // The circles and their maxima for the last I_max and magnet shift (recursion 2): computed
     // again when either changes, so the answer depends on the inputs only.
@@ -102,6 +153,8 @@ private:
     int pole_pairs_;
     double nominal_L_d_, nominal_L_q_;  // incremental inductances at i = 0
     linear::CommandSolver linear_;      // Ferrari on a linear machine (recursions 0 and 1)
+    double resolution_;                 // the map's smallest grid spacing, A (level_search.hpp)
+    bool magnet_free_;
 };
 
 }  // namespace ipmsm

@@ -88,6 +88,14 @@ const std::vector<V>& ControllerModel::variables() {
          "Top of the 2-D tables' speed axis", 0.0, kInf, true},
         {"current_bandwidth", &M::current_bandwidth, Causality::parameter, Variability::fixed, "rad/s", "",
          "Closed-loop bandwidth of the current regulator", 0.0, kInf, true},
+        // appended: the value references above stay as they were
+        {"command_check", &M::command_check, Causality::parameter, Variability::fixed, "", "",
+         "1: a command that fails its check on the flux map is replaced by a checked one; 0: it is sent as the "
+         "method made it, counted in check_failures and logged once (to study a method's own commands)",
+         0, 1},
+        {"check_failures", &M::check_failures, Causality::output, Variability::discrete, "", "",
+         "Commands that failed the check on the flux map so far (each replaced by a checked one where found; the "
+         "first is logged)"},
     };
     return table;
 }
@@ -153,9 +161,45 @@ CurrentCommand ControllerModel::current_command(const Conditions& c) {
         cmd.iterations = 0;
         return cmd;
     }
-    if (method == 1)
-        return solver_->solve(T_ref, {c.omega, c.V_max, I_max}, R_s, c.shift, static_cast<Recursion>(recursion));
-    return table_->lookup(T_ref, w_m, c.V_max);
+    // Every command is checked on the map before it leaves (docs/controller.md): recursion 2's
+    // inside the solver, the others against it.
+    const OperatingLimits lim{c.omega, c.V_max, I_max};
+    CurrentCommand cmd;
+    if (method == 1 && recursion == static_cast<int>(Recursion::optimal)) {
+        cmd = solver_->solve(T_ref, lim, R_s, c.shift, Recursion::optimal);
+    } else {
+        const CurrentCommand raw = method == 1
+                                       ? solver_->solve(T_ref, lim, R_s, c.shift, static_cast<Recursion>(recursion))
+                                       : table_->lookup(T_ref, w_m, c.V_max);
+        cmd = solver_->checked(raw, T_ref, lim, R_s, c.shift);
+    }
+    if (solver_->last_check.finding != CheckFinding::passed) {
+        report_check(solver_->last_check);
+        if (command_check == 0 && solver_->last_check.replaced) {  // reported, sent as the method made it
+            const int used = cmd.iterations;
+            cmd = solver_->last_check.rejected;
+            cmd.iterations = used;
+        }
+    }
+    return cmd;
+}
+
+void ControllerModel::report_check(const CheckRecord& r) {
+    ++check_failures;
+    if (warned_check_ || !context_->log_warning) return;
+    warned_check_ = true;
+    const CurrentCommand& x = r.rejected;
+    std::ostringstream os;
+    os << "command check failed (logged once; check_failures counts them): method " << method << ", recursion "
+       << recursion << " commanded (" << x.i_d << ", " << x.i_q << ") A for T_ref = " << T_ref
+       << " N.m at w_m = " << w_m << " rad/s, u_dc = " << u_dc << " V: " << describe(r.finding)
+       << " (T_cmd = " << r.T_target << " N.m, it makes " << r.T_made << " N.m on the map); "
+       << (!r.replaced          ? "no better command found: sent as is"
+           : command_check == 0 ? "sent as is (command_check = 0)"
+           : method == 1 && recursion == static_cast<int>(Recursion::optimal)
+               ? "replaced by the robust search's command"
+               : "replaced by recursion 2's checked command");
+    context_->log_warning(os.str());
 }
 
 void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux) {

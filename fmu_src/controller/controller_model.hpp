@@ -43,6 +43,7 @@ public:
         (solver_ ? solver_->memory : unused).fields(field);
         regulator_.state.fields(field);
         field(warned_unreachable_);
+        field(check_failures), field(warned_check_);
         cache_.fields(field);
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
         field(saved);
@@ -64,6 +65,7 @@ public:
     bool voltage_saturated = false;
     double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
+    int check_failures = 0;  // commands that failed the check on the map (docs/controller.md)
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     int method = 1;        // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
     int recursion = 2;     // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
@@ -80,6 +82,7 @@ public:
     int lut_n_speed = 41;
     double w_m_max = 1256.6370614359173;            // rad/s (12 000 r/min): top of the tables' speed axis
     double current_bandwidth = 3141.5926535897932;  // rad/s (500 Hz)
+    int command_check = 1;  // 1: failing commands replaced; 0: reported only (docs/controller.md)
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
@@ -93,6 +96,7 @@ private:
     void publish(const CurrentCommand& cmd, const MagnetFlux& flux);  // the command outputs (u_*_ref set)
     void observe(const MagnetFlux& flux);
     void initial_outputs();
+    void report_check(const CheckRecord& r);  // counts; logs the first
 
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc and T_magnet
     // stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
@@ -118,6 +122,7 @@ private:
     std::optional<SaturatedOptimalCurrent> solver_;  // its warm-start memory is state
     CurrentRegulator regulator_{0.0, 0.0};
     bool warned_unreachable_ = false;
+    bool warned_check_ = false;
 };
 
 }  // namespace ipmsm

@@ -20,6 +20,9 @@ class Drive:
     V_max: float  # V
     omega: float  # electrical rad/s
     psi_d_shift: float = 0.0  # magnet temperature
+    # Search only i_d <= 0: a magnet-free machine's optima tie in mirror pairs (i, -i), and the
+    # controller's convention is the branch i_d <= 0 (docs/controller.md).
+    left_half: bool = False
 
     def torque(self, i_d, i_q):
         psi_d, psi_q = self.fmap.flux(i_d, i_q, self.psi_d_shift)
@@ -42,16 +45,27 @@ def _constraints(d: Drive, extra=()):
         {"type": "ineq", "fun": lambda x: 1.0 - x[0] ** 2 - x[1] ** 2},
         {"type": "ineq", "fun": lambda x: 1.0 - (d.voltage(x[0] * I, x[1] * I) / V) ** 2},
     ]
+    if d.left_half:
+        cons.append({"type": "ineq", "fun": lambda x: -x[0]})
     return cons + list(extra)
 
 
 def _feasible(d: Drive, i_d, i_q, rel=1e-7):
-    return np.hypot(i_d, i_q) <= d.I_max * (1 + rel) and d.voltage(i_d, i_q) <= d.V_max * (1 + rel)
+    return (np.hypot(i_d, i_q) <= d.I_max * (1 + rel) and d.voltage(i_d, i_q) <= d.V_max * (1 + rel)
+            and (not d.left_half or i_d <= rel * d.I_max))
+
+
+def _disk_of(d: Drive):
+    i_d, i_q = _disk(d.I_max)
+    if d.left_half:
+        keep = i_d <= 0
+        return i_d[keep], i_q[keep]
+    return i_d, i_q
 
 
 def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
     """Largest sign*T within both limits, and the currents giving it."""
-    i_d, i_q = _disk(d.I_max)
+    i_d, i_q = _disk_of(d)
     ok = (d.voltage(i_d, i_q) <= d.V_max)
     if not ok.any():
         return 0.0, np.array([np.nan, np.nan])
@@ -72,7 +86,7 @@ def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
 
 def min_current(d: Drive, T_target: float, T_scale: float) -> tuple[float, np.ndarray]:
     """Least current magnitude giving T_target within both limits, and the currents."""
-    i_d, i_q = _disk(d.I_max)
+    i_d, i_q = _disk_of(d)
     T = d.torque(i_d, i_q)
     ok = (d.voltage(i_d, i_q) <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
     I = np.where(ok, np.hypot(i_d, i_q), np.inf)
@@ -89,3 +103,55 @@ def min_current(d: Drive, T_target: float, T_scale: float) -> tuple[float, np.nd
             if np.hypot(*x) < best_I:
                 best_I, best_x = float(np.hypot(*x)), x
     return best_I, best_x
+
+
+class LevelScan:
+    """The least current for many torques at one operating point, by rays: the torque on a polar
+    grid (n_r radii x n_rays angles), for each target the first crossing along every ray
+    (bisection on the spline), the least radius among the rays within the voltage limit, and
+    where the voltage limit cuts the level curve next to it, bisection on the angle. An upper
+    bound on the least current, within (curvature x angle step^2) of it: an independent
+    reference for dense torque sweeps, where SLSQP per point would take minutes."""
+
+    def __init__(self, d: Drive, sign: float, n_rays: int = 1024, n_r: int = 200):
+        lo, hi = (0.5 * np.pi, 1.5 * np.pi) if d.left_half else (-np.pi, np.pi)
+        self.d, self.sign = d, sign
+        self.theta = np.linspace(lo, hi, n_rays, endpoint=not d.left_half)
+        self.r = np.linspace(0.0, d.I_max, n_r)
+        R, TH = np.meshgrid(self.r, self.theta, indexing="ij")
+        self.T = sign * d.torque(R * np.cos(TH), R * np.sin(TH))  # (n_r, n_rays)
+
+    def _roots(self, T_target: float, theta: np.ndarray, lo: np.ndarray, hi: np.ndarray, n: int = 45):
+        c, s = np.cos(theta), np.sin(theta)
+        for _ in range(n):
+            m = 0.5 * (lo + hi)
+            above = self.sign * self.d.torque(m * c, m * s) >= T_target
+            hi, lo = np.where(above, m, hi), np.where(above, lo, m)
+        return hi
+
+    def least_current(self, T_target: float) -> float:
+        """Least |i| with sign*T = T_target (> 0) within both limits; inf if none."""
+        d = self.d
+        above = self.T >= T_target
+        has = above.any(axis=0)
+        k = np.argmax(above, axis=0)
+        lo = self.r[np.maximum(k - 1, 0)]
+        hi = self.r[k]
+        r = np.where(has, self._roots(T_target, self.theta, lo, hi), np.inf)
+        ok = has & (d.voltage(r * np.cos(self.theta), r * np.sin(self.theta)) <= d.V_max)
+        if not ok.any():
+            return np.inf
+        j = int(np.argmin(np.where(ok, r, np.inf)))
+        best = r[j]
+        n = len(self.theta)
+        for o in (j - 1, j + 1):  # the voltage limit between j and an infeasible neighbour
+            if 0 <= o < n and has[o] and not ok[o]:
+                a, b = self.theta[j], self.theta[o]
+                for _ in range(50):
+                    m = 0.5 * (a + b)
+                    rm = float(self._roots(T_target, np.array([m]), np.array([0.0]), np.array([d.I_max]), 80)[0])
+                    if d.voltage(rm * np.cos(m), rm * np.sin(m)) <= d.V_max:
+                        a, best = m, min(best, rm)
+                    else:
+                        b = m
+        return float(best)
