@@ -15,6 +15,7 @@
 
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
+#include "flux_map_generators.hpp"
 #include "machine/magnet_flux.hpp"
 
 using namespace ipmsm;

@@ -7,6 +7,7 @@
 
 #include "control/fault_injection.hpp"
 #include "control/saturated_optimal_current.hpp"
+#include "flux_map_generators.hpp"
 #include "machine/magnet_flux.hpp"
 
 using namespace ipmsm;
