@@ -205,6 +205,11 @@ const std::vector<V>& DriveModel::variables() {
         parameter("cvode_method", &M::controller_, &M::plant_),
         parameter("cvode_max_order", &M::controller_, &M::plant_),
         parameter("cvode_max_steps", &M::controller_, &M::plant_),
+        // appended (value references of the above unchanged): the controller's command check
+        parameter("command_check", &M::controller_, &M::plant_),
+        {"check_failures", fmi::forward(&M::controller_, &ControllerModel::check_failures), Causality::output,
+         Variability::discrete, "", "",
+         "Commands that failed the controller's check on the map since the start (docs/controller.md)"},
     };
     return table;
 }

@@ -250,6 +250,10 @@ SCHEMA: tuple[Key, ...] = (
         "`ferrari` (the FMU's default)"),
     Key("controller", "recursion", Rule("int", lo=0, hi=2), "", "inductance recursion (0, 1, 2)",
         "2 (the FMU's default)"),
+    Key("controller", "command_check", Rule("int", lo=0, hi=1), "",
+        "1: a command that fails its check on the flux map is replaced by a checked one; 0: sent as the "
+        "method made it, counted and logged (to study a method alone; docs/controller.md)",
+        "1 (the FMU's default)"),
     Key("controller", "k_u", Rule("real", lo=0.0, hi=1.0, lo_open=True), "1",
         "voltage utilisation: V_max = k_u u_dc / sqrt 3", _meta("k_u")),
     Key("controller", "current_bandwidth", Rule("real", lo=0.0, hi=1e6, lo_open=True),
@@ -322,6 +326,7 @@ class MotorSpec:
 #: the controller FMU's own defaults of `method` and `recursion` (its modelDescription)
 METHOD_DEFAULT = "ferrari"
 RECURSION_DEFAULT = 2
+COMMAND_CHECK_DEFAULT = 1
 
 
 @dataclass(frozen=True)
@@ -331,6 +336,7 @@ class ControllerSpec:
     k_u: float                        # V_max = k_u u_dc / sqrt 3
     current_bandwidth: float | None   # rad/s; None: the FMU's default
     lut_u_dc: float                   # V, the 2-D tables' DC voltage
+    command_check: int = COMMAND_CHECK_DEFAULT  # 1: failing commands replaced; 0: reported only
 
 
 @dataclass(frozen=True)
@@ -376,8 +382,9 @@ class DriveDescription:
         return MotorData(m.pole_pairs, m.R_s, m.T_winding_ref, m.alpha_cu, m.I_max, self.controller.k_u)
 
     def controller_params(self, method: str | None = None, recursion: int | None = None,
-                          lut_u_dc: float | None = None, lut_T_magnet: float | None = None) -> dict:
-        """The controller FMU's parameters; method/recursion/lut_* None: the drive's."""
+                          lut_u_dc: float | None = None, lut_T_magnet: float | None = None,
+                          command_check: int | None = None) -> dict:
+        """The controller FMU's parameters; method/recursion/lut_*/command_check None: the drive's."""
         m, c = self.motor, self.controller
         method = c.method if method is None else method
         if method not in METHODS:
@@ -386,7 +393,8 @@ class DriveDescription:
                  flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, I_max=m.I_max, k_u=c.k_u,
                  T_magnet_ref=m.T_magnet_ref, k_psi_T=m.k_psi_T,
                  lut_u_dc=c.lut_u_dc if lut_u_dc is None else lut_u_dc,
-                 lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet)
+                 lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet,
+                 command_check=c.command_check if command_check is None else command_check)
         # the keys without a value of their own leave the FMU's default (its modelDescription start)
         if m.w_m_max is not None:
             p["w_m_max"] = m.w_m_max
@@ -570,6 +578,7 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
 
     controller = ControllerSpec(
         method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
+        command_check=c.get("command_check", COMMAND_CHECK_DEFAULT),
         k_u=float(values["k_u"]), current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
         lut_u_dc=float(values["u_dc"]))
     for key in ("k_u", "lut_u_dc"):   # from the map's metadata too: the same rules as the file's

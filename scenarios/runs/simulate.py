@@ -76,6 +76,7 @@ class RunSpec:
     drive: DriveDescription = field(default_factory=load_drive)
     method: str | None = None
     recursion: int | None = None
+    command_check: int | None = None  # the controller's command check (None: the drive's)
     conditions: Conditions = field(default_factory=Conditions)
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
@@ -201,7 +202,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     controller_fmu, plant_fmu = fmus or fmu_paths()
     cond, vp, dt = spec.conditions, drive.vehicle, spec.dt
     n_inner = spec.steps_per_vehicle_step()
-    c_params = drive.controller_params(method, recursion, cond.lut_u_dc, cond.lut_T_magnet)
+    c_params = drive.controller_params(method, recursion, cond.lut_u_dc, cond.lut_T_magnet, spec.command_check)
     if spec.lut_grid is not None:
         c_params.update(lut_n_torque=spec.lut_grid[0], lut_n_speed=spec.lut_grid[1])
     p_params = drive.plant_params()

@@ -58,6 +58,7 @@ class Run:
     T_winding_degC: float = T_DEFAULT_DEGC
     lut_n_torque: int | None = None  # the 2-D tables' grid points; None: the controller's default
     lut_n_speed: int | None = None
+    command_check: int = 1           # the controller's: 1 replaces failing commands, 0 studies a method alone
 
     @property
     def lut_grid(self) -> tuple[int, int] | None:
@@ -97,7 +98,7 @@ class Run:
 #: [study] key (a list) -> Run field; the [[run]] tables use the field names
 AXES = {"drives": "drive", "cycles": "cycle", "methods": "method", "recursions": "recursion",
         "u_dc_scale": "u_dc_scale", "T_magnet_degC": "T_magnet_degC", "T_winding_degC": "T_winding_degC",
-        "lut_grids": "lut_grid"}
+        "lut_grids": "lut_grid", "command_checks": "command_check"}
 RUN_KEYS = tuple(AXES.values()) + ("window_s",)
 
 #: the controller's bounds of lut_n_torque and lut_n_speed (its modelDescription)
@@ -168,6 +169,11 @@ def _value(field: str, v, path: Path | None, key: str):
         r = _number(v, path, key, integer=True)
         if r not in RECURSIONS:
             raise SpecError(f"{_where(path, key)}: expected one of {RECURSIONS}, got {r}")
+        return r
+    if field == "command_check":
+        r = _number(v, path, key, integer=True)
+        if r not in (0, 1):
+            raise SpecError(f"{_where(path, key)}: expected 0 or 1, got {r}")
         return r
     x = _number(v, path, key)
     if field == "u_dc_scale" and not 0.0 < x <= U_DC_SCALE_MAX:
@@ -295,4 +301,4 @@ def run_spec(run: Run, drive: DriveDescription | None = None) -> RunSpec:
     """The simulation's specification of a run (its drive loaded already, or loaded here)."""
     drive = drive if drive is not None else load_drive(run.drive or None)
     return RunSpec(drive=drive, method=run.method, recursion=run.recursion, conditions=run.conditions(),
-                   lut_grid=run.lut_grid)
+                   lut_grid=run.lut_grid, command_check=run.command_check)

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
-from scenarios.paths import DATA_DIR, ROOT
+from scenarios.core.paths import DATA_DIR, ROOT
+from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
 
 RPM = math.pi / 30.0  # rad/s per r/min
 FLUXMAPS = DATA_DIR / "fluxmaps"
@@ -61,7 +61,7 @@ def _prius(tmp: Path) -> Path:
 def _rawp(tmp: Path) -> Path:
     out = tmp / "syre_rawp_iq_lt_47A.csv"
     if not out.exists():
-        from scenarios.map_import import import_map
+        from scenarios.maps.importer import import_map
         fmap = import_map(FLUXMAPS / "real" / "syre_RAWP.mat").flux_map()
         write_flux_map(out, _cropped(fmap, lambda d: np.ones_like(d, bool), lambda q: np.abs(q) < 47.0),
                        "SyR-e RAWP as imported, |i_q| >= 47 A dropped (psi_q not monotone there)")

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from map_corpus import BY_NAME, CORPUS, RPM, CorpusMap
 
-from scenarios.flux_map import FluxMap, linear_flux_map, read_flux_map, write_flux_map
-from scenarios.fmu import Fmu
+from scenarios.cosim.fmu import Fmu
+from scenarios.maps.flux_map import FluxMap, linear_flux_map, read_flux_map, write_flux_map
 
 from brute_force import Drive, LevelScan, max_torque, min_current
 
