@@ -67,19 +67,31 @@ TEST(ThermalNetwork, StepEqualsAFineRungeKuttaIntegration) {
     }
 }
 
-TEST(ThermalNetwork, StepsCompose) {
+TEST(ThermalNetwork, StepsComposeAcrossBothEvaluations) {
+    // short steps sum the series, long ones use the eigen-decomposition: the same flow
     const LptnParams p;
     MotorPropagator prop(capacities(p));
     prop.set_conductances(conductances(p, 800.0 * kRpm, 293.15));
     const NodeVector P = node_losses(p, 2000.0, 300.0, 800.0 * kRpm, 250.0);
     const BoundaryVector tb(293.15, 293.15);
     const NodeVector theta0 = NodeVector::Constant(293.15);
-    const auto once = prop.step(theta0, P, tb, 37.0);
-    const auto first = prop.step(theta0, P, tb, 12.0);
-    const auto second = prop.step(first.theta, P, tb, 25.0);
+    const double h = 0.9 * prop.series_step_max();        // series
+    const auto once = prop.step(theta0, P, tb, 2.0 * h);  // eigen-decomposition
+    const auto first = prop.step(theta0, P, tb, h);
+    const auto second = prop.step(first.theta, P, tb, h);
     EXPECT_LT((once.theta - second.theta).cwiseAbs().maxCoeff(), 1e-10);
-    EXPECT_NEAR(once.boundary[coolant], first.boundary[coolant] + second.boundary[coolant],
-                1e-10 * std::abs(once.boundary[coolant]));
+    for (int k : {coolant, ambient})
+        EXPECT_NEAR(once.boundary[k], first.boundary[k] + second.boundary[k], 1e-10 * std::abs(once.boundary[k]));
+    // 1000 short steps against one long one
+    NodeVector theta = theta0;
+    double to_coolant = 0.0;
+    for (int k = 0; k < 1000; ++k) {
+        const auto s = prop.step(theta, P, tb, 0.01);
+        theta = s.theta, to_coolant += s.boundary[coolant];
+    }
+    const auto ten = prop.step(theta0, P, tb, 10.0);
+    EXPECT_LT((ten.theta - theta).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_NEAR(ten.boundary[coolant], to_coolant, 1e-9 * std::abs(to_coolant));
 }
 
 TEST(ThermalNetwork, HeatBalanceOverARunWithChangingLossesAndSpeed) {
