@@ -34,7 +34,7 @@ double magnet_coolant(const LptnParams& p, double n, double c) {
 }
 }  // namespace
 
-double normalised_speed(const LptnParams& p, double w_m) { return unit_clamp(std::abs(w_m) / p.n_ref); }
+double normalised_speed(const LptnParams& p, double w_m) { return unit_clamp(std::abs(w_m) / p.w_m_ref); }
 
 NodeVector capacities(const LptnParams& p) {
     NodeVector C;
@@ -63,9 +63,10 @@ NetworkConductances<kNodes, kBoundaries> conductances(const LptnParams& p, doubl
 
 IronLossSplit iron_loss_split(const LptnParams& p, double w_m, double I_rms) {
     const double n = normalised_speed(p, w_m);
-    const double i = unit_clamp(std::abs(I_rms) / p.I_ref);
-    const double k1 = unit_clamp(p.k1_0 + p.k1_n * n + p.k1_i * i + p.k1_ni * n * i);
-    return {p.k2 * k1, (1.0 - p.k2) * k1, 1.0 - k1};
+    const double i = unit_clamp(std::abs(I_rms) / p.I_rms_ref);
+    const double k_stator =
+        unit_clamp(p.k_fe_stator_0 + p.k_fe_stator_n * n + p.k_fe_stator_i * i + p.k_fe_stator_ni * n * i);
+    return {p.k_fe_yoke * k_stator, (1.0 - p.k_fe_yoke) * k_stator, 1.0 - k_stator};
 }
 
 NodeVector node_losses(const LptnParams& p, double P_cu, double P_fe, double w_m, double I_rms) {
@@ -87,11 +88,12 @@ void validate(const LptnParams& p) {
     require(positive(p.R_yoke_winding), "R_yoke_winding (K/W, > 0)", p.R_yoke_winding);
     require(positive(p.R_yoke_tooth), "R_yoke_tooth (K/W, > 0)", p.R_yoke_tooth);
     require(positive(p.R_tooth_winding), "R_tooth_winding (K/W, > 0)", p.R_tooth_winding);
-    require(positive(p.n_ref), "n_ref (rad/s, > 0)", p.n_ref);
-    require(positive(p.I_ref), "I_ref (A, > 0)", p.I_ref);
-    require(std::isfinite(p.k2) && p.k2 >= 0.0 && p.k2 <= 1.0, "k2 (within [0, 1])", p.k2);
-    for (double k : {p.k1_0, p.k1_n, p.k1_i, p.k1_ni, p.k_coolant_yoke, p.R_magnet_coolant_0, p.R_magnet_coolant_n,
-                     p.R_magnet_coolant_c, p.R_magnet_coolant_nc})
+    require(positive(p.w_m_ref), "w_m_ref (rad/s, > 0)", p.w_m_ref);
+    require(positive(p.I_rms_ref), "I_rms_ref (A, > 0)", p.I_rms_ref);
+    require(std::isfinite(p.k_fe_yoke) && p.k_fe_yoke >= 0.0 && p.k_fe_yoke <= 1.0, "k_fe_yoke (within [0, 1])",
+            p.k_fe_yoke);
+    for (double k : {p.k_fe_stator_0, p.k_fe_stator_n, p.k_fe_stator_i, p.k_fe_stator_ni, p.k_coolant_yoke,
+                     p.R_magnet_coolant_0, p.R_magnet_coolant_n, p.R_magnet_coolant_c, p.R_magnet_coolant_nc})
         require(std::isfinite(k), "of the fits (finite)", k);
     const struct {
         const char* name;

@@ -21,9 +21,10 @@
 //     tooth --- R_tooth_magnet(n) - magnet
 //     winding - R_winding_magnet(n) magnet
 //
-// n = |speed| / n_ref; theta_c the coolant temperature in degC. Losses: the copper loss into the
-// winding; the iron loss split k1 to the stator (k2 of it to the yoke, 1 - k2 to the teeth) and
-// 1 - k1 to the rotor (magnet node), k1 a bilinear fit in speed and current.
+// n = |w_m| / w_m_ref; theta_c the coolant temperature in degC. Losses: the copper loss into the
+// winding; the iron loss split k_fe_stator to the stator (k_fe_yoke of it to the yoke, the rest to
+// the teeth) and 1 - k_fe_stator to the rotor (magnet node), k_fe_stator a bilinear fit in speed
+// and current.
 #pragma once
 
 #include <Eigen/Dense>
@@ -72,19 +73,20 @@ struct LptnParams {
     double R_magnet_coolant_n = -0.2484;
     double R_magnet_coolant_c = 0.0276;
     double R_magnet_coolant_nc = 0.3331;
-    // iron-loss split (source: ploss_k_1_0..3, ploss_k_2): stator share
-    // k1 = clamp(k1_0 + k1_n n + k1_i i + k1_ni n i, 0, 1), i = I_rms / I_ref; yoke share of it k2
-    double k1_0 = 0.5441;
-    double k1_n = 78e-4;
-    double k1_i = 0.0352;
-    double k1_ni = -0.7438;
-    double k2 = 0.8655;
+    // iron-loss split (source: ploss_k_1_0..3, ploss_k_2): the stator's share
+    // k_fe_stator = clamp(k_fe_stator_0 + k_fe_stator_n n + k_fe_stator_i i + k_fe_stator_ni n i, 0, 1),
+    // i = I_rms / I_rms_ref; the yoke's share of the stator's k_fe_yoke
+    double k_fe_stator_0 = 0.5441;
+    double k_fe_stator_n = 78e-4;
+    double k_fe_stator_i = 0.0352;
+    double k_fe_stator_ni = -0.7438;
+    double k_fe_yoke = 0.8655;
     // normalisations of the fits (source: motor_speed / 6000 (r/min), current / 256 (A, RMS))
-    double n_ref = 6000.0 * 2.0 * 3.14159265358979323846 / 60.0;  // rad/s (mechanical)
-    double I_ref = 256.0;                                         // A, RMS phase current
+    double w_m_ref = 6000.0 * 2.0 * 3.14159265358979323846 / 60.0;  // rad/s (mechanical)
+    double I_rms_ref = 256.0;                                       // A, RMS phase current
 };
 
-// n = |w_m| / n_ref, i = I_rms / I_ref and c = theta_c / 100 degC are each held within [0, 1]:
+// n = |w_m| / w_m_ref, i = I_rms / I_rms_ref and c = theta_c / 100 degC are each held within [0, 1]:
 // the fits are not extrapolated (beyond n = 1 the bilinear magnet-coolant resistance falls to zero
 // and below at cold coolant; docs/thermal.md).
 double normalised_speed(const LptnParams& p, double w_m);

@@ -29,9 +29,9 @@ int main(int argc, char** argv) {
                                                         {"R_tooth_winding", &p.R_tooth_winding},
                                                         {"R_coolant_yoke", &p.R_coolant_yoke},
                                                         {"k_coolant_yoke", &p.k_coolant_yoke},
-                                                        {"k2", &p.k2},
-                                                        {"n_ref", &p.n_ref},
-                                                        {"I_ref", &p.I_ref}};
+                                                        {"k_fe_yoke", &p.k_fe_yoke},
+                                                        {"w_m_ref", &p.w_m_ref},
+                                                        {"I_rms_ref", &p.I_rms_ref}};
         for (int a = 2; a < argc; ++a) {
             const std::string arg = argv[a];
             const auto eq = arg.find('=');
