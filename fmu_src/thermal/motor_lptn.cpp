@@ -53,11 +53,12 @@ NetworkConductances<kNodes, kBoundaries> conductances(const LptnParams& p, doubl
     link(stator_yoke, winding, p.R_yoke_winding);
     link(stator_yoke, stator_tooth, p.R_yoke_tooth);
     link(stator_tooth, winding, p.R_tooth_winding);
-    link(stator_tooth, magnet, p.R_tooth_magnet.at(n));
-    link(winding, magnet, p.R_winding_magnet.at(n));
+    link(stator_tooth, magnet, speed_resistance(p.R_tooth_magnet_a, p.R_tooth_magnet_b, p.R_tooth_magnet_c, n));
+    link(winding, magnet, speed_resistance(p.R_winding_magnet_a, p.R_winding_magnet_b, p.R_winding_magnet_c, n));
     g.boundary(stator_yoke, coolant) = 1.0 / coolant_yoke(p, c);
     g.boundary(magnet, coolant) = 1.0 / magnet_coolant(p, n, c);
-    g.boundary(magnet, ambient) = 1.0 / p.R_magnet_ambient.at(n);
+    g.boundary(magnet, ambient) =
+        1.0 / speed_resistance(p.R_magnet_ambient_a, p.R_magnet_ambient_b, p.R_magnet_ambient_c, n);
     return g;
 }
 
@@ -97,14 +98,14 @@ void validate(const LptnParams& p) {
         require(std::isfinite(k), "of the fits (finite)", k);
     const struct {
         const char* name;
-        SpeedResistance R;
-    } speed_dependent[] = {{"R_tooth_magnet", p.R_tooth_magnet},
-                           {"R_winding_magnet", p.R_winding_magnet},
-                           {"R_magnet_ambient", p.R_magnet_ambient}};
+        double a, b, c;
+    } speed_dependent[] = {{"R_tooth_magnet", p.R_tooth_magnet_a, p.R_tooth_magnet_b, p.R_tooth_magnet_c},
+                           {"R_winding_magnet", p.R_winding_magnet_a, p.R_winding_magnet_b, p.R_winding_magnet_c},
+                           {"R_magnet_ambient", p.R_magnet_ambient_a, p.R_magnet_ambient_b, p.R_magnet_ambient_c}};
     for (const auto& r : speed_dependent) {
-        require(std::isfinite(r.R.a) && r.R.a >= 0.0, std::string(r.name) + "'s a (K/W, >= 0)", r.R.a);
-        require(positive(r.R.b), std::string(r.name) + "'s b (> 0)", r.R.b);
-        require(positive(r.R.c), std::string(r.name) + "'s c (K/W, > 0)", r.R.c);
+        require(std::isfinite(r.a) && r.a >= 0.0, std::string(r.name) + "_a (K/W, >= 0)", r.a);
+        require(positive(r.b), std::string(r.name) + "_b (> 0)", r.b);
+        require(positive(r.c), std::string(r.name) + "_c (K/W, > 0)", r.c);
     }
     // linear and bilinear fits: positive over [0, 1] when positive at the ends / corners
     for (double c : {0.0, 1.0}) {

@@ -44,10 +44,7 @@ using MotorPropagator = NetworkPropagator<kNodes, kBoundaries>;
 
 // R(n) = a exp(-n / b) + c (K/W): heat transfer across the air gap and in the end space improves
 // with the rotor's speed (the source's exponential fit)
-struct SpeedResistance {
-    double a, b, c;
-    double at(double n) const { return a * std::exp(-n / b) + c; }
-};
+inline double speed_resistance(double a, double b, double c, double n) { return a * std::exp(-n / b) + c; }
 
 struct LptnParams {
     // heat capacities, J/K (source: caps0..caps3 in the order pm, stator_yoke, stator_tooth, stator_winding)
@@ -63,10 +60,11 @@ struct LptnParams {
     // (source: lin_Rs_bias, lin_Rs_slope): the water jacket's convection improves as the coolant warms
     double R_coolant_yoke = 18e-3;
     double k_coolant_yoke = -54e-4;  // 1/K
-    // speed-dependent resistances, K/W (source: exp_Rs_magn0..2, exp_Rs_b0..2, exp_Rs_a0..2)
-    SpeedResistance R_tooth_magnet{1.7275, 0.1573, 0.3039};
-    SpeedResistance R_winding_magnet{0.8486, 0.1428, 0.2319};
-    SpeedResistance R_magnet_ambient{0.6349, 0.1184, 0.1205};
+    // speed-dependent resistances a exp(-n / b) + c, a and c in K/W
+    // (source: exp_Rs_magn0..2 = a, exp_Rs_b0..2 = b, exp_Rs_a0..2 = c)
+    double R_tooth_magnet_a = 1.7275, R_tooth_magnet_b = 0.1573, R_tooth_magnet_c = 0.3039;
+    double R_winding_magnet_a = 0.8486, R_winding_magnet_b = 0.1428, R_winding_magnet_c = 0.2319;
+    double R_magnet_ambient_a = 0.6349, R_magnet_ambient_b = 0.1184, R_magnet_ambient_c = 0.1205;
     // magnet (rotor) to coolant through shaft and bearings, K/W, bilinear in n and c = theta_c / 100 degC:
     // r0 + r_n n + r_c c + r_nc n c (source: bipoly_Rs_magn, bipoly_Rs_a, bipoly_Rs_b, bipoly_Rs_c)
     double R_magnet_coolant_0 = 0.3528;

@@ -13,11 +13,13 @@ LptnParams validated(const LptnParams& p) {
 }
 }  // namespace
 
-MotorThermal::MotorThermal(const LptnParams& p, double theta0) : p_(validated(p)), propagator_(capacities(p_)) {
-    if (!(std::isfinite(theta0) && theta0 > 0.0))
-        throw std::invalid_argument("thermal network: initial temperature " + std::to_string(theta0) + " K");
-    theta_.setConstant(theta0);
-    theta0_ = theta_;
+MotorThermal::MotorThermal(const LptnParams& p, const NodeVector& theta0)
+    : p_(validated(p)), propagator_(capacities(p_)) {
+    for (int i = 0; i < kNodes; ++i)
+        if (!(std::isfinite(theta0[i]) && theta0[i] > 0.0))
+            throw std::invalid_argument("thermal network: initial temperature " + std::to_string(theta0[i]) + " K");
+    theta_ = theta0;
+    theta0_ = theta0;
 }
 
 void MotorThermal::advance(double h, double E_cu_step, double E_fe_step, const StepConditions& at) {

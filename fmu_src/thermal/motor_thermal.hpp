@@ -19,8 +19,10 @@ struct StepConditions {
 
 class MotorThermal {
 public:
-    // All nodes start at theta0 (K); throws std::invalid_argument on bad parameters.
-    MotorThermal(const LptnParams& p, double theta0);
+    // The nodes start at theta0 (K, each, or all at one); throws std::invalid_argument on bad
+    // parameters or temperatures.
+    MotorThermal(const LptnParams& p, const NodeVector& theta0);
+    MotorThermal(const LptnParams& p, double theta0) : MotorThermal(p, NodeVector::Constant(theta0)) {}
 
     // Advances by h (s) with the copper and iron losses' integrals over the step (J, >= 0).
     void advance(double h, double E_cu_step, double E_fe_step, const StepConditions& at);

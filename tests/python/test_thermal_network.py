@@ -180,3 +180,11 @@ def test_bad_parameters_exit_2_naming_them():
     assert r.returncode == 2 and "C_winding" in r.stderr
     r = subprocess.run([str(TRACE), "293.15"], input="0.1,-1,0,0,0,300,300\n", capture_output=True, text=True)
     assert r.returncode == 2 and "losses" in r.stderr
+
+
+def test_the_cpp_tests_are_built():
+    """The GoogleTest cases of tests/cpp/test_thermal_network.cpp are in build/bin/unit_tests (a
+    test list that left the file out would drop them silently)."""
+    unit_tests = paths.BUILD_DIR / "bin" / "unit_tests"
+    listed = subprocess.run([str(unit_tests), "--gtest_list_tests"], capture_output=True, text=True, check=True).stdout
+    assert "ThermalNetwork." in listed
