@@ -24,8 +24,10 @@ MotorThermal::MotorThermal(const LptnParams& p, const NodeVector& theta0)
 
 void MotorThermal::advance(double h, double E_cu_step, double E_fe_step, const StepConditions& at) {
     if (!(std::isfinite(h) && h > 0.0)) throw std::invalid_argument("thermal network: step length must be > 0");
-    if (!(std::isfinite(E_cu_step) && E_cu_step >= 0.0 && std::isfinite(E_fe_step) && E_fe_step >= 0.0))
-        throw std::invalid_argument("thermal network: losses over a step must be finite and >= 0");
+    // (finite, not >= 0: a quadrature's rounding may leave a zero loss at -1e-20 J; it enters the
+    // balance as it is)
+    if (!(std::isfinite(E_cu_step) && std::isfinite(E_fe_step)))
+        throw std::invalid_argument("thermal network: losses over a step must be finite");
     if (!(std::isfinite(at.T_coolant) && at.T_coolant > 0.0 && std::isfinite(at.T_ambient) && at.T_ambient > 0.0))
         throw std::invalid_argument("thermal network: boundary temperatures must be finite and > 0 K");
     propagator_.set_conductances(conductances(p_, at.w_m, at.T_coolant));

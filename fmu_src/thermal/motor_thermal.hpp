@@ -24,7 +24,7 @@ public:
     MotorThermal(const LptnParams& p, const NodeVector& theta0);
     MotorThermal(const LptnParams& p, double theta0) : MotorThermal(p, NodeVector::Constant(theta0)) {}
 
-    // Advances by h (s) with the copper and iron losses' integrals over the step (J, >= 0).
+    // Advances by h (s) with the copper and iron losses' integrals over the step (J).
     void advance(double h, double E_cu_step, double E_fe_step, const StepConditions& at);
 
     double theta(Node i) const { return theta_[i]; }

@@ -137,7 +137,7 @@ TEST(ThermalNetwork, BadParametersAreRefused) {
     EXPECT_THROW(MotorThermal(p, 293.15), std::invalid_argument);
     p = LptnParams();
     MotorThermal net(p, 293.15);
-    EXPECT_THROW(net.advance(0.1, -1.0, 0.0, StepConditions()), std::invalid_argument);
+    EXPECT_THROW(net.advance(0.0, 1.0, 0.0, StepConditions()), std::invalid_argument);
     EXPECT_THROW(net.advance(0.1, std::nan(""), 0.0, StepConditions()), std::invalid_argument);
     // an isolated node has no steady state
     MotorPropagator prop(capacities(p));

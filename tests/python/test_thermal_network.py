@@ -178,7 +178,7 @@ def test_time_varying_losses_against_solve_ivp(net, h, t_end):
 def test_bad_parameters_exit_2_naming_them():
     r = subprocess.run([str(TRACE), "293.15", "C_winding=-5"], input="", capture_output=True, text=True)
     assert r.returncode == 2 and "C_winding" in r.stderr
-    r = subprocess.run([str(TRACE), "293.15"], input="0.1,-1,0,0,0,300,300\n", capture_output=True, text=True)
+    r = subprocess.run([str(TRACE), "293.15"], input="0.1,nan,0,0,0,300,300\n", capture_output=True, text=True)
     assert r.returncode == 2 and "losses" in r.stderr
 
 
