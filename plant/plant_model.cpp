@@ -424,6 +424,22 @@ void PlantModel::update_outputs(const DqFluxOde& o, double i_d_now, double i_q_n
     R_s_T = o.R;
 }
 
+void PlantModel::advance_thermal(double h, double E_cu_step, double E_fe_step) {
+    if (thermal_ && h > 0.0) {  // the step's exact loss integrals heat the network
+        thermal::StepConditions at;
+        at.w_m = w_m;
+        at.I_rms = std::sqrt(0.5 * (i_d * i_d + i_q * i_q));  // peak amplitude-invariant -> RMS
+        at.T_coolant = T_coolant;
+        at.T_ambient = T_ambient;
+        try {
+            thermal_->advance(h, E_cu_step, E_fe_step, at);
+        } catch (const std::invalid_argument& e) {
+            throw fmi::Error(e.what());
+        }
+    }
+    update_thermal_outputs();
+}
+
 void PlantModel::update_thermal_outputs() {
     if (thermal_) {
         theta_winding = thermal_->theta(thermal::winding);
@@ -463,15 +479,7 @@ void PlantModel::do_step(double t, double h) {
         E_fe += e[StepIntegrands::P_fe];
         E_mech += w_m * e[StepIntegrands::T_e] - e[StepIntegrands::P_fe];
         T_e_impulse += e[StepIntegrands::T_e];
-        if (thermal_ && h > 0.0) {  // the step's exact loss integrals heat the network
-            thermal::StepConditions at;
-            at.w_m = w_m;
-            at.I_rms = std::sqrt(0.5 * (i_d * i_d + i_q * i_q));  // peak amplitude-invariant -> RMS
-            at.T_coolant = T_coolant;
-            at.T_ambient = T_ambient;
-            thermal_->advance(h, e[StepIntegrands::P_cu], e[StepIntegrands::P_fe], at);
-        }
-        update_thermal_outputs();
+        if (thermal_each_step) advance_thermal(h, e[StepIntegrands::P_cu], e[StepIntegrands::P_fe]);
     } catch (const std::exception& e) {
         std::ostringstream os;
         os << e.what() << " [inputs u_d = " << num(u_d) << " V, u_q = " << num(u_q) << " V, w_m = " << num(w_m)

@@ -134,6 +134,14 @@ public:
     bool thermal_model = false;   // the thermal network sets T_winding, T_magnet (docs/thermal.md)
     thermal::LptnParams lptn;     // its parameters (forwarded by name)
 
+    // Not a variable: false lets a model that holds the plant (IpmsmDrive) advance the network
+    // once per its own communication step (advance_thermal) instead of at every plant step.
+    bool thermal_each_step = true;
+    bool thermal_on() const { return thermal_.has_value(); }
+    // Heats the network over h (s) with the loss integrals E_cu_step, E_fe_step (J), at the present
+    // speed, currents and boundary temperatures; updates the thermal outputs.
+    void advance_thermal(double h, double E_cu_step, double E_fe_step);
+
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:

@@ -3,6 +3,7 @@ disconnected (no output moves with its inputs or parameters, the temperatures ar
 on, the heat balance closes on the plant's own loss integrals, the temperatures are the
 network's (build/bin/thermal_trace fed the plant's step losses: the same to 1e-9 K), R_s and the
 magnet flux follow them, FMU states restore them, bad network parameters are refused."""
+import math
 import subprocess
 
 import numpy as np
@@ -136,3 +137,51 @@ def test_bad_network_parameters_are_refused(plant):
     p.set(thermal_model=True, R_magnet_coolant_nc=-2.0)  # the bilinear fit negative at a corner
     text = refused(p, p.exit, match="R_magnet_coolant")
     assert "thermal network" in text
+
+
+# --- IpmsmDrive: the plant's network, advanced once per communication step ----------------------
+
+@pytest.fixture
+def drives(fmu_instances):
+    return lambda name="drive": fmu_instances("IpmsmDrive", name, logging_on=True)
+
+
+def drive_cycle(d, n, dt=1e-3):
+    """n drive steps of dt: a torque ramp up and down at a rising speed; per step what the
+    thermal network needs (h, E_cu, E_fe increments, w_m, I_rms at the end)."""
+    steps, prev = [], d.get("E_cu", "E_fe")
+    for k in range(n):
+        w_m = 200.0 + 0.4 * k
+        d.set(T_ref=150.0 * math.sin(math.pi * k / n), w_m=w_m)
+        assert d.step(dt) in (OK, WARNING), d.log.text()
+        E = d.get("E_cu", "E_fe")
+        i_d, i_q = d.get("i_d", "i_q")
+        steps.append((dt, E[0] - prev[0], E[1] - prev[1], w_m, math.sqrt(0.5 * (i_d**2 + i_q**2))))
+        prev = E
+    return steps
+
+
+def test_drive_off_outputs_the_inputs(drives):
+    d = drives()
+    d.init(T_winding=330.0, T_magnet=350.0, u_dc=355.0, T_coolant=250.0)
+    drive_cycle(d, 20)
+    assert d.get("theta_winding", "theta_magnet") == [330.0, 350.0]
+    assert d.get("P_coolant", "E_coolant", "E_ambient", "E_stored") == [0.0, 0.0, 0.0, 0.0]
+
+
+def test_drive_on_heat_balance_and_the_network_fed_the_drives_losses(drives):
+    d = drives()
+    T_c, T_a = 318.15, 303.15
+    d.init(thermal_model=True, T_winding=310.0, T_magnet=310.0, u_dc=355.0, T_coolant=T_c, T_ambient=T_a,
+           C_winding=50.0)  # a light winding: it heats visibly in 0.3 s
+    steps = drive_cycle(d, 300)
+    E_cu, E_fe, E_st, E_c, E_a = d.get("E_cu", "E_fe", "E_stored", "E_coolant", "E_ambient")
+    assert E_cu + E_fe > 50.0
+    assert abs(E_cu + E_fe - E_st - E_c - E_a) < 1e-6 * (E_cu + E_fe)
+    text = "".join(",".join(repr(float(x)) for x in (*r, T_c, T_a)) + "\n" for r in steps)
+    trace = subprocess.run([str(paths.BUILD_DIR / "bin" / "thermal_trace"), "310.0", "C_winding=50.0"], input=text,
+                           capture_output=True, text=True, check=True).stdout.splitlines()
+    ref = np.array([float(x) for x in trace[-1].split(",")[:4]])
+    got = np.array(d.get("theta_stator_yoke", "theta_stator_tooth", "theta_winding", "theta_magnet"))
+    assert np.max(np.abs(got - ref)) < 1e-9, got - ref
+    assert got[2] > 311.0
