@@ -6,7 +6,8 @@
 //   glue    plus what the FMI glue adds per communication step: the undo copy of the model
 // (best of `rounds` runs) and the run's integrals, so that two builds can be compared.
 //
-//   bench_drive_model <profile.csv> [rounds = 3] [seconds = all] [from = 0 s]
+//   bench_drive_model <profile.csv> [rounds = 3] [seconds = all] [from = 0 s] [thermal = 0]
+// (thermal 1: with the plant's thermal network, thermal_model, from the nominal temperature)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -51,6 +52,8 @@ struct Result {
     ipmsm::DriveModel end{fmi::Context{}};
 };
 
+bool g_thermal = false;  // thermal_model (argument 5)
+
 Result run(const std::vector<Row>& rows, bool glue_copy) {
     fmi::Context ctx;
     ctx.instance_name = "bench";
@@ -58,6 +61,9 @@ Result run(const std::vector<Row>& rows, bool glue_copy) {
     ipmsm::DriveModel d(ctx);
     d.T_ref = rows[0].T_ref, d.w_m = rows[0].w_m, d.u_dc = rows[0].u_dc;
     d.T_magnet = d.T_winding = kTemperature;
+    d.T_coolant = d.T_ambient = kTemperature;
+    std::get<fmi::Access<ipmsm::DriveModel, bool>>(fmi::find_variable<ipmsm::DriveModel>("thermal_model")->member)
+        .write(d, g_thermal);
     d.exit_initialization();
     ipmsm::DriveModel undo = d;
     const auto t0 = std::chrono::steady_clock::now();
@@ -90,6 +96,7 @@ int main(int argc, char** argv) {
     }
     if (argc > 3) rows.resize(std::min(rows.size(), static_cast<std::size_t>(std::atof(argv[3]) / kVehicleStep)));
     if (rows.empty()) return 2;
+    g_thermal = argc > 5 && std::atoi(argv[5]) != 0;
     const double inner = rows.size() * std::llround(kVehicleStep / 1e-4);
     for (const bool glue : {false, true}) {
         double best = 1e300;
@@ -103,8 +110,9 @@ int main(int argc, char** argv) {
         std::printf("%-6s %zu steps of 10 ms (%.0f inner): %.3f s, %.3f us per inner step (best of %d)\n",
                     glue ? "glue" : "model", rows.size(), inner, best, 1e6 * best / inner, rounds);
         if (!glue)
-            std::printf("       E_dc %.17g J, E_mech %.17g J, E_cu %.17g J, E_fe %.17g J, E_inv %.17g J\n", e.E_dc,
-                        e.E_mech, e.E_cu, e.E_fe, e.E_inv);
+            std::printf(
+                "       E_dc %.17g J, E_mech %.17g J, E_cu %.17g J, E_fe %.17g J, E_inv %.17g J; winding %.3f K\n",
+                e.E_dc, e.E_mech, e.E_cu, e.E_fe, e.E_inv, e.theta_winding);
     }
     return 0;
 }

@@ -167,6 +167,102 @@ const std::vector<V>& PlantModel::variables() {
          "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
         {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
          "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
+        // the thermal network (docs/thermal.md), after the variables above so that their value
+        // references stay what they were
+        {"T_coolant", &M::T_coolant, Causality::input, Variability::continuous, "K", "degC",
+         "Coolant temperature the thermal network rejects heat to (thermal_model; held over each step)",
+         kTemperatureMin_K, kTemperatureMax_K},
+        {"T_ambient", &M::T_ambient, Causality::input, Variability::continuous, "K", "degC",
+         "Ambient-air temperature the thermal network's rotor also rejects heat to (thermal_model)", kTemperatureMin_K,
+         kTemperatureMax_K},
+        {"theta_winding", &M::theta_winding, Causality::output, Variability::continuous, "K", "degC",
+         "Winding temperature: the thermal network's winding node (thermal_model), else the T_winding input"},
+        {"theta_magnet", &M::theta_magnet, Causality::output, Variability::continuous, "K", "degC",
+         "Magnet temperature: the thermal network's magnet (rotor) node (thermal_model), else the T_magnet input"},
+        {"theta_stator_yoke", &M::theta_stator_yoke, Causality::output, Variability::continuous, "K", "degC",
+         "Stator-yoke temperature: the thermal network's node (thermal_model), else the T_winding input"},
+        {"theta_stator_tooth", &M::theta_stator_tooth, Causality::output, Variability::continuous, "K", "degC",
+         "Stator-tooth temperature: the thermal network's node (thermal_model), else the T_winding input"},
+        {"P_coolant", &M::P_coolant, Causality::output, Variability::continuous, "W", "",
+         "Heat into the coolant, mean over the last step (thermal_model; else 0)"},
+        {"E_coolant", &M::E_coolant, Causality::output, Variability::continuous, "J", "Wh",
+         "Heat into the coolant since the start (thermal_model; else 0)"},
+        {"E_ambient", &M::E_ambient, Causality::output, Variability::continuous, "J", "Wh",
+         "Heat into the ambient air since the start (thermal_model; else 0)"},
+        {"E_stored", &M::E_stored, Causality::output, Variability::continuous, "J", "Wh",
+         "Heat stored in the thermal network since the start, sum C_i (theta_i - theta_i(0)): E_cu + E_fe = "
+         "E_stored + E_coolant + E_ambient (thermal_model; else 0)"},
+        {"thermal_model", &M::thermal_model, Causality::parameter, Variability::fixed, "", "",
+         "true: a thermal network of the machine (docs/thermal.md) sets the winding and magnet temperatures from "
+         "the losses, T_coolant and T_ambient, and the T_winding, T_magnet inputs only start it; false: they are the "
+         "inputs"},
+        {"C_stator_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::C_stator_yoke), Causality::parameter,
+         Variability::fixed, "J/K", "", "Thermal network: heat capacity of the stator yoke", 0.0, 1e9, true},
+        {"C_stator_tooth", fmi::forward(&M::lptn, &thermal::LptnParams::C_stator_tooth), Causality::parameter,
+         Variability::fixed, "J/K", "", "Thermal network: heat capacity of the stator teeth", 0.0, 1e9, true},
+        {"C_winding", fmi::forward(&M::lptn, &thermal::LptnParams::C_winding), Causality::parameter, Variability::fixed,
+         "J/K", "", "Thermal network: heat capacity of the winding", 0.0, 1e9, true},
+        {"C_magnet", fmi::forward(&M::lptn, &thermal::LptnParams::C_magnet), Causality::parameter, Variability::fixed,
+         "J/K", "", "Thermal network: heat capacity of the magnets and rotor", 0.0, 1e9, true},
+        {"R_yoke_winding", fmi::forward(&M::lptn, &thermal::LptnParams::R_yoke_winding), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: resistance stator yoke - winding", 0.0, 1e6, true},
+        {"R_yoke_tooth", fmi::forward(&M::lptn, &thermal::LptnParams::R_yoke_tooth), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: resistance stator yoke - teeth", 0.0, 1e6, true},
+        {"R_tooth_winding", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_winding), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: resistance teeth - winding", 0.0, 1e6, true},
+        {"R_coolant_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::R_coolant_yoke), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: resistance coolant - yoke at 20 degC coolant", 0.0, 1e6,
+         true},
+        {"k_coolant_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::k_coolant_yoke), Causality::parameter,
+         Variability::fixed, "1/K", "", "Thermal network: R_coolant_yoke's relative change per kelvin of coolant", -1.0,
+         1.0},
+        {"R_tooth_magnet_a", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_magnet_a), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: teeth - magnet resistance a exp(-n / b) + c: a", 0.0, 1e6},
+        {"R_tooth_magnet_b", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_magnet_b), Causality::parameter,
+         Variability::fixed, "1", "", "Thermal network: teeth - magnet resistance: b (normalised speed)", 0.0, 1e6,
+         true},
+        {"R_tooth_magnet_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_magnet_c), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: teeth - magnet resistance: c", 0.0, 1e6, true},
+        {"R_winding_magnet_a", fmi::forward(&M::lptn, &thermal::LptnParams::R_winding_magnet_a), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: winding - magnet resistance a exp(-n / b) + c: a", 0.0, 1e6},
+        {"R_winding_magnet_b", fmi::forward(&M::lptn, &thermal::LptnParams::R_winding_magnet_b), Causality::parameter,
+         Variability::fixed, "1", "", "Thermal network: winding - magnet resistance: b (normalised speed)", 0.0, 1e6,
+         true},
+        {"R_winding_magnet_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_winding_magnet_c), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: winding - magnet resistance: c", 0.0, 1e6, true},
+        {"R_magnet_ambient_a", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_ambient_a), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: magnet - ambient resistance a exp(-n / b) + c: a", 0.0, 1e6},
+        {"R_magnet_ambient_b", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_ambient_b), Causality::parameter,
+         Variability::fixed, "1", "", "Thermal network: magnet - ambient resistance: b (normalised speed)", 0.0, 1e6,
+         true},
+        {"R_magnet_ambient_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_ambient_c), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: magnet - ambient resistance: c", 0.0, 1e6, true},
+        {"R_magnet_coolant_0", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_0), Causality::parameter,
+         Variability::fixed, "K/W", "",
+         "Thermal network: magnet - coolant resistance r0 + r_n n + r_c c + r_nc n c: r0", -1e6, 1e6},
+        {"R_magnet_coolant_n", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_n), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: magnet - coolant resistance: r_n", -1e6, 1e6},
+        {"R_magnet_coolant_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_c), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: magnet - coolant resistance: r_c (c = coolant / 100 degC)",
+         -1e6, 1e6},
+        {"R_magnet_coolant_nc", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_nc), Causality::parameter,
+         Variability::fixed, "K/W", "", "Thermal network: magnet - coolant resistance: r_nc", -1e6, 1e6},
+        {"k_fe_stator_0", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_0), Causality::parameter,
+         Variability::fixed, "1", "",
+         "Thermal network: stator share of the iron loss k0 + k_n n + k_i i + k_ni n i: k0", -10.0, 10.0},
+        {"k_fe_stator_n", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_n), Causality::parameter,
+         Variability::fixed, "1", "", "Thermal network: stator share of the iron loss: k_n", -10.0, 10.0},
+        {"k_fe_stator_i", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_i), Causality::parameter,
+         Variability::fixed, "1", "", "Thermal network: stator share of the iron loss: k_i (i = I_rms / I_rms_ref)",
+         -10.0, 10.0},
+        {"k_fe_stator_ni", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_ni), Causality::parameter,
+         Variability::fixed, "1", "", "Thermal network: stator share of the iron loss: k_ni", -10.0, 10.0},
+        {"k_fe_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_yoke), Causality::parameter, Variability::fixed,
+         "1", "", "Thermal network: the yoke's share of the stator's iron loss (the rest: teeth)", 0.0, 1.0},
+        {"w_m_ref", fmi::forward(&M::lptn, &thermal::LptnParams::w_m_ref), Causality::parameter, Variability::fixed,
+         "rad/s", "", "Thermal network: speed of n = 1 in its fits", 0.0, 1e5, true},
+        {"I_rms_ref", fmi::forward(&M::lptn, &thermal::LptnParams::I_rms_ref), Causality::parameter, Variability::fixed,
+         "A", "", "Thermal network: RMS current of i = 1 in its fits", 0.0, 1e6, true},
     };
     return table;
 }
@@ -246,6 +342,16 @@ void PlantModel::exit_initialization() {
                          "] x [" + num(map->i_q_min()) + ", " + num(map->i_q_max()) + "] A (" + path + ")");
     const double shift = magnet_flux_shift(*map, k_psi_T, T_magnet, T_magnet_ref);
     const FluxPoint p0 = inverse->forward_eval(i_d_start, i_q_start);  // the map the plant inverts
+    std::optional<thermal::MotorThermal> network;
+    if (thermal_model) {  // the stator nodes start at the winding's temperature, the rotor at the magnets'
+        thermal::NodeVector theta0;
+        theta0 << T_winding, T_winding, T_winding, T_magnet;
+        try {
+            network.emplace(lptn, theta0);
+        } catch (const std::invalid_argument& e) {
+            throw fmi::Error(e.what());
+        }
+    }
     CvodeIntegrator integrator(settings());
     integrator.reset(0.0, p0.psi_d + shift, p0.psi_q);
     CvodeState start = integrator.state();  // the start currents: exactly those at the start fluxes
@@ -257,6 +363,7 @@ void PlantModel::exit_initialization() {
     map_ = std::move(map);
     inverse_ = std::move(inverse);
     integrator_ = std::move(integrator);
+    thermal_ = std::move(network);
     outside_warned_ = false;
     E_elec = E_mech = E_cu = E_fe = T_e_impulse = 0.0;
     cvode_steps = 0;
@@ -264,6 +371,7 @@ void PlantModel::exit_initialization() {
     // The fluxes are the map's at the start currents, so those are exactly the currents there
     // (the inverse map would return them to its rounding, not bit for bit).
     update_outputs(ode(), i_d_start, i_q_start);
+    update_thermal_outputs();
 
     if (ctx.log_info) {
         std::ostringstream os;
@@ -284,10 +392,11 @@ DqFluxOde PlantModel::ode() const {
     o.u_d = u_d;
     o.u_q = u_q;
     o.omega = pole_pairs * w_m;
-    o.R = R_s * (1.0 + alpha_cu * (T_winding - T_winding_ref));
-    o.delta_psi_m = magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref);
+    const double T_w = winding_temperature(), T_m = magnet_temperature();
+    o.R = R_s * (1.0 + alpha_cu * (T_w - T_winding_ref));
+    o.delta_psi_m = magnet_flux_shift(*map_, k_psi_T, T_m, T_magnet_ref);
     if (!(o.R >= 0.0))
-        throw fmi::Error("the stator resistance at T_winding = " + num(T_winding) + " K is " + num(o.R) +
+        throw fmi::Error("the stator resistance at T_winding = " + num(T_w) + " K is " + num(o.R) +
                          " Ohm (R_s = " + num(R_s) + " Ohm, alpha_cu = " + num(alpha_cu) + " 1/K)");
     return o;
 }
@@ -315,6 +424,39 @@ void PlantModel::update_outputs(const DqFluxOde& o, double i_d_now, double i_q_n
     R_s_T = o.R;
 }
 
+void PlantModel::advance_thermal(double h, double E_cu_step, double E_fe_step) {
+    if (thermal_ && h > 0.0) {  // the step's exact loss integrals heat the network
+        thermal::StepConditions at;
+        at.w_m = w_m;
+        at.I_rms = std::sqrt(0.5 * (i_d * i_d + i_q * i_q));  // peak amplitude-invariant -> RMS
+        at.T_coolant = T_coolant;
+        at.T_ambient = T_ambient;
+        try {
+            thermal_->advance(h, E_cu_step, E_fe_step, at);
+        } catch (const std::invalid_argument& e) {
+            throw fmi::Error(e.what());
+        }
+    }
+    update_thermal_outputs();
+}
+
+void PlantModel::update_thermal_outputs() {
+    if (thermal_) {
+        theta_winding = thermal_->theta(thermal::winding);
+        theta_magnet = thermal_->theta(thermal::magnet);
+        theta_stator_yoke = thermal_->theta(thermal::stator_yoke);
+        theta_stator_tooth = thermal_->theta(thermal::stator_tooth);
+        P_coolant = thermal_->P_coolant();
+        E_coolant = thermal_->E_coolant();
+        E_ambient = thermal_->E_ambient();
+        E_stored = thermal_->E_stored();
+    } else {
+        theta_winding = theta_stator_yoke = theta_stator_tooth = T_winding;
+        theta_magnet = T_magnet;
+        P_coolant = E_coolant = E_ambient = E_stored = 0.0;
+    }
+}
+
 void PlantModel::do_step(double t, double h) {
     const DqFluxOde o = ode();
     integrator_.set_settings(settings());  // rtol, atol, cvode_max_steps are tunable
@@ -337,6 +479,7 @@ void PlantModel::do_step(double t, double h) {
         E_fe += e[StepIntegrands::P_fe];
         E_mech += w_m * e[StepIntegrands::T_e] - e[StepIntegrands::P_fe];
         T_e_impulse += e[StepIntegrands::T_e];
+        if (thermal_each_step) advance_thermal(h, e[StepIntegrands::P_cu], e[StepIntegrands::P_fe]);
     } catch (const std::exception& e) {
         std::ostringstream os;
         os << e.what() << " [inputs u_d = " << num(u_d) << " V, u_q = " << num(u_q) << " V, w_m = " << num(w_m)

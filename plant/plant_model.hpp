@@ -11,6 +11,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
 #include "model.hpp"
+#include "thermal/motor_thermal.hpp"
 #include "variable.hpp"
 
 namespace ipmsm {
@@ -53,6 +55,14 @@ public:
                 {"P_cu", {"T_magnet", "T_winding"}},
                 {"P_elec", {"u_d", "u_q", "T_magnet"}},
                 {"R_s_T", {"T_winding"}},
+                {"theta_winding", {"T_winding"}},
+                {"theta_magnet", {"T_magnet"}},
+                {"theta_stator_yoke", {"T_winding"}},
+                {"theta_stator_tooth", {"T_winding"}},
+                {"P_coolant", {}},
+                {"E_coolant", {}},
+                {"E_ambient", {}},
+                {"E_stored", {}},
                 {"E_elec", {}},
                 {"E_mech", {}},
                 {"E_cu", {}},
@@ -75,6 +85,7 @@ public:
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
         field(saved);
         check_map_content(saved, map_.get());
+        if (thermal_) thermal_->state_fields(field);  // thermal_model is a fixed parameter: same fields both ways
     }
 
     // --- inputs
@@ -82,6 +93,8 @@ public:
     double w_m = 0.0;             // rad/s
     double T_magnet = 293.15;     // K
     double T_winding = 293.15;    // K
+    double T_coolant = 293.15;    // K, the thermal network's coolant (thermal_model)
+    double T_ambient = 293.15;    // K, the thermal network's ambient air (thermal_model)
     // --- outputs
     double i_d = 0.0, i_q = 0.0;                                // A
     double psi_d = 0.0, psi_q = 0.0;                            // Wb
@@ -92,8 +105,13 @@ public:
     // integrals since the start, exact over each step (CVODE quadratures: cvode_integrator.hpp)
     double E_elec = 0.0, E_mech = 0.0, E_cu = 0.0, E_fe = 0.0;  // J
     double T_e_impulse = 0.0;                                   // N.m.s, int T_e dt
-    int cvode_steps = 0;                                        // internal steps in the last step
-    int cvode_rhs_evals = 0;                                    // right-hand-side evaluations in the last step
+    // the thermal network (thermal_model; off: the temperature inputs, no heat flows)
+    double theta_winding = 293.15, theta_magnet = 293.15;            // K
+    double theta_stator_yoke = 293.15, theta_stator_tooth = 293.15;  // K
+    double P_coolant = 0.0;                                          // W, mean heat into the coolant over the step
+    double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;         // J since the start
+    int cvode_steps = 0;                                             // internal steps in the last step
+    int cvode_rhs_evals = 0;                                         // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;
@@ -113,6 +131,16 @@ public:
     int cvode_method = 1;         // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
     int cvode_max_order = 0;      // 0: the method's maximum
     int cvode_max_steps = 20000;  // per communication step
+    bool thermal_model = false;   // the thermal network sets T_winding, T_magnet (docs/thermal.md)
+    thermal::LptnParams lptn;     // its parameters (forwarded by name)
+
+    // Not a variable: false lets a model that holds the plant (IpmsmDrive) advance the network
+    // once per its own communication step (advance_thermal) instead of at every plant step.
+    bool thermal_each_step = true;
+    bool thermal_on() const { return thermal_.has_value(); }
+    // Heats the network over h (s) with the loss integrals E_cu_step, E_fe_step (J), at the present
+    // speed, currents and boundary temperatures; updates the thermal outputs.
+    void advance_thermal(double h, double E_cu_step, double E_fe_step);
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
@@ -122,12 +150,16 @@ private:
     void update_outputs(const DqFluxOde& ode, double i_d, double i_q);  // at currents known exactly
     CvodeSettings settings() const;
     StepIntegrands integrands() const;
+    double winding_temperature() const { return thermal_ ? thermal_->theta(thermal::winding) : T_winding; }
+    double magnet_temperature() const { return thermal_ ? thermal_->theta(thermal::magnet) : T_magnet; }
+    void update_thermal_outputs();
 
     fmi::SharedContext context_;
     std::shared_ptr<const FluxMap> map_;
     std::shared_ptr<const InverseFluxMap> inverse_;
     CvodeIntegrator integrator_;
-    bool outside_warned_ = false;  // the currents left the map's grid (warned once per excursion)
+    std::optional<thermal::MotorThermal> thermal_;  // thermal_model: made at initialisation
+    bool outside_warned_ = false;                   // the currents left the map's grid (warned once per excursion)
 };
 
 }  // namespace ipmsm

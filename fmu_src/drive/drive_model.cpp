@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -47,22 +48,23 @@ V of_models(const char* name, fmi::Member<M> member) {
     return v;
 }
 
-// Where a model keeps a variable of type T (nullptr: it has none).
+// How a model reaches a variable of type T (empty: it has none); a member or a forwarded one.
 template <class T, class Sub>
-T Sub::*member_of(const fmi::Variable<Sub>* v) {
-    return v != nullptr ? std::get<fmi::Access<Sub, T>>(v->member).member : nullptr;
+std::optional<fmi::Access<Sub, T>> access_of(const fmi::Variable<Sub>* v) {
+    if (v == nullptr) return std::nullopt;
+    return std::get<fmi::Access<Sub, T>>(v->member);
 }
 
 // A parameter the drive forwards to the models that have it: read from the plant where it has
 // one (else from the controller), written to both.
 template <class T>
 fmi::Member<M> to_models(const char* name, ControllerModel M::*controller, PlantModel M::*plant) {
-    T ControllerModel::*c = member_of<T>(fmi::find_variable<ControllerModel>(name));
-    T PlantModel::*p = member_of<T>(fmi::find_variable<PlantModel>(name));
-    return fmi::Access<M, T>{[=](const M& d) { return p != nullptr ? d.*plant.*p : d.*controller.*c; },
+    const auto c = access_of<T>(fmi::find_variable<ControllerModel>(name));
+    const auto p = access_of<T>(fmi::find_variable<PlantModel>(name));
+    return fmi::Access<M, T>{[=](const M& d) { return p ? p->read(d.*plant) : c->read(d.*controller); },
                              [=](M& d, const T& x) {
-                                 if (c != nullptr) d.*controller.*c = x;
-                                 if (p != nullptr) d.*plant.*p = x;
+                                 if (c) c->write(d.*controller, x);
+                                 if (p) p->write(d.*plant, x);
                              }};
 }
 
@@ -210,6 +212,56 @@ const std::vector<V>& DriveModel::variables() {
         {"check_failures", fmi::forward(&M::controller_, &ControllerModel::check_failures), Causality::output,
          Variability::discrete, "", "",
          "Commands that failed the controller's check on the map since the start (docs/controller.md)"},
+        // the thermal network (docs/thermal.md): after the variables above, whose value references stay
+        of_models("T_coolant", &M::T_coolant),
+        of_models("T_ambient", &M::T_ambient),
+        {"theta_winding", &M::theta_winding, Causality::output, Variability::discrete, "K", "degC",
+         "Winding temperature at the end of the step: the thermal network's (thermal_model), else the T_winding input"},
+        {"theta_magnet", &M::theta_magnet, Causality::output, Variability::discrete, "K", "degC",
+         "Magnet temperature at the end of the step: the thermal network's (thermal_model), else the T_magnet input"},
+        {"theta_stator_yoke", &M::theta_stator_yoke, Causality::output, Variability::discrete, "K", "degC",
+         "Stator-yoke temperature at the end of the step (thermal_model; else the T_winding input)"},
+        {"theta_stator_tooth", &M::theta_stator_tooth, Causality::output, Variability::discrete, "K", "degC",
+         "Stator-tooth temperature at the end of the step (thermal_model; else the T_winding input)"},
+        {"P_coolant", &M::P_coolant, Causality::output, Variability::discrete, "W", "kW",
+         "Heat into the coolant, mean over the last communication step (thermal_model; else 0)"},
+        {"E_coolant", &M::E_coolant, Causality::output, Variability::discrete, "J", "Wh",
+         "Heat into the coolant since the start (thermal_model; else 0)"},
+        {"E_ambient", &M::E_ambient, Causality::output, Variability::discrete, "J", "Wh",
+         "Heat into the ambient air since the start (thermal_model; else 0)"},
+        {"E_stored", &M::E_stored, Causality::output, Variability::discrete, "J", "Wh",
+         "Heat stored in the thermal network since the start: E_cu + E_fe = E_stored + E_coolant + E_ambient "
+         "(thermal_model; else 0)"},
+        parameter("thermal_model", &M::controller_, &M::plant_),
+        parameter("C_stator_yoke", &M::controller_, &M::plant_),
+        parameter("C_stator_tooth", &M::controller_, &M::plant_),
+        parameter("C_winding", &M::controller_, &M::plant_),
+        parameter("C_magnet", &M::controller_, &M::plant_),
+        parameter("R_yoke_winding", &M::controller_, &M::plant_),
+        parameter("R_yoke_tooth", &M::controller_, &M::plant_),
+        parameter("R_tooth_winding", &M::controller_, &M::plant_),
+        parameter("R_coolant_yoke", &M::controller_, &M::plant_),
+        parameter("k_coolant_yoke", &M::controller_, &M::plant_),
+        parameter("R_tooth_magnet_a", &M::controller_, &M::plant_),
+        parameter("R_tooth_magnet_b", &M::controller_, &M::plant_),
+        parameter("R_tooth_magnet_c", &M::controller_, &M::plant_),
+        parameter("R_winding_magnet_a", &M::controller_, &M::plant_),
+        parameter("R_winding_magnet_b", &M::controller_, &M::plant_),
+        parameter("R_winding_magnet_c", &M::controller_, &M::plant_),
+        parameter("R_magnet_ambient_a", &M::controller_, &M::plant_),
+        parameter("R_magnet_ambient_b", &M::controller_, &M::plant_),
+        parameter("R_magnet_ambient_c", &M::controller_, &M::plant_),
+        parameter("R_magnet_coolant_0", &M::controller_, &M::plant_),
+        parameter("R_magnet_coolant_n", &M::controller_, &M::plant_),
+        parameter("R_magnet_coolant_c", &M::controller_, &M::plant_),
+        parameter("R_magnet_coolant_nc", &M::controller_, &M::plant_),
+        parameter("k_fe_stator_0", &M::controller_, &M::plant_),
+        parameter("k_fe_stator_n", &M::controller_, &M::plant_),
+        parameter("k_fe_stator_i", &M::controller_, &M::plant_),
+        parameter("k_fe_stator_ni", &M::controller_, &M::plant_),
+        parameter("k_fe_yoke", &M::controller_, &M::plant_),
+        parameter("w_m_ref", &M::controller_, &M::plant_),
+        parameter("I_rms_ref", &M::controller_, &M::plant_),
     };
     return table;
 }
@@ -217,6 +269,7 @@ const std::vector<V>& DriveModel::variables() {
 DriveModel::DriveModel(const fmi::Context& context)
     : controller_(prefixed(context, "controller")), plant_(prefixed(context, "plant")) {
     controller_.observe_each_step = false;  // publish_end() observes, once per communication step
+    plant_.thermal_each_step = false;       // do_step heats the network once per communication step
     // Start values: the models' own; where both have a parameter, the plant's, now the controller's too.
     for (const V& v : variables())
         if (v.causality == Causality::parameter) fmi::copy_value(*this, *this, v);
@@ -225,6 +278,8 @@ DriveModel::DriveModel(const fmi::Context& context)
     w_m = plant_.w_m;
     T_magnet = plant_.T_magnet;
     T_winding = plant_.T_winding;
+    T_coolant = plant_.T_coolant;
+    T_ambient = plant_.T_ambient;
 }
 
 coupling::CoupledModels& DriveModel::coupled() {
@@ -253,6 +308,8 @@ void DriveModel::hold_inputs() {
     cm.hold("u_dc", u_dc);
     cm.hold("T_magnet", T_magnet);
     cm.hold("T_winding", T_winding);
+    plant_.T_coolant = T_coolant;  // the plant's alone: not in the coupling description
+    plant_.T_ambient = T_ambient;
 }
 
 void DriveModel::publish_end() {
@@ -265,6 +322,14 @@ void DriveModel::publish_end() {
     i_q_ref = controller_.i_q_ref;
     region = controller_.region;
     u_ratio = controller_.u_ratio;
+    theta_winding = plant_.theta_winding;
+    theta_magnet = plant_.theta_magnet;
+    theta_stator_yoke = plant_.theta_stator_yoke;
+    theta_stator_tooth = plant_.theta_stator_tooth;
+    P_coolant = plant_.P_coolant;
+    E_coolant = plant_.E_coolant;
+    E_ambient = plant_.E_ambient;
+    E_stored = plant_.E_stored;
 }
 
 void DriveModel::exit_initialization() {
@@ -325,6 +390,10 @@ void DriveModel::do_step(double t, double h) {
         E_inv += p_inv * sample_time;
     }
     k_ = cm.k();
+    // the thermal network once over the whole step, with the step's exact loss integrals (its
+    // temperatures set R_s and the magnet flux of the next step: a lag of h against its 15 s and
+    // longer time constants)
+    plant_.advance_thermal(h, plant_.E_cu - E_cu0, plant_.E_fe - E_fe0);
     P_elec = (plant_.E_elec - E_elec0) / h;
     P_mech = (plant_.E_mech - E_mech0) / h;
     P_cu = (plant_.E_cu - E_cu0) / h;

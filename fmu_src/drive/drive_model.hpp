@@ -56,6 +56,7 @@ public:
 
     // --- inputs (held over the communication step)
     double T_ref = 0.0, w_m = 0.0, u_dc = 0.0, T_magnet = 0.0, T_winding = 0.0;
+    double T_coolant = 0.0, T_ambient = 0.0;  // K, the plant's thermal network (thermal_model)
     // --- outputs: means over the last communication step
     double T_shaft = 0.0, T_e = 0.0, i_dc = 0.0;                           // N.m, N.m, A
     double P_dc = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0, P_inv = 0.0;  // W
@@ -68,6 +69,10 @@ public:
     double i_d_ref = 0.0, i_q_ref = 0.0;  // A, the controller's
     int region = 0;
     double u_ratio = 0.0;  // the controller's voltage use, at the end of the step
+    // --- outputs: the plant's thermal network (thermal_model; off: the temperature inputs, no heat)
+    double theta_winding = 0.0, theta_magnet = 0.0, theta_stator_yoke = 0.0, theta_stator_tooth = 0.0;  // K
+    double P_coolant = 0.0;                                   // W, mean over the step
+    double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;  // J since the start
     // --- parameters: the drive's own (the others live in controller_, plant_ and inverter_)
     double sample_time = 1e-4;  // s
     // The most inner steps one fmi2DoStep computes (10 s at the default sample_time): a step cannot be
@@ -82,8 +87,10 @@ private:
         for (const auto& v : Sub::variables())
             std::visit(
                 [&](const auto& a) {
+                    // (a variable the sub-model forwards to a part of it lives in that part, which
+                    // is fixed parameters only: the plant's thermal network's)
                     if constexpr (!std::is_same_v<decltype(a), const fmi::Access<Sub, std::string>&>)
-                        field(sub.*(a.member));
+                        if (a.member != nullptr) field(sub.*(a.member));
                 },
                 v.member);
     }

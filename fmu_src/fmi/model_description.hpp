@@ -70,6 +70,8 @@ inline const std::vector<UnitInfo>& unit_table() {
         {"rad/s", 0, 0, -1, 0, 0, 0, 0, 1, {{"rpm", 60.0 / (2.0 * pi), 0}}},
         {"K", 0, 0, 0, 0, 1, 0, 0, 0, {{"degC", 1.0, -273.15}}},
         {"1/K", 0, 0, 0, 0, -1, 0, 0, 0, {}},
+        {"J/K", 1, 2, -2, 0, -1, 0, 0, 0, {}},  // heat capacity
+        {"K/W", -1, -2, 3, 0, 1, 0, 0, 0, {}},  // thermal resistance
     };
     return table;
 }
