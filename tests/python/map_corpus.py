@@ -4,9 +4,10 @@ demo, SyR-e's RAWP synchronous-reluctance machine (no magnet) and a strongly sat
 tools/saturating_map.py. Each entry names its drive's data (pole pairs, R_s, I_max, u_dc, top
 speed) from its source (scenarios/data/fluxmaps/real/SOURCES.md, the map's metadata).
 
-Two maps cannot be loaded as published yet (issue 23, item 3, is another branch's work): the
-Prius map is cropped to i_d <= 90 A, RAWP's import to |i_q| < 47 A (where SyR-e's psi_q stops
-being monotone). `CorpusMap.path(tmp)` writes what is needed into tmp and returns the CSV to load.
+Every map as published: the Prius map with its fold at i_d = 130 A (outside the operating region:
+the FMUs accept it with a warning), RAWP as `map import` makes it from SyR-e's .mat (the half map
+completed by the symmetry of a machine without magnet; psi_q not monotone at |i_q| >= 47.3 A,
+beyond its 30 A). `CorpusMap.path(tmp)` writes what is needed into tmp and returns the CSV to load.
 """
 from __future__ import annotations
 
@@ -15,10 +16,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from scenarios.core.paths import DATA_DIR, ROOT
-from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, read_flux_map, write_flux_map
+from scenarios.maps.flux_map import DEFAULT_MAP
 
 RPM = math.pi / 30.0  # rad/s per r/min
 FLUXMAPS = DATA_DIR / "fluxmaps"
@@ -43,43 +42,11 @@ def _as_is(path: Path) -> Callable[[Path], Path]:
     return lambda tmp: path
 
 
-def _cropped(fmap: FluxMap, keep_d, keep_q) -> FluxMap:
-    jd, jq = keep_d(fmap.i_d), keep_q(fmap.i_q)
-    return FluxMap(fmap.i_d[jd], fmap.i_q[jq], fmap.psi_d[np.ix_(jd, jq)], fmap.psi_q[np.ix_(jd, jq)],
-                   dict(fmap.metadata))
-
-
-def _prius(tmp: Path) -> Path:
-    out = tmp / "prius_id_le_90A.csv"
-    if not out.exists():
-        fmap = read_flux_map(FLUXMAPS / "real" / "plecs_prius_as_published.csv")
-        write_flux_map(out, _cropped(fmap, lambda d: d <= 90.0, lambda q: np.ones_like(q, bool)),
-                       "PLECS Prius map as published, rows i_d > 90 A dropped (psi_d folds at 130 A)")
-    return out
-
-
 def _rawp(tmp: Path) -> Path:
-    out = tmp / "syre_rawp_iq_lt_47A.csv"
+    out = tmp / "syre_rawp.csv"
     if not out.exists():
-        from scenarios.maps.importer import import_map
-        fmap = import_map(FLUXMAPS / "real" / "syre_RAWP.mat").flux_map()
-        write_flux_map(out, _cropped(fmap, lambda d: np.ones_like(d, bool), lambda q: np.abs(q) < 47.0),
-                       "SyR-e RAWP as imported, |i_q| >= 47 A dropped (psi_q not monotone there)")
-    return out
-
-
-def _rawp_mirrored(tmp: Path) -> Path:
-    """RAWP completed by the symmetry of a machine without magnet, psi(-i) = -psi(i): the imported
-    half (i_d <= 0) mirrored through the origin. Every optimum then has an exact mirror twin."""
-    out = tmp / "syre_rawp_mirrored.csv"
-    if not out.exists():
-        f = read_flux_map(_rawp(tmp))
-        assert f.i_d[-1] == 0.0 and np.allclose(f.i_q, -f.i_q[::-1])
-        i_d = np.concatenate([f.i_d, -f.i_d[:-1][::-1]])
-        psi_d = np.concatenate([f.psi_d, -f.psi_d[:-1][::-1, ::-1]], axis=0)
-        psi_q = np.concatenate([f.psi_q, -f.psi_q[:-1][::-1, ::-1]], axis=0)
-        write_flux_map(out, FluxMap(i_d, f.i_q, psi_d, psi_q, dict(f.metadata)),
-                       "SyR-e RAWP as imported, |i_q| >= 47 A dropped, mirrored through the origin")
+        from scenarios.maps.importer import import_map, write_contract_csv
+        write_contract_csv(import_map(FLUXMAPS / "real" / "syre_RAWP.mat"), out)
     return out
 
 
@@ -98,13 +65,13 @@ CORPUS = [
     # the Baldor's drive as the existing tests run it (test_controller_optimal.py)
     CorpusMap("baldor_measured", 2, 0.63, 18.0, 540.0, 500.0, _as_is(FLUXMAPS / "baldor_5p6kW_pmsyrm_measured.csv")),
     # PLECS demo: 4 pole pairs, R_s 0.015 Ohm; I_max 200 A (the grid's reach), 500 V (ORNL, OSTI 890029), 6000 r/min
-    CorpusMap("prius", 4, 0.015, 200.0, 500.0, 6000 * RPM, _prius),
+    CorpusMap("prius", 4, 0.015, 200.0, 500.0, 6000 * RPM, _as_is(FLUXMAPS / "real" / "plecs_prius_as_published.csv")),
     # SyR-e's motorModel.data: p 3, Rs 0.44 Ohm, Imax 30 A, Vdc 565 V, nmax 3000 r/min
     CorpusMap("syre_rawp", 3, 0.44, 30.0, 565.0, 3000 * RPM, _rawp, magnet_free=True),
     CorpusMap("saturating", 4, 0.012, 500.0, 355.0, 12000 * RPM, _saturating),
 ]
-#: not in every test: the same machine as syre_rawp, for the tie convention
-RAWP_MIRRORED = CorpusMap("syre_rawp_mirrored", 3, 0.44, 30.0, 565.0, 3000 * RPM, _rawp_mirrored, magnet_free=True)
+#: the tie convention's machine: RAWP, whose import is the whole map (both i_d halves, mirror twins)
+RAWP_MIRRORED = CorpusMap("syre_rawp_mirrored", 3, 0.44, 30.0, 565.0, 3000 * RPM, _rawp, magnet_free=True)
 BY_NAME = {m.name: m for m in [*CORPUS, RAWP_MIRRORED]}
 
 

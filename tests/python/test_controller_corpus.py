@@ -232,7 +232,7 @@ def test_prius_250Nm_makes_250Nm(controller_fmu, corpus, capsys):
         assert math.hypot(a["i_d"], a["i_q"]) < 142.0, a
 
 
-def test_check_replaces_and_logs_once(controller_fmu, corpus, capsys):
+def test_check_replaces_and_logs_once(controller_fmu, corpus):
     """Where a command fails its check, a checked one replaces it and the first is logged (valid
     UTF-8, bounded); check_failures counts them all. Recursion 0 (the nominal inductances at i = 0)
     misses the torque on the saturated Prius map by tens of per cent."""
@@ -244,7 +244,7 @@ def test_check_replaces_and_logs_once(controller_fmu, corpus, capsys):
             c.set(**op)
             c.step(k * H, H)
             answers.append(answer(c))
-    out = capsys.readouterr().out
+        out = "\n".join(text for _, _, text in c.messages)  # the FMU's log
     assert out.count("command check failed") == 1, out
     line = next(x for x in out.splitlines() if "command check failed" in x)
     line.encode("utf-8")
@@ -254,7 +254,7 @@ def test_check_replaces_and_logs_once(controller_fmu, corpus, capsys):
     assert_exact("prius, recursion 0 checked", ops, answers, devs)
 
 
-def test_command_check_0_reports_and_sends_the_methods_own(controller_fmu, corpus, capsys):
+def test_command_check_0_reports_and_sends_the_methods_own(controller_fmu, corpus):
     """command_check = 0: the check still counts and logs, but recursion 0's own command leaves
     (its torque off on the saturated map), as a study of the method wants it."""
     m, path, fmap = corpus("prius")
@@ -263,7 +263,7 @@ def test_command_check_0_reports_and_sends_the_methods_own(controller_fmu, corpu
         c.set(**op)
         c.step(0.0, H)
         a = answer(c)
-    out = capsys.readouterr().out
+        out = "\n".join(text for _, _, text in c.messages)  # the FMU's log
     assert out.count("command check failed") == 1 and "sent as is (command_check = 0)" in out, out
     assert a["check_failures"] >= 1
     assert abs(deviations(m, fmap, op, a)["torque"]) > 1e-3

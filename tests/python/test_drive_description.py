@@ -77,6 +77,7 @@ PERTURBED = {
     "controller.recursion": 1,
     "controller.k_u": 0.8,
     "controller.current_bandwidth": 1000.0,
+    "controller.command_check": 0,
 }
 
 #: keys that act only under some condition: the condition the test runs them in, as RunSpec
@@ -86,6 +87,8 @@ CONDITIONS = {
     "motor.alpha_cu": {"spec": dict(conditions=Conditions("hot winding", T_magnet=293.15, T_winding=393.15))},
     "motor.w_m_max": {"spec": dict(method="lut_speed")},
     "controller.lut_u_dc": {"spec": dict(method="lut_speed")},
+    # the check replaces only commands that fail it: the 2-D tables' do
+    "controller.command_check": {"spec": dict(method="lut_speed")},
     # a full battery takes no regenerative braking: the friction brakes do all of it
     "vehicle.tyre_road_friction": {"drive": {"battery": {"soc0": 1.0}}},
 }
