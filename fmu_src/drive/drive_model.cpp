@@ -84,11 +84,19 @@ V parameter(const char* name, ControllerModel M::*controller, PlantModel M::*pla
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// A sub-model's log lines say which model wrote them.
-fmi::Context prefixed(const fmi::Context& c, const std::string& who) {
+// A sub-model's log lines say which model wrote them. Both models read the same map and
+// parameters, so both warn about the same things (a map not legal outside the operating region,
+// metadata that differ from a parameter): a warning identical to one the other model gave reaches
+// the importer once, with the prefix of the model that gave it first.
+fmi::Context prefixed(const fmi::Context& c, const std::string& who,
+                      const std::shared_ptr<DriveModel::WarningsGiven>& given) {
     fmi::Context s = c;
     if (c.log_info) s.log_info = [f = c.log_info, who](const std::string& m) { f(who + ": " + m); };
-    if (c.log_warning) s.log_warning = [f = c.log_warning, who](const std::string& m) { f(who + ": " + m); };
+    if (c.log_warning)
+        s.log_warning = [f = c.log_warning, who, given](const std::string& m) {
+            const auto [it, first] = given->emplace(m, who);
+            if (first || it->second == who) f(who + ": " + m);
+        };
     return s;
 }
 
@@ -267,7 +275,9 @@ const std::vector<V>& DriveModel::variables() {
 }
 
 DriveModel::DriveModel(const fmi::Context& context)
-    : controller_(prefixed(context, "controller")), plant_(prefixed(context, "plant")) {
+    : warnings_given_(std::make_shared<WarningsGiven>()),
+      controller_(prefixed(context, "controller", warnings_given_)),
+      plant_(prefixed(context, "plant", warnings_given_)) {
     controller_.observe_each_step = false;  // publish_end() observes, once per communication step
     plant_.thermal_each_step = false;       // do_step heats the network once per communication step
     // Start values: the models' own; where both have a parameter, the plant's, now the controller's too.

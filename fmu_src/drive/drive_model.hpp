@@ -15,6 +15,7 @@
 // inverter's, forwarded to its InverterParams; and sample_time.
 #pragma once
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -79,6 +80,10 @@ public:
     // interrupted, so a larger one is refused rather than computed for minutes.
     static constexpr double max_samples_per_step = 1e5;
 
+    // The sub-models' warnings given so far, each with the model that gave it first ("controller"
+    // or "plant"): one given by both reaches the importer once (drive_model.cpp, prefixed()).
+    using WarningsGiven = std::map<std::string, std::string>;
+
 private:
     // The sub-model's variables (its coupled inputs and outputs are not the drive's variables,
     // but are state: the next inner step reads them).
@@ -98,6 +103,7 @@ private:
     void hold_inputs();
     void publish_end();
 
+    std::shared_ptr<WarningsGiven> warnings_given_;  // shared by the models' contexts and the drive's copies
     ControllerModel controller_;
     PlantModel plant_;
     InverterParams inverter_;

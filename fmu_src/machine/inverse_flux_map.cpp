@@ -183,7 +183,9 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
     qmax += options.margin * wq;
     // Automatic resolution: psi spacing at most half the smallest flux step between adjacent
     // grid nodes along that axis (the most saturated cell then still spans two psi cells), at
-    // least three psi cells per current cell, at most kMaxTableCells (or one per current cell).
+    // least three psi cells per current cell, at most kMaxTableCells whatever the current grid:
+    // the table is only Newton's start, and its nodes are each a Newton inversion at
+    // construction, so a fine current grid (a FEM export of 511 x 511 points) must not size it.
     double step_d = std::numeric_limits<double>::infinity(), step_q = step_d;
     for (int k = k0; k <= k1; ++k)
         for (int j = j0; j <= j1; ++j) {
@@ -193,8 +195,8 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
         }
     auto automatic = [](double width, double step, int n_current) {
         const double cells = step > 0 ? std::ceil(width / (0.5 * step)) : kMaxTableCells;
-        const double lo = 3.0 * (n_current - 1), hi = std::max(kMaxTableCells, n_current - 1.0);
-        return static_cast<int>(std::min(std::max(cells, lo), hi)) + 1;
+        const double lo = std::min(3.0 * (n_current - 1), kMaxTableCells);
+        return static_cast<int>(std::min(std::max(cells, lo), kMaxTableCells)) + 1;
     };
     const int md = options.n_psi_d > 0 ? options.n_psi_d : automatic(dmax - dmin, step_d, j1 - j0 + 1);
     const int mq = options.n_psi_q > 0 ? options.n_psi_q : automatic(qmax - qmin, step_q, k1 - k0 + 1);

@@ -63,7 +63,7 @@ struct InverseFluxPoint {
 struct InverseFluxMapOptions {
     // psi grid nodes per axis; 0: automatic: psi spacing at most half the smallest flux step
     // between adjacent current-grid nodes along that axis, at least three psi cells per current
-    // cell, at most 150 cells (each cell holds 32 doubles).
+    // cell, at most 150 cells whatever the current grid (each cell holds 32 doubles).
     int n_psi_d = 0, n_psi_q = 0;
     // Extra width of the psi box on each side, as a fraction of its width.
     double margin = 0.0;

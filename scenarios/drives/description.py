@@ -403,9 +403,10 @@ class DriveDescription:
         return p
 
     def plant_params(self) -> dict:
-        """The plant FMU's parameters."""
+        """The plant FMU's parameters (I_max: where it requires the map to be legal)."""
         m = self.motor
-        return dict(flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, T_winding_ref=m.T_winding_ref,
+        return dict(flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, I_max=m.I_max,
+                    T_winding_ref=m.T_winding_ref,
                     alpha_cu=m.alpha_cu, k_psi_T=m.k_psi_T, T_magnet_ref=m.T_magnet_ref, fe_k_h=m.fe_k_h,
                     fe_alpha=m.fe_alpha, fe_k_e=m.fe_k_e, fe_psi_ref=m.fe_psi_ref)
 

@@ -34,7 +34,8 @@ from scenarios.maps.importer import contract_csv
 class DefectSummary:
     kind: str
     count: int
-    within_I_max: int
+    within_I_max: int          # in the I_max circle
+    within_drive_currents: int  # in the I_max circle and the drive's half (i_d <= 0 with a magnet)
     nearest_A: list | None     # (i_d, i_q) of the one nearest zero current
     nearest_abs_A: float | None
 
@@ -63,6 +64,13 @@ class MapCheck:
     def accepted(self) -> bool:
         return all(f["accepted"] for f in self.fmus)
 
+    @property
+    def verdict(self) -> str:
+        """The FMUs' verdict in a few words: accept, accept with a warning, REFUSE."""
+        if not self.accepted:
+            return "REFUSE it"
+        return "accept it with a warning" if any(f["verdict"] != "accepted" for f in self.fmus) else "accept it"
+
 
 def analyse(fmap: FluxMap, I_max: float):
     """(magnet_free, required box, defects, defect summaries, legal rectangle or None)."""
@@ -76,8 +84,10 @@ def analyse(fmap: FluxMap, I_max: float):
                         ("incremental inductances fold (det <= 0)", found.folds)):
         near = legal.nearest(fmap, boxes)
         pts = np.array([legal.where(fmap, b) for b in boxes]) if len(boxes) else np.zeros((0, 2))
-        inside = int((np.hypot(pts[:, 0], pts[:, 1]) <= I_max).sum())
-        summaries.append(DefectSummary(kind, len(boxes), inside, list(near[0]) if near else None,
+        in_circle = np.hypot(pts[:, 0], pts[:, 1]) <= I_max
+        inside = int(in_circle.sum())
+        driven = int((in_circle & (pts[:, 0] >= box[0]) & (pts[:, 0] <= box[1])).sum())
+        summaries.append(DefectSummary(kind, len(boxes), inside, driven, list(near[0]) if near else None,
                                        near[1] if near else None))
     rect = legal.legal_rectangle(fmap, found.all(), box)
     return no_magnet, box, found, summaries, rect
@@ -106,7 +116,7 @@ def check_map(path: Path, out: Path, build: Path, I_max: float | None = None, dr
         reciprocity_at_A=rec_at, noise_Wb=noise, noise_rel={k: v / scale for k, v in noise.items()})
     c.fmus = [asdict(v) for v in verdicts(csv, params, build)]
     out.mkdir(parents=True, exist_ok=True)
-    (out / "check.json").write_text(json.dumps(asdict(c) | {"accepted": c.accepted}, indent=1))
+    (out / "check.json").write_text(json.dumps(asdict(c) | {"accepted": c.accepted, "verdict": c.verdict}, indent=1))
     (out / "check.md").write_text(markdown(c))
     return c
 
@@ -115,7 +125,7 @@ def markdown(c: MapCheck) -> str:
     box = ", ".join(f"{x:g}" for x in c.required_box_A)
     rect = (f"i_d {c.legal_rectangle_A[0]:g} ... {c.legal_rectangle_A[1]:g} A, i_q {c.legal_rectangle_A[2]:g} ... "
             f"{c.legal_rectangle_A[3]:g} A" if c.legal_rectangle_A else "none holds the drive's currents")
-    lines = [f"# map check: `{Path(c.map_file).name}` — FMUs {'accept' if c.accepted else 'REFUSE'} it", "",
+    lines = [f"# map check: `{Path(c.map_file).name}` — FMUs {c.verdict}", "",
              "Made by `python -m scenarios map check`; the numbers also in `check.json`.", "",
              "| quantity | value |", "|---|---|",
              f"| map (contract CSV read) | `{c.contract_csv}` |",
@@ -131,15 +141,16 @@ def markdown(c: MapCheck) -> str:
              f"| noise of psi_d, psi_q (4th differences, robust) | {c.noise_Wb['psi_d']:.3g} Wb, "
              f"{c.noise_Wb['psi_q']:.3g} Wb ({100 * c.noise_rel['psi_d']:.2g} %, {100 * c.noise_rel['psi_q']:.2g} % "
              "of the largest flux) |", "",
-             "## Legal domain", "", "| defect | count | within I_max | nearest zero current |", "|---|---:|---:|---|"]
+             "## Legal domain", "", "| defect | count | within the I_max circle | among the drive's currents | "
+             "nearest zero current |", "|---|---:|---:|---:|---|"]
     for d in c.defects:
         near = (f"i_d = {d['nearest_A'][0]:g} A, i_q = {d['nearest_A'][1]:g} A (abs(i) = {d['nearest_abs_A']:.4g} A)"
                 if d["nearest_A"] else "—")
-        lines.append(f"| {d['kind']} | {d['count']} | {d['within_I_max']} | {near} |")
+        lines.append(f"| {d['kind']} | {d['count']} | {d['within_I_max']} | {d['within_drive_currents']} | {near} |")
     lines += ["", "(the grid's own values and the map's bicubic spline: an analysis; the FMUs decide below)", "",
               "## The FMUs' verdict", ""]
     for f in c.fmus:
-        lines.append(f"- **{f['fmu']}**: {'accepted' if f['accepted'] else 'REFUSED'}")
+        lines.append(f"- **{f['fmu']}**: {f['verdict']}")
         lines += [f"  - `{m}`" for m in f["log"]]
     lines += ["", "## Assumed", ""] + ([f"- {a}" for a in c.assumed] or ["- nothing: every value from the map"])
     if not c.accepted:

@@ -90,12 +90,13 @@ def _check(args) -> int:
           f"grid covers the drive's currents: {'yes' if c.grid_covers_I_max else 'NO'}")
     for d in c.defects:
         if d["count"]:
-            print(f"  {d['kind']}: {d['count']} ({d['within_I_max']} within I_max), nearest zero current at "
+            print(f"  {d['kind']}: {d['count']} ({d['within_I_max']} within the I_max circle, "
+                  f"{d['within_drive_currents']} among the drive's currents), nearest zero current at "
                   f"i_d = {d['nearest_A'][0]:g} A, i_q = {d['nearest_A'][1]:g} A")
     print(f"  reciprocity: max {c.reciprocity_max_H * 1e6:.4g} uH ({100 * c.reciprocity_rel:.3g} %); noise "
           f"psi_d {c.noise_Wb['psi_d']:.3g} Wb, psi_q {c.noise_Wb['psi_q']:.3g} Wb")
     for f in c.fmus:
-        print(f"  {f['fmu']}: {'accepted' if f['accepted'] else 'REFUSED'}")
+        print(f"  {f['fmu']}: {f['verdict']}")
         for m in f["log"]:
             print(f"    {m}")
     print(f"wrote {out}/check.md, {out}/check.json")
@@ -108,7 +109,7 @@ def _repair(args) -> int:
     for c in r.changes:
         print(f"  {c}")
     for v in r.fmus:
-        print(f"  {v.fmu}: {'accepted' if v.accepted else 'REFUSED'}")
+        print(f"  {v.fmu}: {v.verdict}")
         for m in v.log:
             print(f"    {m}")
     print(f"wrote {r.out}")

@@ -17,6 +17,12 @@ class FmuVerdict:
     fmu: str
     accepted: bool
     log: list = field(default_factory=list)   # "status: message" lines of the FMU's logger
+    verdict: str = ""                          # "accepted", "accepted with a warning" or "refused"
+
+    def __post_init__(self):
+        if not self.verdict:
+            warned = any(m.startswith("warning:") for m in self.log)
+            self.verdict = ("accepted with a warning" if warned else "accepted") if self.accepted else "refused"
 
     def warnings(self) -> list[str]:
         return [m for m in self.log if not m.startswith("ok:")]
@@ -41,8 +47,10 @@ def verdict(fmu_path: Path, csv: Path, params: dict) -> FmuVerdict:
     log = []
 
     def logger(env, instance, status, category, message):
-        log.append(f"{STATUS[status] if 0 <= status < len(STATUS) else status}: "
-                   f"{message.decode('utf-8', 'replace') if message else ''}")
+        # FMI 2.0 passes the message as a printf format (an FMU writes % as %%); it has no
+        # arguments here, so formatting it is undoing that escape.
+        text = message.decode("utf-8", "replace").replace("%%", "%") if message else ""
+        log.append(f"{STATUS[status] if 0 <= status < len(STATUS) else status}: {text}")
 
     callbacks = fmi2CallbackFunctions()
     callbacks.logger = fmi2CallbackLoggerTYPE(logger)

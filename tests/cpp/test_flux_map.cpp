@@ -685,6 +685,20 @@ TEST(InverseFluxMap, RoundTripSmoothSaturatingMap) {
     EXPECT_NEAR(iq, 321.0, 1e-9);
 }
 
+// A FEM export's fine current grid (here 2.5 A steps, 241 x 321 points) must not size the table:
+// each of its nodes is a Newton inversion at construction, and it is only Newton's start. It
+// stays at most 151 x 151 nodes, and eval() stays exact.
+TEST(InverseFluxMap, FineCurrentGridDoesNotSizeTheTable) {
+    const FluxMap m(SaturatingMachine().table(2.5));
+    ASSERT_GT(m.table().i_d.size(), 200u);
+    const InverseFluxMap inv(m);
+    EXPECT_LE(inv.n_psi_d(), 151);
+    EXPECT_LE(inv.n_psi_q(), 151);
+    const RoundTrip r = round_trip(m, inv, 20000);
+    EXPECT_LT(r.max_err, 1e-9);  // A, of +-400 A
+    EXPECT_LT(inv.max_error_A(), 1e-9);
+}
+
 TEST(InverseFluxMap, RoundTripBaldor) {
     const FluxMap& m = baldor();
     const InverseFluxMap inv(m);

@@ -50,8 +50,8 @@ TEST(VariableForwarding, ReadsAndWritesWhereTheValueLives) {
     EXPECT_EQ(fmi::find_variable<Whole>("none"), nullptr);
 }
 
-// pole_pairs is the controller's and the plant's: set once on the drive, both use it (each
-// warns that the default map's metadata says 4).
+// pole_pairs is the controller's and the plant's: set once on the drive, both use it. Both
+// warn that the default map's metadata says 4, the same text: it reaches the importer once.
 TEST(VariableForwarding, DriveParameterReachesBothModels) {
     std::vector<std::string> warnings;
     fmi::Context context;
@@ -65,14 +65,14 @@ TEST(VariableForwarding, DriveParameterReachesBothModels) {
     EXPECT_EQ(fmi::value_of<int>(drive, *pole_pairs), 3);
     drive.u_dc = 355.0;
     drive.exit_initialization();
-    int controller = 0, plant = 0;
+    int given = 0, prefixed = 0;
     for (const std::string& w : warnings) {
         if (w.find("but the parameter pole_pairs is 3") == std::string::npos) continue;
-        controller += w.rfind("controller: ", 0) == 0;
-        plant += w.rfind("plant: ", 0) == 0;
+        ++given;
+        prefixed += w.rfind("controller: ", 0) == 0 || w.rfind("plant: ", 0) == 0;
     }
-    EXPECT_EQ(controller, 1);
-    EXPECT_EQ(plant, 1);
+    EXPECT_EQ(given, 1);
+    EXPECT_EQ(prefixed, 1);
     // The inverter's parameters are forwarded to its InverterParams.
     const auto* f_sw = fmi::find_variable<ipmsm::DriveModel>("f_sw");
     ASSERT_NE(f_sw, nullptr);
