@@ -1,4 +1,4 @@
-"""The README is for people (issue 26): at most 150 lines, measurements in docs/; every file it
+"""The README is for people: at most 150 lines, measurements in docs/; every file it
 links or names as a path exists (a renamed file breaks it here, not in a reader's browser)."""
 from __future__ import annotations
 
