@@ -1,22 +1,23 @@
 // Cost of one 100 us communication step of the IpmsmPlant at top speed under load, for the
 // CVODE settings the FMU uses and for the alternatives (Adams vs BDF, functional iteration vs
-// Newton, tolerances, re-initialising at every communication point vs keeping CVODE's history,
-// initial step, order limit, and CVODE's defaults).
+// Newton, tolerances, initial step, order limit, and CVODE's defaults).
 //
-// 1. Record: the IpmsmController and IpmsmPlant FMUs (build/fmu/*) in closed loop at 12 000 r/min
-//    (the native master, libipmsm_cosim, on the drive's coupling description, 100 us): the torque command goes 0 -> 80 N.m (about the
-//    maximum there) and then either stays ("steady": the regulator's small corrections each step)
-//    or alternates 80 / 40 N.m every 10 ms ("steps": current transients). The plant's voltages of
-//    every step are recorded.
+// 1. Record: the controller and the plant in closed loop at 12 000 r/min, their models coupled
+//    in C++ on the drive's coupling description (fmu_src/coupling/coupled_models.hpp, as the
+//    IpmsmDrive couples them; the same sequence of calls as two FMUs under a master), 100 us:
+//    the torque command is held at 60 or 80 N.m (about the maximum there: the regulator's small
+//    corrections each step), ramps 20 -> 80 N.m, or alternates 80 / 40 N.m every 10 ms (current
+//    transients). The plant's voltages of every step are recorded.
 // 2. Replay the recorded voltages through CvodeIntegrator (plant/cvode_integrator.hpp) with each
 //    setting: microseconds per step (best of several rounds), CVODE steps and RHS evaluations per
 //    step, and the largest current error against a reference run (Adams, rtol 1e-12).
-// 3. The same replay through the FMU's fmi2SetReal + fmi2DoStep (the whole FMI call, with the
-//    glue's per-step copy of the model), for the FMU's default settings and for cvode_method 2.
+// 3. The same replay through the plant FMU's fmi2SetReal + fmi2DoStep (the whole FMI call, with
+//    the glue's per-step copy of the model; the FMU dlopened by tests/cpp/fmu_binary.hpp), for
+//    the FMU's default settings and for cvode_method 2.
 //
-// Usage: bench_plant [rounds] [flux_map.csv]. The FMUs are found next to this executable
+// Usage: bench_plant [rounds] [flux_map.csv]. The plant FMU is found next to this executable
 // (../fmu/). A flux map (e.g. a strongly saturating one from tools/saturating_map.py, same pole
-// pairs and R_s as the default motor) replaces the default one in both FMUs and the replay.
+// pairs and R_s as the default motor) replaces the default one in both models and the replay.
 
 #include <algorithm>
 #include <chrono>
@@ -33,12 +34,15 @@
 #include <string>
 #include <vector>
 
+#include "controller/controller_model.hpp"
+#include "coupling/coupled_models.hpp"
+#include "coupling/drive_coupling_text.hpp"
 #include "cvode_integrator.hpp"
 #include "fmi2Functions.h"
 #include "fmu_binary.hpp"
-#include "fmu_description.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
+#include "plant_model.hpp"
 
 using namespace ipmsm;
 namespace fs = std::filesystem;
@@ -119,54 +123,60 @@ struct Trace {
     double T_e_end = 0, i_d_end = 0, i_q_end = 0;
 };
 
-// The closed loop (both FMUs coupled by the native master on the drive's coupling description,
-// started at rest and then held at top speed); records the plant's voltages after 20 ms of
-// settling: the voltage applied over each step, read back from the plant's inputs.
-Trace record(const cosim_tools::Units& units, const std::string& flux_map, const char* name,
-             const std::function<double(int)>& torque, int n) {
-    const std::vector<const char*> probes = {"plant.u_d", "plant.u_q", "plant.psi_d", "plant.psi_q",
-                                             "plant.i_d", "plant.i_q", "plant.T_e"};
-    enum { u_d, u_q, psi_d, psi_q, i_d, i_q, T_e };
-    std::string why;
-    // Both units on the same map (the FMUs' default map when flux_map is empty).
-    const auto set_map = [&](ipmsm_cosim* c) {
-        if (flux_map.empty()) return 0;
-        const char* value = flux_map.c_str();
-        for (const auto& [role, dir] : {std::pair{"controller", units.controller_dir}, {"plant", units.plant_dir}}) {
-            const unsigned vr = fmu_binary::read_description(dir).vr.at("flux_map");
-            if (ipmsm_cosim_set_string(c, role, 1, &vr, &value) != 0) return -1;
+// The closed loop (the controller's and the plant's models coupled on the drive's coupling
+// description, started at rest and then held at top speed); records the plant's voltages after
+// 20 ms of settling: the voltage applied over each step, read back from the plant's inputs.
+Trace record(const std::string& flux_map, const char* name, const std::function<double(int)>& torque, int n) {
+    try {
+        fmi::Context ctx;
+        ctx.instance_name = "bench";
+        ctx.resource_dir = IPMSM_SOURCE_DIR "/fmu_src/resources";
+        ctx.log_warning = [](const std::string& m) { std::fprintf(stderr, "model: %s\n", m.c_str()); };
+        ControllerModel controller(ctx);
+        PlantModel plant(ctx);
+        // Both models on the same map (their default map when flux_map is empty).
+        controller.flux_map = plant.flux_map = flux_map;
+        const coupling::Coupling description = coupling::parse(coupling::kDriveCouplingText);
+        std::vector<coupling::ModelUnit> units;
+        for (const coupling::Unit& u : description.units) {
+            if (u.model_identifier == PlantModel::model_identifier)
+                units.push_back(coupling::model_unit(plant));
+            else if (u.model_identifier == ControllerModel::model_identifier)
+                units.push_back(coupling::model_unit(controller));
+            else
+                throw std::invalid_argument("the coupling description has a unit " + u.model_identifier);
         }
-        return 0;
-    };
-    ipmsm_cosim* m = cosim_tools::start_drive(units, kH, {0.0, 0.0, 355.0, 293.15, 293.15}, probes, why, set_map);
-    if (m == nullptr) {
-        std::fprintf(stderr, "%s\n", why.c_str());
+        coupling::CoupledModels loop(description, std::move(units), kH);
+        const auto hold = [&](double T_ref, double w_m) {
+            loop.hold("T_ref", T_ref);
+            loop.hold("w_m", w_m);
+            loop.hold("u_dc", 355.0);
+            loop.hold("T_magnet", 293.15);
+            loop.hold("T_winding", 293.15);
+        };
+        hold(0.0, 0.0);
+        loop.initialise();
+        const int settle = 200;
+        hold(torque(0), kTopSpeed);
+        for (int k = 0; k < settle; ++k) loop.step();
+        Trace tr;
+        tr.name = name;
+        tr.psi0[0] = plant.psi_d, tr.psi0[1] = plant.psi_q;
+        tr.i0[0] = plant.i_d, tr.i0[1] = plant.i_q;
+        for (int k = 0; k < n; ++k) {
+            hold(torque(k), kTopSpeed);
+            loop.step();
+            tr.u_d.push_back(plant.u_d);
+            tr.u_q.push_back(plant.u_q);
+        }
+        tr.T_e_end = plant.T_e;
+        tr.i_d_end = plant.i_d;
+        tr.i_q_end = plant.i_q;
+        return tr;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "recording the closed loop: %s\n", e.what());
         std::exit(3);
     }
-    std::vector<double> mean(probes.size()), end(probes.size());
-    auto advance = [&](long long steps, double T_ref) {
-        const ipmsm_cosim_inputs in{T_ref, kTopSpeed, 355.0, 293.15, 293.15};
-        if (ipmsm_cosim_advance(m, steps, &in, mean.data(), end.data(), nullptr, 0, 0) < 0) {
-            std::fprintf(stderr, "%s\n", ipmsm_cosim_error(m));
-            std::exit(3);
-        }
-    };
-    const int settle = 200;
-    advance(settle, torque(0));
-    Trace tr;
-    tr.name = name;
-    tr.psi0[0] = end[psi_d], tr.psi0[1] = end[psi_q];
-    tr.i0[0] = end[i_d], tr.i0[1] = end[i_q];
-    for (int k = 0; k < n; ++k) {
-        advance(1, torque(k));
-        tr.u_d.push_back(end[u_d]);
-        tr.u_q.push_back(end[u_q]);
-    }
-    tr.T_e_end = end[T_e];
-    tr.i_d_end = end[i_d];
-    tr.i_q_end = end[i_q];
-    ipmsm_cosim_free(m);
-    return tr;
 }
 
 struct Result {
@@ -268,7 +278,6 @@ double fmu_replay(Fmu& plant_fmu, const Trace& tr, std::map<std::string, double>
 int main(int argc, char** argv) {
     const int rounds = argc > 1 ? std::max(1, std::atoi(argv[1])) : 7;
     const fs::path fmu_dir = fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "fmu";
-    const cosim_tools::Units units{(fmu_dir / "IpmsmController").string(), (fmu_dir / "IpmsmPlant").string()};
     Fmu plant(fmu_dir / "IpmsmPlant", "IpmsmPlant");
 
     const std::string map_path =
@@ -283,15 +292,14 @@ int main(int argc, char** argv) {
     // Torque commands after 20 ms at the first value: 60 N.m held (the current regulator corrects
     // a little every step), 80 N.m held (about the maximum: the voltage is at its limit), a ramp
     // 20 -> 80 N.m over the 100 ms, and steps 80 / 40 N.m every 10 ms (current transients).
-    std::vector<Trace> traces = {
-        record(
-            units, custom_map, "60Nm", [](int) { return 60.0; }, n),
-        record(
-            units, custom_map, "80Nm", [](int) { return 80.0; }, n),
-        record(
-            units, custom_map, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
-        record(
-            units, custom_map, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
+    std::vector<Trace> traces = {record(
+                                     custom_map, "60Nm", [](int) { return 60.0; }, n),
+                                 record(
+                                     custom_map, "80Nm", [](int) { return 80.0; }, n),
+                                 record(
+                                     custom_map, "ramp", [n](int k) { return 20.0 + 60.0 * k / n; }, n),
+                                 record(
+                                     custom_map, "steps", [](int k) { return (k / 100) % 2 == 1 ? 40.0 : 80.0; }, n)};
     for (const Trace& tr : traces)
         std::printf("trace %-6s: 12000 r/min, %d steps of 100 us; at the end T_e = %.2f N.m, i = (%.1f, %.1f) A\n",
                     tr.name, n, tr.T_e_end, tr.i_d_end, tr.i_q_end);
