@@ -144,8 +144,9 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
     plot_study(out, results, drive)
 
     lines = ["# Ferrari versus 2-D tables on a drive cycle", "",
-             "Produced by `python -m scenarios compare`. Every run couples the IpmsmController and IpmsmPlant",
-             "FMUs at 100 µs with the vehicle, driver and battery at 10 ms (scenarios/simulate.py). The tables",
+             "Produced by `python -m scenarios compare`. Every run steps the IpmsmDrive FMU (the controller and",
+             "the plant coupled inside at 100 µs) with the vehicle, driver and battery at 10 ms",
+             "(scenarios/runs/simulate.py); each method's own commands (command_check 0). The tables",
              f"are 41 × 41, built by the controller at initialisation for {U_DC_NOMINAL_V:.0f} V and "
              f"{T_REFERENCE_K - ZERO_CELSIUS_K:.0f} °C with the exact solver.",
              "*Copper loss vs optimum*: the run's copper loss over that of the exact optimum (Ferrari,",
