@@ -9,6 +9,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+
 from conftest import fmu_path
 
 RELEASED = Path(__file__).resolve().parents[1] / "data" / "value_references_0.1.0.json"
