@@ -175,7 +175,8 @@ def test_the_osp_structure_s_sources_are_the_build_s_fmus():
     root = ET.parse(OSP).getroot()
     for s in root.iterfind(".//osp:Simulator", OSP_NS):
         unit = DRIVE.units[DRIVE.unit_index(s.get("name"))]
-        assert (OSP.parent / s.get("source")).resolve() == (BUILD_DIR / "fmu" / f"{unit.model_identifier}.fmu").resolve()
+        built = BUILD_DIR / "fmu" / f"{unit.model_identifier}.fmu"
+        assert (OSP.parent / s.get("source")).resolve() == built.resolve()
 
 
 def test_fmpy_simulate_ssp_matches_the_coupled_run(controller_fmu, plant_fmu, ssd):
