@@ -116,10 +116,10 @@ const std::vector<V>& ControllerModel::variables() {
          "Derating: magnet temperature at which the torque limit reaches zero (default: 150 degC, sintered NdFeB "
          "of the SH grades)",
          kTemperatureMin_K, kTemperatureMax_K},
-        {"derating_margin", &M::derating_margin, Causality::parameter, Variability::fixed, "K", "",
+        {"derating_margin", &M::derating_margin, Causality::parameter, Variability::fixed, "K", "degC",
          "Derating: the torque limit starts to fall this far below T_winding_max and T_magnet_max (default: 25 K, "
          "IEC 60085 class 155 (F) to 180 (H))",
-         0.0, 1000.0, true},
+         0.0, 1000.0, true, true},
     };
     return table;
 }

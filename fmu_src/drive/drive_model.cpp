@@ -31,10 +31,12 @@ V of_models(const char* name, fmi::Member<M> member) {
     const auto* p = fmi::find_variable<PlantModel>(name);
     const auto* c = fmi::find_variable<ControllerModel>(name);
     if (p == nullptr && c == nullptr) throw std::logic_error(std::string("IpmsmDrive: no model has ") + name);
-    V v = p != nullptr ? V{p->name,         std::move(member), p->causality, p->variability, p->unit,
-                           p->display_unit, p->description,    p->min,       p->max,         p->min_exclusive}
-                       : V{c->name,         std::move(member), c->causality, c->variability, c->unit,
-                           c->display_unit, c->description,    c->min,       c->max,         c->min_exclusive};
+    V v = p != nullptr ? V{p->name, std::move(member), p->causality,        p->variability,
+                           p->unit, p->display_unit,   p->description,      p->min,
+                           p->max,  p->min_exclusive,  p->relative_quantity}
+                       : V{c->name, std::move(member), c->causality,        c->variability,
+                           c->unit, c->display_unit,   c->description,      c->min,
+                           c->max,  c->min_exclusive,  c->relative_quantity};
     if (p != nullptr && c != nullptr) {
         if (p->member.index() != c->member.index())
             throw std::logic_error(std::string("IpmsmDrive: the models' ") + name + " differ in type");
@@ -274,10 +276,10 @@ const std::vector<V>& DriveModel::variables() {
         {"derating", &M::derating, Causality::output, Variability::discrete, "1", "",
          "The controller's thermal factor of the torque limit at the end of the step (1: none; T_max and T_cmd "
          "include it)"},
-        {"T_magnet_estimate_error", &M::T_magnet_estimate_error, Causality::parameter, Variability::fixed, "K", "",
+        {"T_magnet_estimate_error", &M::T_magnet_estimate_error, Causality::parameter, Variability::fixed, "K", "degC",
          "The controller's magnet temperature is the machine's (the thermal network's, or the T_magnet input) plus "
          "this: the error of a drive's estimate",
-         -200.0, 200.0},
+         -200.0, 200.0, false, true},
         parameter("T_winding_max", &M::controller_, &M::plant_),
         parameter("T_magnet_max", &M::controller_, &M::plant_),
         parameter("derating_margin", &M::controller_, &M::plant_),
