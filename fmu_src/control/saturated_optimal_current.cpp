@@ -362,33 +362,16 @@ struct MapView {
         return found;
     }
     // T_max's check, cheap (one map evaluation): the decision's point is a local maximum of the
-    // torque within the limits (Karush-Kuhn-Tucker: grad T' = lambda grad c + mu grad g with
-    // lambda, mu >= 0 for the limits that bind). A corner of the two limits whose lambda is negative
-    // has more torque inward along the voltage limit (an MTPV point inside the current circle the
-    // decision's seeds missed); an MTPV point whose mu is negative is a minimum along it.
+    // torque within the limits (map_newton::torque_local_maximum). A corner of the two limits with
+    // a negative multiplier of the current limit has more torque inward along the voltage limit
+    // (an MTPV point inside the current circle the decision's seeds missed).
     bool locally_maximal(const decision::Choice& top) const {
-        if (top.region == Region::mtpa) return true;  // MTPA at I_max: the circle's polished global maximum
         const CurrentPoint p = top.point;
-        const FluxPoint f = flux.eval(p.i_d, p.i_q);
-        const double Td = s * (f.L_dd * p.i_q - f.L_qd * p.i_d - f.psi_q);
-        const double Tq = s * (f.L_dq * p.i_q + f.psi_d - f.L_qq * p.i_d);
-        const double vd = R_s * p.i_d - lim.omega * f.psi_q, vq = R_s * p.i_q + lim.omega * f.psi_d;
-        const double gd = 2.0 * (vd * (R_s - lim.omega * f.L_qd) + vq * lim.omega * f.L_dd);
-        const double gq = 2.0 * (vd * -lim.omega * f.L_qq + vq * (R_s + lim.omega * f.L_dq));
-        const double cd = 2.0 * p.i_d, cq = 2.0 * p.i_q;
-        const bool on_voltage = vd * vd + vq * vq >= lim.V_max * lim.V_max * (1.0 - kActiveLimit);
-        const bool on_current = cd * cd + cq * cq >= 4.0 * lim.I_max * lim.I_max * (1.0 - kActiveLimit);
-        const double T_scale = std::hypot(Td, Tq);
-        if (on_voltage && on_current) {
-            const double det = cd * gq - cq * gd;  // grad c x grad g
-            if (det == 0.0) return true;
-            const double lambda = (Td * gq - Tq * gd) / det, mu = (cd * Tq - cq * Td) / det;
-            return lambda * std::hypot(cd, cq) >= -kMultiplierTolerance * T_scale &&
-                   mu * std::hypot(gd, gq) >= -kMultiplierTolerance * T_scale;
-        }
-        if (on_voltage) return Td * gd + Tq * gq >= -kMultiplierTolerance * T_scale * std::hypot(gd, gq);
-        if (on_current) return Td * cd + Tq * cq >= -kMultiplierTolerance * T_scale * std::hypot(cd, cq);
-        return true;
+        // MTPA at I_max: the circle's polished global maximum, if on the circle.
+        if (top.region == Region::mtpa)
+            return p.i_d * p.i_d + p.i_q * p.i_q >= lim.I_max * lim.I_max * (1.0 - kActiveLimit);
+        return map_newton::torque_local_maximum(flux, lim.omega, R_s, s, p.i_d, p.i_q, lim.I_max, lim.V_max,
+                                                kActiveLimit, kMultiplierTolerance);
     }
 
     bool zero_torque(CurrentPoint& p) {
@@ -545,7 +528,8 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
     top_check_ = CheckRecord{};
 
     // 1. The largest torque reachable now (this torque sign), on the map.
-    const decision::Choice top = decision::max_torque(view);
+    decision::Choice top = decision::max_torque(view);
+    fault_injection::apply_top(top.point);
     if (!top.feasible) {
         // No limit point on the map: above the maximum speed, or Newton failed. Fall back to the
         // paper's recursion for this step.
