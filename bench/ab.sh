@@ -5,11 +5,14 @@
 # both); prints each row's best, in ns per call. A revision may be "work" (the working tree).
 # Rows are matched by name; a row one revision lacks shows "-".
 #
-# Usage: bench/ab.sh REV_A REV_B [ROUNDS]     e.g. bench/ab.sh fcaaf63 HEAD 3
+# Usage: bench/ab.sh REV_A REV_B [ROUNDS [BENCH_ARGUMENTS...]]     e.g. bench/ab.sh fcaaf63 HEAD 3
+# BENCH_ARGUMENTS go to both bench_controllers, e.g. the corpus rows alone:
+#   bench/ab.sh main HEAD 3 --corpus-only $(python tests/python/map_corpus.py /tmp/corpus)
 set -euo pipefail
-[ $# -ge 2 ] || { sed -n '2,9p' "$0"; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,11p' "$0"; exit 2; }
 repo=$(cd "$(dirname "$0")/.." && pwd)
 rounds=${3:-3}
+bench_args=("${@:4}")
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
@@ -44,8 +47,8 @@ build "$1" "$tmp/a"
 build "$2" "$tmp/b"
 for ((k = 1; k <= rounds; ++k)); do
     echo "round $k of $rounds ..." >&2
-    "$tmp/a/bench_controller" | sed 's/^/a|/' >> "$tmp/out"
-    "$tmp/b/bench_controller" | sed 's/^/b|/' >> "$tmp/out"
+    "$tmp/a/bench_controller" "${bench_args[@]}" | sed 's/^/a|/' >> "$tmp/out"
+    "$tmp/b/bench_controller" "${bench_args[@]}" | sed 's/^/b|/' >> "$tmp/out"
 done
 # Rows are "name  value ns  note".
 awk -v A="$1" -v B="$2" '
