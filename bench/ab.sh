@@ -21,10 +21,13 @@ trap 'rm -rf "$tmp"' EXIT
 build() {  # build REV DIR
     local rev=$1 d=$2
     mkdir -p "$d/src" "$d/obj"
+    # tests/support: the generated flux maps bench_controller includes (where the revision has them)
     if [ "$rev" = work ]; then
         cp -r "$repo/fmu_src" "$repo/bench" "$d/src/"
+        mkdir -p "$d/src/tests" && cp -r "$repo/tests/support" "$d/src/tests/" 2>/dev/null || true
     else
         git -C "$repo" archive "$rev" fmu_src bench | tar -x -C "$d/src"
+        git -C "$repo" archive "$rev" tests/support 2>/dev/null | tar -x -C "$d/src" 2>/dev/null || true
     fi
     local include sources=()
     if [ -d "$d/src/fmu_src/core" ]; then
@@ -34,7 +37,8 @@ build() {  # build REV DIR
         include="$d/src/fmu_src"
         sources=("$d"/src/fmu_src/{numerics,machine,control}/*.cpp)
     fi
-    local flags=(-std=c++17 -O3 -DNDEBUG -I"$include" -isystem /usr/include/eigen3)
+    [ -d "$d/src/tests/support" ] && sources+=("$d"/src/tests/support/*.cpp)
+    local flags=(-std=c++17 -O3 -DNDEBUG -I"$include" -I"$d/src/tests/support" -isystem /usr/include/eigen3)
     for f in "${sources[@]}"; do g++ "${flags[@]}" -fPIC -c "$f" -o "$d/obj/$(basename "$f" .cpp).o" & done
     wait
     ar rcs "$d/libcore.a" "$d"/obj/*.o
