@@ -8,7 +8,7 @@
 // circles (CurrentCircles) bracket the candidates; around each, the circle is sampled at a
 // fraction of the map's grid spacing (level_search::grid_resolution) before golden section in the
 // angle, bisection on the voltage limit and golden section in the radius polish it.
-// Slow (a few hundred microseconds): what takes over where T_max's check fails
+// Slow (some 0.3 to 0.8 ms): what takes over where T_max's check fails
 // (docs/controller.md, "T_max: the most torque within the limits").
 #pragma once
 
