@@ -5,11 +5,14 @@
 # both); prints each row's best, in ns per call. A revision may be "work" (the working tree).
 # Rows are matched by name; a row one revision lacks shows "-".
 #
-# Usage: bench/ab.sh REV_A REV_B [ROUNDS]     e.g. bench/ab.sh fcaaf63 HEAD 3
+# Usage: bench/ab.sh REV_A REV_B [ROUNDS [BENCH_ARGUMENTS...]]     e.g. bench/ab.sh fcaaf63 HEAD 3
+# BENCH_ARGUMENTS go to both bench_controllers, e.g. the corpus rows alone:
+#   bench/ab.sh main HEAD 3 --corpus-only $(python tests/python/map_corpus.py /tmp/corpus)
 set -euo pipefail
-[ $# -ge 2 ] || { sed -n '2,9p' "$0"; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,11p' "$0"; exit 2; }
 repo=$(cd "$(dirname "$0")/.." && pwd)
 rounds=${3:-3}
+bench_args=("${@:4}")
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
@@ -18,10 +21,13 @@ trap 'rm -rf "$tmp"' EXIT
 build() {  # build REV DIR
     local rev=$1 d=$2
     mkdir -p "$d/src" "$d/obj"
+    # tests/support: the generated flux maps bench_controller includes (where the revision has them)
     if [ "$rev" = work ]; then
         cp -r "$repo/fmu_src" "$repo/bench" "$d/src/"
+        mkdir -p "$d/src/tests" && cp -r "$repo/tests/support" "$d/src/tests/" 2>/dev/null || true
     else
         git -C "$repo" archive "$rev" fmu_src bench | tar -x -C "$d/src"
+        git -C "$repo" archive "$rev" tests/support 2>/dev/null | tar -x -C "$d/src" 2>/dev/null || true
     fi
     local include sources=()
     if [ -d "$d/src/fmu_src/core" ]; then
@@ -31,7 +37,8 @@ build() {  # build REV DIR
         include="$d/src/fmu_src"
         sources=("$d"/src/fmu_src/{numerics,machine,control}/*.cpp)
     fi
-    local flags=(-std=c++17 -O3 -DNDEBUG -I"$include" -isystem /usr/include/eigen3)
+    [ -d "$d/src/tests/support" ] && sources+=("$d"/src/tests/support/*.cpp)
+    local flags=(-std=c++17 -O3 -DNDEBUG -I"$include" -I"$d/src/tests/support" -isystem /usr/include/eigen3)
     for f in "${sources[@]}"; do g++ "${flags[@]}" -fPIC -c "$f" -o "$d/obj/$(basename "$f" .cpp).o" & done
     wait
     ar rcs "$d/libcore.a" "$d"/obj/*.o
@@ -44,8 +51,8 @@ build "$1" "$tmp/a"
 build "$2" "$tmp/b"
 for ((k = 1; k <= rounds; ++k)); do
     echo "round $k of $rounds ..." >&2
-    "$tmp/a/bench_controller" | sed 's/^/a|/' >> "$tmp/out"
-    "$tmp/b/bench_controller" | sed 's/^/b|/' >> "$tmp/out"
+    "$tmp/a/bench_controller" "${bench_args[@]}" | sed 's/^/a|/' >> "$tmp/out"
+    "$tmp/b/bench_controller" "${bench_args[@]}" | sed 's/^/b|/' >> "$tmp/out"
 done
 # Rows are "name  value ns  note".
 awk -v A="$1" -v B="$2" '

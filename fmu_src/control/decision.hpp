@@ -26,7 +26,9 @@ struct Choice {
     bool feasible = true;  // false: no current within I_max brings the voltage within V_max
 };
 
-// MATH.md "Maximum torque at a speed": the first that applies.
+// MATH.md "Maximum torque at a speed": the first that applies. On the map its answer is checked
+// before a command is made from it (saturated_optimal_current.cpp: a point that is not a local
+// maximum within the limits hands over to max_torque_search.hpp, docs/controller.md).
 template <class View>
 Choice max_torque(View& v) {
     CurrentPoint p{0.0, 0.0};

@@ -19,8 +19,18 @@ inline void apply(CurrentCommand& c) {
     c.i_d *= current_scale();
     c.i_q *= current_scale();
 }
+// T_max's point, before its check, has its current vector scaled by this factor (1: no fault).
+inline double& top_scale() {
+    static double scale = 1.0;
+    return scale;
+}
+inline void apply_top(CurrentPoint& p) {
+    p.i_d *= top_scale();
+    p.i_q *= top_scale();
+}
 #else
 inline void apply(CurrentCommand&) {}
+inline void apply_top(CurrentPoint&) {}
 #endif
 
 }  // namespace ipmsm::fault_injection

@@ -115,6 +115,25 @@ bool voltage_limit_binds_on_circle(const MagnetFlux& flux, double omega, double 
     return mu_sign >= 0.0;
 }
 
+bool torque_local_maximum(const MagnetFlux& flux, double omega, double R_s, double torque_sign, double i_d, double i_q,
+                          double I_max, double V_max, double active, double tolerance) {
+    const Fields F = gradients_at(flux, omega, R_s, i_d, i_q);
+    const double Td = torque_sign * F.T.d, Tq = torque_sign * F.T.q;
+    const double T_norm = std::hypot(Td, Tq), c_norm = std::hypot(F.c.d, F.c.q), g_norm = std::hypot(F.g.d, F.g.q);
+    const bool on_current = F.c.v >= I_max * I_max * (1.0 - active);
+    const bool on_voltage = F.g.v >= V_max * V_max * (1.0 - active);
+    // grad T'' = lambda grad c + mu grad g: crossing with grad g isolates lambda, with grad c mu.
+    if (on_current && on_voltage) {
+        const double det = cross(F.c.d, F.c.q, F.g.d, F.g.q);
+        if (det == 0.0) return true;
+        const double lambda = cross(Td, Tq, F.g.d, F.g.q) / det, mu = cross(F.c.d, F.c.q, Td, Tq) / det;
+        return lambda * c_norm >= -tolerance * T_norm && mu * g_norm >= -tolerance * T_norm;
+    }
+    if (on_voltage) return Td * F.g.d + Tq * F.g.q >= -tolerance * T_norm * g_norm;
+    if (on_current) return Td * F.c.d + Tq * F.c.q >= -tolerance * T_norm * c_norm;
+    return T_norm == 0.0;  // within both limits: more torque along its gradient
+}
+
 Result solve(const MagnetFlux& flux, const Problem& P, double i_d, double i_q, int max_iterations, double tolerance_A,
              double max_step_A) {
     for (int k = 1; k <= max_iterations; ++k) {

@@ -42,6 +42,13 @@ Result solve(const MagnetFlux& flux, const Problem& problem, double i_d, double 
 bool voltage_limit_binds_on_circle(const MagnetFlux& flux, double omega, double R_s, double torque_sign, double i_d,
                                    double i_q);
 
+// Is (i_d, i_q) a local maximum of torque_sign T' within |i| <= I_max and |v| <= V_max (first
+// order, Karush-Kuhn-Tucker)? The limits met to `active` (relative, on the squares) bind, and
+// grad T'' = lambda grad c + mu grad g must hold with lambda, mu >= 0 for them, to `tolerance`
+// (relative to the gradients); within both limits, only where grad T' = 0.
+bool torque_local_maximum(const MagnetFlux& flux, double omega, double R_s, double torque_sign, double i_d, double i_q,
+                          double I_max, double V_max, double active, double tolerance);
+
 // Squared steady-state voltage at a current.
 double voltage_sq(const MagnetFlux& flux, double omega, double R_s, double i_d, double i_q);
 

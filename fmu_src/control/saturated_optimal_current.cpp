@@ -10,6 +10,7 @@
 #include "control/fault_injection.hpp"
 #include "control/level_search.hpp"
 #include "control/map_newton.hpp"
+#include "control/max_torque_search.hpp"
 
 namespace ipmsm {
 namespace {
@@ -147,6 +148,11 @@ constexpr double kClearlyOutside = 1.1025;
 // Candidates for T_max on the current circle are polished while their sampled estimate is within
 // this of the best polished torque (an estimate is off by the torque's curvature over a sample).
 constexpr double kCandidateMargin = 0.01;  // from a Ferrari seed, 2 to 4 are usual
+// A limit binds at T_max's point where it is met to this (relative, on the squares).
+constexpr double kActiveLimit = 1e-7;
+// A Lagrange multiplier of T_max's point below minus this (relative: the torque's gradient against
+// the limit's) shows that it is not a local maximum.
+constexpr double kMultiplierTolerance = 1e-6;
 // Case i's seeds from one interpolated point only where the circles' MTPA points are closer than
 // this fraction of the map's grid spacing.
 constexpr double kOneBranchGridFraction = 0.25;
@@ -355,6 +361,19 @@ struct MapView {
         if (solve_from(System::voltage_limit, s * T_red, top_point, q)) consider(q);
         return found;
     }
+    // T_max's check, cheap (one map evaluation): the decision's point is a local maximum of the
+    // torque within the limits (map_newton::torque_local_maximum). A corner of the two limits with
+    // a negative multiplier of the current limit has more torque inward along the voltage limit
+    // (an MTPV point inside the current circle the decision's seeds missed).
+    bool locally_maximal(const decision::Choice& top) const {
+        const CurrentPoint p = top.point;
+        // MTPA at I_max: the circle's polished global maximum, if on the circle.
+        if (top.region == Region::mtpa)
+            return p.i_d * p.i_d + p.i_q * p.i_q >= lim.I_max * lim.I_max * (1.0 - kActiveLimit);
+        return map_newton::torque_local_maximum(flux, lim.omega, R_s, s, p.i_d, p.i_q, lim.I_max, lim.V_max,
+                                                kActiveLimit, kMultiplierTolerance);
+    }
+
     bool zero_torque(CurrentPoint& p) {
         p = {0.0, 0.0};
         if (within_voltage(p)) return true;
@@ -506,9 +525,11 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
     const double kT = torque_factor(pole_pairs_);
     const CircleMaxima& maxima = circle_maxima(flux, lim.I_max);  // makes circles_ on the first call
     MapView view(*this, flux, *circles_, maxima, lim, R_s, s);
+    top_check_ = CheckRecord{};
 
     // 1. The largest torque reachable now (this torque sign), on the map.
-    const decision::Choice top = decision::max_torque(view);
+    decision::Choice top = decision::max_torque(view);
+    fault_injection::apply_top(top.point);
     if (!top.feasible) {
         // No limit point on the map: above the maximum speed, or Newton failed. Fall back to the
         // paper's recursion for this step.
@@ -517,21 +538,44 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
         fb.converged = false;
         return fb;
     }
-    const double T_top = std::max(0.0, view.torque(top.point));  // reduced, >= 0
-    view.top_point = top.point;
 
     // 2. The command: clamped to T_max, else MTPA, else the voltage limit (Case ii).
     const double T_red = std::abs(T_ref) / kT;
-    const decision::Choice c = decision::command(view, T_red, top);
-    CurrentCommand cmd;
-    cmd.i_d = c.point.i_d;
-    cmd.i_q = c.point.i_q;
-    cmd.region = c.region;
-    cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(c.point.i_d, c.point.i_q) : s * T_top);
-    cmd.torque_max = kT * T_top;
+    auto command_below = [&](const decision::Choice& t) {
+        const double T_top = std::max(0.0, view.torque(t.point));  // reduced, >= 0
+        view.top_point = t.point;
+        const decision::Choice c = decision::command(view, T_red, t);
+        CurrentCommand cmd;
+        cmd.i_d = c.point.i_d;
+        cmd.i_q = c.point.i_q;
+        cmd.region = c.region;
+        cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(c.point.i_d, c.point.i_q) : s * T_top);
+        cmd.torque_max = kT * T_top;
+        // Below T_max the command is T_max's point only at the edge of reach (neither case had a point).
+        cmd.converged = T_red >= T_top || c.point.i_d != t.point.i_d || c.point.i_q != t.point.i_q;
+        return cmd;
+    };
+    CurrentCommand cmd = command_below(top);
+
+    // 3. T_max's check: where its point is not shown to be a local maximum within the limits, the
+    //    robust search's (max_torque_search.hpp) decides; more torque there fails the check.
+    if (!view.locally_maximal(top)) {
+        const max_torque_search::Result r =
+            max_torque_search::max_torque(flux, *circles_, s, lim, R_s, resolution_, magnet_free_);
+        view.iterations += r.evaluations;
+        top_check_.searched_max = true;
+        const double T_top = cmd.torque_max / kT;
+        if (r.found && r.torque > T_top + kTorqueTolerance * std::max(T_top, r.torque)) {
+            const CurrentCommand rejected = cmd;
+            cmd = command_below({r.point, limit_region(flux, lim, R_s, r.point), true});
+            top_check_.finding = CheckFinding::torque_max;
+            top_check_.rejected = rejected;
+            top_check_.T_target = s * std::min(std::abs(T_ref), cmd.torque_max);
+            top_check_.T_made = rejected.torque;
+            top_check_.replaced = true;
+        }
+    }
     cmd.iterations = view.iterations;
-    // Below T_max the command is T_max's point only at the edge of reach (neither case had a point).
-    cmd.converged = T_red >= T_top || c.point.i_d != top.point.i_d || c.point.i_q != top.point.i_q;
     return cmd;
 }
 
@@ -551,7 +595,26 @@ bool mirror_ties(const MagnetFlux& flux, double omega, double R_s, CurrentPoint 
 
 }  // namespace
 
+// Which limits bind at a point of T_max (the robust search's): the region it belongs to.
+Region SaturatedOptimalCurrent::limit_region(const MagnetFlux& flux, const OperatingLimits& lim, double R_s,
+                                             CurrentPoint p) {
+    const bool on_voltage =
+        map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) >= lim.V_max * lim.V_max * (1.0 - kActiveLimit);
+    const bool on_current = p.i_d * p.i_d + p.i_q * p.i_q >= lim.I_max * lim.I_max * (1.0 - kActiveLimit);
+    if (on_voltage && on_current) return Region::current_and_voltage_limit;
+    return on_voltage ? Region::mtpv : Region::mtpa;
+}
+
 CurrentCommand SaturatedOptimalCurrent::check_optimal(CurrentCommand cmd, double T_ref, const OperatingLimits& lim,
+                                                      double R_s, const MagnetFlux& flux) {
+    cmd = check_command(cmd, T_ref, lim, R_s, flux);
+    // T_max's finding (solve_optimal) first: the command was made from its replacement.
+    if (top_check_.finding != CheckFinding::passed) last_check = top_check_;
+    last_check.searched_max = top_check_.searched_max;
+    return cmd;
+}
+
+CurrentCommand SaturatedOptimalCurrent::check_command(CurrentCommand cmd, double T_ref, const OperatingLimits& lim,
                                                       double R_s, const MagnetFlux& flux) {
     last_check = CheckRecord{};
     const double s = sign_of(T_ref);

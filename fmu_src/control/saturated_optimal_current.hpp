@@ -58,7 +58,7 @@ enum class CheckFinding : int {
     current_limit,      // |i| above I_max
     voltage_limit,      // |v| above V_max
     not_least_current,  // a point of less current makes the torque within the limits
-    torque_max,         // its T_max is not the map's
+    torque_max,         // its T_max is not the map's (the robust search found more torque within the limits)
     branch,             // i_d > 0 on a magnet-free machine (the tie convention: i_d <= 0)
     not_finite,
 };
@@ -66,10 +66,11 @@ const char* describe(CheckFinding f);
 
 struct CheckRecord {
     CheckFinding finding = CheckFinding::passed;
-    CurrentCommand rejected;  // the command that failed (finding != passed)
-    double T_target = 0;      // N.m, the torque it should have made (signed)
-    double T_made = 0;        // N.m, what it makes on the map
-    bool replaced = false;    // a command that passes took its place
+    CurrentCommand rejected;    // the command that failed (finding != passed)
+    double T_target = 0;        // N.m, the torque it should have made (signed)
+    double T_made = 0;          // N.m, what it makes on the map
+    bool replaced = false;      // a command that passes took its place
+    bool searched_max = false;  // T_max's point was not shown a local maximum: the robust search ran
 };
 
 // The paper's recursion (recursion 1) starts from its last solutions.
@@ -137,9 +138,14 @@ private:
     CurrentCommand solve_recursive(double T_ref, const OperatingLimits& lim, double R_s, const MagnetFlux& flux);
     CurrentCommand solve_optimal(double T_ref, const OperatingLimits& lim, double R_s, const MagnetFlux& flux);
     // The check of recursion 2's command (cheap: the map at the command and at one circle's MTPA
-    // point); where it fails, the robust search's command.
+    // point); where it fails, the robust search's command. last_check also holds T_max's finding
+    // (solve_optimal checks T_max before the command is made from it).
     CurrentCommand check_optimal(CurrentCommand cmd, double T_ref, const OperatingLimits& lim, double R_s,
                                  const MagnetFlux& flux);
+    CurrentCommand check_command(CurrentCommand cmd, double T_ref, const OperatingLimits& lim, double R_s,
+                                 const MagnetFlux& flux);
+    static Region limit_region(const MagnetFlux& flux, const OperatingLimits& lim, double R_s, CurrentPoint p);
+    CheckRecord top_check_;  // T_max's check in the last solve_optimal()
 
     // The circles and their maxima for the last I_max and magnet shift (recursion 2): computed
     // again when either changes, so the answer depends on the inputs only.

@@ -13,6 +13,8 @@
 #include <sstream>
 #include <string>
 
+#include "control/level_search.hpp"
+#include "control/max_torque_search.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
 #include "flux_map_generators.hpp"
@@ -131,4 +133,39 @@ TEST(CommandCheck, MagnetFreeMachineKeepsToOneBranch) {
         }
     }
     EXPECT_EQ(flips, 0);
+}
+
+// T_max against the robust search (max_torque_search.hpp: nested golden sections, no optimality
+// conditions) at random operating points, four quadrants, a magnet temperature shift and V_max
+// varied: the decision's T_max (checked) is the robust search's within 1e-7 both ways, on the
+// Prius map and on a strongly saturating one.
+TEST(CommandCheck, TorqueMaxIsTheRobustSearchs) {
+    const auto saturating =
+        std::make_shared<const FluxMap>(saturating_flux_map(2.0e-4, 6.0e-4, 0.078, 100.0, 0.15, 500.0, 650.0, 53));
+    struct Case {
+        std::shared_ptr<const FluxMap> map;
+        double I_max, V_max, w_max, R_s;
+    };
+    for (const Case& k : {Case{prius_map(), kIMax, kVMax, 6000 * kRpm, kRs},
+                          Case{saturating, 500.0, 0.95 * 355.0 / std::sqrt(3.0), 12000 * kRpm, 0.012}}) {
+        SaturatedOptimalCurrent solver(k.map, kPolePairs);
+        const CurrentCircles circles(*k.map, k.I_max);
+        unsigned state = 12345;
+        auto uniform = [&] { return (state = state * 1664525u + 1013904223u) / 4294967296.0; };
+        int compared = 0;
+        for (int n = 0; n < 150; ++n) {
+            const double s = uniform() < 0.5 ? -1.0 : 1.0, w = (2 * uniform() - 1) * k.w_max;
+            const double shift = (uniform() - 0.5) * 0.02 * k.map->psi_m();
+            const OperatingLimits lim{kPolePairs * w, k.V_max * (0.85 + 0.25 * uniform()), k.I_max};
+            const CurrentCommand top = solver.solve(s * 1e9, lim, k.R_s, shift, Recursion::optimal);
+            if (!top.feasible) continue;
+            const MagnetFlux flux(*k.map, shift);
+            const auto r = max_torque_search::max_torque(flux, circles, s, lim, k.R_s,
+                                                         level_search::grid_resolution(*k.map), false);
+            ASSERT_TRUE(r.found);
+            EXPECT_NEAR(1.5 * kPolePairs * r.torque, top.torque_max, 1e-7 * top.torque_max) << w << " " << s;
+            ++compared;
+        }
+        EXPECT_GT(compared, 100);
+    }
 }

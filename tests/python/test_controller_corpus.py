@@ -147,15 +147,8 @@ def test_random_points_against_brute_force(controller_fmu, corpus, name):
     _random_points(controller_fmu, corpus, name, 1, 1, every=3)  # 8 points, every region
 
 
-# Known: on the saturating map one T_max of 504 is the current-and-voltage corner, 1.7e-4 below an
-# MTPV point at |i| = 497.5 A (as on main); the check does not cover T_max's maximality yet.
-T_MAX_MISSED = {"saturating"}
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [pytest.param(n, marks=[pytest.mark.xfail(
-    strict=True, reason="T_max's maximality not checked yet (docs/controller.md)")] if n in T_MAX_MISSED else [])
-    for n in NAMES])
+@pytest.mark.parametrize("name", NAMES)
 def test_random_points_against_brute_force_500(controller_fmu, corpus, name):
     _random_points(controller_fmu, corpus, name, 21, 2)  # 504 points
 

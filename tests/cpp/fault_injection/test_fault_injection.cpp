@@ -38,3 +38,34 @@ TEST(FaultInjection, TheCheckCatchesACorruptedCommand) {
     fault_injection::current_scale() = 1.0;
     EXPECT_EQ(solver.last_check.finding, CheckFinding::torque);
 }
+
+// T_max's check (docs/controller.md, "T_max checked"): a T_max whose point is off the limits is not
+// a local maximum; the robust search finds the map's T_max and the command is made from it.
+TEST(FaultInjection, TheCheckCatchesACorruptedTorqueMax) {
+    const auto map =
+        std::make_shared<const FluxMap>(saturating_flux_map(2.0e-4, 6.0e-4, 0.078, 150.0, 0.1, 500.0, 650.0, 53));
+    const MagnetFlux flux(*map, 0.0);
+    SaturatedOptimalCurrent solver(map, 4);
+    const double V_max = 0.95 * 355.0 / std::sqrt(3.0);
+    for (const auto& [w_m, region] :
+         {std::pair{100.0, Region::mtpa}, std::pair{600.0, Region::current_and_voltage_limit},
+          std::pair{1200.0, Region::mtpv}}) {  // rad/s
+        const OperatingLimits lim{4 * w_m, V_max, 500.0};
+        const CurrentCommand good = solver.solve(1e6, lim, 0.012, 0.0, Recursion::optimal);
+        ASSERT_EQ(good.region, region) << w_m;
+        ASSERT_EQ(solver.last_check.finding, CheckFinding::passed) << w_m;
+        ASSERT_FALSE(solver.last_check.searched_max) << w_m;
+
+        fault_injection::top_scale() = 0.999;  // 0.1 % less current: inside both limits
+        const CurrentCommand c = solver.solve(1e6, lim, 0.012, 0.0, Recursion::optimal);
+        const CheckRecord found = solver.last_check;
+        fault_injection::top_scale() = 1.0;
+        EXPECT_TRUE(found.searched_max) << w_m;
+        EXPECT_EQ(found.finding, CheckFinding::torque_max) << w_m;
+        EXPECT_TRUE(found.replaced) << w_m;
+        EXPECT_LT(found.rejected.torque_max, good.torque_max * (1.0 - 1e-5)) << w_m;
+        // The robust search's T_max is the good one, and the command is its point.
+        EXPECT_NEAR(c.torque_max, good.torque_max, 1e-7 * good.torque_max) << w_m;
+        EXPECT_NEAR(6.0 * flux.reduced_torque(c.i_d, c.i_q), c.torque_max, 1e-7 * good.torque_max) << w_m;
+    }
+}
