@@ -163,6 +163,12 @@ const std::vector<V>& PlantModel::variables() {
          "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
         {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
          "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
+        // I_max (0.2.0) here: 0.1.0's value references above stay theirs, and 0.2.0's thermal
+        // ones below stay theirs (0.2.0 had it before i_d_start; CHANGELOG)
+        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "",
+         "Peak current limit of the drive (the controller's): the flux map must be legal in its operating region "
+         "(docs/maps.md)",
+         0.0, kInf, true},
         // the thermal network (docs/thermal.md), added in 0.2.0: after the variables of 0.1.0
         {"T_coolant", &M::T_coolant, Causality::input, Variability::continuous, "K", "degC",
          "Coolant temperature the thermal network rejects heat to (thermal_model; held over each step)",
@@ -258,11 +264,6 @@ const std::vector<V>& PlantModel::variables() {
          "rad/s", "", "Thermal network: speed of n = 1 in its fits", 0.0, 1e5, true},
         {"I_rms_ref", fmi::forward(&M::lptn, &thermal::LptnParams::I_rms_ref), Causality::parameter, Variability::fixed,
          "A", "", "Thermal network: RMS current of i = 1 in its fits", 0.0, 1e6, true},
-        // added in 0.2.0, last so that every value reference of 0.1.0 stays what it was
-        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "",
-         "Peak current limit of the drive (the controller's): the flux map must be legal in its operating region "
-         "(docs/maps.md)",
-         0.0, kInf, true},
     };
     return table;
 }
