@@ -10,6 +10,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+
 from conftest import fmu_path
 
 RELEASES = sorted((Path(__file__).resolve().parents[1] / "data").glob("value_references_*.json"))
