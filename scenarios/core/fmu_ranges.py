@@ -42,22 +42,42 @@ def _number(text: str | None) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def read_ranges(path: Path) -> dict[str, Range]:
-    """name -> Range of every Real or Integer parameter in one modelDescription.xml."""
-    ranges = {}
+def _root(path: Path) -> ET.Element:
     if path.suffix == ".fmu":
         import zipfile
         with zipfile.ZipFile(path) as z:
-            root = ET.fromstring(z.read("modelDescription.xml"))
-    else:
-        root = ET.parse(path).getroot()
-    for v in root.iter("ScalarVariable"):
+            return ET.fromstring(z.read("modelDescription.xml"))
+    return ET.parse(path).getroot()
+
+
+def read_ranges(path: Path) -> dict[str, Range]:
+    """name -> Range of every Real or Integer parameter in one modelDescription.xml."""
+    ranges = {}
+    for v in _root(path).iter("ScalarVariable"):
         if v.get("causality") != "parameter":
             continue
         for t in v:
             if t.tag in ("Real", "Integer"):
                 ranges[v.get("name")] = Range(_number(t.get("min")), _number(t.get("max")))
     return ranges
+
+
+def read_starts(path: Path) -> dict[str, float | bool]:
+    """name -> start value of every parameter and input in one modelDescription.xml that has one
+    (Real and Integer as float, Boolean as bool)."""
+    starts: dict[str, float | bool] = {}
+    for v in _root(path).iter("ScalarVariable"):
+        if v.get("causality") not in ("parameter", "input"):
+            continue
+        for t in v:
+            start = t.get("start")
+            if start is None:
+                continue
+            if t.tag == "Boolean":
+                starts[v.get("name")] = start in ("true", "1")
+            elif t.tag in ("Real", "Integer"):
+                starts[v.get("name")] = float(start)
+    return starts
 
 
 @functools.lru_cache(maxsize=1)
@@ -69,6 +89,18 @@ def fmu_ranges() -> dict[str, Range]:
             continue
         for name, r in read_ranges(path).items():
             out[name] = out[name] & r if name in out else r
+    return out
+
+
+@functools.lru_cache(maxsize=1)
+def fmu_starts() -> dict[str, float | bool]:
+    """Every FMU parameter's and input's start value: the FMUs' defaults (the first description
+    that declares it; where two declare one, the drive copies the plant's)."""
+    out: dict[str, float | bool] = {}
+    for path in DESCRIPTIONS:
+        if path.is_file():
+            for name, x in read_starts(path).items():
+                out.setdefault(name, x)
     return out
 
 
