@@ -26,6 +26,10 @@ SSP_NAME = "IpmsmControllerPlant"
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
                "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
                "steps", "wall_s", "real_time_factor")
+#: ... and with the thermal network on
+THERMAL_PRINTED = ("theta_winding_max_K", "theta_magnet_max_K", "theta_winding_end_K", "theta_magnet_end_K",
+                   "heat_coolant_Wh", "heat_balance_residual_Wh", "time_derated_s", "derating_min",
+                   "traction_shortfall_Wh")
 
 
 def main(argv=None) -> int:
@@ -164,12 +168,16 @@ def _dispatch(args) -> int:
         check_writable(out)
         s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"), drive)
+        title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
+        plot_run(out, title, drive)
+        if s.thermal_model:
+            from scenarios.runs.thermal_plots import plot_thermal
+            plot_thermal(out, title, drive.thermal.T_coolant)
         for a in drive.assumed:
             print(f"assumed: {a}", file=sys.stderr)
         d = s.to_dict()
-        print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
-        print(f"wrote {out}/summary.json, trace.csv, run.png")
+        print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_model else ())}, indent=1))
+        print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_model else ""))
     elif args.cmd == "compare":
         from scenarios.study.compare import run_study
         load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant

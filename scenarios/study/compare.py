@@ -173,9 +173,32 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
                              f"{s.current_excess_rms_A:.2f} | {s.time_above_V_max_pct:.1f} % / "
                              f"{s.time_voltage_limited_pct:.1f} % | {f'{ns:.0f}' if ns else '–'} | {_memory(s)} |")
             lines.append("")
+            lines += _thermal_lines([r for r in results if r.summary.cycle == cycle and r.condition == cond])
     lines += ["![Study](study.png)", "",
               "Per-run pictures: `runs/*/run.png`; traces: `runs/*/trace.csv`; all figures: `summary.csv`."]
     (out / "report.md").write_text("\n".join(lines) + "\n")
+
+
+def _thermal_lines(results: list[StudyRun]) -> list[str]:
+    """The thermal network's figures of a condition's runs (none when it was off): how hot the
+    magnets and windings got along the cycle, which is what the tables were not made for."""
+    runs = [r for r in results if r.summary.thermal_model]
+    if not runs:
+        return []
+    c = runs[0].summary.conditions
+    lines = [f"The machine's thermal network (docs/thermal.md) heats the magnets and windings from "
+             f"{c['T_magnet'] - ZERO_CELSIUS_K:.0f} °C along the cycle; the controller is told the network's "
+             "temperatures of the step before; the tables are those made for "
+             f"{c['lut_T_magnet'] - ZERO_CELSIUS_K:.0f} °C.", "",
+             "| method | magnets: max / end (°C) | winding: max / end (°C) | heat into coolant / ambient / "
+             "stored (Wh) |", "|---|---|---|---|"]
+    for r in runs:
+        s = r.summary
+        lines.append(f"| {r.variant} | {s.theta_magnet_max_K - ZERO_CELSIUS_K:.1f} / "
+                     f"{s.theta_magnet_end_K - ZERO_CELSIUS_K:.1f} | {s.theta_winding_max_K - ZERO_CELSIUS_K:.1f} / "
+                     f"{s.theta_winding_end_K - ZERO_CELSIUS_K:.1f} | {s.heat_coolant_Wh:.1f} / "
+                     f"{s.heat_ambient_Wh:.1f} / {s.heat_stored_Wh:.1f} |")
+    return lines + [""]
 
 
 def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
