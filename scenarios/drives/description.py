@@ -252,6 +252,8 @@ SCHEMA: tuple[Key, ...] = (
     Key("vehicle", "tyre_road_friction", Rule("real", lo=0.0, hi=5.0, lo_open=True),
         "1", "tyre-road friction coefficient (friction-brake limit)",
         _dc(VehicleParams, "tyre_road_friction"), acts="braking harder than mu m g"),
+    Key("vehicle", "grade", Rule("real", lo=-0.35, hi=0.35), "1", "road grade, rise over run, the whole run "
+        "(0.08: 8 % uphill); within the steepest public streets' 35 %", _dc(VehicleParams, "grade")),
     Key("vehicle", "P_aux", Rule("real", lo=0.0, hi=1e6), "W", "auxiliary load on the DC link",
         "scenarios.vehicle.driver.P_AUX_DEFAULT"),
     # [controller]: the controller FMU's settings

@@ -62,7 +62,6 @@ class RunAccounts:
     theta_max: tuple = (-math.inf,) * 4  # K, winding, magnet, stator yoke, stator tooth
     t_derated: float = 0.0    # s with the torque limit derated
     derating_min: float = 1.0
-    E_shortfall: float = 0.0  # J, demanded wheel energy not delivered (traction)
     last: object = None       # the last step's drive record (the run's end)
 
     def observe(self, s: VehicleStep) -> None:
@@ -95,8 +94,6 @@ class RunAccounts:
             if m.derating < 1.0 - DERATING_MARGIN:
                 self.t_derated += dt
             self.derating_min = min(self.derating_min, m.derating)
-            if s.F_demand > 0.0:
-                self.E_shortfall += max(s.F_demand - max(s.F_wheel, 0.0), 0.0) * s.v * dt
             self.last = m
         if self.reference:
             self.E_cu_opt += s.P_cu_opt * dt
@@ -146,5 +143,4 @@ class RunAccounts:
             heat_coolant_Wh=m.E_coolant * WH, heat_ambient_Wh=m.E_ambient * WH, heat_stored_Wh=m.E_stored * WH,
             heat_balance_residual_Wh=(m.E_cu + m.E_fe - m.E_stored - m.E_coolant - m.E_ambient) * WH,
             time_derated_s=self.t_derated if has_derating else None,
-            derating_min=self.derating_min if has_derating else None,
-            traction_shortfall_Wh=self.E_shortfall * WH)
+            derating_min=self.derating_min if has_derating else None)

@@ -183,7 +183,6 @@ class RunSummary:
     heat_balance_residual_Wh: float | None = None  # copper + iron loss - stored - coolant - ambient
     time_derated_s: float | None = None        # time the torque limit was derated (None: the FMU has no derating)
     derating_min: float | None = None          # its lowest factor (1: none)
-    traction_shortfall_Wh: float | None = None  # the driver's demanded wheel energy the drive did not deliver
 
     def to_dict(self) -> dict:
         return asdict(self)

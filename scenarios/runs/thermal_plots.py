@@ -51,7 +51,11 @@ def plot_thermal(run_dir: Path, title: str = "", T_coolant: float | None = None)
     a.plot(t_min, tr["P_demand_W"] / 1e3, "k-", lw=0.8, label="requested (driver, at the wheels)")
     a.plot(t_min, tr["P_wheel_W"] / 1e3, "C1-", lw=0.8, alpha=0.8, label="delivered (drive, at the wheels)")
     a.plot(t_min, tr["P_coolant_W"] / 1e3, "C2-", lw=0.8, label="heat into the coolant")
-    a.set(xlabel="time (min)", ylabel="power (kW)", title="Power: requested, delivered, and heat to the coolant")
+    # the driver's demand is a controller's output, unbounded while the car cannot follow (a
+    # full-power climb): the axis is the delivered power's
+    lim = 1.3 * max(np.nanmax(np.abs(tr["P_wheel_W"])), 1.0) / 1e3
+    a.set(xlabel="time (min)", ylabel="power (kW)", title="Power: requested, delivered, and heat to the coolant",
+          ylim=(-lim, lim))
     a.legend(fontsize=8, loc="upper left")
     a.grid(alpha=0.3)
     fig.suptitle(title)
