@@ -182,14 +182,14 @@ def _dispatch(args) -> int:
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
         title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
         plot_run(out, title, drive)
-        if s.thermal_model:
+        if s.thermal_network:
             from scenarios.runs.thermal_plots import plot_thermal
             plot_thermal(out, title, drive.thermal.T_coolant)
         for a in drive.assumed:
             print(f"assumed: {a}", file=sys.stderr)
         d = s.to_dict()
-        print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_model else ())}, indent=1))
-        print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_model else ""))
+        print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_network else ())}, indent=1))
+        print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_network else ""))
     elif args.cmd == "compare":
         from scenarios.study.compare import run_study
         load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant

@@ -51,7 +51,8 @@ class DriveStep:
     u_ratio: float
     region: int
     # the thermal network (contract, "Thermal"; with it off: the temperature inputs and zeros); NaN
-    # where the FMU has no such output. derating: the torque limit's thermal factor (1: none)
+    # where the FMU has no such output. derating: the torque limit's thermal factor (1: none, as
+    # from an FMU without it)
     theta_winding: float = math.nan
     theta_magnet: float = math.nan
     theta_stator_yoke: float = math.nan
@@ -60,7 +61,7 @@ class DriveStep:
     E_coolant: float = math.nan
     E_ambient: float = math.nan
     E_stored: float = math.nan
-    derating: float = math.nan
+    derating: float = 1.0
 
 
 _REALS = tuple(f.name for f in fields(DriveStep) if f.name != "region" and f.default is MISSING)

@@ -135,12 +135,10 @@ class RunAccounts:
         m = self.last
         if not self.thermal or m is None:
             return {}
-        has_derating = math.isfinite(m.derating)
         return dict(
-            thermal_model=True, theta_winding_max_K=self.theta_max[0], theta_magnet_max_K=self.theta_max[1],
+            thermal_network=True, theta_winding_max_K=self.theta_max[0], theta_magnet_max_K=self.theta_max[1],
             theta_stator_yoke_max_K=self.theta_max[2], theta_stator_tooth_max_K=self.theta_max[3],
             theta_winding_end_K=m.theta_winding, theta_magnet_end_K=m.theta_magnet,
             heat_coolant_Wh=m.E_coolant * WH, heat_ambient_Wh=m.E_ambient * WH, heat_stored_Wh=m.E_stored * WH,
             heat_balance_residual_Wh=(m.E_cu + m.E_fe - m.E_stored - m.E_coolant - m.E_ambient) * WH,
-            time_derated_s=self.t_derated if has_derating else None,
-            derating_min=self.derating_min if has_derating else None)
+            time_derated_s=self.t_derated, derating_min=self.derating_min)

@@ -70,7 +70,7 @@ class TracePoint:
     theta_stator_yoke_K: float
     theta_stator_tooth_K: float
     P_coolant_W: float       # heat into the coolant (off: 0)
-    derating: float          # the torque limit's thermal factor (1: none; NaN: the FMU has none)
+    derating: float          # the torque limit's thermal factor (1: none)
 
     @classmethod
     def of(cls, s: VehicleStep) -> TracePoint:
@@ -170,7 +170,7 @@ class RunSummary:
     time_above_top_speed_s: float = 0.0  # time the rotor spent above w_m_max
     version: str = VERSION            # the ipmsm-fmu release that ran it (pyproject.toml, the FMUs' version)
     # the machine's thermal network (docs/thermal.md); None with it off
-    thermal_model: bool = False
+    thermal_network: bool = False     # the thermal network was on ([thermal] thermal_model, or the conditions)
     theta_winding_max_K: float | None = None   # highest node temperatures of the run
     theta_magnet_max_K: float | None = None
     theta_stator_yoke_max_K: float | None = None
@@ -181,7 +181,7 @@ class RunSummary:
     heat_ambient_Wh: float | None = None       # ... into the ambient air
     heat_stored_Wh: float | None = None        # ... stored in the machine at the end
     heat_balance_residual_Wh: float | None = None  # copper + iron loss - stored - coolant - ambient
-    time_derated_s: float | None = None        # time the torque limit was derated (None: the FMU has no derating)
+    time_derated_s: float | None = None        # time the torque limit was derated
     derating_min: float | None = None          # its lowest factor (1: none)
 
     def to_dict(self) -> dict:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -217,10 +217,12 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
 
 
 def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, Path] | None = None,
-             out: Path | None = None, progress: bool = True) -> RunSummary:
+             out: Path | None = None, progress: bool = True,
+             observe: Callable[[VehicleStep], None] | None = None) -> RunSummary:
     """Run `cycle` with spec.drive; returns the summary (and writes summary.json, trace.csv to
     `out`). The FMUs' parameters (map, motor, controller settings; the drive backend's inverter)
-    and the vehicle side all follow spec.drive; so does the reference optimum."""
+    and the vehicle side all follow spec.drive; so does the reference optimum. `observe`, if
+    given, sees every vehicle step (a test's independent account of the run)."""
     spec = spec if spec is not None else RunSpec()
     spec = replace(spec, conditions=spec.resolved_conditions())
     drive, method, recursion = spec.drive, spec.method_name, spec.recursion_level
@@ -252,6 +254,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
             for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference)):
                 accounts.observe(step)
                 trace.observe(k, step)
+                if observe is not None:
+                    observe(step)
                 if bar:
                     bar.update()
     finally:

@@ -34,12 +34,8 @@ def plot_thermal(run_dir: Path, title: str = "", T_coolant: float | None = None)
     a.grid(alpha=0.3)
 
     a = ax[1]
-    derating = tr["derating"]
-    if np.isfinite(derating).any():
-        a.plot(t_min, derating, "C3-", lw=1.2, label="derating (torque limit's thermal factor)")
-        a.set_ylim(-0.05, 1.05)
-    else:
-        a.text(0.5, 0.5, "this IpmsmDrive has no derating output", ha="center", va="center", transform=a.transAxes)
+    a.plot(t_min, tr["derating"], "C3-", lw=1.2, label="derating (torque limit's thermal factor)")
+    a.set_ylim(-0.05, 1.05)
     a2 = a.twinx()
     a2.plot(t_min, np.abs(tr["T_max_Nm"]), "C0-", lw=0.6, alpha=0.6, label="T_max")
     a2.set_ylabel("T_max (N·m)", color="C0")

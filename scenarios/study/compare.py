@@ -182,7 +182,7 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
 def _thermal_lines(results: list[StudyRun]) -> list[str]:
     """The thermal network's figures of a condition's runs (none when it was off): how hot the
     magnets and windings got along the cycle, which is what the tables were not made for."""
-    runs = [r for r in results if r.summary.thermal_model]
+    runs = [r for r in results if r.summary.thermal_network]
     if not runs:
         return []
     c = runs[0].summary.conditions
