@@ -170,8 +170,9 @@ def _dispatch(args) -> int:
         T = args.magnet_degC + ZERO_CELSIUS_K
         custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
+        cycle = _cycle_arg(args.cycle, "cycle")
         try:
-            cycle = repeated(_cycle_arg(args.cycle, "cycle"), args.repeat)
+            cycle = repeated(cycle, args.repeat)
         except ValueError as e:
             raise InputError("(command line)", "--repeat", str(e)) from None
         stem = Path(args.cycle).stem + ("" if args.repeat == 1 else f"_x{args.repeat}") + (
