@@ -78,6 +78,9 @@ PERTURBED = {
     "controller.k_u": 0.8,
     "controller.current_bandwidth": 1000.0,
     "controller.command_check": 0,
+    "vehicle.grade": 0.05,
+    "thermal.thermal_model": True,
+    "thermal.k_fe_yoke": 0.5,
 }
 
 #: keys that act only under some condition: the condition the test runs them in, as RunSpec
@@ -92,6 +95,9 @@ CONDITIONS = {
     # a full battery takes no regenerative braking: the friction brakes do all of it
     "vehicle.tyre_road_friction": {"drive": {"battery": {"soc0": 1.0}}},
 }
+# the thermal network's keys act with it on
+CONDITIONS.update({k.path: {"drive": {"thermal": {"thermal_model": True}}} for k in SCHEMA
+                   if k.section == "thermal" and k.name != "thermal_model"})
 
 RUN_KEYS = [k for k in SCHEMA if k.section != "checks"]
 
@@ -105,6 +111,8 @@ def perturbed_value(key: Key):
     if key.path in PERTURBED:
         return PERTURBED[key.path]
     d = default_drive()
+    if key.section == "thermal":
+        return d.value(key.path) * 1.25
     section = {"motor": d.motor, "inverter": d.inverter, "battery": d.battery, "vehicle": d.vehicle,
                "controller": d.controller}[key.section]
     v = d.P_aux if key.path == "vehicle.P_aux" else getattr(section, key.name, None)
