@@ -95,8 +95,8 @@ CONDITIONS = {
     # a full battery takes no regenerative braking: the friction brakes do all of it
     "vehicle.tyre_road_friction": {"drive": {"battery": {"soc0": 1.0}}},
 }
-# the thermal network's keys act with it on
-CONDITIONS.update({k.path: {"drive": {"thermal": {"thermal_model": True}}} for k in SCHEMA
+# the thermal network's keys act with it on (a coolant away from 20 degC: k_coolant_yoke acts)
+CONDITIONS.update({k.path: {"drive": {"thermal": {"thermal_model": True, "T_coolant": 338.15}}} for k in SCHEMA
                    if k.section == "thermal" and k.name != "thermal_model"})
 
 RUN_KEYS = [k for k in SCHEMA if k.section != "checks"]
