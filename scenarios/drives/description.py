@@ -340,9 +340,10 @@ SCHEMA = SCHEMA + tuple(
 FMU_PARAMETER = {f"motor.{n}": n for n in ("pole_pairs", "R_s", "I_max", "T_magnet_ref", "T_winding_ref", "alpha_cu",
                                          "k_psi_T", "w_m_max", "fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref")}
 FMU_PARAMETER.update({f"controller.{n}": n for n in ("k_u", "current_bandwidth", "lut_u_dc")})
-#: [thermal]: every key is the FMU parameter or input of the same name (contract, "Thermal")
+#: [thermal]: every key is the FMU parameter or input of the same name (contract, "Thermal"); the
+#: network's Real parameters are narrowed to their ranges (the Boolean and the inputs keep their rules)
 THERMAL_KEYS = tuple(k.name for k in SCHEMA if k.section == "thermal")
-FMU_PARAMETER.update({f"thermal.{n}": n for n in THERMAL_KEYS})
+FMU_PARAMETER.update({f"thermal.{n}": n for n in THERMAL_KEYS if n not in ("thermal_model", "T_coolant", "T_ambient")})
 FMU_PARAMETER.update({f"inverter.{n}": n for n in ("f_sw", "V_T0", "r_T", "V_D0", "r_D", "E_on", "E_off", "E_rec",
                                                    "I_ref", "V_ref", "k_v")})
 SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get(FMU_PARAMETER[k.path]))) if k.path in FMU_PARAMETER
