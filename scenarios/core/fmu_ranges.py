@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import math
 import xml.etree.ElementTree as ET
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,7 +45,6 @@ def _number(text: str | None) -> float | None:
 
 def _root(path: Path) -> ET.Element:
     if path.suffix == ".fmu":
-        import zipfile
         with zipfile.ZipFile(path) as z:
             return ET.fromstring(z.read("modelDescription.xml"))
     return ET.parse(path).getroot()
@@ -85,9 +85,13 @@ def fmu_ranges() -> dict[str, Range]:
     """Every FMU parameter's range, intersected over the FMUs that declare it."""
     out: dict[str, Range] = {}
     for path in DESCRIPTIONS:
-        if not path.is_file():
-            continue
-        for name, r in read_ranges(path).items():
+        try:
+            ranges = read_ranges(path) if path.is_file() else {}
+        except (OSError, zipfile.BadZipFile, KeyError, ET.ParseError):
+            # unreadable (a build in progress, a broken install): the FMU itself still refuses
+            # what is out of its range, at run time instead of at load
+            ranges = {}
+        for name, r in ranges.items():
             out[name] = out[name] & r if name in out else r
     return out
 

@@ -681,6 +681,10 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
     except ValueError as e:
         raise DriveDescriptionError(path, "thermal", str(e)) from None
     ch = sec["checks"]
+    if "time_above_top_speed_s_max" in ch and motor.w_m_max is None:  # a limit nothing could measure
+        raise DriveDescriptionError(path, "checks.time_above_top_speed_s_max",
+                                    "a top speed to judge it by: `motor.w_m_max` or `w_m_max_rad_s` in the map's "
+                                    "metadata")
     checks = ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),
                         limits={k: float(x) for k, x in ch.items() if k in LIMITS})
     return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),

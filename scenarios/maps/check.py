@@ -17,12 +17,12 @@ Exit status: 0 every FMU accepts the map, 1 one refuses it, 2 bad input.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.maps import legal
 from scenarios.maps.flux_map import FluxMap, read_flux_map
 from scenarios.maps.fmu_verdict import verdicts
@@ -115,9 +115,9 @@ def check_map(path: Path, out: Path, build: Path, I_max: float | None = None, dr
         legal_rectangle_covers_I_max=rect is not None, reciprocity_max_H=rec_max, reciprocity_rel=rec_rel,
         reciprocity_at_A=rec_at, noise_Wb=noise, noise_rel={k: v / scale for k, v in noise.items()})
     c.fmus = [asdict(v) for v in verdicts(csv, params, build)]
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "check.json").write_text(json.dumps(asdict(c) | {"accepted": c.accepted, "verdict": c.verdict}, indent=1))
-    (out / "check.md").write_text(markdown(c))
+    write_atomically(out / "check.json", strict_json(asdict(c) | {"accepted": c.accepted, "verdict": c.verdict},
+                                                     indent=1))
+    write_atomically(out / "check.md", markdown(c))
     return c
 
 
