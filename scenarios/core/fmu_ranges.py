@@ -84,16 +84,21 @@ def read_starts(path: Path) -> dict[str, float | bool]:
 def fmu_ranges() -> dict[str, Range]:
     """Every FMU parameter's range, intersected over the FMUs that declare it."""
     out: dict[str, Range] = {}
-    for path in DESCRIPTIONS:
-        try:
-            ranges = read_ranges(path) if path.is_file() else {}
-        except (OSError, zipfile.BadZipFile, KeyError, ET.ParseError):
-            # unreadable (a build in progress, a broken install): the FMU itself still refuses
-            # what is out of its range, at run time instead of at load
-            ranges = {}
+    for ranges in _each_description(read_ranges):
         for name, r in ranges.items():
             out[name] = out[name] & r if name in out else r
     return out
+
+
+def _each_description(reader):
+    """reader(path) of each of DESCRIPTIONS, in order; {} for one that is missing or unreadable."""
+    for path in DESCRIPTIONS:
+        try:
+            yield reader(path) if path.is_file() else {}
+        except (OSError, zipfile.BadZipFile, KeyError, ET.ParseError):
+            # unreadable (a build in progress, a broken install): the FMU itself still refuses
+            # what is out of its range, at run time instead of at load
+            yield {}
 
 
 @functools.lru_cache(maxsize=1)
@@ -101,10 +106,9 @@ def fmu_starts() -> dict[str, float | bool]:
     """Every FMU parameter's and input's start value: the FMUs' defaults (the first description
     that declares it; where two declare one, the drive copies the plant's)."""
     out: dict[str, float | bool] = {}
-    for path in DESCRIPTIONS:
-        if path.is_file():
-            for name, x in read_starts(path).items():
-                out.setdefault(name, x)
+    for starts in _each_description(read_starts):
+        for name, x in starts.items():
+            out.setdefault(name, x)
     return out
 
 
