@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import re
 import subprocess
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -225,7 +226,7 @@ def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
         ax[1].bar(x + j * wdt, copper, wdt)
         ax[2].bar(x + j * wdt, energy, wdt)
     for a, t in zip(ax, ("torque error RMS (N·m)", "copper loss above the optimum (%)", "battery energy (Wh/km)")):
-        a.set_xticks(x + 0.4 - wdt / 2, conds, fontsize=8)
+        a.set_xticks(x + 0.4 - wdt / 2, [textwrap.fill(c, 12) for c in conds], fontsize=8)
         a.set_title(t)
         a.grid(alpha=0.3, axis="y")
     ax[2].set_ylim(bottom=min(r.summary.Wh_per_km for r in results) * 0.97)
