@@ -112,6 +112,21 @@ def fmu_starts() -> dict[str, float | bool]:
     return out
 
 
+#: the C++ header of the FMUs' acceptance rule for a flux map (docs/maps.md)
+OPERATING_REGION_HEADER = located("fmu_src/machine/operating_region.hpp")
+
+
+@functools.cache
+def operating_region_constant(name: str) -> float:
+    """A constant of the FMUs' map-acceptance rule (kOperatingMargin, kMagnetFraction), read from
+    its declaration, so that `map check` counts what the FMUs refuse by the FMUs' own numbers."""
+    import re
+    m = re.search(r"constexpr\s+double\s+" + name + r"\s*=\s*([0-9.eE+-]+)\s*;", OPERATING_REGION_HEADER.read_text())
+    if m is None:
+        raise RuntimeError(f"{name} is not declared in {OPERATING_REGION_HEADER}")
+    return float(m.group(1))
+
+
 #: the C++ headers declaring the FMUs' bounds on a flux-map file (the one place they are written)
 MAP_LIMIT_HEADERS = (located("fmu_src/machine/flux_map.hpp"), located("fmu_src/machine/map_file.hpp"))
 

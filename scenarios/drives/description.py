@@ -508,15 +508,12 @@ MOTOR_METADATA = {"pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_
                   "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb"}
 CONTROLLER_METADATA = {"k_u": "k_u", "lut_u_dc": "u_dc_V"}
 
-#: a hook for FEM exports: path -> a contract CSV (scenarios.maps.importer.contract_csv when present)
+#: a hook for FEM exports: path -> a contract CSV (default: scenarios.maps.importer.contract_csv)
 MapResolver = Callable[[Path], Path]
 
 
 def _map_resolver() -> MapResolver:
-    try:
-        from scenarios.maps.importer import contract_csv  # helper D's FEM importer (SyR-e, Motor-CAD .mat)
-    except ImportError:
-        return lambda p: p
+    from scenarios.maps.importer import contract_csv  # FEM exports (SyR-e, Motor-CAD, PLECS) to the contract
     return contract_csv
 
 

@@ -82,10 +82,6 @@ class MotorData:
         return cls(int(fmap.number("pole_pairs")), fmap.number("R_s_ohm"), fmap.number("T_winding_ref_K"),
                    fmap.number("alpha_cu_per_K"), fmap.number("I_max_A"), fmap.number("k_u"))
 
-    def R_s_at(self, T_winding: float) -> float:
-        """Winding resistance at T_winding (K)."""
-        return self.R_s * (1.0 + self.alpha_cu * (T_winding - self.T_winding_ref))
-
 
 def read_flux_map(path: str | Path, holes: bool = False) -> FluxMap:
     """Read the contract's CSV: '#' lines (with '# key: value' metadata), header i_d,i_q,psi_d,psi_q.

@@ -119,6 +119,7 @@ def test_check_reports_the_prius_defects_and_the_fmus_own_verdict(build, tmp_pat
         assert len(warned) == 1 and "i_d = 130 A" in warned[0], f["log"]  # where, in the FMU's words
         assert "widened by 10 % of I_max" in warned[0]  # the FMI logger's printf escape undone
     assert all(d["within_drive_currents"] == 0 for d in c["defects"])  # all at i_d > 0
+    assert all(d["within_refused_box"] == 0 for d in c["defects"])  # the FMUs' own count: they accept
     falls = next(d for d in c["defects"] if d["kind"].startswith("psi_d"))
     assert falls["count"] == 2 and falls["nearest_A"] == [135.0, -20.0]  # between 130 and 140 A, i_q = +-20 A
     assert c["grid_covers_I_max"] and c["legal_rectangle_A"][1] < 130 and c["I_max_A"] == 200.0
@@ -136,6 +137,7 @@ def test_a_map_folding_inside_the_operating_region_is_refused_naming_where(build
     assert cli(["--build", str(build), "map", "check", str(tmp_path / "bad.csv"), "--out", str(out)]) == 1
     c = json.loads((out / "check.json").read_text())
     assert not any(x["accepted"] for x in c["fmus"])
+    assert sum(d["within_refused_box"] for d in c["defects"]) > 0  # the FMUs' own rule, counted
     assert all(f"i_d = {f.i_d[j + 1]:g} A" in " ".join(x["log"]) or f"i_q = {f.i_q[k]:g} A" in " ".join(x["log"])
                for x in c["fmus"])
     assert c["legal_rectangle_A"] is None  # no crop holds the drive's currents

@@ -21,7 +21,7 @@ def current(fmu: Path) -> dict[str, int]:
     return {v.get("name"): int(v.get("valueReference")) for v in root.iter("ScalarVariable")}
 
 
-@pytest.mark.parametrize("name", ["IpmsmController", "IpmsmPlant"])
+@pytest.mark.parametrize("name", ["IpmsmController", "IpmsmPlant", "IpmsmDrive"])
 def test_every_released_variable_keeps_its_value_reference(name):
     released = json.loads(RELEASED.read_text())["value_references"][name]
     now = current(fmu_path(name))
