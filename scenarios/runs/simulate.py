@@ -161,8 +161,8 @@ class OptimumReference:
         return math.hypot(*self.fmu.get("i_d_ref", "i_q_ref"))
 
     def copper_loss(self, I: float, R_s: float | None = None) -> float:
-        """W at the current magnitude I (A, peak, amplitude-invariant dq); R_s None: at the
-        run's winding temperature."""
+        """W at the current magnitude I (A, peak, amplitude-invariant dq); R_s (Ohm) None: the
+        run's start (a run with the thermal network gives the step's)."""
         return 1.5 * (self.R_s if R_s is None else R_s) * I * I
 
     def close(self) -> None:
@@ -208,7 +208,7 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         I_opt, P_cu_opt = math.nan, 0.0
         if reference is not None:
             I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt)
-            P_cu_opt = reference.copper_loss(I_opt, R if thermal else None)
+            P_cu_opt = reference.copper_loss(I_opt, R)
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
                           F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
                           P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w)
