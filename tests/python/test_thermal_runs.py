@@ -267,3 +267,20 @@ def test_the_study_has_the_heating_condition():
     runs = parse({"study": {"thermal_models": [0, 1], "cycles": "UDDS"}}).runs
     assert [r.thermal_model for r in runs] == [0, 1]
     assert Conditions().thermal is None  # the drive's [thermal] decides
+
+
+def test_the_heating_condition_runs_the_network_and_reports_it(controller_fmu, plant_fmu):
+    """The study's heating condition on the default drive (no [thermal] table): the network on
+    from a cold start, and the compare report's table of its temperatures."""
+    from scenarios.study.compare import StudyRun, _thermal_lines
+    heating = next(c for c in STUDY_CONDITIONS if c.thermal)
+    s = simulate(segment(load_cycle("US06"), 0.0, 30.0), RunSpec(conditions=heating),
+                 fmus=(controller_fmu, plant_fmu), progress=False)
+    assert s.thermal_network and s.conditions["thermal"] is True
+    assert START < s.theta_winding_max_K < START + 30.0 and s.copper_loss_optimal_Wh > 0.0
+    lines = _thermal_lines([StudyRun("Ferrari, recursion 2 (exact)", "run", s)])
+    assert "from 20 °C" in lines[0]
+    assert f"{s.theta_magnet_max_K - 273.15:.1f} / {s.theta_magnet_end_K - 273.15:.1f}" in lines[-2]
+    off = simulate(segment(load_cycle("US06"), 0.0, 30.0), RunSpec(), fmus=(controller_fmu, plant_fmu),
+                   progress=False)
+    assert _thermal_lines([StudyRun("Ferrari, recursion 2 (exact)", "run", off)]) == []
