@@ -308,7 +308,16 @@ SCHEMA: tuple[Key, ...] = (
         ("k_fe_yoke", Rule("real", lo=0.0, hi=1.0), "1", "the yoke's share of the stator's iron loss (the rest: "
          "teeth)"),
         ("w_m_ref", POSITIVE, "rad/s", "speed of n = 1 in the fits"),
-        ("I_rms_ref", POSITIVE, "A", "RMS current of i = 1 in the fits"))),
+        ("I_rms_ref", POSITIVE, "A", "RMS current of i = 1 in the fits"),
+        ("T_magnet_estimate_error", Rule("real", lo=-200.0, hi=200.0), "K", "the controller's magnet temperature "
+         "is the network's plus this (a drive's estimate)"))),
+    # the controller's derating: it acts on the temperatures the controller is given, network or not
+    *(Key("thermal", name, rule, "K", meaning, f"the FMU's `{name}` (docs/thermal.md gives its source)")
+      for name, rule, meaning in (
+        ("T_winding_max", TEMPERATURE, "winding temperature at which the torque limit reaches zero"),
+        ("T_magnet_max", TEMPERATURE, "magnet temperature at which the torque limit reaches zero"),
+        ("derating_margin", POSITIVE, "the torque limit starts to fall this far below T_winding_max and "
+         "T_magnet_max"))),
     # [checks]: what `python -m scenarios check` runs and gates on
     Key("checks", "cycles", Rule("strings"), "", "cycles to run: names (WLTC3b, UDDS, HWFET, US06, NEDC) or CSVs "
         "of time_s,speed_mps relative to this file", "[] (nothing to check)", acts="check"),
@@ -343,7 +352,11 @@ FMU_PARAMETER.update({f"controller.{n}": n for n in ("k_u", "current_bandwidth",
 #: [thermal]: every key is the FMU parameter or input of the same name (contract, "Thermal"); the
 #: network's Real parameters are narrowed to their ranges (the Boolean and the inputs keep their rules)
 THERMAL_KEYS = tuple(k.name for k in SCHEMA if k.section == "thermal")
-FMU_PARAMETER.update({f"thermal.{n}": n for n in THERMAL_KEYS if n not in ("thermal_model", "T_coolant", "T_ambient")})
+#: ... of which the controller's derating, passed whether the network is on or not (it derates
+#: on the temperatures the controller is given)
+DERATING_KEYS = ("T_winding_max", "T_magnet_max", "derating_margin")
+FMU_PARAMETER.update({f"thermal.{n}": n for n in THERMAL_KEYS
+                      if n not in ("thermal_model", "T_coolant", "T_ambient") and n in fmu_ranges()})
 FMU_PARAMETER.update({f"inverter.{n}": n for n in ("f_sw", "V_T0", "r_T", "V_D0", "r_D", "E_on", "E_off", "E_rec",
                                                    "I_ref", "V_ref", "k_v")})
 SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get(FMU_PARAMETER[k.path]))) if k.path in FMU_PARAMETER
@@ -396,6 +409,7 @@ class ThermalSpec:
     from its model description: scenarios.core.fmu_ranges.fmu_starts), by the FMU's names."""
 
     values: dict = field(default_factory=dict)   # THERMAL_KEYS name -> value
+    given: tuple[str, ...] = ()                  # the keys the file gives
 
     @property
     def on(self) -> bool:
@@ -410,19 +424,27 @@ class ThermalSpec:
         return self.values["T_ambient"]
 
     def fmu_params(self) -> dict:
-        """IpmsmDrive's parameters: none with the network off (the FMU as it was without it)."""
-        return {k: v for k, v in self.values.items() if k not in ("T_coolant", "T_ambient")} if self.on else {}
+        """IpmsmDrive's network parameters: none with the network off (the FMU as it was without it)."""
+        return {k: v for k, v in self.values.items()
+                if k not in ("T_coolant", "T_ambient", *DERATING_KEYS)} if self.on else {}
+
+    def derating_params(self) -> dict:
+        """The controller's derating parameters the file gives (the rest: the FMU's defaults)."""
+        return {k: self.values[k] for k in self.given if k in DERATING_KEYS}
 
     @classmethod
     def of(cls, given: dict) -> ThermalSpec:
+        """The table's values: given, else the FMUs' start values; a key the FMUs do not have
+        (an older build) is left out, and refused when given (ValueError naming it)."""
         from scenarios.core.fmu_ranges import fmu_starts
         starts = fmu_starts()
-        missing = [k for k in THERMAL_KEYS if k not in given and k not in starts]
-        if missing:  # an FMU built without the thermal network: only an explicit value will do
-            if given.get("thermal_model"):
-                raise ValueError(f"the FMUs' model descriptions have no {', '.join(missing)}: rebuild them")
+        unknown = [k for k in given if k not in starts]
+        if unknown:
+            raise ValueError(f"the FMUs' model descriptions have no {', '.join(unknown)}: rebuild them")
+        values = {k: given[k] if k in given else starts[k] for k in THERMAL_KEYS if k in starts}
+        if not all(k in values for k in ("thermal_model", "T_coolant", "T_ambient")):  # FMUs without the network
             return cls({"thermal_model": False, "T_coolant": math.nan, "T_ambient": math.nan})
-        return cls({k: given[k] if k in given else starts[k] for k in THERMAL_KEYS})
+        return cls(values, tuple(given))
 
 
 @dataclass(frozen=True)
@@ -484,6 +506,7 @@ class DriveDescription:
                  lut_u_dc=c.lut_u_dc if lut_u_dc is None else lut_u_dc,
                  lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet,
                  command_check=c.command_check if command_check is None else command_check)
+        p.update(self.thermal.derating_params())
         # the keys without a value of their own leave the FMU's default (its modelDescription start)
         if m.w_m_max is not None:
             p["w_m_max"] = m.w_m_max
