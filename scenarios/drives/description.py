@@ -435,12 +435,12 @@ class ThermalSpec:
     @classmethod
     def of(cls, given: dict) -> ThermalSpec:
         """The table's values: given, else the FMUs' start values; a key the FMUs do not have
-        (an older build) is left out, and refused when given (ValueError naming it)."""
+        (an older build) is left out, and refused when given (KeyError naming it)."""
         from scenarios.core.fmu_ranges import fmu_starts
         starts = fmu_starts()
         unknown = [k for k in given if k not in starts]
         if unknown:
-            raise ValueError(f"the FMUs' model descriptions have no {', '.join(unknown)}: rebuild them")
+            raise KeyError(unknown[0])
         values = {k: given[k] if k in given else starts[k] for k in THERMAL_KEYS if k in starts}
         if not all(k in values for k in ("thermal_model", "T_coolant", "T_ambient")):  # FMUs without the network
             return cls({"thermal_model": False, "T_coolant": math.nan, "T_ambient": math.nan})
@@ -698,8 +698,9 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
 
     try:
         thermal = ThermalSpec.of({k: (v if k == "thermal_model" else float(v)) for k, v in sec["thermal"].items()})
-    except ValueError as e:
-        raise DriveDescriptionError(path, "thermal", str(e)) from None
+    except KeyError as e:
+        raise DriveDescriptionError(path, f"thermal.{e.args[0]}", "a parameter the built FMUs have: rebuild them "
+                                    "(their model descriptions have no such variable)") from None
     ch = sec["checks"]
     if "time_above_top_speed_s_max" in ch and motor.w_m_max is None:  # a limit nothing could measure
         raise DriveDescriptionError(path, "checks.time_above_top_speed_s_max",
