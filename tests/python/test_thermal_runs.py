@@ -284,3 +284,20 @@ def test_the_heating_condition_runs_the_network_and_reports_it(controller_fmu, p
     off = simulate(segment(load_cycle("US06"), 0.0, 30.0), RunSpec(), fmus=(controller_fmu, plant_fmu),
                    progress=False)
     assert _thermal_lines([StudyRun("Ferrari, recursion 2 (exact)", "run", off)]) == []
+
+
+def test_the_climb_is_derated_below_the_windings_maximum(controller_fmu, plant_fmu):
+    """The climb's first 5 minutes with the controller's derating (an IpmsmDrive that has it): the
+    winding reaches the derating band and stays below its maximum; the summary counts the time."""
+    from fmpy import read_model_description
+    names = {v.name for v in read_model_description(str(controller_fmu.parent / "IpmsmDrive.fmu")).modelVariables}
+    if "derating" not in names:
+        pytest.skip("this build's IpmsmDrive has no derating")
+    drive = load_drive(CLIMB)
+    T_max, margin = drive.thermal.values["T_winding_max"], drive.thermal.values["derating_margin"]
+    s, steps = thermal_run(segment(load_cycle(CLIMB_CYCLE), 0.0, 300.0), CLIMB, (controller_fmu, plant_fmu))
+    derated = [st for st in steps if st.drive.derating < 1.0]
+    assert derated and s.time_derated_s == pytest.approx(0.01 * len(derated), abs=1e-6)
+    assert s.theta_winding_max_K > T_max - margin          # it got there
+    assert s.theta_winding_max_K < T_max                   # and no further
+    assert s.derating_min == min(st.drive.derating for st in steps) < 1.0
