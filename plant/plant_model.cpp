@@ -302,9 +302,7 @@ void PlantModel::exit_initialization() {
     if (cvode_method == 2 && cvode_max_order > 5)
         throw fmi::Error("cvode_max_order = " + std::to_string(cvode_max_order) +
                          ": BDF (cvode_method 2) has orders 1 to 5");
-    if (alpha_cu * (kTemperatureMin_K - T_winding_ref) <= -1.0)
-        throw fmi::Error("alpha_cu = " + num(alpha_cu) + " 1/K with T_winding_ref = " + num(T_winding_ref) +
-                         " K makes the resistance negative at admissible winding temperatures");
+    if (const std::string e = winding_law_error(alpha_cu, T_winding_ref); !e.empty()) throw fmi::Error(e);
 
     const auto t0 = std::chrono::steady_clock::now();
     std::shared_ptr<const FluxMap> map;
@@ -393,7 +391,7 @@ DqFluxOde PlantModel::ode() const {
     o.u_q = u_q;
     o.omega = pole_pairs * w_m;
     const double T_w = winding_temperature(), T_m = magnet_temperature();
-    o.R = R_s * (1.0 + alpha_cu * (T_w - T_winding_ref));
+    o.R = winding_resistance(R_s, alpha_cu, T_w, T_winding_ref);
     o.delta_psi_m = magnet_flux_shift(*map_, k_psi_T, T_m, T_magnet_ref);
     if (!(o.R >= 0.0))
         throw fmi::Error("the stator resistance at T_winding = " + num(T_w) + " K is " + num(o.R) +

@@ -20,6 +20,7 @@
 #include "ipmsm_ode.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
+#include "machine/winding_resistance.hpp"
 #include "model.hpp"
 #include "thermal/motor_thermal.hpp"
 #include "variable.hpp"
@@ -115,12 +116,12 @@ public:
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;
-    double R_s = 0.012;             // Ohm at T_winding_ref
-    double T_winding_ref = 293.15;  // K
-    double alpha_cu = 0.00393;      // 1/K
-    double k_psi_T = -0.0012;       // 1/K
-    double T_magnet_ref = 293.15;   // K
-    double fe_k_h = 1.06664735685;  // W/Hz
+    double R_s = 0.012;                               // Ohm at T_winding_ref
+    double T_winding_ref = 293.15;                    // K
+    double alpha_cu = kCopperTemperatureCoefficient;  // 1/K
+    double k_psi_T = -0.0012;                         // 1/K
+    double T_magnet_ref = 293.15;                     // K
+    double fe_k_h = 1.06664735685;                    // W/Hz
     double fe_alpha = 2.0;
     double fe_k_e = 0.00581807649193;         // W/Hz^2
     double fe_psi_ref = 0.0780669432093;      // Wb

@@ -101,6 +101,8 @@ public:
     // A step's VoltageCommand::open_loop, the first time only.
     bool first_open_loop(const VoltageCommand& u) { return first(u.open_loop, reported_open_loop_); }
     double bandwidth() const { return alpha_c_; }
+    // The stator resistance from now on (Ohm): the winding's at its present temperature.
+    void set_resistance(double R_s) { R_s_ = R_s; }
 
     RegulatorState state;
 

@@ -96,6 +96,30 @@ const std::vector<V>& ControllerModel::variables() {
         {"check_failures", &M::check_failures, Causality::output, Variability::discrete, "", "",
          "Commands that failed the check on the flux map so far (each replaced by a checked one where found; the "
          "first is logged)"},
+        // appended: the temperatures a drive uses (docs/thermal.md, "Controller")
+        {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC",
+         "Winding temperature (measured or estimated): the voltage limit and the current regulator use "
+         "R = R_s (1 + alpha_cu (T_winding - T_winding_ref))",
+         kTemperatureMin_K, kTemperatureMax_K},
+        {"derating", &M::derating, Causality::output, Variability::discrete, "1", "",
+         "Thermal factor of the torque limit (1: none): T_max and the commands are this share of the machine's "
+         "limit; it falls linearly from 1 at derating_margin below T_winding_max or T_magnet_max to 0 there"},
+        {"T_winding_ref", &M::T_winding_ref, Causality::parameter, Variability::fixed, "K", "degC",
+         "Winding temperature at which R_s holds", kTemperatureMin_K, kTemperatureMax_K},
+        {"alpha_cu", &M::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "",
+         "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
+        {"T_winding_max", &M::T_winding_max, Causality::parameter, Variability::fixed, "K", "degC",
+         "Derating: winding temperature at which the torque limit reaches zero (default: IEC 60085 thermal class "
+         "180 (H))",
+         kTemperatureMin_K, kTemperatureMax_K},
+        {"T_magnet_max", &M::T_magnet_max, Causality::parameter, Variability::fixed, "K", "degC",
+         "Derating: magnet temperature at which the torque limit reaches zero (default: 150 degC, sintered NdFeB "
+         "of the SH grades)",
+         kTemperatureMin_K, kTemperatureMax_K},
+        {"derating_margin", &M::derating_margin, Causality::parameter, Variability::fixed, "K", "degC",
+         "Derating: the torque limit starts to fall this far below T_winding_max and T_magnet_max (default: 25 K, "
+         "IEC 60085 class 155 (F) to 180 (H))",
+         0.0, 1000.0, true, true},
     };
     return table;
 }
@@ -104,6 +128,7 @@ ControllerModel::ControllerModel(const fmi::Context& context) : context_(fmi::sh
 
 void ControllerModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.
+    if (const std::string e = winding_law_error(alpha_cu, T_winding_ref); !e.empty()) throw fmi::Error(e);
     const std::string path = flux_map.empty() ? context_->resource_dir + "/" + default_flux_map : flux_map;
     if (flux_map.empty() && context_->resource_dir.empty())
         throw fmi::Error(
@@ -152,7 +177,9 @@ void ControllerModel::exit_initialization() {
 }
 
 ControllerModel::Conditions ControllerModel::conditions() const {
-    return {pole_pairs * w_m, k_u * u_dc / kSqrt3, magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref)};
+    return {pole_pairs * w_m, k_u * u_dc / kSqrt3, magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref),
+            winding_resistance(R_s, alpha_cu, T_winding, T_winding_ref),
+            thermal_derating({T_winding_max, T_magnet_max, derating_margin}, T_winding, T_magnet)};
 }
 
 CurrentCommand ControllerModel::current_command(const Conditions& c) {
@@ -161,17 +188,32 @@ CurrentCommand ControllerModel::current_command(const Conditions& c) {
         cmd.iterations = 0;
         return cmd;
     }
+    CurrentCommand cmd = checked_command(T_ref, c);
+    // Derating: the limit is c.derating of the machine's; a larger torque is commanded at it.
+    if (c.derating < 1.0) {
+        const double limit = c.derating * cmd.torque_max;
+        if (std::abs(T_ref) > limit) {
+            const int used = cmd.iterations;
+            cmd = checked_command(std::copysign(limit, T_ref), c);
+            cmd.iterations += used;
+        }
+        cmd.torque_max = limit;
+    }
+    return cmd;
+}
+
+CurrentCommand ControllerModel::checked_command(double T, const Conditions& c) {
     // Every command is checked on the map before it leaves (docs/controller.md): recursion 2's
-    // inside the solver, the others against it.
+    // inside the solver, the others against it. The 2-D tables are made at R_s (T_winding_ref)
+    // and lut_T_magnet; their check is at the present temperatures.
     const OperatingLimits lim{c.omega, c.V_max, I_max};
     CurrentCommand cmd;
     if (method == 1 && recursion == static_cast<int>(Recursion::optimal)) {
-        cmd = solver_->solve(T_ref, lim, R_s, c.shift, Recursion::optimal);
+        cmd = solver_->solve(T, lim, c.R, c.shift, Recursion::optimal);
     } else {
-        const CurrentCommand raw = method == 1
-                                       ? solver_->solve(T_ref, lim, R_s, c.shift, static_cast<Recursion>(recursion))
-                                       : table_->lookup(T_ref, w_m, c.V_max);
-        cmd = solver_->checked(raw, T_ref, lim, R_s, c.shift);
+        const CurrentCommand raw = method == 1 ? solver_->solve(T, lim, c.R, c.shift, static_cast<Recursion>(recursion))
+                                               : table_->lookup(T, w_m, c.V_max);
+        cmd = solver_->checked(raw, T, lim, c.R, c.shift);
     }
     if (solver_->last_check.finding != CheckFinding::passed) {
         report_check(solver_->last_check);
@@ -202,7 +244,7 @@ void ControllerModel::report_check(const CheckRecord& r) {
     context_->log_warning(os.str());
 }
 
-void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux) {
+void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux, double derating_now) {
     const double sign = T_ref < 0 ? -1.0 : 1.0;
     i_d_ref = cmd.i_d;
     i_q_ref = cmd.i_q;
@@ -211,7 +253,8 @@ void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux)
     if (observe_each_step) observe(flux);
     region = static_cast<int>(cmd.region);
     iterations = cmd.iterations;
-    cache_ = {true, T_ref, w_m, u_dc, T_magnet, cmd};
+    derating = derating_now;
+    cache_ = {true, T_ref, w_m, u_dc, T_magnet, T_winding, cmd};
 }
 
 void ControllerModel::observe(const MagnetFlux& flux) {
@@ -230,7 +273,7 @@ void ControllerModel::initial_outputs() {
     cache_.valid = false;
     const CurrentCommand cmd = current_command(c);
     const FluxPoint f = flux.eval(i_d, i_q);
-    double u_d = R_s * i_d - c.omega * f.psi_q, u_q = R_s * i_q + c.omega * f.psi_d;
+    double u_d = c.R * i_d - c.omega * f.psi_q, u_q = c.R * i_q + c.omega * f.psi_d;
     const double u_lim = u_dc / kSqrt3, mag = std::hypot(u_d, u_q);
     if (mag > u_lim) {
         u_d *= u_lim / mag;
@@ -238,13 +281,14 @@ void ControllerModel::initial_outputs() {
     }
     regulator_.state.u_d_prev = u_d_ref = u_d;
     regulator_.state.u_q_prev = u_q_ref = u_q;
-    publish(cmd, flux);
+    publish(cmd, flux, c.derating);
 }
 
 void ControllerModel::do_step(double /*t*/, double h) {
     const Conditions c = conditions();
     const MagnetFlux flux(*map_, c.shift);
     const CurrentCommand cmd = current_command(c);
+    regulator_.set_resistance(c.R);
     const VoltageCommand u = regulator_.step(cmd.i_d, cmd.i_q, i_d, i_q, c.omega, u_dc, h, flux);
     if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q)))
         throw fmi::Error("the controller produced a non-finite value (inputs out of the flux map's sensible range?)");
@@ -274,7 +318,7 @@ void ControllerModel::do_step(double /*t*/, double h) {
     u_d_ref = u.u_d;
     u_q_ref = u.u_q;
     voltage_saturated = u.limited;
-    publish(cmd, flux);
+    publish(cmd, flux, c.derating);
 }
 
 }  // namespace ipmsm

@@ -8,8 +8,10 @@
 #include <vector>
 
 #include "control/current_regulator.hpp"
+#include "control/derating.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
+#include "machine/winding_resistance.hpp"
 #include "model.hpp"
 #include "variable.hpp"
 
@@ -56,6 +58,7 @@ public:
     double u_dc = 355.0;          // V
     double i_d = 0.0, i_q = 0.0;  // A, measured
     double T_magnet = 293.15;     // K
+    double T_winding = 293.15;    // K: its R_s follows it
     // --- outputs
     double i_d_ref = 0.0, i_q_ref = 0.0;           // A
     double u_d_ref = 0.0, u_q_ref = 0.0;           // V
@@ -66,12 +69,13 @@ public:
     double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
     int check_failures = 0;  // commands that failed the check on the map (docs/controller.md)
+    double derating = 1.0;   // the torque limit's thermal factor (1: none)
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     int method = 1;        // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
     int recursion = 2;     // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
     std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;
-    double R_s = 0.012;    // Ohm
+    double R_s = 0.012;    // Ohm at T_winding_ref
     double I_max = 500.0;  // A
     double k_u = 0.95;
     double T_magnet_ref = 293.15;  // K
@@ -82,35 +86,47 @@ public:
     int lut_n_speed = 41;
     double w_m_max = 1256.6370614359173;            // rad/s (12 000 r/min): top of the tables' speed axis
     double current_bandwidth = 3141.5926535897932;  // rad/s (500 Hz)
-    int command_check = 1;  // 1: failing commands replaced; 0: reported only (docs/controller.md)
+    int command_check = 1;          // 1: failing commands replaced; 0: reported only (docs/controller.md)
+    double T_winding_ref = 293.15;  // K
+    double alpha_cu = kCopperTemperatureCoefficient;  // 1/K
+    // Derating (docs/thermal.md, "Controller"): the winding's limit is IEC 60085's thermal class
+    // 180 (H), the magnets' the maximum operating temperature of sintered NdFeB of the SH grades
+    // (150 degC), and each derates over the 25 K from class 155 (F) to class 180 (H).
+    double T_winding_max = 453.15;  // K
+    double T_magnet_max = 423.15;   // K
+    double derating_margin = 25.0;  // K
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:
-    // omega (electrical), V_max and the magnet's psi_d shift, from the inputs and parameters.
+    // omega (electrical), V_max, the magnet's psi_d shift, the winding's resistance and the
+    // thermal derating, from the inputs and parameters.
     struct Conditions {
-        double omega, V_max, shift;
+        double omega, V_max, shift, R, derating;
     };
     Conditions conditions() const;
-    CurrentCommand current_command(const Conditions& c);              // reuses the cache while it holds
-    void publish(const CurrentCommand& cmd, const MagnetFlux& flux);  // the command outputs (u_*_ref set)
+    CurrentCommand current_command(const Conditions& c);            // reuses the cache while it holds
+    CurrentCommand checked_command(double T, const Conditions& c);  // for the torque T, checked on the map
+    // the command outputs (u_*_ref set); derating_now: the conditions' derating
+    void publish(const CurrentCommand& cmd, const MagnetFlux& flux, double derating_now);
     void observe(const MagnetFlux& flux);
     void initial_outputs();
     void report_check(const CheckRecord& r);  // counts; logs the first
 
-    // The last command and the inputs it was solved for: while T_ref, w_m, u_dc and T_magnet
-    // stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
+    // The last command and the inputs it was solved for: while T_ref, w_m, u_dc, T_magnet and
+    // T_winding stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
     // is the same, and is not solved again.
     struct CommandCache {
         bool valid = false;
-        double T_ref = 0, w_m = 0, u_dc = 0, T_magnet = 0;
+        double T_ref = 0, w_m = 0, u_dc = 0, T_magnet = 0, T_winding = 0;
         CurrentCommand cmd;
         bool holds(const ControllerModel& m) const {
-            return valid && T_ref == m.T_ref && w_m == m.w_m && u_dc == m.u_dc && T_magnet == m.T_magnet;
+            return valid && T_ref == m.T_ref && w_m == m.w_m && u_dc == m.u_dc && T_magnet == m.T_magnet &&
+                   T_winding == m.T_winding;
         }
         template <class Field>
         void fields(Field&& field) {
-            field(valid), field(T_ref), field(w_m), field(u_dc), field(T_magnet);
+            field(valid), field(T_ref), field(w_m), field(u_dc), field(T_magnet), field(T_winding);
             cmd.fields(field);
         }
     };

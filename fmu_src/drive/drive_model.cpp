@@ -31,10 +31,12 @@ V of_models(const char* name, fmi::Member<M> member) {
     const auto* p = fmi::find_variable<PlantModel>(name);
     const auto* c = fmi::find_variable<ControllerModel>(name);
     if (p == nullptr && c == nullptr) throw std::logic_error(std::string("IpmsmDrive: no model has ") + name);
-    V v = p != nullptr ? V{p->name,         std::move(member), p->causality, p->variability, p->unit,
-                           p->display_unit, p->description,    p->min,       p->max,         p->min_exclusive}
-                       : V{c->name,         std::move(member), c->causality, c->variability, c->unit,
-                           c->display_unit, c->description,    c->min,       c->max,         c->min_exclusive};
+    V v = p != nullptr ? V{p->name, std::move(member), p->causality,        p->variability,
+                           p->unit, p->display_unit,   p->description,      p->min,
+                           p->max,  p->min_exclusive,  p->relative_quantity}
+                       : V{c->name, std::move(member), c->causality,        c->variability,
+                           c->unit, c->display_unit,   c->description,      c->min,
+                           c->max,  c->min_exclusive,  c->relative_quantity};
     if (p != nullptr && c != nullptr) {
         if (p->member.index() != c->member.index())
             throw std::logic_error(std::string("IpmsmDrive: the models' ") + name + " differ in type");
@@ -270,6 +272,17 @@ const std::vector<V>& DriveModel::variables() {
         parameter("k_fe_yoke", &M::controller_, &M::plant_),
         parameter("w_m_ref", &M::controller_, &M::plant_),
         parameter("I_rms_ref", &M::controller_, &M::plant_),
+        // the controller's temperatures and derating (docs/thermal.md, "Controller"); appended
+        {"derating", &M::derating, Causality::output, Variability::discrete, "1", "",
+         "The controller's thermal factor of the torque limit at the end of the step (1: none; T_max and T_cmd "
+         "include it)"},
+        {"T_magnet_estimate_error", &M::T_magnet_estimate_error, Causality::parameter, Variability::fixed, "K", "degC",
+         "The controller's magnet temperature is the machine's (the thermal network's, or the T_magnet input) plus "
+         "this: the error of a drive's estimate",
+         -200.0, 200.0, false, true},
+        parameter("T_winding_max", &M::controller_, &M::plant_),
+        parameter("T_magnet_max", &M::controller_, &M::plant_),
+        parameter("derating_margin", &M::controller_, &M::plant_),
     };
     return table;
 }
@@ -320,6 +333,12 @@ void DriveModel::hold_inputs() {
     cm.hold("T_winding", T_winding);
     plant_.T_coolant = T_coolant;  // the plant's alone: not in the coupling description
     plant_.T_ambient = T_ambient;
+    // The controller's temperatures: the network's where it runs (its state at the step's start,
+    // as the plant uses it over the step), else the inputs, as the plant's; the magnets' as
+    // estimated, with the estimate's error.
+    const bool network = plant_.thermal_on();
+    controller_.T_winding = network ? plant_.theta_winding : T_winding;
+    controller_.T_magnet = (network ? plant_.theta_magnet : T_magnet) + T_magnet_estimate_error;
 }
 
 void DriveModel::publish_end() {
@@ -332,6 +351,7 @@ void DriveModel::publish_end() {
     i_q_ref = controller_.i_q_ref;
     region = controller_.region;
     u_ratio = controller_.u_ratio;
+    derating = controller_.derating;
     theta_winding = plant_.theta_winding;
     theta_magnet = plant_.theta_magnet;
     theta_stator_yoke = plant_.theta_stator_yoke;

@@ -69,13 +69,17 @@ public:
     double i_d = 0.0, i_q = 0.0;          // A, the plant's
     double i_d_ref = 0.0, i_q_ref = 0.0;  // A, the controller's
     int region = 0;
-    double u_ratio = 0.0;  // the controller's voltage use, at the end of the step
+    double u_ratio = 0.0;   // the controller's voltage use, at the end of the step
+    double derating = 1.0;  // the controller's thermal factor of the torque limit, at the end of the step
     // --- outputs: the plant's thermal network (thermal_model; off: the temperature inputs, no heat)
     double theta_winding = 0.0, theta_magnet = 0.0, theta_stator_yoke = 0.0, theta_stator_tooth = 0.0;  // K
     double P_coolant = 0.0;                                   // W, mean over the step
     double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;  // J since the start
     // --- parameters: the drive's own (the others live in controller_, plant_ and inverter_)
     double sample_time = 1e-4;  // s
+    // K: the controller's magnet temperature is the machine's (the network's, or the T_magnet
+    // input) plus this, as a drive estimates it (docs/thermal.md, "Controller")
+    double T_magnet_estimate_error = 0.0;
     // The most inner steps one fmi2DoStep computes (10 s at the default sample_time): a step cannot be
     // interrupted, so a larger one is refused rather than computed for minutes.
     static constexpr double max_samples_per_step = 1e5;

@@ -291,6 +291,7 @@ std::string model_description() {
         x << ">\n      <" << type_name(type);
         if (!detail::empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
         if (!detail::empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
+        if (v.relative_quantity && type == Type::Real) x << " relativeQuantity=\"true\"";
         if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
             auto bound = [&](double b) {
                 return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));

@@ -70,6 +70,9 @@ struct Variable {
     double min = -std::numeric_limits<double>::infinity();
     double max = std::numeric_limits<double>::infinity();
     bool min_exclusive = false;  // true: the value must be strictly greater than min (u_dc > 0)
+    // A difference (FMI relativeQuantity): a tool shows it in the display unit without the unit's
+    // offset (a margin of 25 K is 25 degC of difference, not -248 degC).
+    bool relative_quantity = false;
 };
 
 // The FMI type of a variable: the index of its member pointer in Member<Model>.

@@ -502,7 +502,7 @@ class DriveDescription:
             raise ValueError(f"method {method!r}: one of {', '.join(METHODS)}")
         p = dict(method=METHODS[method], recursion=c.recursion if recursion is None else recursion,
                  flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, I_max=m.I_max, k_u=c.k_u,
-                 T_magnet_ref=m.T_magnet_ref, k_psi_T=m.k_psi_T,
+                 T_magnet_ref=m.T_magnet_ref, k_psi_T=m.k_psi_T, T_winding_ref=m.T_winding_ref, alpha_cu=m.alpha_cu,
                  lut_u_dc=c.lut_u_dc if lut_u_dc is None else lut_u_dc,
                  lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet,
                  command_check=c.command_check if command_check is None else command_check)

@@ -149,14 +149,15 @@ class OptimumReference:
     given torque and conditions: its current magnitude and copper loss at the winding resistance
     R_s (Ohm, the run's: winding_resistance)."""
 
-    def __init__(self, controller_fmu: Path, drive: DriveDescription, R_s: float):
+    def __init__(self, controller_fmu: Path, drive: DriveDescription, R_s: float, T_winding: float):
         self.R_s = R_s
+        self.T_winding = T_winding  # K: the optimum's voltage ellipse at the winding's resistance too
         self.fmu = Fmu(controller_fmu, instance_name="reference",
                        **drive.controller_params(method="ferrari", recursion=2))
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float) -> float:
         """|i| (A) of the optimal command for T_e, one controller step at t."""
-        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet)
+        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet, T_winding=self.T_winding)
         self.fmu.step(t, dt)
         return math.hypot(*self.fmu.get("i_d_ref", "i_q_ref"))
 
@@ -251,7 +252,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
                          T_magnet=cond.T_magnet, T_winding=cond.T_winding)
             sim = stack.enter_context(open_drive(spec, controller_fmu, plant_fmu, c_params, p_params, **start))
             reference = (stack.enter_context(OptimumReference(controller_fmu, drive,
-                                                              winding_resistance(sim, cond.T_winding)))
+                                                              winding_resistance(sim, cond.T_winding),
+                                                              cond.T_winding))
                          if spec.reference else None)
             for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference)):
                 accounts.observe(step)

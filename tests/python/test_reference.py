@@ -68,7 +68,7 @@ def test_same_as_the_plain_fmpy_loop(controller_fmu, plant_fmu):
             steps += [ref.advance(H, **profile(j)) for _ in range(n)]
     with Fmu(plant_fmu, **START) as p:
         i_d, i_q = p.get("i_d", "i_q")  # the controller starts from the measured current
-        with Fmu(controller_fmu, w_m=W0, T_magnet=333.15, u_dc=355.0, i_d=i_d, i_q=i_q) as c:
+        with Fmu(controller_fmu, w_m=W0, T_magnet=333.15, T_winding=353.15, u_dc=355.0, i_d=i_d, i_q=i_q) as c:
             u_d, u_q = c.get("u_d_ref", "u_q_ref")
             k = 0
             for j, n in enumerate(chunks):
@@ -76,7 +76,8 @@ def test_same_as_the_plain_fmpy_loop(controller_fmu, plant_fmu):
                 for _ in range(n):
                     i_d, i_q = p.get("i_d", "i_q")
                     p.set(u_d=u_d, u_q=u_q, w_m=x["w_m"], T_magnet=x["T_magnet"], T_winding=x["T_winding"])
-                    c.set(T_ref=x["T_ref"], w_m=x["w_m"], u_dc=x["u_dc"], T_magnet=x["T_magnet"], i_d=i_d, i_q=i_q)
+                    c.set(T_ref=x["T_ref"], w_m=x["w_m"], u_dc=x["u_dc"], T_magnet=x["T_magnet"],
+                          T_winding=x["T_winding"], i_d=i_d, i_q=i_q)
                     p.step(k * H, H)
                     c.step(k * H, H)
                     u_d, u_q = c.get("u_d_ref", "u_q_ref")
