@@ -155,9 +155,12 @@ class OptimumReference:
         self.fmu = Fmu(controller_fmu, instance_name="reference",
                        **drive.controller_params(method="ferrari", recursion=2))
 
-    def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float) -> float:
-        """|i| (A) of the optimal command for T_e, one controller step at t."""
-        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet, T_winding=self.T_winding)
+    def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
+                T_winding: float | None = None) -> float:
+        """|i| (A) of the optimal command for T_e, one controller step at t; T_winding (K) None:
+        the run's start (a run with the thermal network gives the step's)."""
+        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
+                     T_winding=self.T_winding if T_winding is None else T_winding)
         self.fmu.step(t, dt)
         return math.hypot(*self.fmu.get("i_d_ref", "i_q_ref"))
 
@@ -187,8 +190,9 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
     drive_dt = spec.steps_per_vehicle_step() * drive.sample_time
     R = winding_resistance(drive, cond.T_winding)  # the copper loss's resistance: |i|^2 = P_cu / (1.5 R)
     # With the thermal network on, a step's copper loss is at the winding temperature the step
-    # started at (the network advances at its end), and the controller is told the network's
-    # temperatures of the step before (a drive's winding sensor and magnet-temperature estimate).
+    # started at (the network advances at its end); the reference optimum and the inputs follow
+    # the network's temperatures of the step before (inside IpmsmDrive the controller takes the
+    # network's own; the inputs serve a drive without that feed).
     thermal = spec.thermal().on
     T_magnet, T_winding = cond.T_magnet, cond.T_winding
     T_max_known = T_MAX_UNKNOWN
@@ -208,7 +212,7 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
         if reference is not None:
-            I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt)
+            I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
             P_cu_opt = reference.copper_loss(I_opt, R)
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
                           F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
