@@ -18,6 +18,9 @@ DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drive
 
 #: exit status: bad input (file, key, what was expected); a run that could not finish
 EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
+#: run --repeat: at most this many copies of a cycle (100 WLTCs are 50 h of driving: no thermal
+#: run needs more, and the vehicle side's memory and time stay bounded)
+REPEAT_MAX = 100
 #: what `fmu-path` finds: the FMUs (build/fmu/NAME.fmu) and the SSP package (build/ssp/NAME.ssp)
 FMU_NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
 SSP_NAME = "IpmsmControllerPlant"
@@ -26,6 +29,9 @@ SSP_NAME = "IpmsmControllerPlant"
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
                "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
                "steps", "wall_s", "real_time_factor")
+#: ... and with the thermal network on
+THERMAL_PRINTED = ("theta_winding_max_K", "theta_magnet_max_K", "theta_winding_end_K", "theta_magnet_end_K",
+                   "heat_coolant_Wh", "heat_balance_residual_Wh", "time_derated_s", "derating_min")
 
 
 def main(argv=None) -> int:
@@ -53,6 +59,8 @@ def main(argv=None) -> int:
                           "reference loop, IpmsmController and IpmsmPlant coupled at 100 us in Python (slow)")
     run.add_argument("--u-dc-scale", type=float, default=1.0, help="DC voltage seen by the drive / battery's")
     run.add_argument("--magnet-degC", type=float, default=T_REFERENCE_K - ZERO_CELSIUS_K)
+    run.add_argument("--repeat", type=int, default=1, help="drive the cycle this many times in a row (thermal "
+                     "runs: repeated US06, a motorway phase); default 1")
     run.add_argument("--out", type=Path, default=None)
 
     cmp_ = sub.add_parser("compare", help="Ferrari versus 2-D tables over cycles and conditions: report.md")
@@ -119,11 +127,13 @@ def _cycle_arg(name: str, option: str):
 
 def _run_args(args) -> None:
     """run's numbers, refused (exit 2) before anything runs."""
-    from scenarios.core.boundary import finite
+    from scenarios.core.boundary import InputError, finite
     from scenarios.core.fmu_ranges import fmu_ranges
     finite(args.u_dc_scale, "(command line)", "--u-dc-scale", 0.0, U_DC_SCALE_MAX, lo_open=True)
     r = fmu_ranges()["T_magnet_ref"]  # the FMUs' temperature range
     finite(args.magnet_degC, "(command line)", "--magnet-degC", r.lo - ZERO_CELSIUS_K, r.hi - ZERO_CELSIUS_K)
+    if not 1 <= args.repeat <= REPEAT_MAX:
+        raise InputError("(command line)", "--repeat", f"an integer in [1, {REPEAT_MAX}], got {args.repeat}")
 
 
 def _dispatch(args) -> int:
@@ -150,8 +160,10 @@ def _dispatch(args) -> int:
         print(json.dumps({k: s.to_dict()[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
         print(f"wrote {args.out}/sweep.csv, summary.json, current_trajectories.png")
     elif args.cmd == "run":
+        from scenarios.core.boundary import InputError
         from scenarios.runs.plots import plot_run
         from scenarios.runs.simulate import Conditions, RunSpec, fmu_paths, simulate
+        from scenarios.vehicle.cycles import repeated
         _run_args(args)
         drive = load_drive(args.drive)
         method = args.method or drive.controller.method
@@ -159,17 +171,26 @@ def _dispatch(args) -> int:
         custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
         cycle = _cycle_arg(args.cycle, "cycle")
-        stem = Path(args.cycle).stem + ("" if args.drive is None else f"_{drive.name}")
+        try:
+            cycle = repeated(cycle, args.repeat)
+        except ValueError as e:
+            raise InputError("(command line)", "--repeat", str(e)) from None
+        stem = Path(args.cycle).stem + ("" if args.repeat == 1 else f"_x{args.repeat}") + (
+            "" if args.drive is None else f"_{drive.name}")
         out = args.out or inside(OUT_DIR, _slug(f"{stem}_{method}"), "run's output folder")
         check_writable(out)
         s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                          backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        plot_run(out, f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}"), drive)
+        title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
+        plot_run(out, title, drive)
+        if s.thermal_network:
+            from scenarios.runs.thermal_plots import plot_thermal
+            plot_thermal(out, title, drive.thermal.T_coolant)
         for a in drive.assumed:
             print(f"assumed: {a}", file=sys.stderr)
         d = s.to_dict()
-        print(json.dumps({k: d[k] for k in RUN_PRINTED}, indent=1))
-        print(f"wrote {out}/summary.json, trace.csv, run.png")
+        print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_network else ())}, indent=1))
+        print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_network else ""))
     elif args.cmd == "compare":
         from scenarios.study.compare import run_study
         load_drive(args.drive)  # a bad description: exit 2 here, not one failed run per variant

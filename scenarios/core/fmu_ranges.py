@@ -43,15 +43,17 @@ def _number(text: str | None) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _root(path: Path) -> ET.Element:
+    if path.suffix == ".fmu":
+        with zipfile.ZipFile(path) as z:
+            return ET.fromstring(z.read("modelDescription.xml"))
+    return ET.parse(path).getroot()
+
+
 def read_ranges(path: Path) -> dict[str, Range]:
     """name -> Range of every Real or Integer parameter in one modelDescription.xml."""
     ranges = {}
-    if path.suffix == ".fmu":
-        with zipfile.ZipFile(path) as z:
-            root = ET.fromstring(z.read("modelDescription.xml"))
-    else:
-        root = ET.parse(path).getroot()
-    for v in root.iter("ScalarVariable"):
+    for v in _root(path).iter("ScalarVariable"):
         if v.get("causality") != "parameter":
             continue
         for t in v:
@@ -60,19 +62,53 @@ def read_ranges(path: Path) -> dict[str, Range]:
     return ranges
 
 
+def read_starts(path: Path) -> dict[str, float | bool]:
+    """name -> start value of every parameter and input in one modelDescription.xml that has one
+    (Real and Integer as float, Boolean as bool)."""
+    starts: dict[str, float | bool] = {}
+    for v in _root(path).iter("ScalarVariable"):
+        if v.get("causality") not in ("parameter", "input"):
+            continue
+        for t in v:
+            start = t.get("start")
+            if start is None:
+                continue
+            if t.tag == "Boolean":
+                starts[v.get("name")] = start in ("true", "1")
+            elif t.tag in ("Real", "Integer"):
+                starts[v.get("name")] = float(start)
+    return starts
+
+
 @functools.lru_cache(maxsize=1)
 def fmu_ranges() -> dict[str, Range]:
     """Every FMU parameter's range, intersected over the FMUs that declare it."""
     out: dict[str, Range] = {}
+    for ranges in _each_description(read_ranges):
+        for name, r in ranges.items():
+            out[name] = out[name] & r if name in out else r
+    return out
+
+
+def _each_description(reader):
+    """reader(path) of each of DESCRIPTIONS, in order; {} for one that is missing or unreadable."""
     for path in DESCRIPTIONS:
         try:
-            ranges = read_ranges(path) if path.is_file() else {}
+            yield reader(path) if path.is_file() else {}
         except (OSError, zipfile.BadZipFile, KeyError, ET.ParseError):
             # unreadable (a build in progress, a broken install): the FMU itself still refuses
             # what is out of its range, at run time instead of at load
-            ranges = {}
-        for name, r in ranges.items():
-            out[name] = out[name] & r if name in out else r
+            yield {}
+
+
+@functools.lru_cache(maxsize=1)
+def fmu_starts() -> dict[str, float | bool]:
+    """Every FMU parameter's and input's start value: the FMUs' defaults (the first description
+    that declares it; where two declare one, the drive copies the plant's)."""
+    out: dict[str, float | bool] = {}
+    for starts in _each_description(read_starts):
+        for name, x in starts.items():
+            out.setdefault(name, x)
     return out
 
 

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import math
 from ctypes import c_double, c_int
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 
 from scenarios.cosim.fmu import FMI2_OK, CosimError, Fmu
 
 INPUTS = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")
+#: the thermal network's boundary temperatures (contract, "Thermal"): inputs when the FMU has them
+THERMAL_INPUTS = ("T_coolant", "T_ambient")
 
 
 @dataclass(slots=True)
@@ -48,9 +50,23 @@ class DriveStep:
     i_q_ref: float
     u_ratio: float
     region: int
+    # the thermal network (contract, "Thermal"; with it off: the temperature inputs and zeros); NaN
+    # where the FMU has no such output. derating: the torque limit's thermal factor (1: none, as
+    # from an FMU without it)
+    theta_winding: float = math.nan
+    theta_magnet: float = math.nan
+    theta_stator_yoke: float = math.nan
+    theta_stator_tooth: float = math.nan
+    P_coolant: float = math.nan
+    E_coolant: float = math.nan
+    E_ambient: float = math.nan
+    E_stored: float = math.nan
+    derating: float = 1.0
 
 
-_REALS = tuple(f.name for f in fields(DriveStep) if f.name != "region")
+_REALS = tuple(f.name for f in fields(DriveStep) if f.name != "region" and f.default is MISSING)
+#: the optional outputs in DriveStep's order: an FMU gives the longest prefix it has of them
+OPTIONAL_OUTPUTS = tuple(f.name for f in fields(DriveStep) if f.default is not MISSING)
 
 
 def winding_resistance(unit, T_winding: float) -> float:
@@ -67,16 +83,28 @@ class DriveFmu(Fmu):
 
     def __init__(self, path: str | Path, params: dict | None = None, T_ref: float = 0.0, w_m: float = 0.0,
                  u_dc: float = 355.0, T_magnet: float = 293.15, T_winding: float = 293.15,
-                 instance_name: str = "drive", logging_on: bool = False):
+                 instance_name: str = "drive", logging_on: bool = False, T_coolant: float | None = None,
+                 T_ambient: float | None = None):
         super().__init__(path, instance_name, logging_on, initialise=False, **(params or {}))
         try:
-            self.set(**dict(zip(INPUTS, (T_ref, w_m, u_dc, T_magnet, T_winding))))
+            # the boundary temperatures are inputs only when given (None: the FMU's start values)
+            boundary = {k: v for k, v in zip(THERMAL_INPUTS, (T_coolant, T_ambient)) if v is not None}
+            self.inputs = INPUTS + tuple(boundary)
+            self.set(**dict(zip(INPUTS, (T_ref, w_m, u_dc, T_magnet, T_winding))), **boundary)
             self.exit_initialization()
             self.sample_time = self.get("sample_time")
+            self._boundary = tuple(boundary.values())
+            optional = []
+            for name in OPTIONAL_OUTPUTS:
+                if name not in self.vars:
+                    break
+                optional.append(name)
+            self.outputs = _REALS + tuple(optional)
             # the value references and values every advance() passes (fmi2ValueReference, fmi2Real,
             # fmi2Integer arrays)
-            self._u_vr, self._u = self.vrs(*INPUTS), (c_double * len(INPUTS))()
-            self._y_vr, self._y = self.vrs(*_REALS), (c_double * len(_REALS))()
+            self._u_vr, self._u = self.vrs(*self.inputs), (c_double * len(self.inputs))()
+            self._y_vr, self._y = self.vrs(*self.outputs), (c_double * len(self.outputs))()
+            self._n_core = len(_REALS)
             self._region_vr, self._region = self.vrs("region"), (c_int * 1)()
         except BaseException:
             self.close()
@@ -86,16 +114,17 @@ class DriveFmu(Fmu):
                 T_winding: float) -> DriveStep:
         """One step of dt (a whole multiple of sample_time) with the inputs held over it."""
         dll, c = self.dll, self.c
-        self._u[:] = (T_ref, w_m, u_dc, T_magnet, T_winding)
-        dll.fmi2SetReal(c, self._u_vr, len(INPUTS), self._u)
+        self._u[:] = (T_ref, w_m, u_dc, T_magnet, T_winding, *self._boundary)
+        dll.fmi2SetReal(c, self._u_vr, len(self._u), self._u)
         status = dll.fmi2DoStep(c, self.t, dt, 1)
         if status != FMI2_OK:
             raise CosimError(f"IpmsmDrive: fmi2DoStep from t = {self.t:.9g} s by {dt:.9g} s returned status "
                              f"{status}; the FMU says: {self.last_messages()}")
         self.t += dt
-        dll.fmi2GetReal(c, self._y_vr, len(_REALS), self._y)
+        dll.fmi2GetReal(c, self._y_vr, len(self._y), self._y)
         dll.fmi2GetInteger(c, self._region_vr, 1, self._region)
-        return DriveStep(*self._y[:], region=self._region[0])
+        y, n = self._y[:], self._n_core
+        return DriveStep(*y[:n], self._region[0], *y[n:])
 
 
 def steps_of(dt: float, sample_time: float) -> int:

@@ -50,7 +50,7 @@ class DriveDescriptionError(InputError):
 class Rule:
     """What a value must be: a kind (real, int, str, path, strings) and a physical range."""
 
-    kind: str                  # "real", "int", "str", "path", "strings"
+    kind: str                  # "real", "int", "bool", "str", "path", "strings"
     lo: float | None = None    # bounds, inclusive unless open
     hi: float | None = None
     lo_open: bool = False
@@ -58,7 +58,8 @@ class Rule:
     choices: tuple = ()
 
     def describe(self) -> str:
-        what = {"real": "a number", "int": "an integer", "str": "a string", "path": "a file path (string)",
+        what = {"real": "a number", "int": "an integer", "bool": "true or false", "str": "a string",
+                "path": "a file path (string)",
                 "strings": "a list of strings"}[self.kind]
         if self.choices:
             what += " out of " + ", ".join(repr(c) for c in self.choices)
@@ -89,6 +90,9 @@ class Rule:
                 return self.describe()
         elif k == "int":
             if isinstance(value, bool) or not isinstance(value, int):
+                return self.describe()
+        elif k == "bool":
+            if not isinstance(value, bool):
                 return self.describe()
         elif k in ("str", "path"):
             if not isinstance(value, str) or not value:
@@ -128,6 +132,11 @@ NON_NEGATIVE = Rule("real", lo=0.0)
 FRACTION = Rule("real", lo=0.0, hi=1.0, lo_open=True)   # an efficiency, a utilisation
 TEMPERATURE = Rule("real", lo=173.15, hi=573.15)         # K, the FMUs' range of T_magnet_ref
 COEFFICIENT = Rule("real", lo=-0.01, hi=0.01)            # 1/K, the FMUs' range of k_psi_T
+
+
+#: the thermal network's speed-dependent links a exp(-n / b) + c (contract, "Thermal")
+LPTN_SPEED_LINKS = (("tooth_magnet", "teeth - magnet"), ("winding_magnet", "winding - magnet"),
+                    ("magnet_ambient", "magnet - ambient"))
 
 
 @dataclass(frozen=True)
@@ -243,6 +252,8 @@ SCHEMA: tuple[Key, ...] = (
     Key("vehicle", "tyre_road_friction", Rule("real", lo=0.0, hi=5.0, lo_open=True),
         "1", "tyre-road friction coefficient (friction-brake limit)",
         _dc(VehicleParams, "tyre_road_friction"), acts="braking harder than mu m g"),
+    Key("vehicle", "grade", Rule("real", lo=-0.35, hi=0.35), "1", "road grade, rise over run, the whole run "
+        "(0.08: 8 % uphill); within the steepest public streets' 35 %", _dc(VehicleParams, "grade")),
     Key("vehicle", "P_aux", Rule("real", lo=0.0, hi=1e6), "W", "auxiliary load on the DC link",
         "scenarios.vehicle.driver.P_AUX_DEFAULT"),
     # [controller]: the controller FMU's settings
@@ -262,6 +273,51 @@ SCHEMA: tuple[Key, ...] = (
     Key("controller", "lut_u_dc", Rule("real", lo=0.0, hi=1e5, lo_open=True),
         "V", "DC voltage the 2-D tables are built at (lut_* methods)",
         _meta("u_dc_V"), acts="method lut_speed"),
+    # [thermal]: the machine's thermal network in IpmsmDrive (docs/thermal.md; contract "Thermal")
+    Key("thermal", "thermal_model", Rule("bool"), "", "true: the thermal network sets the winding and magnet "
+        "temperatures from the losses (they start at the run's temperatures); false: they are the run's, held",
+        "false (the FMU's default)"),
+    Key("thermal", "T_coolant", TEMPERATURE, "K", "coolant (water-jacket) temperature, held over the run",
+        "the FMU's `T_coolant` start", acts="thermal_model"),
+    Key("thermal", "T_ambient", TEMPERATURE, "K", "ambient air the rotor also rejects heat to, held over the run",
+        "the FMU's `T_ambient` start", acts="thermal_model"),
+    *(Key("thermal", name, rule, unit, meaning, f"the FMU's `{name}` (docs/thermal.md gives its source)",
+          acts="thermal_model") for name, rule, unit, meaning in (
+        ("C_stator_yoke", POSITIVE, "J/K", "heat capacity, stator yoke"),
+        ("C_stator_tooth", POSITIVE, "J/K", "heat capacity, stator teeth"),
+        ("C_winding", POSITIVE, "J/K", "heat capacity, winding"),
+        ("C_magnet", POSITIVE, "J/K", "heat capacity, magnets and rotor"),
+        ("R_yoke_winding", POSITIVE, "K/W", "resistance stator yoke - winding"),
+        ("R_yoke_tooth", POSITIVE, "K/W", "resistance stator yoke - teeth"),
+        ("R_tooth_winding", POSITIVE, "K/W", "resistance teeth - winding"),
+        ("R_coolant_yoke", POSITIVE, "K/W", "resistance coolant - yoke at 20 degC coolant"),
+        ("k_coolant_yoke", Rule("real"), "1/K", "R_coolant_yoke's relative change per kelvin of coolant"),
+        *((f"R_{link}_a", NON_NEGATIVE, "K/W", f"{what} resistance a exp(-n / b) + c: a")
+          for link, what in LPTN_SPEED_LINKS),
+        *((f"R_{link}_b", POSITIVE, "1", f"{what} resistance: b (normalised speed)")
+          for link, what in LPTN_SPEED_LINKS),
+        *((f"R_{link}_c", POSITIVE, "K/W", f"{what} resistance: c") for link, what in LPTN_SPEED_LINKS),
+        ("R_magnet_coolant_0", Rule("real"), "K/W", "magnet - coolant resistance r0 + r_n n + r_c c + r_nc n c: r0"),
+        ("R_magnet_coolant_n", Rule("real"), "K/W", "magnet - coolant resistance: r_n"),
+        ("R_magnet_coolant_c", Rule("real"), "K/W", "magnet - coolant resistance: r_c (c = coolant / 100 degC)"),
+        ("R_magnet_coolant_nc", Rule("real"), "K/W", "magnet - coolant resistance: r_nc"),
+        ("k_fe_stator_0", Rule("real"), "1", "stator share of the iron loss k0 + k_n n + k_i i + k_ni n i: k0"),
+        ("k_fe_stator_n", Rule("real"), "1", "stator share of the iron loss: k_n"),
+        ("k_fe_stator_i", Rule("real"), "1", "stator share of the iron loss: k_i (i = I_rms / I_rms_ref)"),
+        ("k_fe_stator_ni", Rule("real"), "1", "stator share of the iron loss: k_ni"),
+        ("k_fe_yoke", Rule("real", lo=0.0, hi=1.0), "1", "the yoke's share of the stator's iron loss (the rest: "
+         "teeth)"),
+        ("w_m_ref", POSITIVE, "rad/s", "speed of n = 1 in the fits"),
+        ("I_rms_ref", POSITIVE, "A", "RMS current of i = 1 in the fits"),
+        ("T_magnet_estimate_error", Rule("real", lo=-200.0, hi=200.0), "K", "the controller's magnet temperature "
+         "is the network's plus this (a drive's estimate)"))),
+    # the controller's derating: it acts on the temperatures the controller is given, network or not
+    *(Key("thermal", name, rule, "K", meaning, f"the FMU's `{name}` (docs/thermal.md gives its source)")
+      for name, rule, meaning in (
+        ("T_winding_max", TEMPERATURE, "winding temperature at which the torque limit reaches zero"),
+        ("T_magnet_max", TEMPERATURE, "magnet temperature at which the torque limit reaches zero"),
+        ("derating_margin", POSITIVE, "the torque limit starts to fall this far below T_winding_max and "
+         "T_magnet_max"))),
     # [checks]: what `python -m scenarios check` runs and gates on
     Key("checks", "cycles", Rule("strings"), "", "cycles to run: names (WLTC3b, UDDS, HWFET, US06, NEDC) or CSVs "
         "of time_s,speed_mps relative to this file", "[] (nothing to check)", acts="check"),
@@ -293,12 +349,20 @@ SCHEMA = SCHEMA + tuple(
 FMU_PARAMETER = {f"motor.{n}": n for n in ("pole_pairs", "R_s", "I_max", "T_magnet_ref", "T_winding_ref", "alpha_cu",
                                          "k_psi_T", "w_m_max", "fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref")}
 FMU_PARAMETER.update({f"controller.{n}": n for n in ("k_u", "current_bandwidth", "lut_u_dc")})
+#: [thermal]: every key is the FMU parameter or input of the same name (contract, "Thermal"); the
+#: network's Real parameters are narrowed to their ranges (the Boolean and the inputs keep their rules)
+THERMAL_KEYS = tuple(k.name for k in SCHEMA if k.section == "thermal")
+#: ... of which the controller's derating, passed whether the network is on or not (it derates
+#: on the temperatures the controller is given)
+DERATING_KEYS = ("T_winding_max", "T_magnet_max", "derating_margin")
+FMU_PARAMETER.update({f"thermal.{n}": n for n in THERMAL_KEYS
+                      if n not in ("thermal_model", "T_coolant", "T_ambient") and n in fmu_ranges()})
 FMU_PARAMETER.update({f"inverter.{n}": n for n in ("f_sw", "V_T0", "r_T", "V_D0", "r_D", "E_on", "E_off", "E_rec",
                                                    "I_ref", "V_ref", "k_v")})
 SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get(FMU_PARAMETER[k.path]))) if k.path in FMU_PARAMETER
                else k for k in SCHEMA)
 
-SECTIONS = ("motor", "inverter", "battery", "vehicle", "controller", "checks")
+SECTIONS = ("motor", "inverter", "battery", "vehicle", "controller", "thermal", "checks")
 _BY_PATH = {k.path: k for k in SCHEMA}
 
 
@@ -340,6 +404,50 @@ class ControllerSpec:
 
 
 @dataclass(frozen=True)
+class ThermalSpec:
+    """The [thermal] table: every key's value (the FMU's default where the file gives none, read
+    from its model description: scenarios.core.fmu_ranges.fmu_starts), by the FMU's names."""
+
+    values: dict = field(default_factory=dict)   # THERMAL_KEYS name -> value
+    given: tuple[str, ...] = ()                  # the keys the file gives
+
+    @property
+    def on(self) -> bool:
+        return bool(self.values["thermal_model"])
+
+    @property
+    def T_coolant(self) -> float:
+        return self.values["T_coolant"]
+
+    @property
+    def T_ambient(self) -> float:
+        return self.values["T_ambient"]
+
+    def fmu_params(self) -> dict:
+        """IpmsmDrive's network parameters: none with the network off (the FMU as it was without it)."""
+        return {k: v for k, v in self.values.items()
+                if k not in ("T_coolant", "T_ambient", *DERATING_KEYS)} if self.on else {}
+
+    def derating_params(self) -> dict:
+        """The controller's derating parameters the file gives (the rest: the FMU's defaults)."""
+        return {k: self.values[k] for k in self.given if k in DERATING_KEYS}
+
+    @classmethod
+    def of(cls, given: dict) -> ThermalSpec:
+        """The table's values: given, else the FMUs' start values; a key the FMUs do not have
+        (an older build) is left out, and refused when given (KeyError naming it)."""
+        from scenarios.core.fmu_ranges import fmu_starts
+        starts = fmu_starts()
+        unknown = [k for k in given if k not in starts]
+        if unknown:
+            raise KeyError(unknown[0])
+        values = {k: given[k] if k in given else starts[k] for k in THERMAL_KEYS if k in starts}
+        if not all(k in values for k in ("thermal_model", "T_coolant", "T_ambient")):  # FMUs without the network
+            return cls({"thermal_model": False, "T_coolant": math.nan, "T_ambient": math.nan})
+        return cls(values, tuple(given))
+
+
+@dataclass(frozen=True)
 class ChecksSpec:
     cycles: tuple[str, ...] = ()      # names, or CSV paths made absolute
     limits: dict = field(default_factory=dict)   # LIMITS key -> value
@@ -361,6 +469,7 @@ class DriveDescription:
     controller: ControllerSpec
     checks: ChecksSpec
     assumed: tuple[str, ...] = ()  # the motor's values neither the file nor its map gives, in words
+    thermal: ThermalSpec = field(default_factory=lambda: ThermalSpec.of({}))  # [thermal]
 
     def value(self, path: str):
         """The value of a schema key ("vehicle.mass", "name", ...) in this description."""
@@ -373,6 +482,8 @@ class DriveDescription:
             return str(self.battery.ocv_csv) if self.battery.ocv_fit == "csv" else self.battery.ocv_fit
         if section == "checks":
             return list(self.checks.cycles) if name == "cycles" else self.checks.limits.get(name)
+        if section == "thermal":
+            return self.thermal.values.get(name)
         return getattr({"motor": self.motor, "inverter": self.inverter, "battery": self.battery,
                         "vehicle": self.vehicle, "controller": self.controller}[section], name)
 
@@ -395,6 +506,7 @@ class DriveDescription:
                  lut_u_dc=c.lut_u_dc if lut_u_dc is None else lut_u_dc,
                  lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet,
                  command_check=c.command_check if command_check is None else command_check)
+        p.update(self.thermal.derating_params())
         # the keys without a value of their own leave the FMU's default (its modelDescription start)
         if m.w_m_max is not None:
             p["w_m_max"] = m.w_m_max
@@ -584,6 +696,11 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
         if bad:
             raise DriveDescriptionError(path, f"controller.{key}", f"{bad} (from the file or the map's metadata)")
 
+    try:
+        thermal = ThermalSpec.of({k: (v if k == "thermal_model" else float(v)) for k, v in sec["thermal"].items()})
+    except KeyError as e:
+        raise DriveDescriptionError(path, f"thermal.{e.args[0]}", "a parameter the built FMUs have: rebuild them "
+                                    "(their model descriptions have no such variable)") from None
     ch = sec["checks"]
     if "time_above_top_speed_s_max" in ch and motor.w_m_max is None:  # a limit nothing could measure
         raise DriveDescriptionError(path, "checks.time_above_top_speed_s_max",
@@ -593,7 +710,7 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
                         limits={k: float(x) for k, x in ch.items() if k in LIMITS})
     return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),
                             motor=motor, inverter=inverter, battery=battery, vehicle=vehicle, P_aux=P_aux,
-                            controller=controller, checks=checks, assumed=tuple(assumed))
+                            controller=controller, checks=checks, assumed=tuple(assumed), thermal=thermal)
 
 
 def schema_markdown() -> str:
@@ -603,7 +720,8 @@ def schema_markdown() -> str:
     rows = ["| key | unit | allowed | default: from | default EV | meaning |", "|---|---|---|---|---|---|"]
     for k in SCHEMA:
         v = d.value(k.path) if k.path != "motor.flux_map" else DEFAULT_MAP.relative_to(ROOT).as_posix()
-        v = "—" if v is None or v == [] else (f"{v:.6g}" if isinstance(v, float) else str(v))
+        v = "—" if v is None or v == [] else (f"{v:.6g}" if isinstance(v, float) else
+                                             str(v).lower() if isinstance(v, bool) else str(v))
         rows.append(f"| `{k.path}` | {k.unit} | {k.rule.describe()} | {k.default} | {v} | {k.meaning} |")
     return "\n".join(rows)
 
@@ -614,4 +732,5 @@ def known_fields() -> dict[str, tuple[str, ...]]:
 
 
 __all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "LIMITS", "METHODS", "SCHEMA", "ChecksSpec", "ControllerSpec",
-           "DriveDescription", "DriveDescriptionError", "Key", "MotorSpec", "Rule", "load_drive", "schema_markdown"]
+           "DriveDescription", "DriveDescriptionError", "Key", "MotorSpec", "Rule", "ThermalSpec", "load_drive",
+           "schema_markdown"]

@@ -27,6 +27,10 @@ TOP_SPEED_MARGIN = 1e-9
 
 RPM = math.pi / 30.0  # rad/s per r/min
 
+#: a derating factor below 1 by more than this counts as derated (the factor is a ratio of
+#: temperatures: rounding must not count)
+DERATING_MARGIN = 1e-9
+
 
 @dataclass
 class RunAccounts:
@@ -54,6 +58,11 @@ class RunAccounts:
     n_I: int = 0
     t_over: float = 0.0       # s above the planned V_max
     t_sat: float = 0.0        # s at the inverter's linear range
+    thermal: bool = False     # the thermal network is on: its figures are kept
+    theta_max: tuple = (-math.inf,) * 4  # K, winding, magnet, stator yoke, stator tooth
+    t_derated: float = 0.0    # s with the torque limit derated
+    derating_min: float = 1.0
+    last: object = None       # the last step's drive record (the run's end)
 
     def observe(self, s: VehicleStep) -> None:
         """One vehicle step has ended."""
@@ -79,6 +88,13 @@ class RunAccounts:
         self.w_m_peak = max(self.w_m_peak, abs(s.w_m))
         if self.w_m_max is not None and abs(s.w_m) > self.w_m_max * (1.0 + TOP_SPEED_MARGIN):
             self.t_above_top += dt
+        if self.thermal:
+            self.theta_max = tuple(max(a, b) for a, b in zip(self.theta_max, (
+                m.theta_winding, m.theta_magnet, m.theta_stator_yoke, m.theta_stator_tooth)))
+            if m.derating < 1.0 - DERATING_MARGIN:
+                self.t_derated += dt
+            self.derating_min = min(self.derating_min, m.derating)
+            self.last = m
         if self.reference:
             self.E_cu_opt += s.P_cu_opt * dt
             if s.I > I_EXCESS_MIN:
@@ -111,5 +127,18 @@ class RunAccounts:
             steps=n * n_inner, vehicle_steps=n, h_s=h, dt_s=dt, wall_s=wall, real_time_factor=n * dt / wall,
             backend=backend, w_m_peak_rpm=self.w_m_peak / RPM,
             w_m_max_rpm=None if self.w_m_max is None else self.w_m_max / RPM,
-            time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top,
+            time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top, **self.thermal_figures(),
         )
+
+    def thermal_figures(self) -> dict:
+        """The summary's thermal figures (none with the network off)."""
+        m = self.last
+        if not self.thermal or m is None:
+            return {}
+        return dict(
+            thermal_network=True, theta_winding_max_K=self.theta_max[0], theta_magnet_max_K=self.theta_max[1],
+            theta_stator_yoke_max_K=self.theta_max[2], theta_stator_tooth_max_K=self.theta_max[3],
+            theta_winding_end_K=m.theta_winding, theta_magnet_end_K=m.theta_magnet,
+            heat_coolant_Wh=m.E_coolant * WH, heat_ambient_Wh=m.E_ambient * WH, heat_stored_Wh=m.E_stored * WH,
+            heat_balance_residual_Wh=(m.E_cu + m.E_fe - m.E_stored - m.E_coolant - m.E_ambient) * WH,
+            time_derated_s=self.t_derated, derating_min=self.derating_min)

@@ -36,6 +36,8 @@ class VehicleStep:
     I_opt: float       # A, the optimum's current at the delivered torque (NaN without the reference)
     P_cu_opt: float    # W, the optimum's copper loss (0 without the reference)
     soc: float         # battery state of charge at t
+    F_demand: float = math.nan  # N, the driver's wheel-force demand, before the torque limit and blending
+    F_wheel: float = math.nan   # N, the tractive force the drive delivered at the wheels
 
 
 @dataclass(frozen=True)
@@ -61,12 +63,22 @@ class TracePoint:
     F_brake_N: float
     soc: float
     region: int
+    P_demand_W: float        # the driver's demanded power at the wheels, F_demand v
+    P_wheel_W: float         # the drive's delivered power at the wheels, F_wheel v
+    theta_winding_K: float   # the thermal network's node temperatures (off: the run's inputs)
+    theta_magnet_K: float
+    theta_stator_yoke_K: float
+    theta_stator_tooth_K: float
+    P_coolant_W: float       # heat into the coolant (off: 0)
+    derating: float          # the torque limit's thermal factor (1: none)
 
     @classmethod
     def of(cls, s: VehicleStep) -> TracePoint:
         d = s.drive
         return cls(s.t, s.v_ref, s.v, s.w_m, s.T_ref, d.T_cmd, d.T_max, d.T_e, d.T_shaft, d.i_d, d.i_q, s.I, s.I_opt,
-                   s.u_dc, d.P_elec, s.P_dc, s.F_brake, s.soc, int(d.region))
+                   s.u_dc, d.P_elec, s.P_dc, s.F_brake, s.soc, int(d.region), s.F_demand * s.v, s.F_wheel * s.v,
+                   d.theta_winding, d.theta_magnet, d.theta_stator_yoke, d.theta_stator_tooth, d.P_coolant,
+                   d.derating)
 
 
 TRACE_COLUMNS = tuple(f.name for f in fields(TracePoint))
@@ -157,6 +169,20 @@ class RunSummary:
     w_m_max_rpm: float | None = None  # the motor's top speed (motor.w_m_max; None: not known)
     time_above_top_speed_s: float | None = 0.0  # time the rotor spent above w_m_max (None: w_m_max not known)
     version: str = VERSION            # the ipmsm-fmu release that ran it (pyproject.toml, the FMUs' version)
+    # the machine's thermal network (docs/thermal.md); None with it off
+    thermal_network: bool = False     # the thermal network was on ([thermal] thermal_model, or the conditions)
+    theta_winding_max_K: float | None = None   # highest node temperatures of the run
+    theta_magnet_max_K: float | None = None
+    theta_stator_yoke_max_K: float | None = None
+    theta_stator_tooth_max_K: float | None = None
+    theta_winding_end_K: float | None = None
+    theta_magnet_end_K: float | None = None
+    heat_coolant_Wh: float | None = None       # heat into the coolant over the run
+    heat_ambient_Wh: float | None = None       # ... into the ambient air
+    heat_stored_Wh: float | None = None        # ... stored in the machine at the end
+    heat_balance_residual_Wh: float | None = None  # copper + iron loss - stored - coolant - ambient
+    time_derated_s: float | None = None        # time the torque limit was derated
+    derating_min: float | None = None          # its lowest factor (1: none)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
+from scenarios.core.boundary import InputError
 from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
@@ -28,7 +29,7 @@ from scenarios.cosim import BACKENDS
 from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
 from scenarios.cosim.fmu import Fmu
 from scenarios.cosim.reference import ReferenceDrive
-from scenarios.drives.description import METHODS, DriveDescription, load_drive
+from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
 from scenarios.runs.accounting import RunAccounts
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
@@ -49,7 +50,9 @@ class Conditions:
     """Operating conditions of a run. u_dc_scale: the DC voltage the drive sees, relative to the
     battery's terminal voltage (0.85: a pack sagging 15 % below what the tables were made for).
     The tables are always made at lut_u_dc and lut_T_magnet; None: the drive's (its
-    controller.lut_u_dc and motor.T_magnet_ref), which the run's summary then records."""
+    controller.lut_u_dc and motor.T_magnet_ref), which the run's summary then records.
+    thermal: the machine's thermal network on (True) or off (False), None: the drive's
+    [thermal] thermal_model; with it on, T_magnet and T_winding are where the network starts."""
 
     name: str = "nominal"
     u_dc_scale: float = 1.0
@@ -57,6 +60,7 @@ class Conditions:
     T_winding: float = T_REFERENCE_K   # K
     lut_u_dc: float | None = None      # V
     lut_T_magnet: float | None = None  # K
+    thermal: bool | None = None
 
 
 STUDY_CONDITIONS = (
@@ -64,6 +68,9 @@ STUDY_CONDITIONS = (
     Conditions("u_dc -15 %", u_dc_scale=0.85),
     Conditions("magnets 120 degC", T_magnet=120.0 + ZERO_CELSIUS_K, T_winding=120.0 + ZERO_CELSIUS_K),
     Conditions("magnets -20 degC", T_magnet=-20.0 + ZERO_CELSIUS_K, T_winding=-20.0 + ZERO_CELSIUS_K),
+    # the seed's temperature argument as it happens: the machine's thermal network heats the
+    # magnets and windings along the cycle from a cold start (the drive's coolant and ambient)
+    Conditions("magnets heating from 20 degC", T_magnet=T_REFERENCE_K, T_winding=T_REFERENCE_K, thermal=True),
 )
 
 
@@ -101,6 +108,11 @@ class RunSpec:
         return replace(c, lut_u_dc=d.controller.lut_u_dc if c.lut_u_dc is None else c.lut_u_dc,
                        lut_T_magnet=d.motor.T_magnet_ref if c.lut_T_magnet is None else c.lut_T_magnet)
 
+    def thermal(self) -> ThermalSpec:
+        """The drive's [thermal] table with the conditions' thermal_model, if they set it."""
+        t, on = self.drive.thermal, self.conditions.thermal
+        return t if on is None or on == t.on else replace(t, values={**t.values, "thermal_model": on})
+
     def steps_per_vehicle_step(self) -> int:
         """Co-simulation steps h in one vehicle step dt (a whole number)."""
         n_inner = int(round(self.dt / self.h))
@@ -116,10 +128,15 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
 def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict, **start):
     """The drive of a run by spec.backend: IpmsmDrive (built next to the controller's FMU), or the
     reference loop with the drive description's inverter."""
-    inverter = spec.drive.inverter
+    inverter, thermal = spec.drive.inverter, spec.thermal()
     if spec.backend == "drive":
+        boundary = dict(T_coolant=thermal.T_coolant, T_ambient=thermal.T_ambient) if thermal.on else {}
         return DriveFmu(Path(controller_fmu).parent / "IpmsmDrive.fmu",
-                        {**c_params, **p_params, **asdict(inverter), "sample_time": spec.h}, **start)
+                        {**c_params, **p_params, **asdict(inverter), **thermal.fmu_params(), "sample_time": spec.h},
+                        **start, **boundary)
+    if thermal.on:  # the reference loop's record has no temperatures
+        raise InputError("(command line)", "--backend", "the drive backend with the thermal network on "
+                         "([thermal] thermal_model = true)")
     if spec.backend == "fmpy":
         return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start,
                               inverter_loss=lambda I, I2, u_dc, P_ac: inverter_loss(I, I2, u_dc, P_ac_mean=P_ac,
@@ -138,15 +155,19 @@ class OptimumReference:
         self.fmu = Fmu(controller_fmu, instance_name="reference",
                        **drive.controller_params(method="ferrari", recursion=2))
 
-    def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float) -> float:
-        """|i| (A) of the optimal command for T_e, one controller step at t."""
-        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet, T_winding=self.T_winding)
+    def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
+                T_winding: float | None = None) -> float:
+        """|i| (A) of the optimal command for T_e, one controller step at t; T_winding (K) None:
+        the run's start (a run with the thermal network gives the step's)."""
+        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
+                     T_winding=self.T_winding if T_winding is None else T_winding)
         self.fmu.step(t, dt)
         return math.hypot(*self.fmu.get("i_d_ref", "i_q_ref"))
 
-    def copper_loss(self, I: float) -> float:
-        """W at the current magnitude I (A, peak, amplitude-invariant dq)."""
-        return 1.5 * self.R_s * I * I
+    def copper_loss(self, I: float, R_s: float | None = None) -> float:
+        """W at the current magnitude I (A, peak, amplitude-invariant dq); R_s (Ohm) None: the
+        run's start (a run with the thermal network gives the step's)."""
+        return 1.5 * (self.R_s if R_s is None else R_s) * I * I
 
     def close(self) -> None:
         self.fmu.close()
@@ -168,6 +189,12 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
     P_aux = spec.drive.P_aux
     drive_dt = spec.steps_per_vehicle_step() * drive.sample_time
     R = winding_resistance(drive, cond.T_winding)  # the copper loss's resistance: |i|^2 = P_cu / (1.5 R)
+    # With the thermal network on, a step's copper loss is at the winding temperature the step
+    # started at (the network advances at its end); the reference optimum and the inputs follow
+    # the network's temperatures of the step before (inside IpmsmDrive the controller takes the
+    # network's own; the inputs serve a drive without that feed).
+    thermal = spec.thermal().on
+    T_magnet, T_winding = cond.T_magnet, cond.T_winding
     T_max_known = T_MAX_UNKNOWN
     for k in range(len(t_ref) - 1):
         v = vehicle.v
@@ -175,7 +202,7 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         u_dc = battery.u * cond.u_dc_scale
         F_dem = driver.demand(v_ref[k], v_ref[k + 1], v, dt)
         b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
-        m = drive.advance(drive_dt, b.T_ref, w_m, u_dc, cond.T_magnet, cond.T_winding)
+        m = drive.advance(drive_dt, b.T_ref, w_m, u_dc, T_magnet, T_winding)
         T_max_known = abs(m.T_max)
         F_w = wheel_force(m.T_shaft, vp)
         driver.applied(F_w - b.F_brake)
@@ -185,18 +212,23 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
         if reference is not None:
-            I_opt = reference.current(m.T_e, w_m, u_dc, cond.T_magnet, k * dt, dt)
-            P_cu_opt = reference.copper_loss(I_opt)
+            I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
+            P_cu_opt = reference.copper_loss(I_opt, R)
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
                           F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
-                          P_cu_opt=P_cu_opt, soc=battery.soc)
+                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w)
+        if thermal:
+            T_magnet, T_winding = m.theta_magnet, m.theta_winding
+            R = winding_resistance(drive, T_winding)
 
 
 def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, Path] | None = None,
-             out: Path | None = None, progress: bool = True) -> RunSummary:
+             out: Path | None = None, progress: bool = True,
+             observe: Callable[[VehicleStep], None] | None = None) -> RunSummary:
     """Run `cycle` with spec.drive; returns the summary (and writes summary.json, trace.csv to
     `out`). The FMUs' parameters (map, motor, controller settings; the drive backend's inverter)
-    and the vehicle side all follow spec.drive; so does the reference optimum."""
+    and the vehicle side all follow spec.drive; so does the reference optimum. `observe`, if
+    given, sees every vehicle step (a test's independent account of the run)."""
     spec = spec if spec is not None else RunSpec()
     spec = replace(spec, conditions=spec.resolved_conditions())
     drive, method, recursion = spec.drive, spec.method_name, spec.recursion_level
@@ -213,7 +245,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
     vehicle, driver = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver)
     battery = Battery(drive.battery)
-    accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max)
+    accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max,
+                           thermal=spec.thermal().on)
     trace = Trace(every=max(1, int(round(spec.trace_dt / dt))), keep=out is not None)
     bar = Progress(n, f"{cycle.name} {method} [{cond.name}]") if progress else None
     wall0 = time.perf_counter()
@@ -229,6 +262,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
             for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference)):
                 accounts.observe(step)
                 trace.observe(k, step)
+                if observe is not None:
+                    observe(step)
                 if bar:
                     bar.update()
     finally:

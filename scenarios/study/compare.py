@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import re
 import subprocess
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -173,9 +174,32 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
                              f"{s.current_excess_rms_A:.2f} | {s.time_above_V_max_pct:.1f} % / "
                              f"{s.time_voltage_limited_pct:.1f} % | {f'{ns:.0f}' if ns else '–'} | {_memory(s)} |")
             lines.append("")
+            lines += _thermal_lines([r for r in results if r.summary.cycle == cycle and r.condition == cond])
     lines += ["![Study](study.png)", "",
               "Per-run pictures: `runs/*/run.png`; traces: `runs/*/trace.csv`; all figures: `summary.csv`."]
     (out / "report.md").write_text("\n".join(lines) + "\n")
+
+
+def _thermal_lines(results: list[StudyRun]) -> list[str]:
+    """The thermal network's figures of a condition's runs (none when it was off): how hot the
+    magnets and windings got along the cycle, which is what the tables were not made for."""
+    runs = [r for r in results if r.summary.thermal_network]
+    if not runs:
+        return []
+    c = runs[0].summary.conditions
+    lines = [f"The machine's thermal network (docs/thermal.md) heats the magnets and windings from "
+             f"{c['T_magnet'] - ZERO_CELSIUS_K:.0f} °C along the cycle; the controller is told the network's "
+             "temperatures of the step before; the tables are those made for "
+             f"{c['lut_T_magnet'] - ZERO_CELSIUS_K:.0f} °C.", "",
+             "| method | magnets: max / end (°C) | winding: max / end (°C) | heat into coolant / ambient / "
+             "stored (Wh) |", "|---|---|---|---|"]
+    for r in runs:
+        s = r.summary
+        lines.append(f"| {r.variant} | {s.theta_magnet_max_K - ZERO_CELSIUS_K:.1f} / "
+                     f"{s.theta_magnet_end_K - ZERO_CELSIUS_K:.1f} | {s.theta_winding_max_K - ZERO_CELSIUS_K:.1f} / "
+                     f"{s.theta_winding_end_K - ZERO_CELSIUS_K:.1f} | {s.heat_coolant_Wh:.1f} / "
+                     f"{s.heat_ambient_Wh:.1f} / {s.heat_stored_Wh:.1f} |")
+    return lines + [""]
 
 
 def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
@@ -202,7 +226,7 @@ def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
         ax[1].bar(x + j * wdt, copper, wdt)
         ax[2].bar(x + j * wdt, energy, wdt)
     for a, t in zip(ax, ("torque error RMS (N·m)", "copper loss above the optimum (%)", "battery energy (Wh/km)")):
-        a.set_xticks(x + 0.4 - wdt / 2, conds, fontsize=8)
+        a.set_xticks(x + 0.4 - wdt / 2, [textwrap.fill(c, 12) for c in conds], fontsize=8)
         a.set_title(t)
         a.grid(alpha=0.3, axis="y")
     ax[2].set_ylim(bottom=min(r.summary.Wh_per_km for r in results) * 0.97)

@@ -13,6 +13,8 @@ singular: drive, cycle, method, ...), each missing key taking the default. `wind
     u_dc_scale = [1.0, 0.85]
     T_magnet_degC = [20.0, 120.0]
     T_winding_degC = [20.0]
+    thermal_models = [0, 1]             # the thermal network off, on (default: the drive's [thermal]);
+                                        # on, the temperatures above are where it starts
     lut_grids = [[41, 41], [21, 21]]    # an extension: the 2-D tables' points (torque, speed or V_max/w)
 
 A bad specification raises SpecError naming the file and the key.
@@ -59,6 +61,7 @@ class Run:
     lut_n_torque: int | None = None  # the 2-D tables' grid points; None: the controller's default
     lut_n_speed: int | None = None
     command_check: int = 1           # the controller's: 1 replaces failing commands, 0 studies a method alone
+    thermal_model: int | None = None  # 1: the thermal network on, 0: off; None: the drive's [thermal]
 
     @property
     def lut_grid(self) -> tuple[int, int] | None:
@@ -72,20 +75,25 @@ class Run:
         """The run's operating conditions; one of the compare study's (STUDY_CONDITIONS, or the
         default) with its name and its very values when the run's are those, else named by them."""
         T_m, T_w = self.T_magnet_degC + ZERO_CELSIUS_K, self.T_winding_degC + ZERO_CELSIUS_K
+        thermal = None if self.thermal_model is None else bool(self.thermal_model)
         for c in (Conditions(), *STUDY_CONDITIONS):
             in_celsius = (c.T_magnet - ZERO_CELSIUS_K, c.T_winding - ZERO_CELSIUS_K)
-            if c.u_dc_scale == self.u_dc_scale and ((c.T_magnet, c.T_winding) == (T_m, T_w) or
-                                                    in_celsius == (self.T_magnet_degC, self.T_winding_degC)):
+            if c.u_dc_scale == self.u_dc_scale and c.thermal == thermal and (
+                    (c.T_magnet, c.T_winding) == (T_m, T_w) or
+                    in_celsius == (self.T_magnet_degC, self.T_winding_degC)):
                 return replace(c)
         name = (f"u_dc x{self.u_dc_scale:g}, magnets {self.T_magnet_degC:g} degC, "
                 f"windings {self.T_winding_degC:g} degC")
-        return Conditions(name, u_dc_scale=self.u_dc_scale, T_magnet=T_m, T_winding=T_w)
+        if thermal is not None:
+            name += f", thermal network {'on' if thermal else 'off'}"
+        return Conditions(name, u_dc_scale=self.u_dc_scale, T_magnet=T_m, T_winding=T_w, thermal=thermal)
 
     @classmethod
     def of_conditions(cls, c: Conditions, **columns) -> Run:
         """The run at conditions `c` (inverse of conditions())."""
         return cls(u_dc_scale=c.u_dc_scale, T_magnet_degC=c.T_magnet - ZERO_CELSIUS_K,
-                   T_winding_degC=c.T_winding - ZERO_CELSIUS_K, **columns)
+                   T_winding_degC=c.T_winding - ZERO_CELSIUS_K,
+                   thermal_model=None if c.thermal is None else int(c.thermal), **columns)
 
     @classmethod
     def of_row(cls, row: dict) -> Run:
@@ -98,7 +106,7 @@ class Run:
 #: [study] key (a list) -> Run field; the [[run]] tables use the field names
 AXES = {"drives": "drive", "cycles": "cycle", "methods": "method", "recursions": "recursion",
         "u_dc_scale": "u_dc_scale", "T_magnet_degC": "T_magnet_degC", "T_winding_degC": "T_winding_degC",
-        "lut_grids": "lut_grid", "command_checks": "command_check"}
+        "lut_grids": "lut_grid", "command_checks": "command_check", "thermal_models": "thermal_model"}
 RUN_KEYS = tuple(AXES.values()) + ("window_s",)
 
 #: the controller's bounds of lut_n_torque and lut_n_speed (its modelDescription)
@@ -170,8 +178,8 @@ def _value(field: str, v, path: Path | None, key: str):
         if r not in RECURSIONS:
             raise SpecError(f"{_where(path, key)}: expected one of {RECURSIONS}, got {r}")
         return r
-    if field == "command_check":
-        r = _number(v, path, key, integer=True)
+    if field in ("command_check", "thermal_model"):
+        r = int(v) if isinstance(v, bool) else _number(v, path, key, integer=True)
         if r not in (0, 1):
             raise SpecError(f"{_where(path, key)}: expected 0 or 1, got {r}")
         return r

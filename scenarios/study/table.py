@@ -32,12 +32,12 @@ TRACES_DIR = "traces"
 #: parts read into one table at a time when folding them in (memory: one table per batch)
 FOLD_BATCH = 256
 
-_ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), "float | None": pa.float64(),
-          "int | None": pa.int64()}
+_ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), bool: pa.bool_(), "float | None": pa.float64(),
+          "int | None": pa.int64(), "bool | None": pa.bool_()}
 
 
 def _arrow_type(t) -> pa.DataType:
-    return _ARROW.get(t) or _ARROW[{"str": str, "int": int, "float": float}.get(t, t)]
+    return _ARROW.get(t) or _ARROW[{"str": str, "int": int, "float": float, "bool": bool}.get(t, t)]
 
 
 #: the summary's fields that are columns of their own; `method`, `recursion` and `conditions`

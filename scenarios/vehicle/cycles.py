@@ -224,3 +224,19 @@ def cycle_stats(cycle: Cycle) -> dict:
         a_min_mps2=float(a.min()),
         stopped_fraction=float(np.sum(np.diff(t)[(v[:-1] == 0) & (v[1:] == 0)]) / cycle.duration_s),
     )
+
+
+def repeated(cycle: Cycle, n: int) -> Cycle:
+    """`cycle` driven n times in a row (each copy starts where the one before ended), named
+    "<name> x<n>". The cycle must end at the speed it starts at (a standard cycle's standstill)."""
+    if n < 1:
+        raise ValueError(f"a cycle is repeated at least once, got {n}")
+    if n == 1:
+        return cycle
+    t, v = cycle.time_s - cycle.time_s[0], cycle.speed_mps
+    if v[-1] != v[0]:
+        raise ValueError(f"{cycle.name} ends at {v[-1]:g} m/s, not at its start's {v[0]:g} m/s: its copies "
+                         "would not join")
+    ts = np.concatenate([t] + [t[1:] + k * t[-1] for k in range(1, n)]) + cycle.time_s[0]
+    vs = np.concatenate([v] + [v[1:]] * (n - 1))
+    return Cycle(f"{cycle.name} x{n}", ts, vs)

@@ -32,7 +32,14 @@ import numpy as np
 from scenarios.vehicle.battery import Battery, BatteryParams
 from scenarios.vehicle.cycles import STANDARD_CYCLES, Cycle, load_cycle
 from scenarios.vehicle.inverter import InverterParams, inverter_loss
-from scenarios.vehicle.longitudinal import Vehicle, VehicleParams, motor_speed, road_load, shaft_torque, wheel_force
+from scenarios.vehicle.longitudinal import (
+    Vehicle,
+    VehicleParams,
+    motor_speed,
+    running_resistance,
+    shaft_torque,
+    wheel_force,
+)
 
 #: auxiliary (low-voltage) load on the DC link, W: FASTSim's `auxKw` = 0.25 in its EV files
 #: (NREL FASTSim vehicle database, e.g. 2021_Cupra_Born.csv); dynamometer tests run with HVAC off
@@ -70,7 +77,7 @@ class Driver:
         """Force that takes the model from v_ref to v_ref_next in one explicit step, N."""
         if v_ref <= 0.0 and v_ref_next <= 0.0:
             return 0.0
-        return self.m_eff * (v_ref_next - v_ref) / dt + road_load(v_ref, self.vp)
+        return self.m_eff * (v_ref_next - v_ref) / dt + running_resistance(v_ref, self.vp)
 
     def demand(self, v_ref: float, v_ref_next: float, v: float, dt: float) -> float:
         """Wheel-force demand (N) for the step from t to t + dt."""

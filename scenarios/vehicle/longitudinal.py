@@ -1,6 +1,6 @@
-"""Vehicle longitudinal model: a point mass on a flat road with the chassis-dynamometer road
-load, a single-speed reduction gear with one efficiency, and the rotating parts lumped into
-an equivalent mass. SI units throughout; speeds v >= 0 (forward driving only).
+"""Vehicle longitudinal model: a point mass on a road of constant grade (flat by default) with
+the chassis-dynamometer road load, a single-speed reduction gear with one efficiency, and the
+rotating parts lumped into an equivalent mass. SI units throughout; speeds v >= 0 (forward driving only).
 
 Defaults: a C-segment EV like the 2022 Nissan Leaf 40 kWh; sources and status per field below
 and in docs/vehicle.md.
@@ -56,6 +56,7 @@ class VehicleParams:
     J_motor: float = J_MOTOR_DEFAULT    # kg m^2, rotor (and what turns at motor speed)
     J_wheels: float = 4 * J_WHEEL_DEFAULT  # kg m^2, all four wheels (the car on the road)
     tyre_road_friction: float = 0.8     # mu, dry asphalt (FASTSim `wheelCoefOfFric` default)
+    grade: float = 0.0                  # road grade, rise over run (0.08: 8 % uphill; < 0 downhill)
 
     @property
     def rotating_mass(self) -> float:
@@ -103,19 +104,32 @@ def road_load(v, p: VehicleParams):
     return p.road_load_A + (p.road_load_B + p.road_load_C * v) * v
 
 
+def grade_force(p: VehicleParams) -> float:
+    """The weight's component along a road of grade p.grade (rise over run), N: m g sin(atan
+    grade), the grade resistance R_g = W sin(theta) of Gillespie, Fundamentals of Vehicle
+    Dynamics (SAE, 1992), ch. 4; on the test mass alone (the rotating parts' weight is in it)."""
+    return p.mass * G_N * p.grade / math.sqrt(1.0 + p.grade * p.grade)
+
+
+def running_resistance(v, p: VehicleParams):
+    """What the wheels push against at v >= 0 (m/s), N: the road load and the grade."""
+    return road_load(v, p) + grade_force(p)
+
+
 def longitudinal_step(v: float, F_wheel: float, F_brake: float, dt: float,
                       p: VehicleParams) -> tuple[float, float]:
-    """One explicit (forward Euler) step of m_eff dv/dt = F_wheel - F_brake - F_road(v).
+    """One explicit (forward Euler) step of m_eff dv/dt = F_wheel - F_brake - F_road(v) - F_grade.
 
-    Resistances (road load and brakes) cannot reverse the car: at standstill they hold it
-    unless the tractive force exceeds them, and a step that would cross zero stops at zero.
+    Resistances (road load, grade and brakes) cannot reverse the car: at standstill they hold it
+    unless the tractive force exceeds them (on a hill: as the driver's brake would), and a step
+    that would cross zero stops at zero.
     Returns (v_next, distance travelled in the step) with the trapezoidal rule.
     """
     if F_brake < 0.0:
         raise ValueError(f"F_brake is a magnitude, got {F_brake} N")
     if v < 0.0:
         raise ValueError(f"forward driving only, got v = {v} m/s")
-    F_net = F_wheel - F_brake - road_load(v, p)
+    F_net = F_wheel - F_brake - running_resistance(v, p)
     v_next = v + dt * F_net / p.m_eff
     if v_next < 0.0:
         v_next = 0.0
