@@ -604,7 +604,7 @@ METADATA_RULE = {**{meta: f"motor.{k}" for k, meta in MOTOR_METADATA.items()},
 
 
 def check_map_machine(map_file: str | Path, u_dc: float | None = None, I_max: float | None = None) -> None:
-    """A map's own machine, for `map show|check|repair FILE` without --drive: each number of its
+    """A map's own machine, for `map show FILE` without --drive: each number of its
     `# key: value` metadata obeys the schema's rule of the key it sets, as a drive description's
     would (InputError naming the map file and the metadata key), and the command line's --u-dc
     and --I-max theirs (naming the option). The current limit must also be one the map's grid
