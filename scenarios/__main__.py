@@ -110,7 +110,7 @@ def _number_as_key(value: float | None, option: str, key: str) -> None:
         return
     bad = next(k.rule for k in SCHEMA if k.path == key).check(value)
     if bad:
-        raise InputError("(command line)", option, f"{bad}, got {value!r}")
+        raise InputError("(command line)", option, bad + ("" if "got" in bad else f", got {value!r}"))
 
 
 def _cycle_arg(name: str, option: str):
@@ -146,7 +146,15 @@ def _dispatch(args) -> int:
         print(path)
         return 0
     from scenarios.core.boundary import check_writable, inside
-    from scenarios.drives.description import load_drive
+    from scenarios.drives.description import load_drive as load_description
+    from scenarios.drives.fmu_acceptance import refuse_unless_fmus_accept
+
+    def load_drive(path):
+        """The drive description, refused (exit 2) unless the FMUs accept its map and motor."""
+        drive = load_description(path)
+        refuse_unless_fmus_accept(drive, args.build)
+        return drive
+
     if args.cmd == "check":
         from scenarios.runs import check
         return check.main(args)
@@ -201,8 +209,13 @@ def _dispatch(args) -> int:
                   scheduler=args.scheduler, drive=args.drive)
         print(f"wrote {args.out}/report.md, summary.csv, summary.json, study.png, runs/")
     elif args.cmd == "map":
-        if args.map_cmd == "show":  # the numbers as a drive's would be: the FMUs' ranges
-            _number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
+        if args.map_cmd == "show" and args.drive is None:
+            # the map's machine and the options as a drive's would be: the schema's rules (check and
+            # repair read maps with holes and defects, which is their job: their options only)
+            from scenarios.drives.description import check_map_machine
+            check_map_machine(args.file, args.u_dc, args.I_max)
+        elif args.map_cmd in ("show", "check", "repair"):
+            _number_as_key(getattr(args, "u_dc", None), "--u-dc", "controller.lut_u_dc")
             _number_as_key(args.I_max, "--I-max", "motor.I_max")
         args.drive_description = load_drive(args.drive) if getattr(args, "drive", None) is not None else None
         return map_cli.main(args)

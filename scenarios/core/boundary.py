@@ -27,7 +27,7 @@ class InputError(ValueError):
 
     def __init__(self, file: str | Path | None, key: str, expected: str):
         self.file, self.key, self.expected = file, key, expected
-        super().__init__(f"{printable(str(file))}: {printable(key)}: {printable(expected)}")
+        super().__init__(f"{printable(str(file))}: {printable(key)}: {printable(expected, limit=1000)}")
 
     def __reduce__(self):  # picklable (Dask sends errors back from its workers)
         return type(self), (self.file, self.key, self.expected)

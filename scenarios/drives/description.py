@@ -26,6 +26,7 @@ from typing import Any
 from scenarios.core.boundary import InputError, load_toml
 from scenarios.core.fmu_ranges import Range, fmu_ranges
 from scenarios.core.paths import PACKAGE_DIR, ROOT, located
+from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
 from scenarios.maps.machine import machine_values
 from scenarios.vehicle.battery import OCV_FITS, BatteryParams
@@ -711,6 +712,51 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
     return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),
                             motor=motor, inverter=inverter, battery=battery, vehicle=vehicle, P_aux=P_aux,
                             controller=controller, checks=checks, assumed=tuple(assumed), thermal=thermal)
+
+
+#: a flux map's metadata key (scenarios.maps.machine) -> the schema key whose rule it obeys
+METADATA_RULE = {**{meta: f"motor.{k}" for k, meta in MOTOR_METADATA.items()},
+                 **{meta: f"controller.{k}" for k, meta in CONTROLLER_METADATA.items()},
+                 "w_m_max_rad_s": "motor.w_m_max"}
+
+
+def check_map_machine(map_file: str | Path, u_dc: float | None = None, I_max: float | None = None) -> None:
+    """A map's own machine, for `map show FILE` without --drive: each number of its
+    `# key: value` metadata obeys the schema's rule of the key it sets, as a drive description's
+    would (InputError naming the map file and the metadata key), and the command line's --u-dc
+    and --I-max theirs (naming the option). The current limit must also be one the map's grid
+    resolves (scenarios.maps.machine.grid_resolution)."""
+    from scenarios.maps.machine import grid_resolution
+    for value, option, key in ((u_dc, "--u-dc", "controller.lut_u_dc"), (I_max, "--I-max", "motor.I_max")):
+        bad = None if value is None else _BY_PATH[key].rule.check(value)
+        if bad:
+            raise InputError("(command line)", option, bad + ("" if "got" in bad else f", got {value!r}"))
+    path = Path(map_file)
+    try:
+        fmap = read_flux_map(_map_resolver()(path))
+    except (InputError, MapImportError):
+        raise
+    except Exception as e:  # the readers' own words: which file, which line or field
+        raise InputError(path, "(file)", f"a readable flux map ({e})") from None
+    for meta, key in METADATA_RULE.items():
+        if meta not in fmap.metadata:
+            continue
+        try:
+            value = fmap.number(meta)
+        except ValueError:
+            raise InputError(path, meta, f"a number ({_BY_PATH[key].rule.describe()}), got "
+                             f"{fmap.metadata[meta][:80]!r}") from None
+        rule = _BY_PATH[key].rule
+        if rule.kind == "int" and _finite(value) and value == int(value):
+            value = int(value)
+        bad = rule.check(value)
+        if bad:
+            raise InputError(path, meta, bad + ("" if "got" in bad else f", got {fmap.metadata[meta][:80]!r}"))
+    limit = I_max if I_max is not None else (fmap.number("I_max_A") if "I_max_A" in fmap.metadata else None)
+    if limit is not None and limit < grid_resolution(fmap):
+        where = ("(command line)", "--I-max") if I_max is not None else (path, "I_max_A")
+        raise InputError(*where, f"a current limit the map's grid resolves: at least {grid_resolution(fmap):g} A "
+                         f"(the grid's nearest nodes to zero current), got {limit!r}")
 
 
 def schema_markdown() -> str:

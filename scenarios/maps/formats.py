@@ -39,6 +39,9 @@ from scenarios.maps.error import MapImportError
 
 SQRT2 = math.sqrt(2.0)  # peak / RMS of a sinusoid
 T_20C_K = 293.15        # Motor-CAD's Phase_Resistance_DC_at_20C holds at 20 degC
+#: 60 f / n within this (relative) of a whole number: a Frequency written with 6 significant digits
+#: (Motor-CAD's Lab export rounds f = p n / 60, e.g. 266.667 Hz at 4000 r/min)
+POLE_PAIRS_TOLERANCE = 1e-5
 
 
 @dataclass
@@ -278,7 +281,7 @@ def read_motorcad(path: Path, mat: dict) -> RawMap:
     notes.insert(0, f"Motor-CAD fields {kd}, {kq}, Flux_Linkage_D, Flux_Linkage_Q")
     raw = RawMap("Motor-CAD", i_d, i_q, fluxes[0][1], fluxes[1][1], (kd, kq, fluxes[0][0], fluxes[1][0]),
                  square_axis0="i_d", notes=notes)
-    raw.metadata.update(_motorcad_metadata(mat))
+    raw.metadata.update(_motorcad_metadata(path, mat))
     return raw
 
 
@@ -290,14 +293,37 @@ def _scalar(mat: dict, key: str) -> float | None:
     return float(v[0]) if v.size and np.isfinite(v[0]) else None
 
 
-def _motorcad_metadata(mat: dict) -> dict:
-    """The contract's '# key: value' metadata a Lab export gives: pole pairs from f = p n / 60, R_s."""
+def _positive(path: Path, mat: dict, key: str, unit: str) -> float | None:
+    """A scalar the file gives (None: absent): finite and positive, else MapImportError naming it."""
+    if key not in mat:
+        return None
+    try:
+        v = np.asarray(mat[key], dtype=float).ravel()
+    except (TypeError, ValueError):
+        v = np.array([])
+    if not v.size or not math.isfinite(v[0]) or v[0] <= 0.0:
+        raise MapImportError(path, key, f"a finite positive number ({unit})",
+                             repr(v[0].item()) if v.size else "no number")
+    return float(v[0])
+
+
+def _motorcad_metadata(path: Path, mat: dict) -> dict:
+    """The contract's '# key: value' metadata a Lab export gives: pole pairs from f = p n / 60, R_s.
+    Frequency and Speed must then be finite and positive and give a whole number of pole pairs in
+    the FMUs' range (their pole_pairs parameter); an export that does not is refused, naming the
+    field, rather than imported without its machine."""
+    from scenarios.core.fmu_ranges import fmu_ranges
     md = {}
-    f, n = _scalar(mat, "Frequency"), _scalar(mat, "Speed")
-    if f and n:
+    f, n = _positive(path, mat, "Frequency", "Hz"), _positive(path, mat, "Speed", "r/min")
+    if f is not None and n is not None:
         p = f * 60.0 / n
-        if abs(p - round(p)) < 1e-6 and round(p) >= 1:
-            md["pole_pairs"] = int(round(p))
+        r = fmu_ranges().get("pole_pairs")
+        lo, hi = (r.lo or 1.0, r.hi or math.inf) if r is not None else (1.0, math.inf)
+        whole = math.isfinite(p) and abs(p - round(p)) <= POLE_PAIRS_TOLERANCE * max(1.0, p)
+        if not whole or not lo <= round(p) <= hi:
+            raise MapImportError(path, "Frequency", f"an electrical frequency that makes 60 f / Speed a whole number "
+                                 f"of pole pairs in [{lo:g}, {hi:g}]", f"{f!r} Hz at {n!r} r/min: {p:.6g}")
+        md["pole_pairs"] = int(round(p))
     r = _scalar(mat, "Phase_Resistance_DC_at_20C")
     if r and r > 0:
         md["R_s_ohm"] = r

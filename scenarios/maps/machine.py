@@ -44,6 +44,17 @@ def grid_reach(fmap: FluxMap) -> float:
     return float(min(-fmap.i_d[0], -fmap.i_q[0], fmap.i_q[-1]))
 
 
+def grid_resolution(fmap: FluxMap) -> float:
+    """The smallest current limit the grid resolves, A: the distance from zero current to its
+    nearest grid node in each of the directions -i_d, +i_q and -i_q, the largest of the three. A
+    smaller I_max circle holds no grid cell of the operating region (no node but perhaps the
+    origin): no inductance, reciprocity or flux figure inside it comes from the map's data."""
+    def nearest(axis, sign):
+        away = sign * axis[sign * axis > 0]
+        return float(away.min()) if away.size else float("inf")
+    return max(nearest(fmap.i_d, -1), nearest(fmap.i_q, 1), nearest(fmap.i_q, -1))
+
+
 def largest_flux(fmap: FluxMap, I_max: float) -> float:
     """The largest flux-linkage magnitude at the grid nodes inside |i| <= I_max, Wb."""
     I_d, I_q = np.meshgrid(fmap.i_d, fmap.i_q, indexing="ij")

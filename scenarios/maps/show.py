@@ -171,8 +171,8 @@ def efficiency_map(drive_path: Path, csv: Path, params: dict, u_dc: float, T_mag
                     if last is not None and abs(r.P_dc - last) <= DRIVE_SETTLE_REL * abs(r.P_dc) + 1.0:
                         break
                     last = r.P_dc
-                if r.T_cmd < T * (1 - 1e-9) or r.P_dc <= 0.0:
-                    continue  # beyond reach at this speed
+                if r.T_cmd < T * (1 - 1e-9) or r.P_dc <= 0.0 or r.P_mech <= 0.0:
+                    continue  # beyond reach at this speed (or no motoring: no efficiency)
                 eta[a, b] = r.P_mech / r.P_dc
                 P_cu[a, b], P_fe[a, b], P_inv[a, b] = r.P_cu, r.P_fe, r.P_inv
     return eta, P_cu, P_fe, P_inv

@@ -31,6 +31,7 @@ from scenarios.core.boundary import InputError, check_writable, printable
 from scenarios.core.paths import BUILD_DIR
 from scenarios.cosim import BACKENDS
 from scenarios.drives.description import LIMITS, DriveDescription, DriveDescriptionError, load_drive
+from scenarios.drives.fmu_acceptance import refuse_unless_fmus_accept
 
 EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -206,6 +207,7 @@ def check(drive_file: Path | None, junit_path: Path | None, out: Path, build: Pa
     """The exit status (EXIT_PASS / EXIT_FAIL / EXIT_BAD_INPUT for a cycle that could not run); a
     bad input raises DriveDescriptionError or InputError before anything runs."""
     drive = load_drive(drive_file)
+    refuse_unless_fmus_accept(drive, build)
     for a in drive.assumed:  # the motor's values neither the file nor its map gives
         print(f"assumed: {a}", file=sys.stderr)
     if not drive.checks.cycles:

@@ -42,7 +42,16 @@ def load_shipped(drive: str) -> ShippedDrive | Exception:
 def drive_content(drive: str, shipped: ShippedDrive | Exception) -> str:
     if isinstance(shipped, ShippedDrive):
         return shipped.content_hash()
-    return hashlib.sha256(Path(drive).read_bytes()).hexdigest() if drive else "default:unloadable"
+    if not drive:
+        return "default:unloadable"
+    h = hashlib.sha256()
+    try:  # streamed: a drive that did not load may be any file (a 2 GB one is not read into memory)
+        with open(drive, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+    except OSError as e:  # a folder, a vanished file: its key names why
+        h.update(f"unreadable: {e.strerror}".encode())
+    return h.hexdigest()
 
 
 def key_columns(run: Run) -> dict:

@@ -1,0 +1,55 @@
+"""The FMUs' own verdict on a drive, at load: the controller and the plant FMU instantiated and
+initialised with the drive's flux map and motor (scenarios.maps.fmu_verdict), so that a map they
+refuse (it folds or falls inside the operating region, its inverse cannot be built, ...) ends the
+command at load with exit 2, the drive file, `motor.flux_map` and the FMU's own words (where the
+map fails and what to do), before any run. The rule is the FMUs' (fmu_src/machine/
+operating_region.*): nothing here re-implements it.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from scenarios.drives.description import DriveDescription, DriveDescriptionError
+from scenarios.maps.fmu_verdict import verdict
+
+#: the FMUs that read the map at initialisation: IpmsmDrive and the SSP/OSP couplings hold these two
+FMUS = ("IpmsmController", "IpmsmPlant")
+#: what the FMUs' glue appends to a refused initialisation (fmu_src/fmi): true, and no reason
+UNDONE = " [initialisation was undone"
+
+_verdicts: dict = {}
+
+
+def _stamp(path: Path) -> tuple:
+    st = os.stat(path)
+    return str(path), st.st_mtime_ns, st.st_size
+
+
+def _reason(log: list[str]) -> str:
+    """The FMU's refusal, as it logged it, without the FMI function's name and the glue's coda."""
+    errors = [m for m in log if m.startswith(("error:", "fatal:"))] or log or ["(no message)"]
+    text = errors[0].split(":", 1)[1].strip()
+    if text.startswith("fmi2"):
+        text = text.split(":", 1)[-1].strip()
+    return text.split(UNDONE, 1)[0]
+
+
+def refuse_unless_fmus_accept(drive: DriveDescription, build: Path) -> None:
+    """DriveDescriptionError (file, motor.flux_map, the FMU's reason) unless every FMU of FMUS
+    initialises on the drive's map and motor. FMUs missing from `build` are not asked (the run
+    says what is missing). Each verdict is kept for the process (same FMU, map and parameters)."""
+    params_of = {"IpmsmController": drive.controller_params, "IpmsmPlant": drive.plant_params}
+    for name in FMUS:
+        params = params_of[name]()
+        fmu = Path(build) / "fmu" / f"{name}.fmu"
+        if not fmu.is_file():
+            continue
+        key = (_stamp(fmu), _stamp(Path(drive.motor.flux_map)), tuple(sorted(params.items())))
+        if key not in _verdicts:
+            _verdicts[key] = verdict(fmu, Path(drive.motor.flux_map), params)
+        v = _verdicts[key]
+        if not v.accepted:
+            raise DriveDescriptionError(drive.source, "motor.flux_map",
+                                        f"a map the {name} FMU accepts with this motor; it refuses it: "
+                                        f"{_reason(v.log)}")

@@ -1,0 +1,132 @@
+"""Flux maps and their machines under hostile input (issue 24, docs/inputs.md), as the rest of the
+hostile corpus (test_hostile_inputs.py: each command in a child process with an address-space
+limit and a timeout; exit 2, one line naming the file and the key; nothing written):
+
+- a map that the FMUs refuse (it is not monotone inside the operating region) is refused when the
+  drive loads, with the FMU's own words (where), before any run: the FMUs' rule, asked through
+  their initialisation, not a copy of it;
+- `map show`'s machine: the map's metadata and the options by the drive schema's rules;
+- Motor-CAD exports whose Frequency and Speed cannot give the machine's pole pairs.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_hostile_inputs import assert_refused, cli, drive
+
+from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map, write_flux_map
+
+#: where the fold is put: well inside the default motor's 500 A circle (i_d <= 0)
+FOLD_AT_A = (-100.0, 100.0)
+
+
+def falling_map(path) -> None:
+    """The default map with psi_d falling in i_d between i_d = -100 and -80 A at i_q = 100 A."""
+    m = read_flux_map(DEFAULT_MAP)
+    j, k = int(np.searchsorted(m.i_d, FOLD_AT_A[0])), int(np.searchsorted(m.i_q, FOLD_AT_A[1]))
+    m.psi_d[j, k], m.psi_d[j + 1, k] = m.psi_d[j + 1, k], m.psi_d[j, k]
+    write_flux_map(path, m)
+
+
+@pytest.mark.parametrize("cmd", ["run", "check", "sweep"])
+def test_a_map_the_fmus_refuse_inside_the_operating_region_is_refused_at_load(cmd, tmp_path):
+    falling_map(tmp_path / "fold.csv")
+    d = drive(tmp_path, '[checks]\ncycles = ["UDDS"]\nWh_per_km_max = 500.0\n', name="d.toml",
+              flux_map=str(tmp_path / "fold.csv"))
+    argv = {"run": ["run", "UDDS", "--drive", str(d)], "check": ["check", str(d)],
+            "sweep": ["sweep", "--drive", str(d)]}[cmd]
+    r = cli(*argv, "--out", str(tmp_path / "out"))
+    # the drive file and key, the FMU that refuses, the map and where: the FMU's own words
+    assert_refused(r, d, "motor.flux_map", "IpmsmController", str(tmp_path / "fold.csv"), "i_q = 100 A",
+                   "i_d = -100 A", "operating region")
+    assert not (tmp_path / "out").exists()
+    assert r.wall < 30.0   # before any run (UDDS alone takes minutes)
+
+
+def test_the_fmus_verdict_is_asked_not_copied(tmp_path):
+    """The same fold with I_max below it (outside the operating region): accepted at load (the
+    FMUs warn); so the refusal above is the FMUs' rule with the drive's I_max, not a Python one."""
+    from scenarios.core.paths import BUILD_DIR
+    from scenarios.drives.description import load_drive
+    from scenarios.drives.fmu_acceptance import refuse_unless_fmus_accept
+    falling_map(tmp_path / "fold.csv")
+    d = drive(tmp_path, "I_max = 40.0\n", flux_map=str(tmp_path / "fold.csv"))
+    refuse_unless_fmus_accept(load_drive(d), BUILD_DIR)
+
+
+MAP_SHOW_METADATA = {
+    # metadata line replaced: (new line, key named, words)
+    "pole_pairs 1e999": ("# pole_pairs: 4", "# pole_pairs: 1e999", "pole_pairs", "[1, 100]"),
+    "pole_pairs 2.5": ("# pole_pairs: 4", "# pole_pairs: 2.5", "pole_pairs", "an integer"),
+    "w_m_max 0": ("# w_m_max_rad_s: 1256.63706144", "# w_m_max_rad_s: 0", "w_m_max_rad_s", "(0, 100000]"),
+    "R_s nan": ("# R_s_ohm: 0.012", "# R_s_ohm: nan", "R_s_ohm", "a number"),
+    "u_dc words": ("# u_dc_V: 355", "# u_dc_V: high", "u_dc_V", "a number"),
+    "I_max below the grid": ("# I_max_A: 500", "# I_max_A: 1e-3", "I_max_A", "resolves"),
+}
+
+
+@pytest.mark.parametrize("case", list(MAP_SHOW_METADATA))
+def test_map_show_refuses_metadata_a_drive_could_not_carry(case, tmp_path):
+    old, new, key, words = MAP_SHOW_METADATA[case]
+    text = DEFAULT_MAP.read_text()
+    assert old + "\n" in text
+    m = tmp_path / "m.csv"
+    m.write_text(text.replace(old + "\n", new + "\n"))
+    r = cli("map", "show", str(m), "--out", str(tmp_path / "out"))
+    assert_refused(r, m, key, words)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("option,value,words", [("--u-dc", "1e308", "(0, 100000]"), ("--I-max", "1e-3", "resolves"),
+                                                ("--I-max", "19", "at least 20 A"), ("--u-dc", "0", "(0, 100000]")])
+def test_map_show_refuses_options_a_drive_could_not_carry(option, value, words, tmp_path):
+    r = cli("map", "show", str(DEFAULT_MAP), option, value, "--out", str(tmp_path / "out"))
+    assert_refused(r, "(command line)", option, words)
+    assert r.err.count("got") == 1, r.err
+    assert not (tmp_path / "out").exists()
+
+
+MOTORCAD_FREQUENCIES = {
+    # (Frequency Hz, Speed r/min) -> the field named
+    "NaN frequency": (np.nan, 6000.0, "Frequency"),
+    "infinite speed": (400.0, np.inf, "Speed"),
+    "zero frequency": (0.0, 6000.0, "Frequency"),
+    "negative frequency": (-400.0, 6000.0, "Frequency"),
+    "negative speed": (400.0, -6000.0, "Speed"),
+    "zero speed": (400.0, 0.0, "Speed"),
+    "1e308 Hz at 1e-308 r/min": (1e308, 1e-308, "Frequency"),
+    "1e300 Hz": (1e300, 1.0, "Frequency"),
+    "1e-300 Hz": (1e-300, 6000.0, "Frequency"),
+    "not a whole number of pole pairs": (410.0, 6000.0, "Frequency"),
+}
+
+
+@pytest.mark.parametrize("case", list(MOTORCAD_FREQUENCIES))
+@pytest.mark.parametrize("cmd", ["import", "show"])
+def test_a_motorcad_export_with_an_impossible_frequency_is_refused(case, cmd, tmp_path):
+    import scipy.io as sio
+    from test_map_import import motorcad_dq
+
+    from scenarios.maps.flux_map import linear_flux_map
+    f, n, key = MOTORCAD_FREQUENCIES[case]
+    data = motorcad_dq(linear_flux_map(2e-4, 5e-4, 0.08, 500.0, n=11))
+    data.update(Frequency=np.array([[f]]), Speed=np.array([[n]]))
+    m = tmp_path / "mc.mat"
+    sio.savemat(m, data)
+    out = ["--out", str(tmp_path / ("x.csv" if cmd == "import" else "out"))]
+    r = cli("map", cmd, str(m), *out)
+    assert_refused(r, m, key)
+    assert not (tmp_path / "x.csv").exists() and not (tmp_path / "out").exists()
+
+
+def test_a_motorcad_export_with_a_good_frequency_still_imports(tmp_path):
+    """The refusal above is the frequency's: the same export at 400 Hz, 6000 r/min imports (p = 4)."""
+    import scipy.io as sio
+    from test_map_import import motorcad_dq
+
+    from scenarios.maps.flux_map import linear_flux_map
+    m = tmp_path / "mc.mat"
+    sio.savemat(m, motorcad_dq(linear_flux_map(2e-4, 5e-4, 0.08, 500.0, n=11)))
+    r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"))
+    assert r.returncode == 0, r.err
+    assert "# pole_pairs: 4" in (tmp_path / "x.csv").read_text()
