@@ -4,7 +4,7 @@
 # except in the sanitizer build, whose FMUs are not for shipping.
 set(IPMSM_WHEEL ${CMAKE_BINARY_DIR}/dist/ipmsm_fmu-${PROJECT_VERSION}-py3-none-any.whl)
 file(GLOB_RECURSE IPMSM_WHEEL_SOURCES CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/scenarios/*)
-list(FILTER IPMSM_WHEEL_SOURCES EXCLUDE REGEX "/(native|__pycache__)/")
+list(FILTER IPMSM_WHEEL_SOURCES EXCLUDE REGEX "/__pycache__/")
 add_custom_command(
   OUTPUT ${IPMSM_WHEEL}
   COMMAND ${Python3_EXECUTABLE} ${PROJECT_SOURCE_DIR}/tools/wheel/make_wheel.py ${CMAKE_BINARY_DIR}

@@ -148,10 +148,6 @@ const std::vector<V>& PlantModel::variables() {
          "Iron loss: eddy-current coefficient, W/Hz^2 (0: no eddy-current loss)", 0.0, 1e3},
         {"fe_psi_ref", &M::fe_psi_ref, Causality::parameter, Variability::fixed, "Wb", "",
          "Iron loss: flux linkage at which b = 1", 0.0, 1e3, true},
-        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "",
-         "Peak current limit of the drive (the controller's): the flux map must be legal in its operating region "
-         "(docs/maps.md)",
-         0.0, kInf, true},
         {"i_d_start", &M::i_d_start, Causality::parameter, Variability::fixed, "A", "",
          "Initial d-axis current (the initial fluxes are the map's at the initial currents)", -1e5, 1e5},
         {"i_q_start", &M::i_q_start, Causality::parameter, Variability::fixed, "A", "", "Initial q-axis current", -1e5,
@@ -167,8 +163,7 @@ const std::vector<V>& PlantModel::variables() {
          "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
         {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
          "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
-        // the thermal network (docs/thermal.md), after the variables above so that their value
-        // references stay what they were
+        // the thermal network (docs/thermal.md), added in 0.2.0: after the variables of 0.1.0
         {"T_coolant", &M::T_coolant, Causality::input, Variability::continuous, "K", "degC",
          "Coolant temperature the thermal network rejects heat to (thermal_model; held over each step)",
          kTemperatureMin_K, kTemperatureMax_K},
@@ -263,7 +258,13 @@ const std::vector<V>& PlantModel::variables() {
          "rad/s", "", "Thermal network: speed of n = 1 in its fits", 0.0, 1e5, true},
         {"I_rms_ref", fmi::forward(&M::lptn, &thermal::LptnParams::I_rms_ref), Causality::parameter, Variability::fixed,
          "A", "", "Thermal network: RMS current of i = 1 in its fits", 0.0, 1e6, true},
+        // added in 0.2.0, last so that every value reference of 0.1.0 stays what it was
+        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "",
+         "Peak current limit of the drive (the controller's): the flux map must be legal in its operating region "
+         "(docs/maps.md)",
+         0.0, kInf, true},
         // the inverter feeding the machine (inverter/inverter_loss.hpp), after the variables above
+        // (their value references stay)
         {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "",
          "DC-link voltage the inverter switches (its loss P_inv), held over each step", 0.0, kInf, true},
         {"P_inv", &M::P_inv, Causality::output, Variability::continuous, "W", "",

@@ -14,7 +14,6 @@ from scenarios.core.version import VERSION
 from scenarios.cosim import BACKENDS
 from scenarios.maps import cli as map_cli
 
-#: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
 
 #: exit status: bad input (file, key, what was expected); a run that could not finish
@@ -23,6 +22,7 @@ EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
 FMU_NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
 SSP_NAME = "IpmsmControllerPlant"
 
+#: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
 RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
                "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
                "steps", "wall_s", "real_time_factor")

@@ -191,6 +191,14 @@ def write_map(path: str | Path, m: SaturatingMachine) -> FluxMap:
     return fmap
 
 
+def written(I_s_ratio: float, I_ds_ratio: float | None, cross: float, folder: str | Path):
+    """The machine and the path of its map written in folder (the tests' fixtures)."""
+    m = SaturatingMachine(I_s_ratio=I_s_ratio, I_ds_ratio=I_ds_ratio, cross=cross)
+    path = Path(folder) / "map.csv"
+    write_map(path, m)
+    return m, path
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tools.saturating_map", description=__doc__.split("\n\n")[0])
     ap.add_argument("--I-s-ratio", type=float, default=0.3, help="q-axis saturation current / I_max (0.2 ... 1)")

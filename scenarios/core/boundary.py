@@ -19,10 +19,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10
-    import tomli as tomllib
+import tomllib
 
 
 class InputError(ValueError):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import math
 import xml.etree.ElementTree as ET
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,7 +47,6 @@ def _number(text: str | None) -> float | None:
 def _numeric_parameters(path: Path):
     """(name, its Real or Integer element) of every numeric parameter in one modelDescription.xml."""
     if path.suffix == ".fmu":
-        import zipfile
         with zipfile.ZipFile(path) as z:
             root = ET.fromstring(z.read("modelDescription.xml"))
     else:
@@ -71,11 +71,30 @@ def fmu_ranges() -> dict[str, Range]:
     """Every FMU parameter's range, intersected over the FMUs that declare it."""
     out: dict[str, Range] = {}
     for path in DESCRIPTIONS:
-        if not path.is_file():
-            continue
-        for name, r in read_ranges(path).items():
+        try:
+            ranges = read_ranges(path) if path.is_file() else {}
+        except (OSError, zipfile.BadZipFile, KeyError, ET.ParseError):
+            # unreadable (a build in progress, a broken install): the FMU itself still refuses
+            # what is out of its range, at run time instead of at load
+            ranges = {}
+        for name, r in ranges.items():
             out[name] = out[name] & r if name in out else r
     return out
+
+
+#: the C++ header of the FMUs' acceptance rule for a flux map (docs/maps.md)
+OPERATING_REGION_HEADER = located("fmu_src/machine/operating_region.hpp")
+
+
+@functools.cache
+def operating_region_constant(name: str) -> float:
+    """A constant of the FMUs' map-acceptance rule (kOperatingMargin, kMagnetFraction), read from
+    its declaration, so that `map check` counts what the FMUs refuse by the FMUs' own numbers."""
+    import re
+    m = re.search(r"constexpr\s+double\s+" + name + r"\s*=\s*([0-9.eE+-]+)\s*;", OPERATING_REGION_HEADER.read_text())
+    if m is None:
+        raise RuntimeError(f"{name} is not declared in {OPERATING_REGION_HEADER}")
+    return float(m.group(1))
 
 
 #: the C++ headers declaring the FMUs' bounds on a flux-map file (the one place they are written)

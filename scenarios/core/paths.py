@@ -33,7 +33,7 @@ SHIPPED = ("build/fmu/IpmsmController.fmu", "build/fmu/IpmsmPlant.fmu", "build/f
            "fmu_src/coupling/ipmsm_drive.coupling", "docs/motor/efficiency_map.json",
            # the FMUs' parameter ranges and flux-map limits, as the C++ declares them (core/fmu_ranges.py)
            "modelDescription.xml", "plant/modelDescription.xml", "fmu_src/machine/flux_map.hpp",
-           "fmu_src/machine/map_file.hpp")
+           "fmu_src/machine/map_file.hpp", "fmu_src/machine/operating_region.hpp")
 
 
 def located(path: str | Path) -> Path:

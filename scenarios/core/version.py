@@ -15,10 +15,7 @@ def _version() -> str:
     # In a clone, pyproject.toml itself: an editable install's metadata is as old as its install.
     pyproject = ROOT / "pyproject.toml"
     if not FROM_WHEEL and pyproject.is_file():
-        try:
-            import tomllib
-        except ModuleNotFoundError:  # Python 3.10
-            import tomli as tomllib
+        import tomllib
         return tomllib.loads(pyproject.read_text())["project"]["version"]
     try:
         return version(DISTRIBUTION)

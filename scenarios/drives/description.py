@@ -433,15 +433,12 @@ MOTOR_METADATA = {"pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_
                   "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb"}
 CONTROLLER_METADATA = {"k_u": "k_u", "lut_u_dc": "u_dc_V"}
 
-#: a hook for FEM exports: path -> a contract CSV (scenarios.maps.importer.contract_csv when present)
+#: a hook for FEM exports: path -> a contract CSV (default: scenarios.maps.importer.contract_csv)
 MapResolver = Callable[[Path], Path]
 
 
 def _map_resolver() -> MapResolver:
-    try:
-        from scenarios.maps.importer import contract_csv  # helper D's FEM importer (SyR-e, Motor-CAD .mat)
-    except ImportError:
-        return lambda p: p
+    from scenarios.maps.importer import contract_csv  # FEM exports (SyR-e, Motor-CAD, PLECS) to the contract
     return contract_csv
 
 
@@ -602,6 +599,10 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
             raise DriveDescriptionError(path, f"controller.{key}", f"{bad} (from the file or the map's metadata)")
 
     ch = sec["checks"]
+    if "time_above_top_speed_s_max" in ch and motor.w_m_max is None:  # a limit nothing could measure
+        raise DriveDescriptionError(path, "checks.time_above_top_speed_s_max",
+                                    "a top speed to judge it by: `motor.w_m_max` or `w_m_max_rad_s` in the map's "
+                                    "metadata")
     checks = ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),
                         limits={k: float(x) for k, x in ch.items() if k in LIMITS})
     return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),

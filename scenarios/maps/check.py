@@ -17,16 +17,15 @@ Exit status: 0 every FMU accepts the map, 1 one refuses it, 2 bad input.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.maps import legal
 from scenarios.maps.flux_map import FluxMap, read_flux_map
 from scenarios.maps.fmu_verdict import verdicts
-from scenarios.maps.grid import magnet_free as has_no_magnet
 from scenarios.maps.importer import contract_csv
 
 
@@ -36,6 +35,7 @@ class DefectSummary:
     count: int
     within_I_max: int          # in the I_max circle
     within_drive_currents: int  # in the I_max circle and the drive's half (i_d <= 0 with a magnet)
+    within_refused_box: int    # in the FMUs' required box (the drive's currents and a margin): refused
     nearest_A: list | None     # (i_d, i_q) of the one nearest zero current
     nearest_abs_A: float | None
 
@@ -74,9 +74,9 @@ class MapCheck:
 
 def analyse(fmap: FluxMap, I_max: float):
     """(magnet_free, required box, defects, defect summaries, legal rectangle or None)."""
-    I_d, I_q = np.meshgrid(fmap.i_d, fmap.i_q, indexing="ij")
-    no_magnet = has_no_magnet(I_d, I_q, fmap.psi_d, fmap.psi_q)
+    no_magnet = not legal.has_magnet(fmap)
     box = legal.required_box(I_max, no_magnet)
+    refused = legal.refused_box(fmap, I_max)
     found = legal.defects(fmap)
     summaries = []
     for kind, boxes in (("psi_d not increasing in i_d", found.psi_d_falls),
@@ -87,7 +87,9 @@ def analyse(fmap: FluxMap, I_max: float):
         in_circle = np.hypot(pts[:, 0], pts[:, 1]) <= I_max
         inside = int(in_circle.sum())
         driven = int((in_circle & (pts[:, 0] >= box[0]) & (pts[:, 0] <= box[1])).sum())
-        summaries.append(DefectSummary(kind, len(boxes), inside, driven, list(near[0]) if near else None,
+        in_refused = int(((pts[:, 0] >= refused[0]) & (pts[:, 0] <= refused[1]) & (pts[:, 1] >= refused[2])
+                          & (pts[:, 1] <= refused[3])).sum())
+        summaries.append(DefectSummary(kind, len(boxes), inside, driven, in_refused, list(near[0]) if near else None,
                                        near[1] if near else None))
     rect = legal.legal_rectangle(fmap, found.all(), box)
     return no_magnet, box, found, summaries, rect
@@ -115,9 +117,9 @@ def check_map(path: Path, out: Path, build: Path, I_max: float | None = None, dr
         legal_rectangle_covers_I_max=rect is not None, reciprocity_max_H=rec_max, reciprocity_rel=rec_rel,
         reciprocity_at_A=rec_at, noise_Wb=noise, noise_rel={k: v / scale for k, v in noise.items()})
     c.fmus = [asdict(v) for v in verdicts(csv, params, build)]
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "check.json").write_text(json.dumps(asdict(c) | {"accepted": c.accepted, "verdict": c.verdict}, indent=1))
-    (out / "check.md").write_text(markdown(c))
+    write_atomically(out / "check.json", strict_json(asdict(c) | {"accepted": c.accepted, "verdict": c.verdict},
+                                                     indent=1))
+    write_atomically(out / "check.md", markdown(c))
     return c
 
 
@@ -142,11 +144,13 @@ def markdown(c: MapCheck) -> str:
              f"{c.noise_Wb['psi_q']:.3g} Wb ({100 * c.noise_rel['psi_d']:.2g} %, {100 * c.noise_rel['psi_q']:.2g} % "
              "of the largest flux) |", "",
              "## Legal domain", "", "| defect | count | within the I_max circle | among the drive's currents | "
-             "nearest zero current |", "|---|---:|---:|---:|---|"]
+             "where the FMUs refuse (the drive's currents and a margin) | nearest zero current |",
+             "|---|---:|---:|---:|---:|---|"]
     for d in c.defects:
         near = (f"i_d = {d['nearest_A'][0]:g} A, i_q = {d['nearest_A'][1]:g} A (abs(i) = {d['nearest_abs_A']:.4g} A)"
                 if d["nearest_A"] else "—")
-        lines.append(f"| {d['kind']} | {d['count']} | {d['within_I_max']} | {d['within_drive_currents']} | {near} |")
+        lines.append(f"| {d['kind']} | {d['count']} | {d['within_I_max']} | {d['within_drive_currents']} | "
+                     f"{d['within_refused_box']} | {near} |")
     lines += ["", "(the grid's own values and the map's bicubic spline: an analysis; the FMUs decide below)", "",
               "## The FMUs' verdict", ""]
     for f in c.fmus:

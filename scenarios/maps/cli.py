@@ -91,7 +91,8 @@ def _check(args) -> int:
     for d in c.defects:
         if d["count"]:
             print(f"  {d['kind']}: {d['count']} ({d['within_I_max']} within the I_max circle, "
-                  f"{d['within_drive_currents']} among the drive's currents), nearest zero current at "
+                  f"{d['within_drive_currents']} among the drive's currents, {d['within_refused_box']} where the "
+                  "FMUs refuse), nearest zero current at "
                   f"i_d = {d['nearest_A'][0]:g} A, i_q = {d['nearest_A'][1]:g} A")
     print(f"  reciprocity: max {c.reciprocity_max_H * 1e6:.4g} uH ({100 * c.reciprocity_rel:.3g} %); noise "
           f"psi_d {c.noise_Wb['psi_d']:.3g} Wb, psi_q {c.noise_Wb['psi_q']:.3g} Wb")

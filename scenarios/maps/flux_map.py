@@ -82,15 +82,12 @@ class MotorData:
         return cls(int(fmap.number("pole_pairs")), fmap.number("R_s_ohm"), fmap.number("T_winding_ref_K"),
                    fmap.number("alpha_cu_per_K"), fmap.number("I_max_A"), fmap.number("k_u"))
 
-    def R_s_at(self, T_winding: float) -> float:
-        """Winding resistance at T_winding (K)."""
-        return self.R_s * (1.0 + self.alpha_cu * (T_winding - self.T_winding_ref))
 
-
-def read_flux_map(path: str | Path) -> FluxMap:
+def read_flux_map(path: str | Path, holes: bool = False) -> FluxMap:
     """Read the contract's CSV: '#' lines (with '# key: value' metadata), header i_d,i_q,psi_d,psi_q.
     Within the FMUs' limits (scenarios.core.fmu_ranges.map_limits: a regular file of bounded
-    bytes, lines and grid), refused before more than the limit is read; errors name file and line."""
+    bytes, lines and grid), refused before more than the limit is read; errors name file and line.
+    holes: a flux value may be NaN (a point without a measurement, for `map repair` to fill)."""
     from scenarios.core.boundary import InputError, decode_utf8, read_bounded
     from scenarios.core.fmu_ranges import map_limits
     path = Path(path)
@@ -124,17 +121,20 @@ def read_flux_map(path: str | Path) -> FluxMap:
         raise InputError(path, "(file)", "a header i_d,i_q,psi_d,psi_q and grid rows")
     try:
         data = _parse_rows(rows)
-        ok = data.ndim == 2 and data.shape[1] == 4 and bool(np.isfinite(data).all())
+        ok = data.ndim == 2 and data.shape[1] == 4 and all(map(_legal(holes), data.T[2:].ravel())) \
+            and bool(np.isfinite(data[:, :2]).all())
     except ValueError:
         ok = False
     if not ok:  # the first bad row, by its line
+        expected = "four numbers i_d,i_q,psi_d,psi_q, finite (a flux may be NaN)" if holes else \
+            "four finite numbers i_d,i_q,psi_d,psi_q"
         for lineno, row in zip(linenos, rows):
             try:
                 x = [float(v) for v in row.split(",")]
             except ValueError:
                 x = []
-            if len(x) != 4 or not all(math.isfinite(v) for v in x):
-                raise InputError(path, f"line {lineno}", f"four finite numbers i_d,i_q,psi_d,psi_q, got {row[:80]!r}")
+            if len(x) != 4 or not all(map(math.isfinite, x[:2])) or not all(map(_legal(holes), x[2:])):
+                raise InputError(path, f"line {lineno}", f"{expected}, got {row[:80]!r}")
     i_d = np.unique(data[:, 0])
     i_q = np.unique(data[:, 1])
     if max(len(i_d), len(i_q)) > lim.max_axis:
@@ -148,9 +148,16 @@ def read_flux_map(path: str | Path) -> FluxMap:
     k = np.searchsorted(i_q, data[:, 1])
     psi_d[j, k] = data[:, 2]
     psi_q[j, k] = data[:, 3]
-    if np.isnan(psi_d).any():
+    given = np.zeros(psi_d.shape, dtype=bool)
+    given[j, k] = True
+    if not given.all():
         raise ValueError(f"{path}: duplicate or missing grid points")
     return FluxMap(i_d, i_q, psi_d, psi_q, metadata)
+
+
+def _legal(holes: bool):
+    """What a flux value may be: finite, or with holes allowed also NaN (never infinite)."""
+    return (lambda x: math.isfinite(x) or math.isnan(x)) if holes else math.isfinite
 
 
 def _parse_rows(rows: list[str]) -> np.ndarray:

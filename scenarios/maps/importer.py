@@ -239,7 +239,14 @@ def contract_csv(path: str | Path) -> Path:
     return write_contract_csv(imported, cached)
 
 
-def _cached_name(path: Path) -> Path:
-    h = hashlib.sha256(path.read_bytes())
+def _cached_name(path: Path) -> Path | None:
+    """The cache's name for these bytes; None for a file the FMUs' size limit refuses (import_map
+    then says why), so that no unknown file is read whole into memory."""
+    from scenarios.core.boundary import InputError, read_bounded
+    from scenarios.core.fmu_ranges import map_limits
+    try:
+        h = hashlib.sha256(read_bounded(path, map_limits().max_bytes, "flux map"))
+    except InputError:
+        return None
     h.update(f"importer {IMPORTER_VERSION}".encode())
     return cache_dir() / f"{path.stem}-{h.hexdigest()[:16]}.csv"

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenarios.core.fmu_ranges import operating_region_constant
 from scenarios.maps.flux_map import FluxMap
 
 #: a determinant of the incremental inductances below this, relative to L_dd L_qq, is a fold
@@ -77,6 +78,25 @@ def nearest(fmap: FluxMap, boxes: np.ndarray):
     r = np.hypot(pts[:, 0], pts[:, 1])
     k = int(np.argmin(r))
     return (float(pts[k, 0]), float(pts[k, 1])), float(r[k])
+
+
+def has_magnet(fmap: FluxMap) -> bool:
+    """The FMUs' test (fmu_src/machine/operating_region.hpp): psi_d(0, 0) on the map's spline is
+    positive and at least kMagnetFraction of the largest |psi_d| on the grid."""
+    psi_m = float(fmap.flux(0.0, 0.0)[0])
+    return psi_m > 0.0 and psi_m >= operating_region_constant("kMagnetFraction") * float(np.abs(fmap.psi_d).max())
+
+
+def refused_box(fmap: FluxMap, I_max: float) -> tuple[float, float, float, float]:
+    """The FMUs' required box (operating_region.hpp): required_box widened by kOperatingMargin
+    I_max on every side and cut to the grid; a defect inside it makes the FMUs refuse the map."""
+    m = operating_region_constant("kOperatingMargin") * I_max
+    lo_d, hi_d, lo_q, hi_q = required_box(I_max, not has_magnet(fmap))
+
+    def cut(lo, hi, a, b):
+        x0 = min(max(lo, a), b)
+        return x0, max(min(hi, b), x0)
+    return (*cut(lo_d - m, hi_d + m, fmap.i_d[0], fmap.i_d[-1]), *cut(lo_q - m, hi_q + m, fmap.i_q[0], fmap.i_q[-1]))
 
 
 def required_box(I_max: float, magnet_free: bool) -> tuple[float, float, float, float]:

@@ -27,7 +27,7 @@ import numpy as np
 from scenarios.maps import legal
 from scenarios.maps.check import analyse
 from scenarios.maps.error import MapImportError
-from scenarios.maps.flux_map import FluxMap, write_flux_map
+from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
 from scenarios.maps.fmu_verdict import verdicts
 from scenarios.maps.importer import import_map
 
@@ -82,29 +82,18 @@ def _extend_lines(psi: np.ndarray, axis_values: np.ndarray, axis: int) -> None:
 
 
 def read_with_holes(path: Path) -> tuple[Path, list]:
-    """A contract CSV whose flux values may be NaN: the holes filled (fill_holes) into a temporary
-    CSV for the importer; other files as they are. Returns (path to import, notes)."""
+    """A contract CSV whose flux values may be NaN (read within the FMUs' limits, errors naming
+    the line): the holes filled (fill_holes) into a temporary CSV for the importer; other files,
+    and CSVs without a hole, as they are. Returns (path to import, notes)."""
     if path.suffix.lower() != ".csv":
         return path, []
-    text = path.read_text()
-    if "nan" not in text.lower():
+    fmap = read_flux_map(path, holes=True)
+    if not (np.isnan(fmap.psi_d).any() or np.isnan(fmap.psi_q).any()):
         return path, []
-    comments = [s[1:].strip() for s in text.splitlines() if s.strip().startswith("#")]
-    rows = [s for s in text.splitlines() if s.strip() and not s.strip().startswith("#")][1:]
-    data = np.array([[float(x) for x in r.split(",")] for r in rows])
-    i_d, i_q = np.unique(data[:, 0]), np.unique(data[:, 1])
-    if len(i_d) * len(i_q) != len(data):
-        raise MapImportError(path, "rows", "a full rectangular grid (NaN for points without a value)",
-                             f"{len(data)} rows for {len(i_d)} x {len(i_q)} currents")
-    psi_d = np.full((len(i_d), len(i_q)), np.nan)
-    psi_q = psi_d.copy()
-    j, k = np.searchsorted(i_d, data[:, 0]), np.searchsorted(i_q, data[:, 1])
-    psi_d[j, k], psi_q[j, k] = data[:, 2], data[:, 3]
-    psi_d, psi_q, _, note = fill_holes(i_d, i_q, psi_d, psi_q)
-    fmap = FluxMap(i_d, i_q, psi_d, psi_q, {})
+    psi_d, psi_q, _, note = fill_holes(fmap.i_d, fmap.i_q, fmap.psi_d.copy(), fmap.psi_q.copy())
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".csv")
     os.close(fd)
-    write_flux_map(tmp, fmap, "\n".join(comments))
+    write_flux_map(tmp, FluxMap(fmap.i_d, fmap.i_q, psi_d, psi_q, fmap.metadata), f"{path.name}, holes filled")
     return Path(tmp), [note]
 
 
@@ -140,7 +129,10 @@ def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, d
                        f"{', magnet-free: the whole disc' if no_magnet else ', PM: the half disc i_d <= 0'}): i_d "
                        f"{fmap.i_d[0]:g} ... {fmap.i_d[-1]:g} A, i_q {fmap.i_q[0]:g} ... {fmap.i_q[-1]:g} A (was "
                        f"{full.i_d[0]:g} ... {full.i_d[-1]:g} A, {full.i_q[0]:g} ... {full.i_q[-1]:g} A); {dropped} "
-                       f"points dropped, no value changed; {n} defects were outside it")
+                       f"points dropped, no value changed; "
+                       + (f"{len(left)} defects remain inside it (no smaller legal sub-grid holds the drive's "
+                          "currents; the FMUs' verdict below decides)" if len(left)
+                          else f"{n} defects were outside it"))
     else:
         j0, k0 = int(np.argmin(np.abs(fmap.i_d))), int(np.argmin(np.abs(fmap.i_q)))
         psi_d, psi_q, changed = legal.monotone_projection(fmap, j0, k0)

@@ -111,5 +111,5 @@ class RunAccounts:
             steps=n * n_inner, vehicle_steps=n, h_s=h, dt_s=dt, wall_s=wall, real_time_factor=n * dt / wall,
             backend=backend, w_m_peak_rpm=self.w_m_peak / RPM,
             w_m_max_rpm=None if self.w_m_max is None else self.w_m_max / RPM,
-            time_above_top_speed_s=self.t_above_top,
+            time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top,
         )

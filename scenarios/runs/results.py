@@ -155,7 +155,7 @@ class RunSummary:
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
     w_m_peak_rpm: float = 0.0         # the highest rotor speed of the run
     w_m_max_rpm: float | None = None  # the motor's top speed (motor.w_m_max; None: not known)
-    time_above_top_speed_s: float = 0.0  # time the rotor spent above w_m_max
+    time_above_top_speed_s: float | None = 0.0  # time the rotor spent above w_m_max (None: w_m_max not known)
     version: str = VERSION            # the ipmsm-fmu release that ran it (pyproject.toml, the FMUs' version)
 
     def to_dict(self) -> dict:

@@ -125,10 +125,11 @@ def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: d
 
 class OptimumReference:
     """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
-    given torque and conditions: its current magnitude and copper loss."""
+    given torque and conditions: its current magnitude and copper loss at the winding resistance
+    R_s (Ohm, the run's: winding_resistance)."""
 
-    def __init__(self, controller_fmu: Path, drive: DriveDescription, T_winding: float):
-        self.R_s = drive.motor_data().R_s_at(T_winding)
+    def __init__(self, controller_fmu: Path, drive: DriveDescription, R_s: float):
+        self.R_s = R_s
         self.fmu = Fmu(controller_fmu, instance_name="reference",
                        **drive.controller_params(method="ferrari", recursion=2))
 
@@ -213,11 +214,12 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     wall0 = time.perf_counter()
     try:
         with ExitStack() as stack:
-            reference = (stack.enter_context(OptimumReference(controller_fmu, drive, cond.T_winding))
-                         if spec.reference else None)
             start = dict(w_m=motor_speed(vehicle.v, vp), u_dc=battery.u * cond.u_dc_scale,
                          T_magnet=cond.T_magnet, T_winding=cond.T_winding)
             sim = stack.enter_context(open_drive(spec, controller_fmu, plant_fmu, c_params, p_params, **start))
+            reference = (stack.enter_context(OptimumReference(controller_fmu, drive,
+                                                              winding_resistance(sim, cond.T_winding)))
+                         if spec.reference else None)
             for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference)):
                 accounts.observe(step)
                 trace.observe(k, step)

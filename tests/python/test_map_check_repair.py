@@ -119,6 +119,7 @@ def test_check_reports_the_prius_defects_and_the_fmus_own_verdict(build, tmp_pat
         assert len(warned) == 1 and "i_d = 130 A" in warned[0], f["log"]  # where, in the FMU's words
         assert "widened by 10 % of I_max" in warned[0]  # the FMI logger's printf escape undone
     assert all(d["within_drive_currents"] == 0 for d in c["defects"])  # all at i_d > 0
+    assert all(d["within_refused_box"] == 0 for d in c["defects"])  # the FMUs' own count: they accept
     falls = next(d for d in c["defects"] if d["kind"].startswith("psi_d"))
     assert falls["count"] == 2 and falls["nearest_A"] == [135.0, -20.0]  # between 130 and 140 A, i_q = +-20 A
     assert c["grid_covers_I_max"] and c["legal_rectangle_A"][1] < 130 and c["I_max_A"] == 200.0
@@ -136,6 +137,7 @@ def test_a_map_folding_inside_the_operating_region_is_refused_naming_where(build
     assert cli(["--build", str(build), "map", "check", str(tmp_path / "bad.csv"), "--out", str(out)]) == 1
     c = json.loads((out / "check.json").read_text())
     assert not any(x["accepted"] for x in c["fmus"])
+    assert sum(d["within_refused_box"] for d in c["defects"]) > 0  # the FMUs' own rule, counted
     assert all(f"i_d = {f.i_d[j + 1]:g} A" in " ".join(x["log"]) or f"i_q = {f.i_q[k]:g} A" in " ".join(x["log"])
                for x in c["fmus"])
     assert c["legal_rectangle_A"] is None  # no crop holds the drive's currents
@@ -258,6 +260,20 @@ def _syrm_run(drive, cycle, t0, t1, controller_fmu, plant_fmu):
     return s, judge(cycle, s, limits)
 
 
+def test_a_top_speed_limit_without_a_top_speed_is_refused_and_never_passes(tmp_path):
+    """No w_m_max anywhere (the Baldor map says none): the limit could measure nothing, so the
+    description is refused at load, and a summary without the figure fails the limit."""
+    from scenarios.drives.description import DriveDescriptionError, load_drive
+    from scenarios.runs.check import judge
+    measured = DATA_DIR / "fluxmaps" / "baldor_5p6kW_pmsyrm_measured.csv"
+    (tmp_path / "d.toml").write_text(f'[motor]\nflux_map = "{measured}"\n'
+                                     '[checks]\ntime_above_top_speed_s_max = 0.0\n')
+    with pytest.raises(DriveDescriptionError, match="checks.time_above_top_speed_s_max"):
+        load_drive(tmp_path / "d.toml")
+    (v,) = judge("X", {"time_above_top_speed_s": None}, {"time_above_top_speed_s_max": 0.0})
+    assert not v.passed
+
+
 @pytest.mark.parametrize("cycle, t0, t1", [("UDDS", 180.0, 290.0), ("HWFET", 0.0, 100.0)])
 def test_syrm_drive_segments_within_the_default_torque_limits(syrm_drive, controller_fmu, plant_fmu, cycle, t0, t1):
     s, verdicts = _syrm_run(syrm_drive, cycle, t0, t1, controller_fmu, plant_fmu)
@@ -289,3 +305,28 @@ def test_run_picture_draws_the_drives_own_motor():
     labels = [line.get_label() for line in a.get_lines()]
     plt.close(fig)
     assert "current limit 200 A" in labels and "voltage limit 6000 r/min, 500 V" in labels
+
+
+def test_check_json_is_strict_when_a_figure_is_undefined(build, tmp_path):
+    """A 4 x 4 grid has no noise estimate (too few points per axis): check.json says null, never
+    NaN, and every strict reader takes it."""
+    i_d, i_q = np.array([-300.0, -200.0, -100.0, 0.0]), np.array([-300.0, -150.0, 0.0, 150.0])
+    D, Q = np.meshgrid(i_d, i_q, indexing="ij")
+    write_flux_map(tmp_path / "m.csv", FluxMap(i_d, i_q, 0.1 + 2e-4 * D, 4e-4 * Q), "a 4 x 4 linear machine")
+    assert cli(["--build", str(build), "map", "check", str(tmp_path / "m.csv"), "--out", str(tmp_path / "o"),
+                "--I-max", "100"]) == 0
+    text = (tmp_path / "o" / "check.json").read_text()
+
+    def refuse(c):
+        raise ValueError(c)
+    doc = json.loads(text, parse_constant=refuse)
+    assert None in doc["noise_Wb"].values()
+
+
+def test_repair_reads_within_the_limits_and_names_the_bad_line(build, tmp_path, capsys):
+    """A comment that happens to contain "nan" and a malformed row: exit 2 naming the line, as
+    `map check` does (never the holes reader's own unbounded parse)."""
+    text = "# author: Hernandez\ni_d,i_q,psi_d,psi_q\n0,0,0.1,0\n0;x\n"
+    (tmp_path / "m.csv").write_text(text)
+    assert cli(["--build", str(build), "map", "repair", str(tmp_path / "m.csv"), "--out", str(tmp_path / "o.csv")]) == 2
+    assert "line 4" in capsys.readouterr().err

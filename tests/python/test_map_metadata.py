@@ -13,9 +13,8 @@ import dataclasses
 import pytest
 
 from scenarios.cosim.fmu import Fmu
+from scenarios.maps import machine
 from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map, write_flux_map
-
-machine = pytest.importorskip("scenarios.maps.machine")
 
 #: keys the scenarios read but the FMUs do not check against a parameter: the current limit must
 #: lie inside the grid (checked on its own), the DC voltage and k_u are the tables' design point,

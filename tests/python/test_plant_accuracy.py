@@ -273,10 +273,8 @@ SATURATING = [(0.2, None, 0.0), (0.2, 0.5, 0.1), (0.3, None, 0.15), (0.3, 0.5, 0
 
 @pytest.fixture(scope="module", params=SATURATING, ids=lambda c: f"Is{c[0]}-Ids{c[1]}-x{c[2]}")
 def saturating(request, tmp_path_factory):
-    from tools.saturating_map import SaturatingMachine, write_map
-    m = SaturatingMachine(I_s_ratio=request.param[0], I_ds_ratio=request.param[1], cross=request.param[2])
-    path = tmp_path_factory.mktemp("saturating") / "map.csv"
-    write_map(path, m)
+    from tools.saturating_map import written
+    m, path = written(*request.param, tmp_path_factory.mktemp("saturating"))
     return m, path, read_flux_map(path)
 
 
@@ -302,30 +300,37 @@ def exact_currents(fm, psi, start):
     return sol.x
 
 
+#: the test's flux regulator's time constant: well inside 1 / omega h at the speeds walked
+TAU = 1e-3
+
+
+def spiral_walk(f, fm, m, w_m, h, per_target, read):
+    """Take the plant along spiral_targets by the test's own flux regulator: the steady voltage of
+    the target plus (psi_target - psi) / TAU from the fluxes the plant reports. Returns read(f)
+    after every step and the voltage segments."""
+    rows, segs, t = [], [], 0.0
+    for target in spiral_targets(m):
+        u_ss = steady_voltage(fm, m.pole_pairs, m.R_s, 0.0, w_m, *target)
+        psi_t = fm.flux(*target)
+        for _ in range(per_target):
+            psi = f.get("psi_d", "psi_q")
+            u = (u_ss[0] + (psi_t[0] - psi[0]) / TAU, u_ss[1] + (psi_t[1] - psi[1]) / TAU)
+            f.set(u_d=u[0], u_q=u[1])
+            f.step(t, h)
+            t += h
+            segs.append((u[0], u[1], h))
+            rows.append(read(f))
+    return np.array(rows), segs
+
+
 def saturating_run(plant_fmu, m, path, fm, w_m, h=1e-4, per_target=10, **params):
-    """The plant along spiral_targets, taken there by the test's own flux regulator: the steady
-    voltage of the target plus (psi_target - psi) / TAU from the fluxes the plant reports (1 ms,
-    well inside 1 / omega h). Returns the currents, the fluxes and the voltage segments."""
-    TAU = 1e-3
-    targets = spiral_targets(m)
-    rows, segs = [], []
-    i0 = targets[0]
+    """The plant along the spiral walk, iron loss off. Returns the currents, the fluxes and the
+    voltage segments."""
+    i0 = spiral_targets(m)[0]
     with Fmu(plant_fmu, flux_map=str(path), fe_k_h=0.0, fe_k_e=0.0, w_m=w_m, i_d_start=i0[0], i_q_start=i0[1],
              **params) as f:
         assert f.get("i_d", "i_q") == [i0[0], i0[1]]  # the start values exactly (issue 12 item 7)
-        t = 0.0
-        for target in targets:
-            u_ss = steady_voltage(fm, m.pole_pairs, m.R_s, 0.0, w_m, *target)
-            psi_t = fm.flux(*target)
-            for _ in range(per_target):
-                psi = f.get("psi_d", "psi_q")
-                u = (u_ss[0] + (psi_t[0] - psi[0]) / TAU, u_ss[1] + (psi_t[1] - psi[1]) / TAU)
-                f.set(u_d=u[0], u_q=u[1])
-                f.step(t, h)
-                t += h
-                segs.append((u[0], u[1], h))
-                rows.append(f.get("i_d", "i_q", "psi_d", "psi_q"))
-    r = np.array(rows)
+        r, segs = spiral_walk(f, fm, m, w_m, h, per_target, lambda f: f.get("i_d", "i_q", "psi_d", "psi_q"))
     return r[:, :2], r[:, 2:], segs, i0
 
 
@@ -402,27 +407,13 @@ def integrals_reference(fm, p, R, w_m, segments, i0):
 
 
 def integrals_run(plant_fmu, m, path, fm, w_m, h=1e-4, per_target=10, **params):
-    """saturating_run's walk with the iron loss on: the plant's integrals after every step."""
-    TAU = 1e-3
-    rows, segs = [], []
-    targets = spiral_targets(m)
-    i0 = targets[0]
+    """The spiral walk with the iron loss on: the plant's integrals after every step."""
+    i0 = spiral_targets(m)[0]
     with Fmu(plant_fmu, flux_map=str(path), fe_k_h=FE["k_h"], fe_alpha=FE["alpha"], fe_k_e=FE["k_e"],
              fe_psi_ref=FE["psi_ref"], w_m=w_m, i_d_start=i0[0], i_q_start=i0[1], **params) as f:
         assert f.get(*INTEGRALS) == [0.0] * len(INTEGRALS)
-        t = 0.0
-        for target in targets:
-            u_ss = steady_voltage(fm, m.pole_pairs, m.R_s, 0.0, w_m, *target)
-            psi_t = fm.flux(*target)
-            for _ in range(per_target):
-                psi = f.get("psi_d", "psi_q")
-                u = (u_ss[0] + (psi_t[0] - psi[0]) / TAU, u_ss[1] + (psi_t[1] - psi[1]) / TAU)
-                f.set(u_d=u[0], u_q=u[1])
-                f.step(t, h)
-                t += h
-                segs.append((u[0], u[1], h))
-                rows.append(f.get(*INTEGRALS, "P_elec", "P_cu", "P_fe", "T_e"))
-    r = np.array(rows)
+        r, segs = spiral_walk(f, fm, m, w_m, h, per_target,
+                              lambda f: f.get(*INTEGRALS, "P_elec", "P_cu", "P_fe", "T_e"))
     return r[:, :5], r[:, 5:], segs, i0
 
 

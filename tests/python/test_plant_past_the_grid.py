@@ -18,10 +18,8 @@ STEPS = {"+q": (0, 1), "+d": (1, 0), "-d+q": (-1, 1), "-d-q": (-1, -1)}
 
 @pytest.fixture(scope="module", params=MACHINES, ids=lambda c: f"Is{c[0]}-Ids{c[1]}-x{c[2]}")
 def saturated(request, tmp_path_factory):
-    from tools.saturating_map import SaturatingMachine, write_map
-    m = SaturatingMachine(I_s_ratio=request.param[0], I_ds_ratio=request.param[1], cross=request.param[2])
-    path = tmp_path_factory.mktemp("past") / "map.csv"
-    write_map(path, m)
+    from tools.saturating_map import written
+    m, path = written(*request.param, tmp_path_factory.mktemp("past"))
     return m, path, read_flux_map(path)
 
 

@@ -48,13 +48,9 @@ def test_off_the_network_is_disconnected(plant):
     assert b.get("P_coolant", "E_coolant", "E_ambient", "E_stored") == [0.0, 0.0, 0.0, 0.0]
 
 
-def test_on_heat_balance_and_the_network_fed_the_plants_losses(plant):
-    """A full-load stretch: E_cu + E_fe = E_stored + E_coolant + E_ambient within 1e-6 of the
-    throughput; thermal_trace fed the plant's step losses, speed, RMS current and boundary
-    temperatures gives the plant's node temperatures within 1e-9 K."""
-    p = plant()
-    T_c, T_a = 318.15, 303.15
-    p.init(thermal_model=True, T_winding=310.0, T_magnet=320.0, T_coolant=T_c, T_ambient=T_a)
+def full_load_stretch(p, T_c, T_a):
+    """A speed ramp at full load, 3000 steps: per step (h, E_cu and E_fe of the step, w_m, I_rms,
+    the boundary temperatures), the rows thermal_trace reads."""
     steps, prev = [], p.get("E_cu", "E_fe")
     for k in range(3000):
         w_m = 600.0 + 0.2 * k
@@ -64,6 +60,17 @@ def test_on_heat_balance_and_the_network_fed_the_plants_losses(plant):
         i_d, i_q = p.get("i_d", "i_q")
         steps.append((H, E[0] - prev[0], E[1] - prev[1], w_m, np.sqrt(0.5 * (i_d**2 + i_q**2)), T_c, T_a))
         prev = E
+    return steps
+
+
+def test_on_heat_balance_and_the_network_fed_the_plants_losses(plant):
+    """A full-load stretch: E_cu + E_fe = E_stored + E_coolant + E_ambient within 1e-6 of the
+    throughput; thermal_trace fed the plant's step losses, speed, RMS current and boundary
+    temperatures gives the plant's node temperatures within 1e-9 K."""
+    p = plant()
+    T_c, T_a = 318.15, 303.15
+    p.init(thermal_model=True, T_winding=310.0, T_magnet=320.0, T_coolant=T_c, T_ambient=T_a)
+    full_load_stretch(p, T_c, T_a)
     E_cu, E_fe, E_st, E_c, E_a = p.get("E_cu", "E_fe", "E_stored", "E_coolant", "E_ambient")
     assert E_cu + E_fe > 100.0  # heat flowed
     assert abs(E_cu + E_fe - E_st - E_c - E_a) < 1e-6 * (E_cu + E_fe)
@@ -73,15 +80,7 @@ def test_on_heat_balance_and_the_network_fed_the_plants_losses(plant):
     # winding's and compare the rises of a run that starts the plant there too
     q = plant("uniform")
     q.init(thermal_model=True, T_winding=310.0, T_magnet=310.0, T_coolant=T_c, T_ambient=T_a)
-    steps, prev = [], q.get("E_cu", "E_fe")
-    for k in range(3000):
-        w_m = 600.0 + 0.2 * k
-        q.set(w_m=w_m, u_d=-60.0, u_q=0.312 * w_m + 40.0)
-        assert q.step(H) in (OK, WARNING), q.log.text()
-        E = q.get("E_cu", "E_fe")
-        i_d, i_q = q.get("i_d", "i_q")
-        steps.append((H, E[0] - prev[0], E[1] - prev[1], w_m, np.sqrt(0.5 * (i_d**2 + i_q**2)), T_c, T_a))
-        prev = E
+    steps = full_load_stretch(q, T_c, T_a)
     text = "".join(",".join(repr(float(x)) for x in r) + "\n" for r in steps)
     trace = subprocess.run([str(paths.BUILD_DIR / "bin" / "thermal_trace"), "310.0"], input=text,
                            capture_output=True, text=True, check=True).stdout.splitlines()

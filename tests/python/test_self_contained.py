@@ -1,13 +1,15 @@
 """The repository runs alone: a standard cycle runs with nothing outside the repository readable
 (an audit hook refuses every open beside it, `../shared` included), and the data the package
-carries are the files handed over in `../shared`, byte for byte, where that folder is present."""
+carries are the files handed over in `../shared`, byte for byte (their digests are committed, so a
+clone alone checks them too)."""
 from __future__ import annotations
 
-import filecmp
+import hashlib
 import json
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -16,16 +18,21 @@ from scenarios.core import paths
 from conftest import ROOT
 
 SHARED = ROOT.parent / "shared"
+HANDED_OVER = json.loads((ROOT / "tests" / "data" / "handed_over.json").read_text())
+#: a copy's top folder in the repository, above the path it had in ../shared (data/..., spec/...)
+COPIED_FROM = {"scenarios": ("scenarios",), "docs": ("docs",)}
 
 # In the child: any open of a path beside the repository (its parent folder, ../shared, ...) fails.
 GUARD = textwrap.dedent("""
     import os, sys
     root = os.path.realpath({root!r})
     outside = os.path.realpath(os.path.join(root, os.pardir))
+    build = os.path.realpath({build!r})  # the build may be a link (a shared build of this clone)
     def guard(event, args):
         if event == "open" and isinstance(args[0], (str, bytes, os.PathLike)):
             p = os.path.realpath(os.fsdecode(args[0]))
-            if p.startswith(outside + os.sep) and not (p == root or p.startswith(root + os.sep)):
+            inside = p == root or p.startswith(root + os.sep) or p == build or p.startswith(build + os.sep)
+            if p.startswith(outside + os.sep) and not inside:
                 raise PermissionError(f"outside the repository: {{p}}")
     sys.addaudithook(guard)
     import runpy
@@ -36,7 +43,7 @@ GUARD = textwrap.dedent("""
 
 def test_a_standard_cycle_runs_with_nothing_beside_the_repository(tmp_path):
     out = tmp_path / "udds"
-    code = GUARD.format(root=str(ROOT))
+    code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR))
     r = subprocess.run([sys.executable, "-c", code, "run", "UDDS", "--backend", "drive", "--out", str(out)],
                        capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
@@ -47,40 +54,38 @@ def test_a_standard_cycle_runs_with_nothing_beside_the_repository(tmp_path):
 def test_the_guard_refuses_what_lies_beside_the_repository(tmp_path):
     """The guard above can fail: reading a file beside the repository is refused."""
     beside = ROOT.parent / f".{ROOT.name}-guard-probe"
-    code = GUARD.format(root=str(ROOT)).replace("import runpy", f"open({str(beside)!r}, 'w')\nimport runpy")
+    code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR))
+    code = code.replace("import runpy", f"open({str(beside)!r}, 'w')\nimport runpy")
     r = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and "outside the repository" in r.stderr
     assert not beside.exists()
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="no ../shared beside this clone: nothing to compare with")
-@pytest.mark.parametrize("copy, handed_over", [
-    (paths.DATA_DIR / "cycles", SHARED / "data" / "cycles"),
-    (paths.DATA_DIR / "fluxmaps", SHARED / "data" / "fluxmaps"),
-    (paths.DATA_DIR / "ocv_nmc_cell_and_96s.csv", SHARED / "data" / "ocv_nmc_cell_and_96s.csv"),
-    (ROOT / "docs" / "spec" / "MATH.md", SHARED / "spec" / "MATH.md"),
-])
-def test_the_copies_are_the_files_handed_over(copy, handed_over):
-    if handed_over.is_file():
-        assert filecmp.cmp(copy, handed_over, shallow=False), f"{copy} differs from {handed_over}"
-        return
-    cmp = filecmp.dircmp(handed_over, copy)
-    stack = [cmp]
-    while stack:
-        c = stack.pop()
-        assert not c.left_only, f"{c.left}: not copied: {c.left_only}"
-        _, mismatch, errors = filecmp.cmpfiles(c.left, c.right, c.common_files, shallow=False)
-        assert not mismatch and not errors, f"{c.left}: differ from the copy: {mismatch + errors}"
-        stack.extend(c.subdirs.values())
+def _sha256(path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="no ../shared beside this clone: nothing to compare with")
+def test_the_copies_are_the_files_handed_over():
+    """Every data file and MATH.md as handed over, byte for byte (their SHA-256, committed in
+    tests/data/handed_over.json), and nothing handed over left out."""
+    for rel, digest in HANDED_OVER["files"].items():
+        assert (ROOT / rel).is_file(), f"{rel}: handed over, not in the repository"
+        assert _sha256(ROOT / rel) == digest, f"{rel} differs from the file handed over"
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="no ../shared beside this clone: the committed record stands")
+def test_the_committed_record_is_what_shared_holds():
+    """Where ../shared is present: the record above is still what it holds."""
+    for rel, digest in HANDED_OVER["files"].items():
+        src = SHARED / Path(rel).relative_to(*COPIED_FROM[Path(rel).parts[0]])
+        assert _sha256(src) == digest, f"{src} changed since it was handed over: copy it in again"
+
+
 def test_the_contract_extends_the_one_handed_over():
     """docs/spec/INTERFACE.md may grow (new variables, keys, sections) but keeps every section and
-    every name of the contract handed over."""
-    import re
-    ours, theirs = (p.read_text() for p in (ROOT / "docs" / "spec" / "INTERFACE.md", SHARED / "spec" / "INTERFACE.md"))
-    headings = [line for line in theirs.splitlines() if line.startswith("#")]
-    assert [h for h in headings if h not in ours.splitlines()] == []
-    names = set(re.findall(r"`([^`\n]+)`", theirs))
+    every name of the contract handed over (tests/data/handed_over.json). Names that are paths
+    relative to the handed-over folder (`../data/...`) point, in the repository, to the copies."""
+    ours = (ROOT / "docs" / "spec" / "INTERFACE.md").read_text()
+    assert [h for h in HANDED_OVER["interface_headings"] if h not in ours.splitlines()] == []
+    names = [n for n in HANDED_OVER["interface_names"] if not n.startswith("../")]
     assert sorted(n for n in names if n not in ours) == []

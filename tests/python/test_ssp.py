@@ -152,7 +152,7 @@ def test_the_scenario_starts_where_the_packages_start():
 
 
 def test_libcosim_runs_the_ssp_as_shipped(reference, controller_fmu, plant_fmu, ssd):
-    pytest.importorskip("libcosimpy", reason="libcosimpy is in pyproject's [test] extra")
+    import libcosimpy  # noqa: F401  (pyproject's [test] extra: missing, the test fails)
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
 
@@ -162,7 +162,7 @@ def test_libcosim_runs_the_ssp_as_shipped(reference, controller_fmu, plant_fmu, 
 
 
 def test_libcosim_runs_the_osp_structure_from_t0(reference, controller_fmu, plant_fmu, tmp_path):
-    pytest.importorskip("libcosimpy", reason="libcosimpy is in pyproject's [test] extra")
+    import libcosimpy  # noqa: F401  (pyproject's [test] extra: missing, the test fails)
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
 
@@ -175,7 +175,8 @@ def test_the_osp_structure_s_sources_are_the_build_s_fmus():
     root = ET.parse(OSP).getroot()
     for s in root.iterfind(".//osp:Simulator", OSP_NS):
         unit = DRIVE.units[DRIVE.unit_index(s.get("name"))]
-        assert (OSP.parent / s.get("source")).resolve() == BUILD_DIR / "fmu" / f"{unit.model_identifier}.fmu"
+        built = BUILD_DIR / "fmu" / f"{unit.model_identifier}.fmu"
+        assert (OSP.parent / s.get("source")).resolve() == built.resolve()
 
 
 def test_fmpy_simulate_ssp_matches_the_coupled_run(controller_fmu, plant_fmu, ssd):

@@ -31,8 +31,8 @@ PROJECT_FILES = ("pyproject.toml", "README.md", "CHANGELOG.md")
 OSP_STRUCTURE = "scenarios/cosim/osp/OspSystemStructure.xml"
 OSP_SOURCES_IN_CLONE = 'source="../../../build/fmu/'
 OSP_SOURCES_IN_WHEEL = 'source="../../shipped/build/fmu/'
-#: not shipped: the native master's C++ sources, caches
-IGNORED = shutil.ignore_patterns("native", "__pycache__", "*.pyc", "shipped")
+#: not shipped: caches
+IGNORED = shutil.ignore_patterns("__pycache__", "*.pyc", "shipped")
 
 
 def wheel_name() -> str:
