@@ -264,6 +264,37 @@ const std::vector<V>& PlantModel::variables() {
          "rad/s", "", "Thermal network: speed of n = 1 in its fits", 0.0, 1e5, true},
         {"I_rms_ref", fmi::forward(&M::lptn, &thermal::LptnParams::I_rms_ref), Causality::parameter, Variability::fixed,
          "A", "", "Thermal network: RMS current of i = 1 in its fits", 0.0, 1e6, true},
+        // the inverter feeding the machine (inverter/inverter_loss.hpp), new after 0.2.0: last, so
+        // that every earlier value reference stays
+        {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "",
+         "DC-link voltage the inverter switches (its loss P_inv), held over each step", 0.0, kInf, true},
+        {"P_inv", &M::P_inv, Causality::output, Variability::continuous, "W", "",
+         "Inverter conduction and switching loss over the last step: the current sampled at its end, the step's mean "
+         "AC power (E_elec's increase over the step), u_dc held"},
+        {"E_inv", &M::E_inv, Causality::output, Variability::continuous, "J", "Wh",
+         "Inverter-loss energy since the start, P_inv h summed over the steps"},
+        {"f_sw", fmi::forward(&M::inverter, &InverterParams::f_sw), Causality::parameter, Variability::fixed, "Hz", "",
+         "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
+        {"V_T0", fmi::forward(&M::inverter, &InverterParams::V_T0), Causality::parameter, Variability::fixed, "V", "",
+         "IGBT threshold voltage", 0.0, 10.0},
+        {"r_T", fmi::forward(&M::inverter, &InverterParams::r_T), Causality::parameter, Variability::fixed, "Ohm",
+         "mOhm", "IGBT slope resistance", 0.0, 1.0},
+        {"V_D0", fmi::forward(&M::inverter, &InverterParams::V_D0), Causality::parameter, Variability::fixed, "V", "",
+         "Diode threshold voltage", 0.0, 10.0},
+        {"r_D", fmi::forward(&M::inverter, &InverterParams::r_D), Causality::parameter, Variability::fixed, "Ohm",
+         "mOhm", "Diode slope resistance", 0.0, 1.0},
+        {"E_on", fmi::forward(&M::inverter, &InverterParams::E_on), Causality::parameter, Variability::fixed, "J", "",
+         "IGBT turn-on energy at I_ref, V_ref", 0.0, 100.0},
+        {"E_off", fmi::forward(&M::inverter, &InverterParams::E_off), Causality::parameter, Variability::fixed, "J", "",
+         "IGBT turn-off energy at I_ref, V_ref", 0.0, 100.0},
+        {"E_rec", fmi::forward(&M::inverter, &InverterParams::E_rec), Causality::parameter, Variability::fixed, "J", "",
+         "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
+        {"I_ref", fmi::forward(&M::inverter, &InverterParams::I_ref), Causality::parameter, Variability::fixed, "A", "",
+         "Test current of the switching energies", 0.0, kInf, true},
+        {"V_ref", fmi::forward(&M::inverter, &InverterParams::V_ref), Causality::parameter, Variability::fixed, "V", "",
+         "Test DC voltage of the switching energies", 0.0, kInf, true},
+        {"k_v", fmi::forward(&M::inverter, &InverterParams::k_v), Causality::parameter, Variability::fixed, "1", "",
+         "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
     };
     return table;
 }
@@ -371,6 +402,8 @@ void PlantModel::exit_initialization() {
     // (the inverse map would return them to its rounding, not bit for bit).
     update_outputs(ode(), i_d_start, i_q_start);
     update_thermal_outputs();
+    E_inv = 0.0;
+    P_inv = inverter_loss_now(P_elec);  // at the start: the start current and the power the inputs make
 
     if (ctx.log_info) {
         std::ostringstream os;
@@ -439,6 +472,15 @@ void PlantModel::advance_thermal(double h, double E_cu_step, double E_fe_step) {
     update_thermal_outputs();
 }
 
+double PlantModel::inverter_loss_now(double P_ac) const {
+    const double I2 = i_d * i_d + i_q * i_q;
+    try {
+        return InverterLossModel(inverter, u_dc).at(std::sqrt(I2), I2, P_ac).P();
+    } catch (const std::invalid_argument& e) {
+        throw fmi::Error(e.what());
+    }
+}
+
 void PlantModel::update_thermal_outputs() {
     if (thermal_) {
         theta_winding = thermal_->theta(thermal::winding);
@@ -473,7 +515,11 @@ void PlantModel::do_step(double t, double h) {
                              " Wb reached at the end of the step");
         update_outputs(o, c.i_d, c.i_q);
         const double* e = integrator_.step_integrals();
+        const double E_elec_before = E_elec;
         E_elec += e[StepIntegrands::P_elec];
+        // the step's mean AC power as the increase of E_elec (what a master holding E_elec sees)
+        P_inv = inverter_loss_now((E_elec - E_elec_before) / h);
+        E_inv += P_inv * h;
         E_cu += e[StepIntegrands::P_cu];
         E_fe += e[StepIntegrands::P_fe];
         E_mech += w_m * e[StepIntegrands::T_e] - e[StepIntegrands::P_fe];

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cvode_integrator.hpp"
+#include "inverter/inverter_loss.hpp"
 #include "ipmsm_ode.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
@@ -69,6 +70,8 @@ public:
                 {"E_cu", {}},
                 {"E_fe", {}},
                 {"T_e_impulse", {}},
+                {"P_inv", {"u_d", "u_q", "u_dc", "T_magnet"}},
+                {"E_inv", {}},
                 {"cvode_steps", {}},
                 {"cvode_rhs_evals", {}}};
     }
@@ -96,6 +99,7 @@ public:
     double T_winding = 293.15;    // K
     double T_coolant = 293.15;    // K, the thermal network's coolant (thermal_model)
     double T_ambient = 293.15;    // K, the thermal network's ambient air (thermal_model)
+    double u_dc = 355.0;          // V, the DC link the inverter switches (its loss: P_inv)
     // --- outputs
     double i_d = 0.0, i_q = 0.0;                                // A
     double psi_d = 0.0, psi_q = 0.0;                            // Wb
@@ -111,8 +115,12 @@ public:
     double theta_stator_yoke = 293.15, theta_stator_tooth = 293.15;  // K
     double P_coolant = 0.0;                                          // W, mean heat into the coolant over the step
     double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;         // J since the start
-    int cvode_steps = 0;                                             // internal steps in the last step
-    int cvode_rhs_evals = 0;                                         // right-hand-side evaluations in the last step
+    // the inverter feeding the machine (inverter/inverter_loss.hpp): its loss over the last step,
+    // from the current sampled at the step's end and the step's mean AC power, and since the start
+    double P_inv = 0.0;       // W
+    double E_inv = 0.0;       // J
+    int cvode_steps = 0;      // internal steps in the last step
+    int cvode_rhs_evals = 0;  // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;
@@ -134,6 +142,7 @@ public:
     int cvode_max_steps = 20000;  // per communication step
     bool thermal_model = false;   // the thermal network sets T_winding, T_magnet (docs/thermal.md)
     thermal::LptnParams lptn;     // its parameters (forwarded by name)
+    InverterParams inverter;      // the inverter's loss model's parameters (forwarded by name)
 
     // Not a variable: false lets a model that holds the plant (IpmsmDrive) advance the network
     // once per its own communication step (advance_thermal) instead of at every plant step.
@@ -154,6 +163,9 @@ private:
     double winding_temperature() const { return thermal_ ? thermal_->theta(thermal::winding) : T_winding; }
     double magnet_temperature() const { return thermal_ ? thermal_->theta(thermal::magnet) : T_magnet; }
     void update_thermal_outputs();
+    // The inverter's loss (W) at the present currents (the sample at a step's end), with the mean
+    // AC power P_ac (W) and u_dc.
+    double inverter_loss_now(double P_ac) const;
 
     fmi::SharedContext context_;
     std::shared_ptr<const FluxMap> map_;

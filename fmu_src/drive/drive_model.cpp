@@ -166,28 +166,17 @@ const std::vector<V>& DriveModel::variables() {
          "Sample time of the controller, and step of the inner coupling; a communication step must be a whole multiple "
          "of it",
          1e-7, 1.0},
-        {"f_sw", fmi::forward(&M::inverter_, &InverterParams::f_sw), Causality::parameter, Variability::fixed, "Hz", "",
-         "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
-        {"V_T0", fmi::forward(&M::inverter_, &InverterParams::V_T0), Causality::parameter, Variability::fixed, "V", "",
-         "IGBT threshold voltage", 0.0, 10.0},
-        {"r_T", fmi::forward(&M::inverter_, &InverterParams::r_T), Causality::parameter, Variability::fixed, "Ohm",
-         "mOhm", "IGBT slope resistance", 0.0, 1.0},
-        {"V_D0", fmi::forward(&M::inverter_, &InverterParams::V_D0), Causality::parameter, Variability::fixed, "V", "",
-         "Diode threshold voltage", 0.0, 10.0},
-        {"r_D", fmi::forward(&M::inverter_, &InverterParams::r_D), Causality::parameter, Variability::fixed, "Ohm",
-         "mOhm", "Diode slope resistance", 0.0, 1.0},
-        {"E_on", fmi::forward(&M::inverter_, &InverterParams::E_on), Causality::parameter, Variability::fixed, "J", "",
-         "IGBT turn-on energy at I_ref, V_ref", 0.0, 100.0},
-        {"E_off", fmi::forward(&M::inverter_, &InverterParams::E_off), Causality::parameter, Variability::fixed, "J",
-         "", "IGBT turn-off energy at I_ref, V_ref", 0.0, 100.0},
-        {"E_rec", fmi::forward(&M::inverter_, &InverterParams::E_rec), Causality::parameter, Variability::fixed, "J",
-         "", "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
-        {"I_ref", fmi::forward(&M::inverter_, &InverterParams::I_ref), Causality::parameter, Variability::fixed, "A",
-         "", "Test current of the switching energies", 0.0, kInf, true},
-        {"V_ref", fmi::forward(&M::inverter_, &InverterParams::V_ref), Causality::parameter, Variability::fixed, "V",
-         "", "Test DC voltage of the switching energies", 0.0, kInf, true},
-        {"k_v", fmi::forward(&M::inverter_, &InverterParams::k_v), Causality::parameter, Variability::fixed, "1", "",
-         "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
+        parameter("f_sw", &M::controller_, &M::plant_),
+        parameter("V_T0", &M::controller_, &M::plant_),
+        parameter("r_T", &M::controller_, &M::plant_),
+        parameter("V_D0", &M::controller_, &M::plant_),
+        parameter("r_D", &M::controller_, &M::plant_),
+        parameter("E_on", &M::controller_, &M::plant_),
+        parameter("E_off", &M::controller_, &M::plant_),
+        parameter("E_rec", &M::controller_, &M::plant_),
+        parameter("I_ref", &M::controller_, &M::plant_),
+        parameter("V_ref", &M::controller_, &M::plant_),
+        parameter("k_v", &M::controller_, &M::plant_),
         // the controller's and the plant's parameters, once each
         parameter("method", &M::controller_, &M::plant_),
         parameter("recursion", &M::controller_, &M::plant_),
@@ -369,8 +358,7 @@ void DriveModel::exit_initialization() {
     coupled().initialise();
     k_ = coupled().k();
     // The outputs before the first step: the plant's values at the start, nothing integrated.
-    const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
-    P_inv = inverter_loss(std::sqrt(I2), I2, u_dc, plant_.P_elec, inverter_).P();
+    P_inv = plant_.P_inv;
     T_shaft = plant_.T_shaft, T_e = plant_.T_e, P_mech = plant_.P_mech, P_cu = plant_.P_cu, P_fe = plant_.P_fe;
     P_elec = plant_.P_elec;
     P_dc = P_elec + P_inv;
@@ -402,23 +390,18 @@ void DriveModel::do_step(double t, double h) {
     }
     hold_inputs();
     coupling::CoupledModels& cm = coupled();
-    const InverterLossModel inv(inverter_, u_dc);  // u_dc is held over the step
     // The plant integrates its powers exactly over each inner step (its E_*, T_e_impulse): the
-    // step's means are their increases over h. The inverter's loss is defined per inner step
-    // (one PWM period): from the phase current sampled at its end, as the controller samples it,
-    // and the inner step's mean AC power; so E_dc = E_elec + E_inv by construction.
+    // step's means are their increases over h. The inverter's loss is the plant's, defined per
+    // inner step (one PWM period): from the phase current sampled at its end, as the controller
+    // samples it, and the inner step's mean AC power; so E_dc = E_elec + E_inv by construction.
     const double E_elec0 = plant_.E_elec, E_mech0 = plant_.E_mech, E_cu0 = plant_.E_cu, E_fe0 = plant_.E_fe;
     const double impulse0 = plant_.T_e_impulse;
     double s_P_inv = 0;
     for (long long j = 0; j < n; ++j) {
-        const double E_elec_before = plant_.E_elec;
         cm.step();
-        const double P_ac = (plant_.E_elec - E_elec_before) / sample_time;
-        const double I2 = plant_.i_d * plant_.i_d + plant_.i_q * plant_.i_q;
-        const double p_inv = inv.at(std::sqrt(I2), I2, P_ac).P();
-        s_P_inv += p_inv;
-        E_inv += p_inv * sample_time;
+        s_P_inv += plant_.P_inv;
     }
+    E_inv = plant_.E_inv;
     k_ = cm.k();
     // the thermal network once over the whole step, with the step's exact loss integrals (its
     // temperatures set R_s and the magnet flux of the next step: a lag of h against its 15 s and

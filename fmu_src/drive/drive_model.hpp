@@ -6,13 +6,13 @@
 // sequence of calls as the two FMUs coupled by a master at sample_time. A communication step of
 // n sample times returns the means over it of the plant's torques and powers, exact: the plant
 // integrates them over each inner step (its E_* and T_e_impulse outputs, CVODE quadratures), the
-// means are their increases over the step; the inverter's loss (inverter/inverter_loss.hpp), per
-// inner step, and the DC current; and the energies since the start, so that a master at 10 ms
+// means are their increases over the step; the inverter's loss (the plant's, inverter/inverter_loss.hpp),
+// per inner step, and the DC current; and the energies since the start, so that a master at 10 ms
 // loses nothing between its samples: E_dc = E_mech + E_cu + E_fe + E_inv + Delta W_magnetic.
 //
 // Parameters: every parameter of the two models, once, by the same name, forwarded to the models
-// that hold it (value, unit, range and description from the models' tables: one source); the
-// inverter's, forwarded to its InverterParams; and sample_time.
+// that hold it (value, unit, range and description from the models' tables: one source; the
+// inverter's are the plant's); and sample_time.
 #pragma once
 
 #include <map>
@@ -22,7 +22,6 @@
 
 #include "controller/controller_model.hpp"
 #include "coupling/coupled_models.hpp"
-#include "inverter/inverter_loss.hpp"
 #include "model.hpp"
 #include "plant_model.hpp"
 #include "variable.hpp"
@@ -75,7 +74,7 @@ public:
     double theta_winding = 0.0, theta_magnet = 0.0, theta_stator_yoke = 0.0, theta_stator_tooth = 0.0;  // K
     double P_coolant = 0.0;                                   // W, mean over the step
     double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;  // J since the start
-    // --- parameters: the drive's own (the others live in controller_, plant_ and inverter_)
+    // --- parameters: the drive's own (the others live in controller_ and plant_)
     double sample_time = 1e-4;  // s
     // K: the controller's magnet temperature is the machine's (the network's, or the T_magnet
     // input) plus this, as a drive estimates it (docs/thermal.md, "Controller")
@@ -110,7 +109,6 @@ private:
     std::shared_ptr<WarningsGiven> warnings_given_;  // shared by the models' contexts and the drive's copies
     ControllerModel controller_;
     PlantModel plant_;
-    InverterParams inverter_;
     long long k_ = 0;  // inner steps since the start
     // The coupled models point into this object: a copy of the drive (undo, FMU states) starts
     // without them and builds its own on first use.

@@ -1,6 +1,7 @@
 // Traction-inverter losses: a two-level, three-phase IGBT bridge with anti-parallel diodes,
 // sinusoidal phase currents of peak I, continuous PWM at f_sw (every leg switches every period).
-// The one implementation (the IpmsmDrive FMU's; scenarios/vehicle/inverter.py is checked against it).
+// The one implementation: the IpmsmPlant's loss P_inv per step (plant/plant_model.cpp), which
+// IpmsmDrive reads per inner step and the reference loop reads from the plant FMU by name.
 //
 // Conduction, each device a threshold voltage plus a slope resistance (V = V0 + r i), averaged
 // over the fundamental period and summed over the three legs:
@@ -81,11 +82,5 @@ private:
     double u_dc_;
     double k_I_ = 0, k_I2_ = 0, k_sw_ = 0;  // W/A, W/A^2, W/A
 };
-
-// Loss (W) with the phase-current peak |i| = I (A), |i|^2 = I2 (A^2) and AC power P_ac (W,
-// + motoring) at DC voltage u_dc (V); or their means over an interval.
-inline InverterLoss inverter_loss(double I, double I2, double u_dc, double P_ac, const InverterParams& p) {
-    return InverterLossModel(p, u_dc).at(I, I2, P_ac);
-}
 
 }  // namespace ipmsm

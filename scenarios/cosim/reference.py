@@ -5,11 +5,11 @@ fmi2DoStep(t_k, h) with t_k = k h, read the outputs. It returns IpmsmDrive's ste
 (DriveStep), so a run takes either (`--backend fmpy`) and the tests hold the drive FMU against it.
 Six FMI calls from Python per 100 us: slow; IpmsmDrive is the fast path.
 
-    with ReferenceDrive(controller_fmu, plant_fmu, w_m=100.0, inverter_loss=loss) as ref:
+    with ReferenceDrive(controller_fmu, plant_fmu, w_m=100.0) as ref:
         s = ref.advance(0.01, T_ref=120.0, w_m=100.0, u_dc=355.0, T_magnet=353.15, T_winding=373.15)
 
-inverter_loss(I_mean, I2_mean, u_dc, P_ac_mean) -> W, from the step's means of |i|, |i|^2 (sampled
-after each inner step) and P_elec (exact); None: P_inv = 0 (docs/validation.md: the inverter).
+The inverter's loss is the plant's (its P_inv, read after each inner step, as IpmsmDrive reads it;
+docs/validation.md: the inverter).
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from scenarios.cosim.drive_fmu import DriveStep, steps_of
 from scenarios.cosim.fmu import FMI2_WARNING, CosimError, Fmu
 
 #: the plant's integrals since the start (exact over each step): a step's means are their increases
-PLANT_INTEGRALS = ("E_elec", "E_mech", "E_cu", "E_fe", "T_e_impulse")
+PLANT_INTEGRALS = ("E_elec", "E_mech", "E_cu", "E_fe", "T_e_impulse", "E_inv")
 CONTROLLER_END = ("T_cmd", "T_max", "i_d_ref", "i_q_ref", "u_ratio")
 START = dict(T_ref=0.0, w_m=0.0, u_dc=355.0, T_magnet=293.15, T_winding=293.15)  # the FMUs' start values
 
@@ -35,15 +35,15 @@ class ReferenceDrive:
     h_k) passed to fmi2DoStep instead of (k h, h), to reproduce another master's clock."""
 
     def __init__(self, controller_fmu: str | Path, plant_fmu: str | Path, controller_params: Mapping | None = None,
-                 plant_params: Mapping | None = None, h: float | None = None, inverter_loss: Callable | None = None,
-                 coupling: Coupling = DRIVE, logging_on: bool = False,
+                 plant_params: Mapping | None = None, h: float | None = None, coupling: Coupling = DRIVE,
+                 logging_on: bool = False,
                  clock: Callable[[int], tuple[float, float]] | None = None, **start: float):
         self.h = self.sample_time = coupling.step if h is None else h
         if not (isinstance(self.h, (int, float)) and math.isfinite(self.h) and self.h > 0):
             raise ValueError(f"h = {self.h!r}: must be a finite number > 0")
         if set(start) - set(START):
             raise TypeError(f"unknown start input(s) {sorted(set(start) - set(START))}: one of {', '.join(START)}")
-        self.k, self.E_inv, self._loss, self._clock, self.held = 0, 0.0, inverter_loss, clock, {**START, **start}
+        self.k, self._clock, self.held = 0, clock, {**START, **start}
         paths, params = dict(controller=controller_fmu, plant=plant_fmu), \
             dict(controller=controller_params or {}, plant=plant_params or {})
         self.units: dict[str, Fmu] = {}
@@ -80,8 +80,9 @@ class ReferenceDrive:
             for conn in (x for x in c.connections if x.target.unit == to):
                 names[conn.source.unit].append(conn.source.variable)
                 self.feeds[to].append((conn.target.variable, conn.source.unit, len(names[conn.source.unit]) - 1))
+        names["plant"].append("P_inv")  # read after each inner step too: the inverter's loss over it
         self.out = {r: (self.units[r].vrs(*names[r]), (c_double * len(names[r]))()) for r in c.roles}
-        self._i = [names["plant"].index(x) for x in ("i_d", "i_q")]
+        self._i = [names["plant"].index(x) for x in ("i_d", "i_q", "P_inv")]
         self._sets = []
         for to, feeds in self.feeds.items():
             f = self.units[to]
@@ -108,8 +109,8 @@ class ReferenceDrive:
         for role, f in self.units.items():  # a refused input raises with k unchanged: fix it and call again
             f.set(**{v: self.held[x] for x, v in self.external[role]})
         reads = [(f, *self.out[role]) for role, f in self.units.items()]
-        plant, (d, q) = self.out["plant"][1], self._i
-        s_abs = s_sq = 0.0
+        plant, inv = self.out["plant"][1], self._i[2]
+        s_inv = 0.0
         try:
             for _ in range(n):
                 for f, vrs, values in self._sets:  # the outputs after the previous step
@@ -124,27 +125,24 @@ class ReferenceDrive:
                 for f, vrs, values in reads:
                     if (status := f.dll.fmi2GetReal(f.c, vrs, len(vrs), values)) > FMI2_WARNING:
                         f.fail("fmi2GetReal", status)
-                sq = plant[d] * plant[d] + plant[q] * plant[q]
-                s_abs += math.sqrt(sq)
-                s_sq += sq
+                s_inv += plant[inv]
         finally:
             self.k = k
-        return self._record(n * h, n, s_abs, s_sq, u_dc, w_m)
+        return self._record(n * h, s_inv / n, u_dc, w_m)
 
-    def _record(self, duration: float, n: int, s_abs: float, s_sq: float, u_dc: float, w_m: float) -> DriveStep:
+    def _record(self, duration: float, P_inv: float, u_dc: float, w_m: float) -> DriveStep:
         """The step's DriveStep: the means of the powers and torques from the plant's integrals,
-        the inverter's loss from the means, the values at the end."""
+        the inverter's loss (the mean of the plant's per inner step), the values at the end."""
         now = self._plant_integrals()
-        P_elec, P_mech, P_cu, P_fe, T_e = ((b - a) / duration for a, b in zip(self._integrals, now))
+        P_elec, P_mech, P_cu, P_fe, T_e = ((b - a) / duration for a, b in zip(self._integrals[:5], now[:5]))
         self._integrals = now
-        P_inv = self._loss(s_abs / n, s_sq / n, u_dc, P_elec) if self._loss else 0.0
-        self.E_inv += P_inv * duration
+        E_inv = now[5]
         controller = self.units["controller"]
         controller.read(*self._end)
         controller.read(*self._region, kind="Integer")
-        i_d, i_q = (self.out["plant"][1][i] for i in self._i)
+        i_d, i_q = (self.out["plant"][1][i] for i in self._i[:2])
         return DriveStep(T_e - P_fe / w_m if w_m != 0.0 else T_e, T_e, (P_elec + P_inv) / u_dc, P_elec + P_inv,
-                         P_mech, P_cu, P_fe, P_inv, P_elec, now[0] + self.E_inv, now[1], now[2], now[3], self.E_inv,
+                         P_mech, P_cu, P_fe, P_inv, P_elec, now[0] + E_inv, now[1], now[2], now[3], E_inv,
                          *self._end[1][:2], i_d, i_q, *self._end[1][2:], self._region[1][0])
 
     def close(self) -> None:

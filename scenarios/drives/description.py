@@ -7,9 +7,10 @@ inverter, battery, vehicle, controller settings and CI checks (docs/spec/INTERFA
 
 The schema is written once, in SCHEMA: a key's section, name, kind, unit, the rule its value
 must obey and where its default comes from. The defaults are the project's default EV: the
-dataclasses of the vehicle side (VehicleParams, BatteryParams, InverterParams, P_AUX_DEFAULT)
-and, for the motor, the `# key: value` metadata of the named flux map (the map's own data
-sheet), else of the default motor's map, each such value named in `DriveDescription.assumed`
+dataclasses of the vehicle side (VehicleParams, BatteryParams, P_AUX_DEFAULT), for the
+inverter the plant FMU's own (the start values of its modelDescription: the C++ model's), and,
+for the motor, the `# key: value` metadata of the named flux map (the map's own data sheet),
+else of the default motor's map, each such value named in `DriveDescription.assumed`
 (scenarios.maps.machine). Paths are relative to the file. A bad file raises
 DriveDescriptionError naming the file, the key and what was expected.
 """
@@ -24,14 +25,13 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.core.boundary import InputError, load_toml
-from scenarios.core.fmu_ranges import Range, fmu_ranges
+from scenarios.core.fmu_ranges import PLANT_DESCRIPTION, Range, fmu_ranges, read_starts
 from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
 from scenarios.maps.machine import machine_values
 from scenarios.vehicle.battery import OCV_FITS, BatteryParams
 from scenarios.vehicle.driver import P_AUX_DEFAULT
-from scenarios.vehicle.inverter import InverterParams
 from scenarios.vehicle.longitudinal import VehicleParams
 
 #: the project's drives; `default.toml` is what no --drive means
@@ -163,6 +163,10 @@ def _dc(cls, name: str) -> str:
     return f"{cls.__name__}.{name}"
 
 
+#: where an inverter key's default comes from: the FMU that computes the loss
+_PLANT_DEFAULT = "the plant FMU's default (its modelDescription start)"
+
+
 def _meta(key: str) -> str:
     return f"map metadata `{key}`"
 
@@ -198,23 +202,22 @@ SCHEMA: tuple[Key, ...] = (
         _meta("fe_k_e_W_per_Hz2")),
     Key("motor", "fe_psi_ref", POSITIVE, "Wb", "iron loss: flux linkage of the coefficients",
         _meta("fe_psi_ref_Wb")),
-    # [inverter]: scenarios/inverter.py's loss model (and the IpmsmDrive FMU's)
-    Key("inverter", "f_sw", POSITIVE, "Hz", "switching frequency", _dc(InverterParams, "f_sw")),
-    Key("inverter", "V_T0", NON_NEGATIVE, "V", "IGBT threshold voltage", _dc(InverterParams, "V_T0")),
-    Key("inverter", "r_T", NON_NEGATIVE, "Ohm", "IGBT slope resistance", _dc(InverterParams, "r_T")),
-    Key("inverter", "V_D0", NON_NEGATIVE, "V", "diode threshold voltage", _dc(InverterParams, "V_D0")),
-    Key("inverter", "r_D", NON_NEGATIVE, "Ohm", "diode slope resistance", _dc(InverterParams, "r_D")),
-    Key("inverter", "E_on", NON_NEGATIVE, "J", "turn-on energy at I_ref, V_ref", _dc(InverterParams, "E_on")),
-    Key("inverter", "E_off", NON_NEGATIVE, "J", "turn-off energy at I_ref, V_ref", _dc(InverterParams, "E_off")),
-    Key("inverter", "E_rec", NON_NEGATIVE, "J", "diode recovery energy at I_ref, V_ref",
-        _dc(InverterParams, "E_rec")),
+    # [inverter]: the parameters of the plant FMU's inverter loss model (fmu_src/inverter/inverter_loss.hpp;
+    # IpmsmDrive's are the plant's), by the FMUs' names
+    Key("inverter", "f_sw", POSITIVE, "Hz", "switching frequency", _PLANT_DEFAULT),
+    Key("inverter", "V_T0", NON_NEGATIVE, "V", "IGBT threshold voltage", _PLANT_DEFAULT),
+    Key("inverter", "r_T", NON_NEGATIVE, "Ohm", "IGBT slope resistance", _PLANT_DEFAULT),
+    Key("inverter", "V_D0", NON_NEGATIVE, "V", "diode threshold voltage", _PLANT_DEFAULT),
+    Key("inverter", "r_D", NON_NEGATIVE, "Ohm", "diode slope resistance", _PLANT_DEFAULT),
+    Key("inverter", "E_on", NON_NEGATIVE, "J", "turn-on energy at I_ref, V_ref", _PLANT_DEFAULT),
+    Key("inverter", "E_off", NON_NEGATIVE, "J", "turn-off energy at I_ref, V_ref", _PLANT_DEFAULT),
+    Key("inverter", "E_rec", NON_NEGATIVE, "J", "diode recovery energy at I_ref, V_ref", _PLANT_DEFAULT),
     Key("inverter", "I_ref", Rule("real", lo=0.0, hi=1e5, lo_open=True),
-        "A", "test current of the switching energies", _dc(InverterParams, "I_ref")),
+        "A", "test current of the switching energies", _PLANT_DEFAULT),
     Key("inverter", "V_ref", Rule("real", lo=0.0, hi=1e5, lo_open=True),
-        "V", "test DC voltage of the switching energies",
-        _dc(InverterParams, "V_ref")),
+        "V", "test DC voltage of the switching energies", _PLANT_DEFAULT),
     Key("inverter", "k_v", Rule("real", lo=0.0, hi=3.0), "1", "exponent of the switching energies' voltage "
-        "scaling", _dc(InverterParams, "k_v")),
+        "scaling", _PLANT_DEFAULT),
     # [battery]: scenarios/battery.py's equivalent circuit
     Key("battery", "n_series", Rule("int", lo=1, hi=10_000), "", "cells in series", _dc(BatteryParams, "n_series")),
     Key("battery", "n_parallel", Rule("int", lo=1, hi=10_000),
@@ -358,8 +361,9 @@ THERMAL_KEYS = tuple(k.name for k in SCHEMA if k.section == "thermal")
 DERATING_KEYS = ("T_winding_max", "T_magnet_max", "derating_margin")
 FMU_PARAMETER.update({f"thermal.{n}": n for n in THERMAL_KEYS
                       if n not in ("thermal_model", "T_coolant", "T_ambient") and n in fmu_ranges()})
-FMU_PARAMETER.update({f"inverter.{n}": n for n in ("f_sw", "V_T0", "r_T", "V_D0", "r_D", "E_on", "E_off", "E_rec",
-                                                   "I_ref", "V_ref", "k_v")})
+#: the [inverter] keys: the plant FMU's inverter parameters, by their names
+INVERTER_KEYS = tuple(k.name for k in SCHEMA if k.section == "inverter")
+FMU_PARAMETER.update({f"inverter.{n}": n for n in INVERTER_KEYS})
 SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get(FMU_PARAMETER[k.path]))) if k.path in FMU_PARAMETER
                else k for k in SCHEMA)
 
@@ -463,7 +467,7 @@ class DriveDescription:
     source: Path | None           # the TOML file
     sha256: str                   # of the file's bytes ("" without a file)
     motor: MotorSpec
-    inverter: InverterParams
+    inverter: dict                # INVERTER_KEYS -> value (the plant FMU's parameters)
     battery: BatteryParams
     vehicle: VehicleParams        # J_motor = motor.J
     P_aux: float                  # W, the [vehicle] table's auxiliary load
@@ -485,7 +489,9 @@ class DriveDescription:
             return list(self.checks.cycles) if name == "cycles" else self.checks.limits.get(name)
         if section == "thermal":
             return self.thermal.values.get(name)
-        return getattr({"motor": self.motor, "inverter": self.inverter, "battery": self.battery,
+        if section == "inverter":
+            return self.inverter[name]
+        return getattr({"motor": self.motor, "battery": self.battery,
                         "vehicle": self.vehicle, "controller": self.controller}[section], name)
 
     def motor_data(self) -> MotorData:
@@ -516,12 +522,20 @@ class DriveDescription:
         return p
 
     def plant_params(self) -> dict:
-        """The plant FMU's parameters (I_max: where it requires the map to be legal)."""
+        """The plant FMU's parameters: the motor's (I_max: where it requires the map to be legal)
+        and the inverter's (the plant computes its loss)."""
         m = self.motor
         return dict(flux_map=str(m.flux_map), pole_pairs=m.pole_pairs, R_s=m.R_s, I_max=m.I_max,
                     T_winding_ref=m.T_winding_ref,
                     alpha_cu=m.alpha_cu, k_psi_T=m.k_psi_T, T_magnet_ref=m.T_magnet_ref, fe_k_h=m.fe_k_h,
-                    fe_alpha=m.fe_alpha, fe_k_e=m.fe_k_e, fe_psi_ref=m.fe_psi_ref)
+                    fe_alpha=m.fe_alpha, fe_k_e=m.fe_k_e, fe_psi_ref=m.fe_psi_ref, **self.inverter)
+
+
+def inverter_defaults() -> dict:
+    """The [inverter] keys' defaults: the plant FMU's start values (plant/modelDescription.xml,
+    generated from the C++ table: the one place they are written)."""
+    starts = read_starts(PLANT_DESCRIPTION)
+    return {k: starts[k] for k in INVERTER_KEYS}
 
 
 # -- the loader -----------------------------------------------------------------------------------
@@ -662,7 +676,7 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
         if bad:
             raise DriveDescriptionError(path, f"motor.{key}", f"{bad} (from the map's metadata)")
 
-    inverter = replace(InverterParams(), **{k: float(v) for k, v in sec["inverter"].items()})
+    inverter = {**inverter_defaults(), **{k: float(v) for k, v in sec["inverter"].items()}}
 
     b = dict(sec["battery"])
     ocv = b.pop("ocv", None)
@@ -777,6 +791,6 @@ def known_fields() -> dict[str, tuple[str, ...]]:
     return {s: tuple(k.name for k in SCHEMA if k.section == s) for s in ("", *SECTIONS)}
 
 
-__all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "LIMITS", "METHODS", "SCHEMA", "ChecksSpec", "ControllerSpec",
-           "DriveDescription", "DriveDescriptionError", "Key", "MotorSpec", "Rule", "ThermalSpec", "load_drive",
-           "schema_markdown"]
+__all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "INVERTER_KEYS", "LIMITS", "METHODS", "SCHEMA", "ChecksSpec",
+           "ControllerSpec", "DriveDescription", "DriveDescriptionError", "Key", "MotorSpec", "Rule", "ThermalSpec",
+           "inverter_defaults", "load_drive", "schema_markdown"]

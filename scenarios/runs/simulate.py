@@ -18,7 +18,7 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from scenarios.core.boundary import InputError
@@ -35,7 +35,6 @@ from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
 from scenarios.vehicle.cycles import Cycle, load_cycle, sampled
 from scenarios.vehicle.driver import BlendParams, Driver, DriverParams, blend
-from scenarios.vehicle.inverter import inverter_loss
 from scenarios.vehicle.longitudinal import Vehicle, motor_speed, wheel_force
 
 __all__ = ["BACKENDS", "METHODS", "STUDY_CONDITIONS", "Conditions", "RunSpec", "fmu_paths", "simulate"]
@@ -127,20 +126,18 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
 
 def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict, **start):
     """The drive of a run by spec.backend: IpmsmDrive (built next to the controller's FMU), or the
-    reference loop with the drive description's inverter."""
-    inverter, thermal = spec.drive.inverter, spec.thermal()
+    reference loop; the same parameters either way (the inverter's among the plant's)."""
+    thermal = spec.thermal()
     if spec.backend == "drive":
         boundary = dict(T_coolant=thermal.T_coolant, T_ambient=thermal.T_ambient) if thermal.on else {}
         return DriveFmu(Path(controller_fmu).parent / "IpmsmDrive.fmu",
-                        {**c_params, **p_params, **asdict(inverter), **thermal.fmu_params(), "sample_time": spec.h},
+                        {**c_params, **p_params, **thermal.fmu_params(), "sample_time": spec.h},
                         **start, **boundary)
     if thermal.on:  # the reference loop's record has no temperatures
         raise InputError("(command line)", "--backend", "the drive backend with the thermal network on "
                          "([thermal] thermal_model = true)")
     if spec.backend == "fmpy":
-        return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start,
-                              inverter_loss=lambda I, I2, u_dc, P_ac: inverter_loss(I, I2, u_dc, P_ac_mean=P_ac,
-                                                                                    p=inverter).P)
+        return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start)
     raise ValueError(f"backend = {spec.backend!r}: one of {', '.join(BACKENDS)}")
 
 
@@ -226,9 +223,9 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
              out: Path | None = None, progress: bool = True,
              observe: Callable[[VehicleStep], None] | None = None) -> RunSummary:
     """Run `cycle` with spec.drive; returns the summary (and writes summary.json, trace.csv to
-    `out`). The FMUs' parameters (map, motor, controller settings; the drive backend's inverter)
-    and the vehicle side all follow spec.drive; so does the reference optimum. `observe`, if
-    given, sees every vehicle step (a test's independent account of the run)."""
+    `out`). The FMUs' parameters (map, motor, controller settings, inverter) and the vehicle side
+    all follow spec.drive; so does the reference optimum. `observe`, if given, sees every vehicle
+    step (a test's independent account of the run)."""
     spec = spec if spec is not None else RunSpec()
     spec = replace(spec, conditions=spec.resolved_conditions())
     drive, method, recursion = spec.drive, spec.method_name, spec.recursion_level

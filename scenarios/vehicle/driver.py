@@ -31,7 +31,6 @@ import numpy as np
 
 from scenarios.vehicle.battery import Battery, BatteryParams
 from scenarios.vehicle.cycles import STANDARD_CYCLES, Cycle, load_cycle
-from scenarios.vehicle.inverter import InverterParams, inverter_loss
 from scenarios.vehicle.longitudinal import (
     Vehicle,
     VehicleParams,
@@ -162,15 +161,11 @@ def blend(F_demand: float, v: float, T_max: float, P_regen_max: float,
 @dataclass
 class IdealMotor:
     """Constant-efficiency motor with the default motor's envelope (docs/motor/targets.json:
-    285.4 N m peak, 113.4 kW peak shaft power, at 355 V). Phase current for the inverter's loss
-    from the magnet torque constant k_T = 1.5 p psi_m = 0.468 N m/A (the MTPA slope at light
-    load, where cycles spend their time; at high torque the reluctance torque makes the real
-    current smaller, in field weakening the d current makes it larger)."""
+    285.4 N m peak, 113.4 kW peak shaft power, at 355 V)."""
 
     efficiency: float = 0.92      # motor alone, both directions (assumed: a cycle average of the class)
     T_peak: float = 285.4         # N m
     P_peak: float = 113.4e3       # W
-    k_T: float = 1.5 * 4 * 0.07807  # N m / A (pole pairs 4, psi_m 78.07 mWb)
 
     def T_max(self, w_m: float) -> float:
         return self.T_peak if w_m * self.T_peak <= self.P_peak else self.P_peak / w_m
@@ -179,8 +174,19 @@ class IdealMotor:
         P = T * w_m
         return P / self.efficiency if P >= 0.0 else P * self.efficiency
 
-    def current(self, T: float) -> float:
-        return abs(T) / self.k_T
+
+@dataclass
+class IdealInverter:
+    """Constant efficiency, both directions: the loss is (1 - efficiency) |P_ac|. The default is
+    the cycle average of the inverter loss model the FMUs compute (fmu_src/inverter/inverter_loss.hpp,
+    through IpmsmPlant and IpmsmDrive), measured on WLTC 3b with the default drive:
+    1 - E_inv / int |P_elec| dt (docs/vehicle.md: "Ideal-drive energy estimate" gives the command).
+    A constant, as the ideal motor's: this estimate has no phase current for the model to work on."""
+
+    efficiency: float = 0.978
+
+    def loss(self, P_ac: float) -> float:
+        return (1.0 - self.efficiency) * abs(P_ac)
 
 
 @dataclass
@@ -189,7 +195,7 @@ class IdealDriveSpec:
     driver: DriverParams = field(default_factory=DriverParams)
     blend: BlendParams = field(default_factory=BlendParams)
     battery: BatteryParams = field(default_factory=BatteryParams)
-    inverter: InverterParams = field(default_factory=InverterParams)
+    inverter: IdealInverter = field(default_factory=IdealInverter)
     motor: IdealMotor = field(default_factory=IdealMotor)
     P_aux: float = P_AUX_DEFAULT  # W
     dt: float = 0.01              # s, vehicle step
@@ -251,8 +257,7 @@ def simulate_ideal(cycle: Cycle, spec: IdealDriveSpec | None = None, trace: bool
         veh.step(F_w, b.F_brake, dt)
         P_mech = T * w_m
         P_el = mot.P_elec(T, w_m)
-        I = mot.current(T) if P_mech != 0.0 else 0.0
-        P_inv = inverter_loss(I, I * I, bat.u, P_ac_mean=P_el, p=spec.inverter).P
+        P_inv = spec.inverter.loss(P_el)
         bat.step(P_el + P_inv + spec.P_aux, dt)
         E["motor_loss"] += (P_el - P_mech) * dt
         E["inverter_loss"] += P_inv * dt
@@ -290,18 +295,20 @@ def main(argv=None) -> int:
                                  description="Ideal-drive energy per cycle from the vehicle-side models alone.")
     ap.add_argument("cycles", nargs="*", default=list(STANDARD_CYCLES), help="names or CSV paths")
     ap.add_argument("--eta-motor", type=float, default=IdealMotor.efficiency)
+    ap.add_argument("--eta-inverter", type=float, default=IdealInverter.efficiency)
     ap.add_argument("--soc0", type=float, default=BatteryParams.soc0)
     ap.add_argument("--aux", type=float, default=P_AUX_DEFAULT, help="auxiliary load, W")
     args = ap.parse_args(argv)
     spec = IdealDriveSpec(motor=IdealMotor(efficiency=args.eta_motor),
+                          inverter=IdealInverter(efficiency=args.eta_inverter),
                           battery=BatteryParams(soc0=args.soc0), P_aux=args.aux)
     cols = [("cycle", "{:>7}"), ("distance_km", "{:8.4f}"), ("speed_rmse_kmh", "{:6.3f}"),
             ("wheel_traction_Wh", "{:7.0f}"), ("wheel_regen_Wh", "{:7.0f}"), ("friction_brake_Wh", "{:6.0f}"),
             ("motor_loss_Wh", "{:6.0f}"), ("inverter_loss_Wh", "{:6.0f}"), ("aux_Wh", "{:5.0f}"),
             ("battery_internal_loss_Wh", "{:5.0f}"), ("energy_battery_Wh", "{:7.0f}"), ("Wh_per_km", "{:6.1f}"),
             ("Wh_per_km_no_aux", "{:6.1f}")]
-    print(f"ideal drive: motor efficiency {args.eta_motor:.3f}, SOC0 {args.soc0}, aux {args.aux:g} W, "
-          f"m_eff {spec.vehicle.m_eff:.1f} kg")
+    print(f"ideal drive: motor efficiency {args.eta_motor:.3f}, inverter {args.eta_inverter:.4f}, SOC0 {args.soc0}, "
+          f"aux {args.aux:g} W, m_eff {spec.vehicle.m_eff:.1f} kg")
     print(" ".join(c for c, _ in cols))
     for name in args.cycles:
         t0 = time.perf_counter()

@@ -73,7 +73,7 @@ TEST(VariableForwarding, DriveParameterReachesBothModels) {
     }
     EXPECT_EQ(given, 1);
     EXPECT_EQ(prefixed, 1);
-    // The inverter's parameters are forwarded to its InverterParams.
+    // The inverter's parameters are forwarded to the plant's InverterParams.
     const auto* f_sw = fmi::find_variable<ipmsm::DriveModel>("f_sw");
     ASSERT_NE(f_sw, nullptr);
     EXPECT_EQ(fmi::value_of<double>(drive, *f_sw), ipmsm::InverterParams{}.f_sw);

@@ -2,10 +2,9 @@
 
 The drive runs the controller's and the plant's models through the same coupling description, so
 at any communication step (100 us, 1 ms, 10 ms) its step means and integrals must equal the
-reference loop's (scenarios/cosim/reference.py) records of 1 ms, up to rounding: the reference
-loop's inverter loss is scenarios/vehicle/inverter.py's from its 1 ms means, which checks the
-drive's C++ loss model (evaluated per 100 us) against the Python one. The run has torque steps, regeneration and
-a speed ramp through every region.
+reference loop's (scenarios/cosim/reference.py) records of 1 ms, up to rounding (the inverter's
+loss in both: the plant's, per 100 us). The run has torque steps, regeneration and a speed ramp
+through every region.
 """
 from __future__ import annotations
 
@@ -19,7 +18,6 @@ from fmpy.fmi2 import fmi2Error, fmi2OK
 from scenarios.cosim.drive_fmu import DriveFmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.maps.flux_map import linear_flux_map, write_flux_map
-from scenarios.vehicle.inverter import inverter_loss
 
 from conftest import fmu_path
 
@@ -54,16 +52,10 @@ POWERS = ("P_mech", "P_cu", "P_fe", "P_inv")
 
 def reference_1ms(blocks):
     """The two FMUs coupled at 100 us by the reference loop, its record of every 1 ms: the means
-    from the plant's exact integrals; the inverter's loss from the 1 ms means of |i|, |i|^2 sampled
-    after each 100 us step and of P_elec (the loss is linear in all three: the same as the drive's
-    loss per 100 us step, averaged)."""
+    from the plant's exact integrals; the inverter's loss the mean of the plant's per 100 us step."""
     first = blocks[0]
     rows = []
-
-    def loss(I, I2, u_dc, P_ac):
-        return inverter_loss(I, I2, u_dc, P_ac_mean=P_ac).P
-
-    with ReferenceDrive(fmu_path("IpmsmController"), fmu_path("IpmsmPlant"), inverter_loss=loss, T_ref=first.T_ref,
+    with ReferenceDrive(fmu_path("IpmsmController"), fmu_path("IpmsmPlant"), T_ref=first.T_ref,
                         w_m=first.w_m, u_dc=first.u_dc, T_magnet=first.T_magnet, T_winding=first.T_winding) as c:
         for inp in blocks:
             for _ in range(10):

@@ -17,6 +17,7 @@ from scenarios.core.paths import ROOT
 from scenarios.drives.description import (
     DEFAULT_DRIVE,
     DRIVES_DIR,
+    INVERTER_KEYS,
     SCHEMA,
     DriveDescriptionError,
     Key,
@@ -26,6 +27,8 @@ from scenarios.drives.description import (
 from scenarios.maps.flux_map import DEFAULT_MAP
 from scenarios.runs.simulate import Conditions, RunSpec, simulate
 from scenarios.vehicle.cycles import load_cycle, segment
+
+from conftest import fmu_path
 
 CITY_EV = DRIVES_DIR / "city_ev.toml"
 
@@ -120,11 +123,7 @@ def perturbed_value(key: Key):
     if key.path in PERTURBED:
         return PERTURBED[key.path]
     d = default_drive()
-    if key.section == "thermal":
-        return d.value(key.path) * 1.25
-    section = {"motor": d.motor, "inverter": d.inverter, "battery": d.battery, "vehicle": d.vehicle,
-               "controller": d.controller}[key.section]
-    v = d.P_aux if key.path == "vehicle.P_aux" else getattr(section, key.name, None)
+    v = d.value(key.path)
     if v is None and key.path == "motor.w_m_max":
         v = 1256.6370614359173  # the controller FMU's default: perturb from there
     return v + 1 if key.rule.kind == "int" else v * 1.25
@@ -197,15 +196,19 @@ def test_the_reference_optimum_uses_the_drives_motor(controller_fmu, plant_fmu):
 
 # -- the default drive ---------------------------------------------------------------------------
 def test_default_drive_is_the_dataclasses_defaults():
-    """default.toml names only the map: every value is the vehicle side's dataclass default or the
-    default map's metadata, so there is one place for each number."""
+    """default.toml names only the map: every value is the vehicle side's dataclass default, the
+    FMUs' own default (the inverter's) or the default map's metadata, so there is one place for
+    each number."""
+    from scenarios.core.fmu_ranges import read_starts
     from scenarios.maps.flux_map import MotorData, read_flux_map
     from scenarios.vehicle.battery import BatteryParams
-    from scenarios.vehicle.inverter import InverterParams
     from scenarios.vehicle.longitudinal import VehicleParams
     d = load_drive(None)
     assert d.source == DEFAULT_DRIVE and d.name == "default"
-    assert d.vehicle == VehicleParams() and d.battery == BatteryParams() and d.inverter == InverterParams()
+    assert d.vehicle == VehicleParams() and d.battery == BatteryParams()
+    # the inverter's: the plant FMU's and the drive FMU's own defaults (one C++ table), by the same names
+    assert d.inverter == {k: v for k, v in read_starts(fmu_path("IpmsmDrive")).items() if k in INVERTER_KEYS}
+    assert set(d.inverter) == set(INVERTER_KEYS) and d.inverter["f_sw"] == 10e3
     assert d.motor_data() == MotorData.of(read_flux_map(DEFAULT_MAP))
     assert d.controller.current_bandwidth is None  # the FMU's own default
     assert d.motor.w_m_max == read_flux_map(DEFAULT_MAP).number("w_m_max_rad_s")  # the map's top speed

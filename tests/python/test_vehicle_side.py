@@ -1,6 +1,6 @@
-"""Vehicle-side models (no FMUs): vehicle dynamics, driver and brake blending, battery,
-inverter losses, drive cycles. Hand calculations and independent references (scipy ODE
-solutions, brute-force averages over a sine period, the cycle statistics in SOURCES.md).
+"""Vehicle-side models (no FMUs): vehicle dynamics, driver and brake blending, battery, drive
+cycles. Hand calculations and independent references (scipy ODE solutions, the cycle statistics
+in SOURCES.md); the inverter's loss is the FMUs' (test_inverter.py).
 Fast: a few seconds in all."""
 import math
 
@@ -8,11 +8,9 @@ import numpy as np
 import pytest
 from scipy.integrate import quad, solve_ivp
 
-from scenarios.core.constants import U_DC_NOMINAL_V
 from scenarios.vehicle.battery import OCV_CSV, Battery, BatteryParams
 from scenarios.vehicle.cycles import cycle_stats, load_cycle, read_cycle_csv, segment
 from scenarios.vehicle.driver import Driver, DriverParams, blend, simulate_ideal
-from scenarios.vehicle.inverter import InverterParams, dc_power, inverter_loss
 from scenarios.vehicle.longitudinal import (
     Vehicle,
     VehicleParams,
@@ -318,60 +316,6 @@ def test_regen_cap_4v2_per_cell():
     assert full.max_charge_power(dt) == 0.0
     r = full.step(-5e3, dt)
     assert r.P == 0.0 and r.P_curtailed == pytest.approx(5e3)
-
-
-# -- inverter -----------------------------------------------------------------------------
-
-def _brute_force_inverter(I, M, phi, u_dc, p: InverterParams, n=20000):
-    """Three legs, sine PWM, averaged over the period: IGBT/diode conduction weighted by the
-    duty, switching energy proportional to |i| every PWM period."""
-    th = (np.arange(n) + 0.5) / n * 2 * np.pi
-    P_cond = P_sw = P_ac = 0.0
-    for k in range(3):
-        i = I * np.sin(th - 2 * np.pi * k / 3)
-        d = 0.5 * (1 + M * np.sin(th - 2 * np.pi * k / 3 + phi))   # upper switch duty
-        a = np.abs(i)
-        vT, vD = p.V_T0 + p.r_T * a, p.V_D0 + p.r_D * a
-        # i > 0: upper IGBT (d) or lower diode (1 - d); i < 0: lower IGBT (1 - d) or upper diode (d)
-        P_cond += np.mean(np.where(i > 0, d * vT + (1 - d) * vD, (1 - d) * vT + d * vD) * a)
-        P_sw += np.mean(p.f_sw * (p.E_on + p.E_off + p.E_rec) * a / p.I_ref * (u_dc / p.V_ref) ** p.k_v)
-        P_ac += np.mean((2 * d - 1) * u_dc / 2 * i)
-    return P_cond, P_sw, P_ac
-
-
-@pytest.mark.parametrize("I,M,phi", [(200.0, 0.9, 0.5), (400.0, 1.0, 0.2), (80.0, 0.3, 1.2),
-                                     (300.0, 0.8, math.pi - 0.4)])
-def test_inverter_loss_formula_against_brute_force(I, M, phi):
-    p = InverterParams()
-    u_dc = U_DC_NOMINAL_V
-    Pc, Ps, Pac = _brute_force_inverter(I, M, phi, u_dc, p)
-    assert Pac == pytest.approx(0.75 * u_dc * M * I * math.cos(phi), rel=1e-6)
-    loss = inverter_loss(I, I * I, u_dc, P_ac_mean=Pac)
-    assert loss.P_sw == pytest.approx(Ps, rel=1e-6)
-    # the left-out (r_T - r_D) share term is below 1 % of the loss
-    assert loss.P_cond == pytest.approx(Pc, rel=0.01 * (loss.P / loss.P_cond))
-
-
-def test_inverter_efficiency_plausible():
-    # mid load: 40 kW at 200 A peak, 355 V (~114 N m at the base speed): 97-98.5 %
-    P = 40e3
-    loss = inverter_loss(200.0, 200.0 ** 2, U_DC_NOMINAL_V, P_ac_mean=P)
-    assert 0.97 < P / (P + loss.P) < 0.985
-    assert 0.3 < loss.P_sw / loss.P < 0.7        # conduction and switching of similar size at 10 kHz
-    # near peak: 100 kW at 450 A: still above 98 %; light load 3 kW at 30 A: ~97 %
-    assert 100e3 / (100e3 + inverter_loss(450, 450 ** 2, U_DC_NOMINAL_V, P_ac_mean=100e3).P) > 0.98
-    l3 = inverter_loss(30.0, 900.0, U_DC_NOMINAL_V, P_ac_mean=3e3).P
-    assert 0.95 < 3e3 / (3e3 + l3) < 0.98
-    # regen: the loss comes out of the returned power
-    regen_loss = inverter_loss(200, 4e4, U_DC_NOMINAL_V, P_ac_mean=-40e3).P
-    assert dc_power(-40e3, 200.0, 4e4, U_DC_NOMINAL_V) == pytest.approx(-40e3 + regen_loss)
-    # switching loss scales with f_sw and u_dc, conduction not
-    a, b = inverter_loss(100, 1e4, 300.0, 5e3), inverter_loss(100, 1e4, 400.0, 10e3)
-    assert b.P_sw == pytest.approx(a.P_sw * 2 * 400 / 300)
-    assert b.P_cond == pytest.approx(a.P_cond)
-    assert inverter_loss(0.0, 0.0, U_DC_NOMINAL_V).P == 0.0
-    with pytest.raises(ValueError):
-        inverter_loss(10.0, 100.0, 0.0)
 
 
 # -- cycles --------------------------------------------------------------------------------
