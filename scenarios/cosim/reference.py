@@ -26,6 +26,10 @@ from scenarios.cosim.fmu import FMI2_WARNING, CosimError, Fmu
 #: the plant's integrals since the start (exact over each step): a step's means are their increases
 PLANT_INTEGRALS = ("E_elec", "E_mech", "E_cu", "E_fe", "T_e_impulse", "E_inv")
 CONTROLLER_END = ("T_cmd", "T_max", "i_d_ref", "i_q_ref", "u_ratio")
+#: the plant's thermal network at the end of a step (contract, "Thermal"): P_coolant, the step's
+#: mean as IpmsmDrive gives it, is E_coolant's increase over the step
+PLANT_THERMAL = ("theta_winding", "theta_magnet", "theta_stator_yoke", "theta_stator_tooth", "E_coolant",
+                 "E_ambient", "E_stored")
 START = dict(T_ref=0.0, w_m=0.0, u_dc=355.0, T_magnet=293.15, T_winding=293.15)  # the FMUs' start values
 
 
@@ -65,6 +69,7 @@ class ReferenceDrive:
             self._end = controller.vrs(*CONTROLLER_END), (c_double * len(CONTROLLER_END))()
             self._region = controller.vrs("region"), (c_int * 1)()
             self._integrals = self._plant_integrals()
+            self._E_coolant = plant.get("E_coolant") if "E_coolant" in plant.vars else 0.0
         except BaseException:
             self.close()
             raise
@@ -141,9 +146,19 @@ class ReferenceDrive:
         controller.read(*self._end)
         controller.read(*self._region, kind="Integer")
         i_d, i_q = (self.out["plant"][1][i] for i in self._i[:2])
-        return DriveStep(T_e - P_fe / w_m if w_m != 0.0 else T_e, T_e, (P_elec + P_inv) / u_dc, P_elec + P_inv,
+        step = DriveStep(T_e - P_fe / w_m if w_m != 0.0 else T_e, T_e, (P_elec + P_inv) / u_dc, P_elec + P_inv,
                          P_mech, P_cu, P_fe, P_inv, P_elec, now[0] + E_inv, now[1], now[2], now[3], E_inv,
                          *self._end[1][:2], i_d, i_q, *self._end[1][2:], self._region[1][0])
+        # the temperatures and heat flows at the end (the plant's; with the network off, the inputs
+        # and zeros, as IpmsmDrive's) and the controller's derating, by name
+        plant = self.units["plant"]
+        if all(name in plant.vars for name in PLANT_THERMAL):
+            for name, value in zip(PLANT_THERMAL, plant.get(*PLANT_THERMAL)):
+                setattr(step, name, value)
+            step.P_coolant, self._E_coolant = (step.E_coolant - self._E_coolant) / duration, step.E_coolant
+        if "derating" in controller.vars:
+            step.derating = controller.get("derating")
+        return step
 
     def close(self) -> None:
         for f in reversed(list(self.units.values())):

@@ -108,8 +108,9 @@ def test_a_full_power_climb_through_ipmsmdrive(controller_fmu, plant_fmu):
 
 @pytest.mark.slow
 def test_repeated_us06_and_the_whole_climb(controller_fmu, plant_fmu):
+    # the climb heats the winding until the derating holds it (about 159 degC from a 20 degC start)
     for cycle, drive, heated in ((repeated(load_cycle("US06"), 2), THERMAL, 50.0), (load_cycle(CLIMB_CYCLE), CLIMB,
-                                                                                     200.0)):
+                                                                                     100.0)):
         s, steps = thermal_run(cycle, drive, (controller_fmu, plant_fmu))
         check_whole_run(s, steps, load_drive(drive), heated_by=heated)
 
