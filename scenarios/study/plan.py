@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from scenarios.drives.description import load_drive
+from scenarios.drives.fmu_acceptance import refuse_unless_fmus_accept
 from scenarios.study import keys, table
 from scenarios.study.execute import Task
 from scenarios.study.ship import ShippedDrive
@@ -31,10 +32,14 @@ def run_cycle(run: Run, cache: dict) -> Cycle:
     return segment(c, *run.window) if run.window else c
 
 
-def load_shipped(drive: str) -> ShippedDrive | Exception:
-    """The drive ("" the default) with its files, or why it cannot be used."""
+def load_shipped(drive: str, build: Path | None = None) -> ShippedDrive | Exception:
+    """The drive ("" the default) with its files, or why it cannot be used: it does not load, or
+    (with `build`) the FMUs there refuse its map and motor, in their own words."""
     try:
-        return ShippedDrive.of(load_drive(drive or None))
+        loaded = load_drive(drive or None)
+        if build is not None:
+            refuse_unless_fmus_accept(loaded, build)
+        return ShippedDrive.of(loaded)
     except Exception as e:  # a drive that does not load fails its runs, not the study
         return e
 
@@ -63,12 +68,14 @@ def key_columns(run: Run) -> dict:
     return d
 
 
-def make_plan(runs, out: Path, fmu_hash: str, code_hash: str, done: set[str]) -> Plan:
+def make_plan(runs, out: Path, fmu_hash: str, code_hash: str, done: set[str], build: Path | None = None) -> Plan:
+    """The study's plan: every run's key, what is left to run, and the runs of drives that cannot
+    be used (recorded as failed). build: the FMUs that judge each drive's map (None: not asked)."""
     all_keys, tasks, failed, skipped, cycles, drives = [], [], [], 0, {}, {}
     for run in runs:
         cycle = run_cycle(run, cycles)
         if run.drive not in drives:
-            drives[run.drive] = load_shipped(run.drive)
+            drives[run.drive] = load_shipped(run.drive, build)
         shipped = drives[run.drive]
         content = dict(cycle=keys.cycle_hash(cycle), drive=drive_content(run.drive, shipped))
         key = keys.run_key(key_columns(run), content, fmu_hash, code_hash)

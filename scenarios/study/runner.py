@@ -152,7 +152,7 @@ def run_study(runs: Sequence[Run], out: Path, scheduler: str | None = None, work
         raise StudyError(str(e)) from None
     code = keys.code_hash()
     previous = table.consolidate(out)
-    plan = make_plan(runs, out, bundle.hash, code, table.done_keys(previous))
+    plan = make_plan(runs, out, bundle.hash, code, table.done_keys(previous), build)
     for row in plan.failed_rows:
         table.write_part(out, row)
     bar = StudyProgress(len(runs), plan.skipped) if progress else None

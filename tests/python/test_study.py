@@ -203,7 +203,8 @@ def test_runs_with_a_bad_map_fail_with_their_message_and_the_others_complete(tmp
     # a map no reader accepts (fails as the drive loads, on the client) ...
     (tmp_path / "torn.csv").write_text("i_d,i_q,psi_d\n0,0,0\n")
     (tmp_path / "torn.toml").write_text('name = "torn"\n[motor]\nflux_map = "torn.csv"\n')
-    # ... and one the Python reader takes but the FMUs refuse (psi_q falling with i_q: fails on the worker)
+    # ... and one the Python reader takes but the FMUs refuse (psi_q falling with i_q: the plan asks
+    # the build's FMUs, and records their refusal before any run)
     lines, header = [], False
     for line in default_map_path.read_text().splitlines():
         if not line.startswith("#") and header:
@@ -224,8 +225,9 @@ def test_runs_with_a_bad_map_fail_with_their_message_and_the_others_complete(tmp
     assert rows["default.toml"]["status"] == "ok" and rows["default.toml"]["drive_name"] == "default"
     torn, falling = rows["torn.toml"], rows["falling.toml"]
     assert torn["status"] == "failed" and "motor.flux_map" in torn["error"] and "torn.csv" in torn["error"]
-    assert falling["status"] == "failed" and "fmi2ExitInitializationMode" in falling["error"], falling["error"]
-    assert falling["worker"].startswith("tcp://127.0.0.1"), "the FMU's refusal happened on a worker"
+    assert falling["status"] == "failed" and "motor.flux_map" in falling["error"], falling["error"]
+    assert "FMU accepts with this motor; it refuses it" in falling["error"], falling["error"]  # the FMU's words
+    assert not falling["worker"], "refused at planning, by the FMUs, before any run"
     assert falling["Wh_per_km"] is None and torn["Wh_per_km"] is None
     report = (tmp_path / "out" / "report.md").read_text()
     assert "## Failed runs" in report and "torn.csv" in report
