@@ -117,10 +117,15 @@ def plot_run(run_dir: Path, title: str = "", drive=None) -> Path:
     for row in ax:
         for a in row:
             a.grid(alpha=0.3)
+    return save_figure(fig, title, run_dir / "run.png", dpi=100)
+
+
+def save_figure(fig, title: str, path: Path, dpi: int) -> Path:
+    """The figure titled, laid out, written to path and closed."""
+    import matplotlib.pyplot as plt
     fig.suptitle(title)
     fig.tight_layout()
-    path = run_dir / "run.png"
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from scenarios.core.constants import ZERO_CELSIUS_K
-from scenarios.runs.plots import load_trace
+from scenarios.runs.plots import load_trace, save_figure
 
 #: the trace's node temperatures and their labels
 NODES = (("theta_winding_K", "winding"), ("theta_stator_tooth_K", "stator teeth"),
@@ -54,9 +54,4 @@ def plot_thermal(run_dir: Path, title: str = "", T_coolant: float | None = None)
           ylim=(-lim, lim))
     a.legend(fontsize=8, loc="upper left")
     a.grid(alpha=0.3)
-    fig.suptitle(title)
-    fig.tight_layout()
-    path = run_dir / "thermal.png"
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, title, run_dir / "thermal.png", dpi=90)
