@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <string>
+#include <string_view>
 
 #include "control/derating.hpp"
 #include "controller/controller_model.hpp"
@@ -70,7 +71,7 @@ TEST(Derating, DriveHasTheTemperatureParametersOnce) {
     for (const auto& v : ipmsm::DriveModel::variables())
         for (const char* name : {"alpha_cu", "T_winding_ref", "T_winding_max", "T_magnet_max", "derating_margin",
                                  "T_magnet_estimate_error", "derating", "T_winding"})
-            found += v.name == name;
+            found += std::string_view(v.name) == name;  // names by content: literals are not pooled everywhere
     EXPECT_EQ(found, 8);
     fmi::set_value(drive, *fmi::find_variable<ipmsm::DriveModel>("T_winding_max"), 400.0);
     EXPECT_EQ(fmi::parameter_number(drive, "T_winding_max"), 400.0);
