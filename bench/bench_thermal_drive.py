@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from dataclasses import asdict, replace
+from dataclasses import replace
 
 from scenarios.cosim.drive_fmu import DriveFmu
 from scenarios.drives.description import DRIVES_DIR, load_drive
@@ -45,7 +45,7 @@ def replay(drive, rows, spec: RunSpec) -> float:
     c, p = fmu_paths()
     t = drive.thermal
     boundary = dict(T_coolant=t.T_coolant, T_ambient=t.T_ambient) if t.on else {}
-    params = {**drive.controller_params(), **drive.plant_params(), **asdict(drive.inverter), **t.fmu_params(),
+    params = {**drive.controller_params(), **drive.plant_params(), **t.fmu_params(),
               "sample_time": spec.h}
     T0 = spec.conditions.T_magnet
     with DriveFmu(c.parent / "IpmsmDrive.fmu", params, w_m=rows[0][1], u_dc=rows[0][2], T_magnet=T0, T_winding=T0,

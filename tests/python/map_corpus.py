@@ -12,6 +12,7 @@ beyond its 30 A). `CorpusMap.path(tmp)` writes what is needed into tmp and retur
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -107,4 +108,5 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(ROOT))  # run as a script: the repository's tools/ (the saturating map's generator)
     raise SystemExit(main())
