@@ -119,7 +119,9 @@ bool torque_local_maximum(const MagnetFlux& flux, double omega, double R_s, doub
                           double I_max, double V_max, double active, double tolerance) {
     const Fields F = gradients_at(flux, omega, R_s, i_d, i_q);
     const double Td = torque_sign * F.T.d, Tq = torque_sign * F.T.q;
-    const double T_norm = std::hypot(Td, Tq), c_norm = std::hypot(F.c.d, F.c.q), g_norm = std::hypot(F.g.d, F.g.q);
+    // Not std::hypot (see solve()): gradients of currents and voltages never come near overflow.
+    auto norm = [](double x, double y) { return std::sqrt(x * x + y * y); };
+    const double T_norm = norm(Td, Tq), c_norm = norm(F.c.d, F.c.q), g_norm = norm(F.g.d, F.g.q);
     const bool on_current = F.c.v >= I_max * I_max * (1.0 - active);
     const bool on_voltage = F.g.v >= V_max * V_max * (1.0 - active);
     // grad T'' = lambda grad c + mu grad g: crossing with grad g isolates lambda, with grad c mu.

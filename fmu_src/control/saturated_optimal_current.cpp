@@ -203,7 +203,12 @@ struct MapView {
           I2(lim.I_max * lim.I_max * (1.0 + kLimitSlack)),
           exact_shift(maxima.shift == flux.shift()) {}
 
-    double torque(CurrentPoint p) const { return s * flux.reduced_torque(p.i_d, p.i_q); }
+    // The last point's torque is kept: the decision and the command ask for T_max's again.
+    double torque(CurrentPoint p) {
+        if (!(p.i_d == torque_at.i_d && p.i_q == torque_at.i_q))
+            torque_at = p, torque_there = s * flux.reduced_torque(p.i_d, p.i_q);
+        return torque_there;
+    }
     bool within_voltage(CurrentPoint p) const {
         return map_newton::voltage_sq(flux, lim.omega, R_s, p.i_d, p.i_q) <= V2;
     }
@@ -224,43 +229,64 @@ struct MapView {
         return solve_from(System::mtpa_at_current, 0.0, maxima.mtpa[K], p) &&
                torque(p) >= maxima.T[K] * (1.0 - kLimitSlack);
     }
-    // The most torque on the voltage limit: Newton from Ferrari's MTPV point of the machine
-    // linearised where the current circle's best sample within the voltage limit is (near the
-    // MTPV point where it has just entered the circle), and from that sample itself; the best
-    // point within the current limit. It is T_max only if no sample of the current circle within
-    // the voltage limit gives more (then it is the largest torque on the voltage limit).
+    // The most torque on the voltage limit within the current circle. Its seeds: the sampled
+    // maxima of the torque along the two flux levels about V_max / |omega| (the global one).
+    // Where both lie on the current circle, the torque still rises along the voltage limit at
+    // I_max: the point is on the circle (false: the decision goes on to the circle) if the
+    // circle's best point within the voltage limit is a local maximum of the torque within the
+    // limits; if not, an MTPV point lies just inside it (Newton from there too). Where Newton
+    // finds no point within the current circle and the circle's best point is not a local
+    // maximum, Newton from Ferrari's MTPV point of the machine linearised where the circle's best
+    // sample within the voltage limit is, and from that sample. Of the points found, the best
+    // within the current limit; it is T_max only if no point of the current circle within the
+    // voltage limit gives more (then it is the largest torque on the voltage limit).
     bool mtpv(CurrentPoint& p) {
         const CircleCandidates& arc = circle_within_voltage();
         const bool on_arc = arc.n > 0;
-        const CurrentPoint at = on_arc ? arc.c[0].seed : maxima.mtpa[CurrentCircles::kRadii];
         bool found = false, found_inside = false;
+        double T_p = 0.0;  // torque(p)
         auto consider = [&](const CurrentPoint& q) {
             const bool inside = within_current(q);
-            if (torque(q) < 0 || (found_inside && !inside)) return;
-            if (!found || (inside && !found_inside) || torque(q) > torque(p)) p = q;
+            const double T_q = torque(q);
+            if (T_q < 0 || (found_inside && !inside)) return;
+            if (!found || (inside && !found_inside) || T_q > T_p) p = q, T_p = T_q;
             found = true;
             found_inside |= inside;
         };
-        // The global one: from the sampled maxima at the two flux levels about V_max / |omega|.
-        CurrentPoint q;
+        CurrentPoint seeds[3], q, circle_best;
+        int n_seeds = 0;
+        bool on_circle = true;
         const double level = lim.V_max / std::abs(lim.omega);
         const double x =
             (level - all_maxima.psi_min) / (all_maxima.psi_max - all_maxima.psi_min) * (CircleMaxima::kFluxLevels - 1);
         if (std::isfinite(x) && x >= 0 && x <= CircleMaxima::kFluxLevels - 1) {
             const int l = std::min(static_cast<int>(x), CircleMaxima::kFluxLevels - 2);
-            for (int ll : {l, l + 1})
-                if (maxima.has_mtpv[ll] && solve_from(System::mtpv, 0.0, maxima.mtpv[ll], q)) consider(q);
+            for (int ll : {l, l + 1}) {
+                if (!maxima.has_mtpv[ll]) continue;
+                seeds[n_seeds++] = maxima.mtpv[ll];
+                on_circle &= maxima.mtpv_on_current_limit[ll];
+            }
         }
-        linear::Point seed;
-        if (!found_inside && linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) &&
-            solve(System::mtpv, 0.0, seed, q))
-            consider(q);
-        if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
+        if (n_seeds > 0 && on_circle && current_voltage_intersection(circle_best)) {
+            if (locally_maximal(circle_best)) return false;
+            seeds[n_seeds++] = circle_best;
+        }
+        for (int i = 0; i < n_seeds; ++i)
+            if (solve_from(System::mtpv, 0.0, seeds[i], q)) consider(q);
+        if (!found_inside && !(current_voltage_intersection(circle_best) && locally_maximal(circle_best))) {
+            const CurrentPoint at = on_arc ? arc.c[0].seed : maxima.mtpa[CurrentCircles::kRadii];
+            linear::Point seed;
+            if (linear::mtpv(linearised_at(at), w_pos, lim.V_max, seed) && solve(System::mtpv, 0.0, seed, q))
+                consider(q);
+            if (!found_inside && on_arc && solve_from(System::mtpv, 0.0, at, q)) consider(q);
+        }
         if (!found) return false;
         // A local maximum on the voltage limit is T_max only if the current circle within the
-        // limit gives no more: its polished points decide (a sampled estimate is off by the
-        // torque's curvature over a sample, which on a coarse grid exceeds the difference).
-        return !(found_inside && on_arc && current_voltage_intersection(q) && torque(q) > torque(p));
+        // limit gives no more: its polished points decide where its best sample's estimate comes
+        // within kCandidateMargin (a sampled estimate is off by the torque's curvature over a
+        // sample, which on a coarse grid exceeds the difference between the two).
+        if (!found_inside || !on_arc || T_p * (1.0 - kCandidateMargin) > arc.c[0].T) return true;
+        return !(current_voltage_intersection(q) && intersection_torque > T_p);
     }
     // The best point of the current circle within the voltage limit: where the circle meets the
     // voltage limit, or a local maximum of the torque along the circle between two such points.
@@ -272,29 +298,33 @@ struct MapView {
             return intersection_found;
         }
         intersection_done = true;
-        intersection_found = polish_arc(intersection);
+        intersection_found = polish_arc(intersection, intersection_torque);
         p = intersection;
         return intersection_found;
     }
-    bool polish_arc(CurrentPoint& p) {
+    // p and its torque T_p.
+    bool polish_arc(CurrentPoint& p, double& T_p) {
         const CircleCandidates& arc = circle_within_voltage();
         bool found = false;
         for (int i = 0; i < arc.n; ++i) {
-            if (found && arc.c[i].T < torque(p) * (1.0 - kCandidateMargin)) break;
+            if (found && arc.c[i].T < T_p * (1.0 - kCandidateMargin)) break;
             CurrentPoint q;
-            if (polish(arc.c[i], q) && (!found || torque(q) > torque(p))) p = q, found = true;
+            double T_q;
+            if (polish(arc.c[i], q, T_q) && (!found || T_q > T_p)) p = q, T_p = T_q, found = true;
         }
         return found;
     }
-    bool polish(const CircleCandidate& c, CurrentPoint& p) {
+    bool polish(const CircleCandidate& c, CurrentPoint& p, double& T_p) {
         if (c.interior)
-            return solve_from(System::mtpa_at_current, 0.0, c.seed, p) && within_voltage(p) && torque(p) >= 0;
-        if (!(solve_from(System::current_voltage, 0.0, c.seed, p) && torque(p) >= 0)) return false;
+            return solve_from(System::mtpa_at_current, 0.0, c.seed, p) && within_voltage(p) && (T_p = torque(p)) >= 0;
+        if (!(solve_from(System::current_voltage, 0.0, c.seed, p) && (T_p = torque(p)) >= 0)) return false;
         // A maximum of the torque along the circle within a sample's width of the voltage limit.
         CurrentPoint q;
         if (!map_newton::voltage_limit_binds_on_circle(flux, lim.omega, R_s, s, p.i_d, p.i_q) &&
-            solve_from(System::mtpa_at_current, 0.0, p, q) && within_voltage(q) && torque(q) > torque(p))
-            p = q;
+            solve_from(System::mtpa_at_current, 0.0, p, q) && within_voltage(q)) {
+            const double T_q = torque(q);
+            if (T_q > T_p) p = q, T_p = T_q;
+        }
         return true;
     }
     // Case i: the global minimum current for T', bracketed between two current circles whose MTPA
@@ -315,7 +345,7 @@ struct MapView {
         // least current's angle can hop between shallow minima of |i| along the torque curve
         // within a cell; then Newton starts from both circles' points and the least current wins.
         const double sample_angle = 2.0 * kPi / CurrentCircles::kAngles;
-        const double angle = std::abs(std::remainder(std::atan2(a.i_q, a.i_d) - std::atan2(b.i_q, b.i_d), 2.0 * kPi));
+        const double angle = std::atan2(std::abs(a.i_d * b.i_q - a.i_q * b.i_d), a.i_d * b.i_d + a.i_q * b.i_q);
         const bool one_branch =
             k == 1 || (angle < 2.0 * sample_angle && r * angle < kOneBranchGridFraction * solver.resolution());
         auto scaled = [&](CurrentPoint x, double radius) {
@@ -327,9 +357,13 @@ struct MapView {
             seeds[0] = scaled(b, circles.radius(k));
             seeds[n_seeds++] = scaled(a, circles.radius(k - 1));
         }
-        // On one maximum the interpolated point is within a fraction of a per cent of MTPA: a voltage
-        // that far above the limit there means Case ii, without Newton.
-        if (one_branch && !within(seeds[0], kClearlyOutside * V2, INFINITY)) return false;
+        // On one maximum the interpolated point is within a fraction of a per cent of MTPA, on two
+        // each seed is its circle's MTPA point at this current: a voltage that far above the limit
+        // at every seed means Case ii, without Newton (were it wrong, the check's least-current
+        // test would catch the Case ii point).
+        bool clearly_outside = true;
+        for (int i = 0; i < n_seeds; ++i) clearly_outside &= !within(seeds[i], kClearlyOutside * V2, INFINITY);
+        if (clearly_outside) return false;
         bool found = false;
         for (int i = 0; i < n_seeds; ++i) {
             CurrentPoint q;
@@ -352,8 +386,9 @@ struct MapView {
         };
         linear::Point seed;
         CurrentPoint q;
-        for (const CurrentPoint& at : {have_mtpa_point ? mtpa_point : top_point, top_point}) {
-            if (linear::voltage_limit(linearised_at(at), w_pos, lim.V_max, T_red, seed) &&
+        const CurrentPoint linearised[2] = {have_mtpa_point ? mtpa_point : top_point, top_point};
+        for (int i = 0; i < (have_mtpa_point ? 2 : 1); ++i) {
+            if (linear::voltage_limit(linearised_at(linearised[i]), w_pos, lim.V_max, T_red, seed) &&
                 solve(System::voltage_limit, T_red, seed, q))
                 consider(q);
             if (found) return true;
@@ -365,13 +400,22 @@ struct MapView {
     // torque within the limits (map_newton::torque_local_maximum). A corner of the two limits with
     // a negative multiplier of the current limit has more torque inward along the voltage limit
     // (an MTPV point inside the current circle the decision's seeds missed).
-    bool locally_maximal(const decision::Choice& top) const {
+    bool locally_maximal(const decision::Choice& top) {
         const CurrentPoint p = top.point;
         // MTPA at I_max: the circle's polished global maximum, if on the circle.
         if (top.region == Region::mtpa)
             return p.i_d * p.i_d + p.i_q * p.i_q >= lim.I_max * lim.I_max * (1.0 - kActiveLimit);
-        return map_newton::torque_local_maximum(flux, lim.omega, R_s, s, p.i_d, p.i_q, lim.I_max, lim.V_max,
-                                                kActiveLimit, kMultiplierTolerance);
+        return locally_maximal(p);
+    }
+    // Remembers the last point shown a local maximum (mtpv() tests the circle's best point, which
+    // then becomes T_max's).
+    bool locally_maximal(CurrentPoint p) {
+        if (p.i_d == maximal_at.i_d && p.i_q == maximal_at.i_q) return true;
+        if (!map_newton::torque_local_maximum(flux, lim.omega, R_s, s, p.i_d, p.i_q, lim.I_max, lim.V_max,
+                                              kActiveLimit, kMultiplierTolerance))
+            return false;
+        maximal_at = p;
+        return true;
     }
 
     bool zero_torque(CurrentPoint& p) {
@@ -391,25 +435,23 @@ struct MapView {
         if (arc_scanned) return arc;
         arc_scanned = true;
         constexpr int K = CurrentCircles::kRadii, N = CurrentCircles::kAngles;
+        const CircleSample* x = &circles.at(K, 0);  // the circle's N samples, in order of angle
         double T[N], g[N];
         for (int j = 0; j < N; ++j) {
-            const CircleSample& x = circles.at(K, j);
-            T[j] = s * x.torque(flux.shift());
-            g[j] = voltage_sq(x) - V2;
+            T[j] = s * x[j].torque(flux.shift());
+            g[j] = voltage_sq(x[j]) - V2;
         }
         const bool left_half = solver.magnet_free();
         for (int j = 0; j < N; ++j) {
-            if (!(g[j] <= 0)) continue;
-            const int prev = (j + N - 1) % N, next = (j + 1) % N;
-            const CircleSample& x = circles.at(K, j);
-            if (left_half && x.i_d > 0) continue;
+            if (!(g[j] <= 0) || (left_half && x[j].i_d > 0)) continue;
+            const int prev = j > 0 ? j - 1 : N - 1, next = j < N - 1 ? j + 1 : 0;
             if (g[prev] <= 0 && g[next] <= 0 && T[j] >= T[prev] && T[j] >= T[next])
-                arc.add({{x.i_d, x.i_q}, T[j], true});
+                arc.add({{x[j].i_d, x[j].i_q}, T[j], true});
             for (int o : {prev, next}) {
                 if (g[o] <= 0) continue;
-                const CircleSample& y = circles.at(K, o);
                 const double t = g[j] / (g[j] - g[o]);
-                arc.add({{x.i_d + t * (y.i_d - x.i_d), x.i_q + t * (y.i_q - x.i_q)}, T[j] + t * (T[o] - T[j]), false});
+                arc.add({{x[j].i_d + t * (x[o].i_d - x[j].i_d), x[j].i_q + t * (x[o].i_q - x[j].i_q)},
+                         T[j] + t * (T[o] - T[j]), false});
             }
         }
         return arc;
@@ -449,9 +491,12 @@ struct MapView {
     CircleCandidates arc;
     bool intersection_done = false, intersection_found = false;
     CurrentPoint intersection{0.0, 0.0};
+    double intersection_torque = 0.0;
     CurrentPoint mtpa_point{0.0, 0.0};
     bool have_mtpa_point = false;
     CurrentPoint top_point{0.0, 0.0};  // T_max's, once decided
+    CurrentPoint torque_at{NAN, NAN}, maximal_at{NAN, NAN};
+    double torque_there = 0.0;
 };
 
 }  // namespace
@@ -495,7 +540,9 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
         }
     double best[2][L];
     for (int side = 0; side < 2; ++side)
-        for (int l = 0; l < L; ++l) best[side][l] = -INFINITY, maxima_.sides[side].has_mtpv[l] = false;
+        for (int l = 0; l < L; ++l)
+            best[side][l] = -INFINITY, maxima_.sides[side].has_mtpv[l] = false,
+            maxima_.sides[side].mtpv_on_current_limit[l] = false;
     for (int k = 1; k <= K; ++k)
         for (int j = 0; j < N; ++j) {
             const CurrentCircles::Sample &x = circles_->at(k, j), &y = circles_->at(k, j + 1);
@@ -511,8 +558,9 @@ const CircleMaxima& SaturatedOptimalCurrent::circle_maxima(const MagnetFlux& flu
                 const double T = x.torque(shift) + t * (y.torque(shift) - x.torque(shift));
                 for (int side = 0; side < 2; ++side) {
                     const double sT = side == 0 ? T : -T;
+                    CircleMaxima::Side& m = maxima_.sides[side];
                     if (sT > best[side][l])
-                        best[side][l] = sT, maxima_.sides[side].mtpv[l] = p, maxima_.sides[side].has_mtpv[l] = true;
+                        best[side][l] = sT, m.mtpv[l] = p, m.has_mtpv[l] = true, m.mtpv_on_current_limit[l] = k == K;
                 }
             }
         }
@@ -548,8 +596,7 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
         CurrentCommand cmd;
         cmd.i_d = c.point.i_d;
         cmd.i_q = c.point.i_q;
-        cmd.region = c.region;
-        cmd.torque = kT * (T_red < T_top ? flux.reduced_torque(c.point.i_d, c.point.i_q) : s * T_top);
+        cmd.region = c.region;  // its torque: the check's evaluation on the map (check_command)
         cmd.torque_max = kT * T_top;
         // Below T_max the command is T_max's point only at the edge of reach (neither case had a point).
         cmd.converged = T_red >= T_top || c.point.i_d != t.point.i_d || c.point.i_q != t.point.i_q;
@@ -566,7 +613,8 @@ CurrentCommand SaturatedOptimalCurrent::solve_optimal(double T_ref, const Operat
         top_check_.searched_max = true;
         const double T_top = cmd.torque_max / kT;
         if (r.found && r.torque > T_top + kTorqueTolerance * std::max(T_top, r.torque)) {
-            const CurrentCommand rejected = cmd;
+            CurrentCommand rejected = cmd;
+            rejected.torque = kT * flux.reduced_torque(rejected.i_d, rejected.i_q);
             cmd = command_below({r.point, limit_region(flux, lim, R_s, r.point), true});
             top_check_.finding = CheckFinding::torque_max;
             top_check_.rejected = rejected;
@@ -638,13 +686,15 @@ CurrentCommand SaturatedOptimalCurrent::check_command(CurrentCommand cmd, double
     if (magnet_free_ && mirror_ties(flux, lim.omega, R_s, p, scale, V2)) cmd.i_d = -cmd.i_d, cmd.i_q = -cmd.i_q;
     if (magnet_free_ && cmd.i_d > kBranchTolerance * lim.I_max) fail(CheckFinding::branch, NAN);
     if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q))) {
+        cmd.torque = NAN;
         fail(CheckFinding::not_finite, NAN);
     } else {
         const FluxPoint f = flux.eval(cmd.i_d, cmd.i_q);
         const double T = f.psi_d * cmd.i_q - f.psi_q * cmd.i_d;
+        cmd.torque = kT * T;  // what the command makes, reported as its torque
         const double vd = R_s * cmd.i_d - lim.omega * f.psi_q, vq = R_s * cmd.i_q + lim.omega * f.psi_d;
         const double c = cmd.i_d * cmd.i_d + cmd.i_q * cmd.i_q;
-        if (last_check.finding == CheckFinding::branch) last_check.T_made = kT * T;
+        if (last_check.finding == CheckFinding::branch) last_check.T_made = last_check.rejected.torque = kT * T;
         if (c > I2) fail(CheckFinding::current_limit, T);
         if (vd * vd + vq * vq > V2) fail(CheckFinding::voltage_limit, T);
         if (std::abs(s * T - T_red) > kTorqueTolerance * scale) fail(CheckFinding::torque, T);
@@ -668,7 +718,7 @@ CurrentCommand SaturatedOptimalCurrent::check_command(CurrentCommand cmd, double
                 // grad c = lambda grad T - mu grad g; crossed with grad T: mu = -(c x T) / (g x T).
                 const double cxT = 2.0 * (cmd.i_d * Tq - cmd.i_q * Td), gxT = gd * Tq - gq * Td;
                 const double mu = -cxT / gxT;
-                const double scale_mu = std::hypot(cmd.i_d, cmd.i_q) / std::max(std::hypot(gd, gq), 1e-300);
+                const double scale_mu = std::sqrt(c) / std::max(std::sqrt(gd * gd + gq * gq), 1e-300);
                 if (mu < -1e-6 * scale_mu) fail(CheckFinding::not_least_current, T);
             }
         }

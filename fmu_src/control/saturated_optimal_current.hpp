@@ -33,7 +33,8 @@ enum class Recursion : int { nominal = 0, apparent = 1, optimal = 2 };
 struct CircleMaxima {
     static constexpr double kShiftStep = 1e-4;  // Wb: 0.1 % of a typical psi_m
     // MTPV seeds: for flux levels |psi| = psi_level[l] (the lossless voltage limit V_max / |omega|),
-    // the sampled point of most torque where a circle crosses that level.
+    // the sampled point of most torque where a circle crosses that level (within the current
+    // circle, then: on it where the torque still rises along the level at I_max).
     static constexpr int kFluxLevels = 48;
     struct Side {
         double T[CurrentCircles::kRadii + 1];  // s T' at MTPA on circle k (k = 0: the origin)
@@ -41,6 +42,7 @@ struct CircleMaxima {
         bool converged[CurrentCircles::kRadii + 1];  // Newton converged to at least the best sample's torque
         CurrentPoint mtpv[kFluxLevels];
         bool has_mtpv[kFluxLevels];
+        bool mtpv_on_current_limit[kFluxLevels];  // that sample lies on the circle |i| = I_max
     };
     double psi_min = 0, psi_max = 0;  // the levels, evenly spaced
     double psi_level(int l) const { return psi_min + (psi_max - psi_min) * l / (kFluxLevels - 1); }

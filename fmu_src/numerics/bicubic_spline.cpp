@@ -20,11 +20,13 @@ void BicubicSpline2D::Axis::init(const std::vector<double>& values) {
     n_cells = n - 1;
     h_last = v[n - 1] - v[n - 2];
     const double h = (v[n - 1] - v[0]) / n_cells;
-    // Uniform if every node is within 1e-10 of a spacing of its uniform position; the local
-    // offset is always taken from the stored node, so the tolerance only decides which of two
-    // C2-joined patches evaluates a point within 1e-10 h of a node.
+    // Uniform if every node is within kUniformAxisTolerance of a spacing of its uniform position.
+    // The local offset is always taken from the stored node, so the tolerance only decides which
+    // of two C2-joined patches evaluates a point that close to a node: they differ there by the
+    // jump of the third derivative times (1e-6 h)^3 / 6, far below rounding. Axes printed with ten
+    // significant digits (SyR-e's maps through `map import`: 3e-10 h off) are uniform.
     uniform = true;
-    for (int i = 1; i < n - 1 && uniform; ++i) uniform = std::abs(v[i] - (v[0] + i * h)) <= 1e-10 * h;
+    for (int i = 1; i < n - 1 && uniform; ++i) uniform = std::abs(v[i] - (v[0] + i * h)) <= kUniformAxisTolerance * h;
     v0 = v[0];
     inv_h = 1.0 / h;
 }

@@ -23,9 +23,9 @@
 // derivative returned is the exact derivative of the value returned (also outside), and eval
 // and eval2 share one code path, so their common outputs agree bit for bit.
 //
-// Cell lookup is O(1) on uniform axes (detected with a relative tolerance of 1e-10) and a
-// binary search otherwise. Evaluation allocates nothing and is safe for NaN/huge arguments
-// (NaN in, NaN out).
+// Cell lookup is O(1) on uniform axes (every node within kUniformAxisTolerance of a spacing of
+// its uniform position) and a binary search otherwise. Evaluation allocates nothing and is safe
+// for NaN/huge arguments (NaN in, NaN out).
 #pragma once
 
 #include <algorithm>
@@ -45,6 +45,8 @@ struct SplineValue2 {
 
 class BicubicSpline2D {
 public:
+    static constexpr double kUniformAxisTolerance = 1e-6;  // of a spacing (bicubic_spline.cpp)
+
     BicubicSpline2D() = default;
 
     // x: nx >= 2 strictly ascending finite values, y likewise (ny >= 2). fields: pointers to
