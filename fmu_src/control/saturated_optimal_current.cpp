@@ -411,8 +411,8 @@ struct MapView {
     // then becomes T_max's).
     bool locally_maximal(CurrentPoint p) {
         if (p.i_d == maximal_at.i_d && p.i_q == maximal_at.i_q) return true;
-        if (!map_newton::torque_local_maximum(flux, lim.omega, R_s, s, p.i_d, p.i_q, lim.I_max, lim.V_max,
-                                              kActiveLimit, kMultiplierTolerance))
+        if (!map_newton::torque_local_maximum(flux, lim.omega, R_s, s, p.i_d, p.i_q, lim.I_max, lim.V_max, kActiveLimit,
+                                              kMultiplierTolerance))
             return false;
         maximal_at = p;
         return true;
@@ -451,7 +451,8 @@ struct MapView {
                 if (g[o] <= 0) continue;
                 const double t = g[j] / (g[j] - g[o]);
                 arc.add({{x[j].i_d + t * (x[o].i_d - x[j].i_d), x[j].i_q + t * (x[o].i_q - x[j].i_q)},
-                         T[j] + t * (T[o] - T[j]), false});
+                         T[j] + t * (T[o] - T[j]),
+                         false});
             }
         }
         return arc;
