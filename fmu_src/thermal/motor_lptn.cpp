@@ -14,6 +14,12 @@ constexpr double kCoolantScale = 100.0;  // degC: c = theta_c / 100 degC (the so
 constexpr double kCoolantRef = 20.0;     // degC: R_coolant_yoke's reference temperature (source)
 
 double unit_clamp(double x) { return std::clamp(x, 0.0, 1.0); }
+// The exact step (thermal_network.hpp) resolves the slowest mode only while the network's decay
+// rates span less than this: the decomposition's eigenvalues carry an absolute rounding error of
+// about eps lambda_max (Weyl's inequality, Horn and Johnson, Matrix Analysis, 2nd ed., Thm 4.3.1),
+// a relative one of eps lambda_max / lambda_min on the slowest mode: 2e-7 here, within the 1e-6 of
+// the heat balance the contract holds the network to.
+constexpr double kMaxRateRatio = 1e9;
 
 std::string num(double x) {
     char buf[32];
@@ -114,6 +120,33 @@ void validate(const LptnParams& p) {
             require(positive(magnet_coolant(p, n, c)), "R_magnet_coolant at a corner of its fit (K/W, > 0)",
                     magnet_coolant(p, n, c));
     }
+    // The decay rates' span over the fits' domain. Every rate rises with every conductance (each
+    // link adds a positive semidefinite term to K), and each conductance takes its extremes at the
+    // fits' corners (monotone in speed, linear or bilinear): the rates of the links' minima and
+    // maxima bound them.
+    NetworkConductances<kNodes, kBoundaries> lo, hi;
+    bool first = true;
+    for (double n : {0.0, 1.0})
+        for (double c : {0.0, 1.0}) {
+            const auto g = conductances(p, n * p.w_m_ref, kZeroCelsius + c * kCoolantScale);
+            lo.between = first ? g.between : lo.between.cwiseMin(g.between);
+            lo.boundary = first ? g.boundary : lo.boundary.cwiseMin(g.boundary);
+            hi.between = first ? g.between : hi.between.cwiseMax(g.between);
+            hi.boundary = first ? g.boundary : hi.boundary.cwiseMax(g.boundary);
+            first = false;
+        }
+    MotorPropagator slowest(capacities(p)), fastest(capacities(p));
+    slowest.set_conductances(lo);
+    fastest.set_conductances(hi);
+    const double lambda_min = slowest.rates()[0], lambda_max = fastest.rates()[kNodes - 1];
+    if (!(lambda_max <= kMaxRateRatio * lambda_min))
+        throw std::invalid_argument(
+            "thermal network: its time constants span more than a factor " + num(kMaxRateRatio) + " (the fastest " +
+            num(1.0 / lambda_max) +
+            " s), more than double precision integrates to 1e-6; a heat capacity or a resistance is off by orders "
+            "of magnitude (C_stator_yoke = " +
+            num(p.C_stator_yoke) + " J/K, C_stator_tooth = " + num(p.C_stator_tooth) +
+            " J/K, C_winding = " + num(p.C_winding) + " J/K, C_magnet = " + num(p.C_magnet) + " J/K)");
 }
 
 }  // namespace ipmsm::thermal

@@ -103,7 +103,8 @@ IronLossSplit iron_loss_split(const LptnParams& p, double w_m, double I_rms);
 NodeVector node_losses(const LptnParams& p, double P_cu, double P_fe, double w_m, double I_rms);
 
 // Checks the parameters (throws std::invalid_argument naming the first bad one): capacities and
-// resistances finite and > 0 over the fits' whole range, shares within [0, 1].
+// resistances finite and > 0 over the fits' whole range, shares within [0, 1], and time constants
+// spanning no more than the exact step resolves over that range.
 void validate(const LptnParams& p);
 
 }  // namespace ipmsm::thermal

@@ -67,6 +67,7 @@ class Fmu:
         self.messages: deque = deque(maxlen=200)  # (status, category, message), the latest
         self.t = 0.0
         self.fmu = None
+        self.initialised = False  # fmi2Terminate is allowed only once initialisation has succeeded
         self._dir = extract(str(self.path))
         try:
             self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=self.name,
@@ -111,6 +112,7 @@ class Fmu:
 
     def exit_initialization(self) -> None:
         self.call("fmi2ExitInitializationMode")
+        self.initialised = True
 
     def variable(self, name: str):
         try:
@@ -156,7 +158,7 @@ class Fmu:
         if self.fmu is not None:
             fatal = any(s == FMI2_FATAL for s, _, _ in self.messages)
             try:
-                if not fatal:
+                if self.initialised and not fatal:
                     self.fmu.terminate()
             except Exception:  # noqa: S110 - a unit that failed may refuse to terminate: free it anyway
                 pass

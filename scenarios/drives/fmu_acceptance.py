@@ -1,8 +1,9 @@
 """The FMUs' own verdict on a drive, at load: the controller and the plant FMU instantiated and
-initialised with the drive's flux map and motor (scenarios.maps.fmu_verdict), so that a map they
-refuse (it folds or falls inside the operating region, its inverse cannot be built, ...) ends the
-command at load with exit 2, the drive file, `motor.flux_map` and the FMU's own words (where the
-map fails and what to do), before any run. The rule is the FMUs' (fmu_src/machine/
+initialised with the drive's flux map, motor and thermal network (scenarios.maps.fmu_verdict), so
+that a map they refuse (it folds or falls inside the operating region, its inverse cannot be
+built, ...) or a network they refuse (a resistance that turns negative within its fit, ...) ends
+the command at load with exit 2, the drive file, the key (`motor.flux_map`, `thermal.<name>`) and
+the FMU's own words (where it fails and what to do), before any run. The rule is the FMUs' (fmu_src/machine/
 operating_region.*): nothing here re-implements it.
 """
 from __future__ import annotations
@@ -35,11 +36,26 @@ def _reason(log: list[str]) -> str:
     return text.split(UNDONE, 1)[0]
 
 
+def _refused_key(drive: DriveDescription, reason: str) -> tuple[str, str]:
+    """The drive file's key a refusal names, and what that key must be: the thermal network's
+    parameter the FMU names (the file's key for it where it gives one), else the flux map."""
+    if not reason.startswith("thermal network"):
+        return "motor.flux_map", "a map"
+    words = set(reason.split())
+    given = [k for k in drive.thermal.given if k != "thermal_model"]
+    named = [k for k in given if k in words]
+    fitted = [k for k in given if k.rsplit("_", 1)[0] in words]  # R_magnet_coolant_0: R_magnet_coolant's fit
+    key = (named or fitted or [None])[0]
+    return (f"thermal.{key}" if key else "thermal"), "a thermal network"
+
+
 def refuse_unless_fmus_accept(drive: DriveDescription, build: Path) -> None:
-    """DriveDescriptionError (file, motor.flux_map, the FMU's reason) unless every FMU of FMUS
-    initialises on the drive's map and motor. FMUs missing from `build` are not asked (the run
-    says what is missing). Each verdict is kept for the process (same FMU, map and parameters)."""
-    params_of = {"IpmsmController": drive.controller_params, "IpmsmPlant": drive.plant_params}
+    """DriveDescriptionError (file, the key, the FMU's reason) unless every FMU of FMUS
+    initialises on the drive's map, motor and thermal network. FMUs missing from `build` are not
+    asked (the run says what is missing). Each verdict is kept for the process (same FMU, map and
+    parameters)."""
+    params_of = {"IpmsmController": drive.controller_params,
+                 "IpmsmPlant": lambda: {**drive.plant_params(), **drive.thermal.fmu_params()}}
     for name in FMUS:
         params = params_of[name]()
         fmu = Path(build) / "fmu" / f"{name}.fmu"
@@ -50,6 +66,7 @@ def refuse_unless_fmus_accept(drive: DriveDescription, build: Path) -> None:
             _verdicts[key] = verdict(fmu, Path(drive.motor.flux_map), params)
         v = _verdicts[key]
         if not v.accepted:
-            raise DriveDescriptionError(drive.source, "motor.flux_map",
-                                        f"a map the {name} FMU accepts with this motor; it refuses it: "
-                                        f"{_reason(v.log)}")
+            reason = _reason(v.log)
+            key, what = _refused_key(drive, reason)
+            raise DriveDescriptionError(drive.source, key,
+                                        f"{what} the {name} FMU accepts with this motor; it refuses it: {reason}")

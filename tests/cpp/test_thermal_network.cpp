@@ -135,6 +135,20 @@ TEST(ThermalNetwork, BadParametersAreRefused) {
     p = LptnParams();
     p.R_magnet_coolant_nc = -2.0;  // the bilinear fit negative at a corner
     EXPECT_THROW(MotorThermal(p, 293.15), std::invalid_argument);
+    // Time constants spanning more decades than the exact step resolves: refused naming the
+    // capacities (a winding of 1e-300 J/K ran to 0 K in one step before); a winding a million
+    // times lighter than the identified network's passes.
+    p = LptnParams();
+    p.C_winding = 1e-300;
+    try {
+        MotorThermal bad(p, 293.15);
+        ADD_FAILURE() << "a winding of 1e-300 J/K was accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("C_winding = 1e-300 J/K"), std::string::npos) << e.what();
+    }
+    p = LptnParams();
+    p.C_winding *= 1e-6;
+    EXPECT_NO_THROW(MotorThermal(p, 293.15));
     p = LptnParams();
     MotorThermal net(p, 293.15);
     EXPECT_THROW(net.advance(0.0, 1.0, 0.0, StepConditions()), std::invalid_argument);

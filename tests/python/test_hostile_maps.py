@@ -5,6 +5,8 @@ limit and a timeout; exit 2, one line naming the file and the key; nothing writt
 - a map that the FMUs refuse (it is not monotone inside the operating region) is refused when the
   drive loads, with the FMU's own words (where), before any run: the FMUs' rule, asked through
   their initialisation, not a copy of it;
+- a thermal network the FMUs refuse (a resistance that turns negative within its fit, a combination
+  the schema's per-key rules cannot see) likewise, naming the [thermal] key;
 - `map show`'s machine: the map's metadata and the options by the drive schema's rules;
 - Motor-CAD exports whose Frequency and Speed cannot give the machine's pole pairs.
 """
@@ -52,6 +54,28 @@ def test_the_fmus_verdict_is_asked_not_copied(tmp_path):
     falling_map(tmp_path / "fold.csv")
     d = drive(tmp_path, "I_max = 40.0\n", flux_map=str(tmp_path / "fold.csv"))
     refuse_unless_fmus_accept(load_drive(d), BUILD_DIR)
+
+
+THERMAL_REFUSED = {
+    # r0 + r_n n + r_c c + r_nc n c: each coefficient is any real number, their sum at the fit's
+    # corner n = c = 0 is not
+    "resistance negative in its fit": ("R_magnet_coolant_0 = -100.0", "thermal.R_magnet_coolant_0",
+                                       "R_magnet_coolant", "-100"),
+    # each capacity is positive, but 1e-300 J/K makes time constants no step resolves (it ran to 0 K)
+    "capacity off by orders of magnitude": ("C_winding = 1e-300", "thermal.C_winding", "C_winding = 1e-300",
+                                            "time constants"),
+}
+
+
+@pytest.mark.parametrize("case", THERMAL_REFUSED)
+def test_a_thermal_network_the_fmus_refuse_is_refused_at_load(case, tmp_path):
+    """Combinations the schema's per-key rules cannot see: the FMU's rule, asked at load."""
+    line, key, *words = THERMAL_REFUSED[case]
+    d = drive(tmp_path, f"[thermal]\nthermal_model = true\n{line}\n", name="d.toml")
+    r = cli("run", "UDDS", "--drive", str(d), "--out", str(tmp_path / "out"))
+    assert_refused(r, d, key, "IpmsmPlant", *words)
+    assert not (tmp_path / "out").exists()
+    assert r.wall < 30.0
 
 
 MAP_SHOW_METADATA = {
