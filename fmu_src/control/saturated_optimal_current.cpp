@@ -272,7 +272,7 @@ struct MapView {
                 seeds[n_seeds++] = maxima.mtpv[ll];
                 on_circle &= maxima.mtpv_on_current_limit[ll];
             }
-            const CurrentPoint a = seeds[0], b = seeds[1];
+            const CurrentPoint &a = seeds[0], &b = seeds[1];
             if (n_seeds == 2 && !on_circle &&
                 std::hypot(b.i_d - a.i_d, b.i_q - a.i_q) < kOneMtpvBranchSpacings * circles.radius(1)) {
                 const double t = x - l;
