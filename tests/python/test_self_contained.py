@@ -22,16 +22,20 @@ HANDED_OVER = json.loads((ROOT / "tests" / "data" / "handed_over.json").read_tex
 #: a copy's top folder in the repository, above the path it had in ../shared (data/..., spec/...)
 COPIED_FROM = {"scenarios": ("scenarios",), "docs": ("docs",)}
 
-# In the child: any open of a path beside the repository (its parent folder, ../shared, ...) fails.
+# In the child: any open of a path beside the repository (its parent folder, ../shared, ...) fails,
+# but for the build and the run's own output folder (which may lie beside a clone in /tmp).
 GUARD = textwrap.dedent("""
     import os, sys
     root = os.path.realpath({root!r})
     outside = os.path.realpath(os.path.join(root, os.pardir))
     build = os.path.realpath({build!r})  # the build may be a link (a shared build of this clone)
+    out = os.path.realpath({out!r})
+    def within(p, folder):
+        return p == folder or p.startswith(folder + os.sep)
     def guard(event, args):
         if event == "open" and isinstance(args[0], (str, bytes, os.PathLike)):
             p = os.path.realpath(os.fsdecode(args[0]))
-            inside = p == root or p.startswith(root + os.sep) or p == build or p.startswith(build + os.sep)
+            inside = within(p, root) or within(p, build) or within(p, out)
             if p.startswith(outside + os.sep) and not inside:
                 raise PermissionError(f"outside the repository: {{p}}")
     sys.addaudithook(guard)
@@ -43,7 +47,7 @@ GUARD = textwrap.dedent("""
 
 def test_a_standard_cycle_runs_with_nothing_beside_the_repository(tmp_path):
     out = tmp_path / "udds"
-    code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR))
+    code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR), out=str(out))
     r = subprocess.run([sys.executable, "-c", code, "run", "UDDS", "--backend", "drive", "--out", str(out)],
                        capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
@@ -54,7 +58,7 @@ def test_a_standard_cycle_runs_with_nothing_beside_the_repository(tmp_path):
 def test_the_guard_refuses_what_lies_beside_the_repository(tmp_path):
     """The guard above can fail: reading a file beside the repository is refused."""
     beside = ROOT.parent / f".{ROOT.name}-guard-probe"
-    code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR))
+    code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR), out=str(tmp_path / "out"))
     code = code.replace("import runpy", f"open({str(beside)!r}, 'w')\nimport runpy")
     r = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and "outside the repository" in r.stderr
