@@ -156,11 +156,6 @@ constexpr double kMultiplierTolerance = 1e-6;
 // Case i's seeds from one interpolated point only where the circles' MTPA points are closer than
 // this fraction of the map's grid spacing.
 constexpr double kOneBranchGridFraction = 0.25;
-// MTPV's seeds from one point interpolated between the two flux levels' sampled maxima where these
-// lie closer than this many circle spacings (I_max / kRadii): one branch of MTPV points. On the
-// corpus maps the two always converge to one point, and lie up to 3 spacings apart
-// (docs/performance.md); farther apart, Newton starts from each.
-constexpr double kOneMtpvBranchSpacings = 4.0;
 
 // The flux map as decision.hpp's View for one solve_optimal() call and one torque sign s. Each
 // condition is Newton on the map (map_newton.hpp); where the map can have several local optima
@@ -235,8 +230,7 @@ struct MapView {
                torque(p) >= maxima.T[K] * (1.0 - kLimitSlack);
     }
     // The most torque on the voltage limit within the current circle. Its seeds: the sampled
-    // maxima of the torque along the two flux levels about V_max / |omega| (the global one;
-    // interpolated to one where they lie on one branch).
+    // maxima of the torque along the two flux levels about V_max / |omega| (the global one).
     // Where both lie on the current circle, the torque still rises along the voltage limit at
     // I_max: the point is on the circle (false: the decision goes on to the circle) if the
     // circle's best point within the voltage limit is a local maximum of the torque within the
@@ -271,13 +265,6 @@ struct MapView {
                 if (!maxima.has_mtpv[ll]) continue;
                 seeds[n_seeds++] = maxima.mtpv[ll];
                 on_circle &= maxima.mtpv_on_current_limit[ll];
-            }
-            const CurrentPoint &a = seeds[0], &b = seeds[1];
-            if (n_seeds == 2 && !on_circle &&
-                std::hypot(b.i_d - a.i_d, b.i_q - a.i_q) < kOneMtpvBranchSpacings * circles.radius(1)) {
-                const double t = x - l;
-                seeds[0] = {a.i_d + t * (b.i_d - a.i_d), a.i_q + t * (b.i_q - a.i_q)};
-                n_seeds = 1;
             }
         }
         if (n_seeds > 0 && on_circle && current_voltage_intersection(circle_best)) {
