@@ -124,16 +124,12 @@ void validate(const LptnParams& p) {
     // link adds a positive semidefinite term to K), and each conductance takes its extremes at the
     // fits' corners (monotone in speed, linear or bilinear): the rates of the links' minima and
     // maxima bound them.
-    NetworkConductances<kNodes, kBoundaries> lo, hi;
-    bool first = true;
+    auto lo = conductances(p, 0.0, kZeroCelsius), hi = lo;
     for (double n : {0.0, 1.0})
         for (double c : {0.0, 1.0}) {
             const auto g = conductances(p, n * p.w_m_ref, kZeroCelsius + c * kCoolantScale);
-            lo.between = first ? g.between : lo.between.cwiseMin(g.between);
-            lo.boundary = first ? g.boundary : lo.boundary.cwiseMin(g.boundary);
-            hi.between = first ? g.between : hi.between.cwiseMax(g.between);
-            hi.boundary = first ? g.boundary : hi.boundary.cwiseMax(g.boundary);
-            first = false;
+            lo.between = lo.between.cwiseMin(g.between), lo.boundary = lo.boundary.cwiseMin(g.boundary);
+            hi.between = hi.between.cwiseMax(g.between), hi.boundary = hi.boundary.cwiseMax(g.boundary);
         }
     MotorPropagator slowest(capacities(p)), fastest(capacities(p));
     slowest.set_conductances(lo);
