@@ -84,13 +84,13 @@ def has_magnet(fmap: FluxMap) -> bool:
     """The FMUs' test (fmu_src/machine/operating_region.hpp): psi_d(0, 0) on the map's spline is
     positive and at least kMagnetFraction of the largest |psi_d| on the grid."""
     psi_m = float(fmap.flux(0.0, 0.0)[0])
-    return psi_m > 0.0 and psi_m >= operating_region_constant("kMagnetFraction") * float(np.abs(fmap.psi_d).max())
+    return psi_m > 0.0 and psi_m >= operating_region_constant("magnet_fraction") * float(np.abs(fmap.psi_d).max())
 
 
 def refused_box(fmap: FluxMap, I_max: float) -> tuple[float, float, float, float]:
     """The FMUs' required box (operating_region.hpp): required_box widened by kOperatingMargin
     I_max on every side and cut to the grid; a defect inside it makes the FMUs refuse the map."""
-    m = operating_region_constant("kOperatingMargin") * I_max
+    m = operating_region_constant("margin") * I_max
     lo_d, hi_d, lo_q, hi_q = required_box(I_max, not has_magnet(fmap))
 
     def cut(lo, hi, a, b):
