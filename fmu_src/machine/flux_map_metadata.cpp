@@ -48,8 +48,6 @@ const std::vector<MetadataKey>& metadata_keys() {
         {"u_dc_V", "V", "lut_u_dc", false},
         {"k_u", "", "k_u", false},
         {"w_m_max_rad_s", "rad/s", "w_m_max", false},
-        // the rotor's inertia: no FMU parameter (the vehicle side's, a drive description's motor.J)
-        {"J_kg_m2", "kg.m2", "J", false},
     };
     return keys;
 }

@@ -59,12 +59,15 @@ class Fmu:
     initialise=False, fmi2ExitInitializationMode at construction. A context manager (frees it)."""
 
     def __init__(self, path: str | Path, instance_name: str | None = None, logging: bool = False,
-                 initialise: bool = True, **parameters):
+                 initialise: bool = True, keep_log: int | None = 200, quiet: bool = False, **parameters):
+        """keep_log: the latest messages kept (None: all); quiet: the FMU's log kept, not passed to
+        logging (a caller that reports it itself)."""
         self.path = Path(path)
         self.md = read_model_description(str(self.path))
         self.name = self.md.coSimulation.modelIdentifier
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.messages: deque = deque(maxlen=200)  # (status, category, message), the latest
+        self.messages: deque = deque(maxlen=keep_log)  # (status, category, message), the latest
+        self._quiet = quiet
         self.t = 0.0
         self.fmu = None
         self.initialised = False  # fmi2Terminate is allowed only once initialisation has succeeded
@@ -88,7 +91,8 @@ class Fmu:
         def logger(env, instance, status, category, message):
             text = (message or b"").decode(errors="replace").replace("%%", "%")  # as printf would
             self.messages.append((status, (category or b"").decode(errors="replace"), text))
-            LOG.log(_LEVEL.get(status, logging.ERROR), "[%s] %s", self.name, text)
+            if not self._quiet:
+                LOG.log(_LEVEL.get(status, logging.ERROR), "[%s] %s", self.name, text)
 
         self._logger = fmi2CallbackLoggerTYPE(logger)  # alive as long as the instance
         cb = fmi2CallbackFunctions()

@@ -50,11 +50,15 @@ class ReferenceDrive:
         params = dict(controller=controller_params or {}, plant=plant_params or {})
         self.units: dict[str, Fmu] = {}
         try:
-            for u in coupling.units:  # in order: inputs, exit initialisation (the plant first)
+            for u in coupling.units:  # instantiated, parameters set, in Initialization Mode
                 f = self.units[u.role] = Fmu(paths[u.role], u.role, logging_on, False, **params[u.role])
                 if f.name != u.model_identifier:
                     raise CosimError(f"the {u.role} must be {u.model_identifier}, {f.path} is {f.name}")
-                f.set(**self._external(u.role), **self._fed(u.role))
+            for port in [*(p for e in coupling.inputs for p in e.targets),
+                         *(p for c in coupling.connections for p in (c.source, c.target))]:
+                self.units[port.unit].variable(port.variable)  # every name resolves, before any step
+            for role, f in self.units.items():  # in order: inputs, exit initialisation (the plant first)
+                f.set(**self._external(role), **self._fed(role))
                 f.exit_initialization()
             self._record_from = {n: next((r for r, f in self.units.items() if n in f.vars), None)
                                  for n in RECORD if n not in MEAN_OF and n not in DEFINED}
@@ -99,7 +103,8 @@ class ReferenceDrive:
                 f.set(**fed[role])
             t, h_k = (self.k * h, h) if self._clock is None else self._clock(self.k)
             for f in self.units.values():
-                f.do_step(t, h_k)
+                f.t = t  # the step's start, for a failure's message
+                f.call("fmi2DoStep", t, h_k, 1)
             self.k += 1
             P_inv += self.units["plant"].get("P_inv")
         return self._record(n * h, P_inv / n)

@@ -32,10 +32,15 @@ class MetadataKey:
     whole_number: bool  # a count
 
 
+#: the keys only the vehicle side reads (no FMU has their parameter), by the same rule: the
+#: rotor's inertia (a drive description's motor.J)
+VEHICLE_SIDE_KEYS = (MetadataKey("J_kg_m2", "kg.m2", "J", checked=False, whole_number=False),)
+
+
 @functools.cache
 def metadata_keys() -> dict[str, MetadataKey]:
-    """key -> MetadataKey, in the table's order."""
-    return {k["key"]: MetadataKey(**k) for k in map_rules()["metadata"]}
+    """key -> MetadataKey: the FMUs' table, in its order, then VEHICLE_SIDE_KEYS."""
+    return {**{k["key"]: MetadataKey(**k) for k in map_rules()["metadata"]}, **{k.key: k for k in VEHICLE_SIDE_KEYS}}
 
 
 def key_of(parameter: str) -> str:
