@@ -72,7 +72,9 @@ def _dispatch(args) -> int:
         from scenarios.runs import check
         return check.main(args)
     if args.cmd == "map":
+        from scenarios.drives.description import check_metadata_rules
         from scenarios.drives.fmu_acceptance import load_accepted
+        args.check_metadata = check_metadata_rules  # what an import may write (drives sit above maps)
         if args.map_cmd == "show" and args.drive is None:
             # the map's machine and the options as a drive's would be: the schema's rules (check and
             # repair read maps with holes and defects, which is their job: their options only)

@@ -30,7 +30,7 @@ from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
 from scenarios.maps.machine import machine_values
-from scenarios.maps.metadata import MetadataError, metadata_keys
+from scenarios.maps.metadata import MetadataError, metadata_keys, metadata_value
 from scenarios.vehicle.battery import OCV_FITS, BatteryParams
 from scenarios.vehicle.driver import P_AUX_DEFAULT
 from scenarios.vehicle.longitudinal import VehicleParams
@@ -753,6 +753,23 @@ def _load_checks(path: Path, ch: dict, motor: MotorSpec) -> ChecksSpec:
                       limits={k: float(x) for k, x in ch.items() if k in LIMITS})
 
 
+def check_metadata_rules(metadata: dict, file: str | Path) -> None:
+    """Each contract key of a map's metadata (key -> its text, or a number an importer made) by
+    the metadata rule (scenarios.maps.metadata) and the schema's rule of the key it gives the
+    default of, as a drive description's value would be: InputError naming `file` and the key."""
+    for meta, key in METADATA_RULE.items():
+        if meta not in metadata:
+            continue
+        text, rule = str(metadata[meta]), _BY_PATH[key].rule
+        try:
+            value = metadata_value(meta, text)
+        except MetadataError as e:
+            raise InputError(file, meta, f"{e.expected} ({rule.describe()}), got {e.text[:80]!r}") from None
+        bad = rule.check(value)
+        if bad:
+            raise InputError(file, meta, bad + ("" if "got" in bad else f", got {text[:80]!r}"))
+
+
 def check_map_machine(map_file: str | Path, u_dc: float | None = None, I_max: float | None = None) -> None:
     """A map's own machine, for `map show FILE` without --drive: each number of its
     `# key: value` metadata obeys the schema's rule of the key it sets, as a drive description's
@@ -771,17 +788,7 @@ def check_map_machine(map_file: str | Path, u_dc: float | None = None, I_max: fl
         raise
     except Exception as e:  # the readers' own words: which file, which line or field
         raise InputError(path, "(file)", f"a readable flux map ({e})") from None
-    for meta, key in METADATA_RULE.items():
-        if meta not in fmap.metadata:
-            continue
-        try:
-            value = fmap.number(meta)  # the metadata rule (the map's reader applied it already)
-        except MetadataError as e:
-            raise InputError(path, meta, f"{e.expected} ({_BY_PATH[key].rule.describe()}), got {e.text[:80]!r}") \
-                from None
-        bad = _BY_PATH[key].rule.check(value)
-        if bad:
-            raise InputError(path, meta, bad + ("" if "got" in bad else f", got {fmap.metadata[meta][:80]!r}"))
+    check_metadata_rules(fmap.metadata, path)
     limit = I_max if I_max is not None else (fmap.number("I_max_A") if "I_max_A" in fmap.metadata else None)
     if limit is not None and limit < grid_resolution(fmap):
         where = ("(command line)", "--I-max") if I_max is not None else (path, "I_max_A")
