@@ -36,15 +36,16 @@ int main(int argc, char** argv) {
     const auto& keys = metadata_keys();
     for (std::size_t i = 0; i < keys.size(); ++i) {
         const MetadataKey& k = keys[i];
-        json += "    {\"key\": " + quoted(k.key) + ", \"unit\": " + quoted(k.unit) + ", \"parameter\": " +
-                quoted(k.parameter) + ", \"checked\": " + (k.checked ? "true" : "false") +
+        json += "    {\"key\": " + quoted(k.key) + ", \"unit\": " + quoted(k.unit) +
+                ", \"parameter\": " + quoted(k.parameter) + ", \"checked\": " + (k.checked ? "true" : "false") +
                 ", \"whole_number\": " + (k.whole_number ? "true" : "false") + "}" +
                 (i + 1 < keys.size() ? ",\n" : "\n");
     }
     json += "  ],\n  \"coldest_kelvin\": " + number(kColdestKelvin) + ",\n";
     json += "  \"map_limits\": {\"max_bytes\": " + std::to_string(kMaxMapFileBytes) +
-            ", \"max_line_chars\": " + std::to_string(kMaxLineChars) + ", \"max_axis\": " +
-            std::to_string(kMaxGridAxis) + ", \"max_points\": " + std::to_string(kMaxGridPoints) + "},\n";
+            ", \"max_line_chars\": " + std::to_string(kMaxLineChars) +
+            ", \"max_axis\": " + std::to_string(kMaxGridAxis) + ", \"max_points\": " + std::to_string(kMaxGridPoints) +
+            "},\n";
     json += "  \"operating_region\": {\"margin\": " + number(kOperatingMargin) +
             ", \"magnet_fraction\": " + number(kMagnetFraction) + "}\n}\n";
     std::ofstream out(argv[1], std::ios::binary);
