@@ -176,3 +176,14 @@ def test_a_description_the_fmus_do_not_fit_is_refused(controller_fmu, plant_fmu)
     wrong = Coupling.parse(DRIVE.text.replace("-> plant.u_q", "-> plant.u_x"))
     with pytest.raises(CosimError, match="IpmsmPlant has no variable 'u_x'"):
         reference(controller_fmu, plant_fmu, coupling=wrong)
+
+
+def test_the_drive_fmu_checks_every_calls_status():
+    """An input the drive refuses (fmi2SetReal returns fmi2Error) ends the step with the call and
+    the FMU's words; before, the step ran on the previous inputs."""
+    with DriveFmu(fmu_path("IpmsmDrive"), **START) as drive:
+        good = drive.advance(10 * H, **profile(1))
+        bad = {**profile(1), "T_winding": -1.0}
+        with pytest.raises(CosimError, match=r"^IpmsmDrive: fmi2SetReal of the inputs failed .*T_winding"):
+            drive.advance(10 * H, **bad)
+        assert drive.t == pytest.approx(10 * H) and math.isfinite(good.T_e)
