@@ -47,7 +47,8 @@ int main(int argc, char** argv) {
             ", \"max_axis\": " + std::to_string(kMaxGridAxis) + ", \"max_points\": " + std::to_string(kMaxGridPoints) +
             "},\n";
     json += "  \"operating_region\": {\"margin\": " + number(kOperatingMargin) +
-            ", \"magnet_fraction\": " + number(kMagnetFraction) + "}\n}\n";
+            ", \"magnet_fraction\": " + number(kMagnetFraction) + ", \"fold_relative\": " + number(kFoldRelative) +
+            "}\n}\n";
     std::ofstream out(argv[1], std::ios::binary);
     out << json;
     return out ? 0 : 1;

@@ -144,6 +144,6 @@ def map_limits() -> MapLimits:
 
 def operating_region_constant(name: str) -> float:
     """A constant of the FMUs' map-acceptance rule (operating_region.hpp): "margin"
-    (kOperatingMargin) or "magnet_fraction" (kMagnetFraction), so that `map check` counts what
-    the FMUs refuse by the FMUs' own numbers."""
+    (kOperatingMargin), "magnet_fraction" (kMagnetFraction) or "fold_relative" (kFoldRelative),
+    so that `map check` counts what the FMUs refuse by the FMUs' own numbers."""
     return float(map_rules()["operating_region"][name])
