@@ -44,6 +44,8 @@ struct FreewheelIntegrator::Workspace {
     const StepIntegrands* integrands = nullptr;
     double k = 0;
     BridgeDirections dirs;       // the directions a current reaches zero along (inverter_state.hpp)
+    bool dirs_valid = false;     // ... computed for e_0, k, L_0 = dirs_for
+    double dirs_for[7] = {};
     double n_zero[2] = {0, 0};   // the bridge's direction at i = 0 exactly (the onset direction)
     bool armed[4] = {};          // falling zero of g_j wanted; the voltage continued past it (above)
     double r_zero = 0;           // A: a current below this is i = 0 (the bridge's direction n_zero)
@@ -186,7 +188,7 @@ FreewheelIntegrator& FreewheelIntegrator::operator=(FreewheelIntegrator&&) noexc
 
 FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const StepIntegrands& integrands,
                                            const CvodeSettings& s, double h, const double* psi, bool blocked,
-                                           const double* i_seed) {
+                                           const double* i_seed, double h_start) {
     if (!(h > 0) || !std::isfinite(h)) throw CvodeError("freewheeling: the step h = " + number(h) + " s is not > 0");
     if (!(k > 0) || !std::isfinite(k))
         throw CvodeError("freewheeling: the bridge's voltage 2 u_dc / pi = " + number(k) + " V is not > 0");
@@ -195,9 +197,8 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
     const double psi0[2] = {z.psi_d + ode.delta_psi_m, z.psi_q};
     const double e0[2] = {ode.omega * psi0[1], -ode.omega * psi0[0]};
     const double L0[4] = {z.L_dd, z.L_dq, z.L_qd, z.L_qq};
-    const BridgeDirections dirs = bridge_directions(e0, k, L0);
-    const bool onset = dirs.has_onset;  // |e_0| > k: no blocking, a current at zero starts again along it
-
+    // |e_0| <= k: no onset (inverter_state.hpp); the directions only where a current flows
+    const bool onset = std::hypot(e0[0], e0[1]) > k;
     FreewheelStep out;
     const IronLossModel& fe = integrands.fe;
     auto blocked_for = [&](double span) {  // i = 0, psi = psi_0: only the iron loss of the magnet's flux
@@ -217,10 +218,18 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
 
     if (!ws_) ws_ = std::make_unique<Workspace>();
     Workspace& w = *ws_;
+    // the directions are a function of e_0, k and L_0 alone: computed again only when they change
+    if (!w.dirs_valid || w.dirs_for[0] != e0[0] || w.dirs_for[1] != e0[1] || w.dirs_for[2] != k ||
+        !std::equal(L0, L0 + 4, w.dirs_for + 3)) {
+        w.dirs = bridge_directions(e0, k, L0);
+        w.dirs_for[0] = e0[0], w.dirs_for[1] = e0[1], w.dirs_for[2] = k;
+        std::copy(L0, L0 + 4, w.dirs_for + 3);
+        w.dirs_valid = true;
+    }
+    const BridgeDirections& dirs = w.dirs;
     w.ode = ode;
     w.integrands = &integrands;
     w.k = k;
-    w.dirs = dirs;
     w.n_zero[0] = onset ? dirs.onset[0] : 0.0;
     w.n_zero[1] = onset ? dirs.onset[1] : 0.0;
     w.seed[0] = blocked ? 0.0 : i_seed[0];
@@ -260,6 +269,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
         w.check(CVodeSVtolerances(mem, s.rtol, w.h.atol), "CVodeSVtolerances");
         w.check(CVodeSetMaxNumSteps(mem, s.max_steps), "CVodeSetMaxNumSteps");
         w.check(CVodeSetStopTime(mem, h), "CVodeSetStopTime");
+        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h) : 0.0), "CVodeSetInitStep");
         if (n_roots > 0) {
             int direction[4];
             for (int j = 0; j < n_roots; ++j) direction[j] = w.armed[j] ? -1 : 1;
@@ -269,6 +279,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
         double t_ret = t;
         const int flag = CVode(mem, h, w.h.y, &t_ret, CV_NORMAL);
         long nst = 0, nfe = 0;
+        CVodeGetLastStep(mem, &out.h_last);
         CVodeGetNumSteps(mem, &nst);
         CVodeGetNumRhsEvals(mem, &nfe);
         out.steps += nst;

@@ -43,6 +43,7 @@ struct FreewheelStep {
     double I_integral = 0, I2_integral = 0;
     int switchings = 0;  // conduct -> block and block -> conduct in this call
     long steps = 0, rhs_evals = 0;
+    double h_last = 0;  // s, CVODE's last step size (the next call's first; 0: none)
 };
 
 class FreewheelIntegrator {
@@ -55,10 +56,10 @@ public:
     FreewheelIntegrator& operator=(FreewheelIntegrator&&) noexcept;
 
     // One communication step of h seconds with the bridge amplitude k = 2 u_dc / pi (V), from psi
-    // (Wb; while blocked, psi_0) with the currents' Newton seed i_seed (NaN: unknown). ode's u_d,
-    // u_q are not used. Throws CvodeError.
+    // (Wb; while blocked, psi_0) with the currents' Newton seed i_seed (NaN: unknown) and CVODE's
+    // first step h_start (s; 0: CVODE's estimate). ode's u_d, u_q are not used. Throws CvodeError.
     FreewheelStep advance(const DqFluxOde& ode, double k, const StepIntegrands& integrands, const CvodeSettings& s,
-                          double h, const double* psi, bool blocked, const double* i_seed);
+                          double h, const double* psi, bool blocked, const double* i_seed, double h_start);
 
 private:
     struct Workspace;

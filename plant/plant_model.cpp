@@ -627,12 +627,13 @@ void PlantModel::freewheel_step(const DqFluxOde& o, double h) {
     // a step entering freewheeling without current starts blocked (psi is psi_0 there)
     const bool blocked = blocked_ || (i_d == 0.0 && i_q == 0.0);
     const FreewheelStep r =
-        freewheel_.advance(o, bridge_amplitude(u_dc), q, settings(), h, s.psi, blocked, s.i_seed);
+        freewheel_.advance(o, bridge_amplitude(u_dc), q, settings(), h, s.psi, blocked, s.i_seed, s.h_next);
     s.t += h;
     s.psi[0] = r.psi[0];
     s.psi[1] = r.psi[1];
     s.i_seed[0] = r.c.i_d;
     s.i_seed[1] = r.c.i_q;
+    s.h_next = r.h_last;
     integrator_.set_state(s);
     blocked_ = r.blocked;
     bridge_switchings += r.switchings;
