@@ -43,14 +43,14 @@ struct FreewheelIntegrator::Workspace {
     DqFluxOde ode;
     const StepIntegrands* integrands = nullptr;
     double k = 0;
-    BridgeDirections dirs;       // the directions a current reaches zero along (inverter_state.hpp)
-    bool dirs_valid = false;     // ... computed for e_0, k, L_0 = dirs_for
+    BridgeDirections dirs;    // the directions a current reaches zero along (inverter_state.hpp)
+    bool dirs_valid = false;  // ... computed for e_0, k, L_0 = dirs_for
     double dirs_for[7] = {};
-    double n_zero[2] = {0, 0};   // the bridge's direction at i = 0 exactly (the onset direction)
-    bool armed[4] = {};          // falling zero of g_j wanted; the voltage continued past it (above)
-    double r_zero = 0;           // A: a current below this is i = 0 (the bridge's direction n_zero)
-    double r_continue = 0;       // A: the voltage is continued past a zero only below this current
-    double seed[2] = {0, 0};     // the last currents: the next Newton's start
+    double n_zero[2] = {0, 0};  // the bridge's direction at i = 0 exactly (the onset direction)
+    bool armed[4] = {};         // falling zero of g_j wanted; the voltage continued past it (above)
+    double r_zero = 0;          // A: a current below this is i = 0 (the bridge's direction n_zero)
+    double r_continue = 0;      // A: the voltage is continued past a zero only below this current
+    double seed[2] = {0, 0};    // the last currents: the next Newton's start
     std::string error;
     CvodeHandles h;
 

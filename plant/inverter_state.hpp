@@ -46,10 +46,10 @@ inline double diode_bridge_loss(double V_D0, double r_D, double I, double I2) {
 // theta; (L0 n) x (e0 - k n) = 0 there, and lambda = (e0 - k n) . L0 n / |L0 n|^2. The roots in
 // theta are bracketed on kBridgeAngles samples of the turn and refined by bisection.
 struct BridgeDirections {
-    int n_decay = 0;               // directions along which a decaying current reaches zero (lambda < 0)
-    double decay[4][2] = {};       // ... their unit vectors
-    bool has_onset = false;        // a growing direction (lambda > 0): |e0| > k, conduction starts
-    double onset[2] = {0, 0};      // ... its unit vector
+    int n_decay = 0;           // directions along which a decaying current reaches zero (lambda < 0)
+    double decay[4][2] = {};   // ... their unit vectors
+    bool has_onset = false;    // a growing direction (lambda > 0): |e0| > k, conduction starts
+    double onset[2] = {0, 0};  // ... its unit vector
 };
 
 constexpr int kBridgeAngles = 720;

@@ -616,9 +616,9 @@ void PlantModel::warn_demagnetising(double t_now) {
     demag_warned_ = true;
     const fmi::Context& ctx = *context_;
     if (ctx.log_warning)
-        ctx.log_warning("at t = " + num(t_now) + " s i_d = " + num(i_d) + " A passed the magnets' demagnetisation limit " +
-                        "i_d_demag = " + num(i_d_demag) + " A (inverter_state " + std::to_string(inverter_state) +
-                        "; warned once)");
+        ctx.log_warning("at t = " + num(t_now) + " s i_d = " + num(i_d) +
+                        " A passed the magnets' demagnetisation limit " + "i_d_demag = " + num(i_d_demag) +
+                        " A (inverter_state " + std::to_string(inverter_state) + "; warned once)");
 }
 
 void PlantModel::freewheel_step(const DqFluxOde& o, double h) {

@@ -121,12 +121,12 @@ public:
     double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;         // J since the start
     // the inverter feeding the machine (inverter/inverter_loss.hpp): its loss over the last step,
     // from the current sampled at the step's end and the step's mean AC power, and since the start
-    double P_inv = 0.0;       // W
-    double E_inv = 0.0;       // J
-    double i_dc = 0.0;        // A, the DC-link current of the last step, losses included (+ motoring)
+    double P_inv = 0.0;         // W
+    double E_inv = 0.0;         // J
+    double i_dc = 0.0;          // A, the DC-link current of the last step, losses included (+ motoring)
     int bridge_switchings = 0;  // freewheeling: the bridge's conduct/block switchings since the start
-    int cvode_steps = 0;      // internal steps in the last step
-    int cvode_rhs_evals = 0;  // right-hand-side evaluations in the last step
+    int cvode_steps = 0;        // internal steps in the last step
+    int cvode_rhs_evals = 0;    // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
     int pole_pairs = 4;

@@ -57,7 +57,7 @@ public:
     // --- inputs (held over the communication step)
     double T_ref = 0.0, w_m = 0.0, u_dc = 0.0, T_magnet = 0.0, T_winding = 0.0;
     double T_coolant = 0.0, T_ambient = 0.0;  // K, the plant's thermal network (thermal_model)
-    bool fault = false;                        // the inverter must stop switching (docs/faults.md)
+    bool fault = false;                       // the inverter must stop switching (docs/faults.md)
     // --- outputs: means over the last communication step
     double T_shaft = 0.0, T_e = 0.0, i_dc = 0.0;                           // N.m, N.m, A
     double P_dc = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0, P_inv = 0.0;  // W

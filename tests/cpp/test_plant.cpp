@@ -20,9 +20,9 @@
 #include <unistd.h>
 
 #include "cvode_integrator.hpp"
+#include "flux_map_generators.hpp"
 #include "freewheel_integrator.hpp"
 #include "inverter_state.hpp"
-#include "flux_map_generators.hpp"
 #include "ipmsm_ode.hpp"
 #include "linear_flow.hpp"
 #include "machine/flux_map.hpp"

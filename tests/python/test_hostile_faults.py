@@ -8,10 +8,10 @@ from __future__ import annotations
 import math
 
 import pytest
-
-from fmi2_raw import ERROR, OK, WARNING
 from test_hostile import HOSTILE_VALUES, twins
 from test_hostile_bounds import _rechecked
+
+from fmi2_raw import ERROR, OK, WARNING
 
 NORMAL = {
     "IpmsmPlant": dict(u_d=-20.0, u_q=60.0, w_m=900.0, T_magnet=330.0, T_winding=350.0, u_dc=355.0),
