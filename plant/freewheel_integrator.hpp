@@ -9,15 +9,17 @@
 // (the 2 x 2 Jacobian analytic, dI/dpsi from the inverse map) carries it with steps the solution's
 // smoothness allows, not the stiffness.
 //
-// Blocking (possible only where |e_0| < k): the current reaches zero along the blocking direction
-// n_b in finite time. The root function is g = i . n_b. The bridge's voltage, discontinuous at
-// i = 0, is continued past the zero along n_b (u = -k sign(g) i/|i|, the same voltage on both
-// sides of the line i = s n_b), so the step that crosses the zero sees a smooth right-hand side
+// A current reaches zero in finite time along one of the decaying directions n_j
+// (inverter_state.hpp: bridge_directions); each has a root function g_j = i . n_j. At the zero the
+// bridge blocks where |e_0| < k; above the onset the current passes zero and grows again along the
+// onset direction. The bridge's voltage, discontinuous at
+// i = 0, is continued past the zero along n_j (u = -k sign(g_j) i/|i|, the same voltage on both
+// sides of the line i = s n_j), so the step that crosses the zero sees a smooth right-hand side
 // and the root is located on CVODE's interpolant; then psi = psi_0 for the rest of the step. The
-// continuation applies only in a segment that began with g > 0 ("armed", a falling root wanted);
-// one that began with g <= 0 watches for g rising through zero and arms there. A falling root
-// where |i| is not near zero (the current turned by more than 90 degrees from n_b, as after a
-// trip from motoring) is not a zero of the current: the segment goes on unarmed.
+// continuation applies only for a g_j that was > 0 at its segment's start ("armed", a falling root
+// wanted), and only at small currents; an unarmed g_j watches for a rise through zero and arms
+// there. A falling root where |i| is not near zero (the current crossed the line i = s n_j at
+// amperes, as after a trip from motoring) is not a zero of the current: g_j goes on unarmed.
 //
 // Conduction starts only at a communication point (the inputs are held over a step, and so is
 // |e_0| = |omega| |psi_0|), from psi_0 along the onset direction.

@@ -13,9 +13,11 @@
 // zero current; a current of direction n grows or decays along itself only where
 //     e_0 = (k I + lambda L_0) n,   |n| = 1,
 // d|i|/dt = lambda. A solution with lambda > 0 (the onset direction: conduction starts along it)
-// exists exactly when |e_0| > k, and one with lambda < 0 (the blocking direction: a decaying
-// current reaches zero along it, in finite time) exactly when |e_0| < k: the fundamental model's
-// onset is |omega| |psi_0| = 2 u_dc / pi, the same condition both ways (no chattering).
+// exists exactly when |e_0| > k: the fundamental model's onset is |omega| |psi_0| = 2 u_dc / pi.
+// Solutions with lambda < 0 are the directions along which a decaying current reaches zero, in
+// finite time: one near e_0 exactly when |e_0| < k (the bridge then blocks), and near -e_0 at any
+// speed (a current driven against the back-EMF, extinguished head-on; above the onset it passes
+// zero and grows again along the onset direction). The same condition both ways: no chattering.
 #pragma once
 
 #include <cmath>
