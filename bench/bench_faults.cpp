@@ -45,9 +45,9 @@ Cost plant_cost(int state, double w_m, int n, int rounds) {
         p.i_q_start = 150.0;
         p.exit_initialization();
         // the voltage that holds the start current: psi from the plant, u = R i + omega J psi
-        const double om = p.pole_pairs * w_m;
-        p.u_d = p.R_s * p.i_d - om * p.psi_q;
-        p.u_q = p.R_s * p.i_q + om * p.psi_d;
+        const double om = p.motor.pole_pairs * w_m;
+        p.u_d = p.motor.R_s * p.i_d - om * p.psi_q;
+        p.u_q = p.motor.R_s * p.i_q + om * p.psi_d;
         if (state == kSwitchingAtZero) p.u_d = p.u_q = 0.0;  // the ASC's equations, switching
         p.inverter_state = state == kSwitchingAtZero ? 0 : state;
         double t = 0, steps = 0;

@@ -23,7 +23,8 @@
 #include "ipmsm_ode.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
-#include "machine/winding_resistance.hpp"
+#include "machine/iron_loss.hpp"
+#include "machine/motor_params.hpp"
 #include "model.hpp"
 #include "thermal/motor_thermal.hpp"
 #include "variable.hpp"
@@ -128,19 +129,10 @@ public:
     int cvode_steps = 0;        // internal steps in the last step
     int cvode_rhs_evals = 0;    // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
-    std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
-    int pole_pairs = 4;
-    double R_s = 0.012;                               // Ohm at T_winding_ref
-    double T_winding_ref = 293.15;                    // K
-    double alpha_cu = kCopperTemperatureCoefficient;  // 1/K
-    double k_psi_T = -0.0012;                         // 1/K
-    double T_magnet_ref = 293.15;                     // K
-    double fe_k_h = 1.06664735685;                    // W/Hz
-    double fe_alpha = 2.0;
-    double fe_k_e = 0.00581807649193;         // W/Hz^2
-    double fe_psi_ref = 0.0780669432093;      // Wb
-    double I_max = 500.0;                     // A, the drive's current limit (the controller's default)
-    double i_d_start = 0.0, i_q_start = 0.0;  // A
+    MotorParams motor;                                // the motor (machine/motor_params.hpp), as the controller's
+    IronLossModel iron_loss = kDefaultMotorIronLoss;  // its iron loss (machine/iron_loss.hpp)
+    double i_d_start = 0.0, i_q_start = 0.0;          // A
+    double i_d_demag = 0.0;                           // A, the magnets' demagnetisation limit on i_d (< 0; 0: none)
     double rtol = 1e-6;
     double atol = 1e-8;           // Wb (what CVODE's error control sees: cvode_integrator.hpp)
     int cvode_method = 1;         // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
@@ -149,7 +141,6 @@ public:
     bool thermal_model = false;   // the thermal network sets T_winding, T_magnet (docs/thermal.md)
     thermal::LptnParams lptn;     // its parameters (forwarded by name)
     InverterParams inverter;      // the inverter's loss model's parameters (forwarded by name)
-    double i_d_demag = 0.0;       // A, the magnets' demagnetisation limit on i_d (< 0; 0: none)
 
     // Not a variable: false lets a model that holds the plant (IpmsmDrive) advance the network
     // once per its own communication step (advance_thermal) instead of at every plant step.
@@ -158,8 +149,6 @@ public:
     // Heats the network over h (s) with the loss integrals E_cu_step, E_fe_step (J), at the present
     // speed, currents and boundary temperatures; updates the thermal outputs.
     void advance_thermal(double h, double E_cu_step, double E_fe_step);
-
-    static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
     // The back-EMF's line-to-line peak at zero current, sqrt 3 |p w_m| |psi(0, 0)| (V, the magnets'
     // flux at the present magnet temperature): the diode bridge conducts once it exceeds u_dc
@@ -175,6 +164,9 @@ private:
     double winding_temperature() const { return thermal_ ? thermal_->theta(thermal::winding) : T_winding; }
     double magnet_temperature() const { return thermal_ ? thermal_->theta(thermal::magnet) : T_magnet; }
     void update_thermal_outputs();
+    // The inverter's loss (W) at the present currents (the sample at a step's end), with the mean
+    // AC power P_ac (W) and u_dc.
+    double inverter_loss_now(double P_ac) const;
     // One step of h freewheeling (freewheel_integrator.hpp) from the step's start state.
     void freewheel_step(const DqFluxOde& o, double h);
     // o with the voltage at the terminals in the present inverter_state at the currents i: the
@@ -184,9 +176,6 @@ private:
     // power P_ac; the diodes' at the mean |i| = I and |i|^2 = I2 (freewheeling); none (ASC).
     double inverter_loss_in_state(double P_ac, double I, double I2) const;
     void warn_demagnetising(double t);
-    // The inverter's loss (W) at the present currents (the sample at a step's end), with the mean
-    // AC power P_ac (W) and u_dc.
-    double inverter_loss_now(double P_ac) const;
 
     fmi::SharedContext context_;
     std::shared_ptr<const FluxMap> map_;
