@@ -401,9 +401,10 @@ FMU_PARAMETER.update({f"inverter.{n}": n for n in INVERTER_KEYS})
 SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get(FMU_PARAMETER[k.path]))) if k.path in FMU_PARAMETER
                else k for k in SCHEMA)
 
-FMU_PARAMETER["fault.i_d_demag"] = "i_d_demag"
-SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get("i_d_demag"))) if k.path == "fault.i_d_demag" else k
-               for k in SCHEMA)
+if "i_d_demag" in fmu_ranges():   # the FMUs' fault parameter (contract, "Faults"), where they have it
+    FMU_PARAMETER["fault.i_d_demag"] = "i_d_demag"
+    SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges()["i_d_demag"])) if k.path == "fault.i_d_demag" else k
+                   for k in SCHEMA)
 
 SECTIONS = ("motor", "inverter", "battery", "vehicle", "controller", "thermal", "fault", "checks")
 _BY_PATH = {k.path: k for k in SCHEMA}

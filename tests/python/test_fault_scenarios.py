@@ -37,8 +37,11 @@ RPM = math.pi / 30.0
 
 
 def write(tmp_path: Path, body: str, name: str = "d.toml") -> Path:
+    """A drive of the default map and `body` (its lines before the first table: top-level keys)."""
+    lines = body.splitlines(keepends=True)
+    k = next((i for i, x in enumerate(lines) if x.startswith("[")), len(lines))
     p = tmp_path / name
-    p.write_text(f'name = "f"\n[motor]\nflux_map = "{DEFAULT_MAP}"\n{body}')
+    p.write_text("".join(lines[:k]) + f'name = "f"\n[motor]\nflux_map = "{DEFAULT_MAP}"\n' + "".join(lines[k:]))
     return p
 
 
