@@ -193,7 +193,7 @@ class RunSummary:
     fault_speed_rpm: float | None = None       # the motor's
     fault_duration_s: float | None = None      # how long it lasted in the run
     fault_state: str | None = None             # the inverter state it entered: freewheel or asc
-    fault_state_end: str | None = None         # ... and the one at its end (by_speed: asc -> freewheel)
+    fault_state_end: str | None = None         # ... and the one at its end (by_speed: freewheel -> asc past the onset)
     fault_i_peak_A: float | None = None        # largest current magnitude during the fault (the drive's i_peak)
     fault_i_d_demag_A: float | None = None     # the magnets' limit on i_d (the drive's i_d_demag)
     fault_demag_margin_A: float | None = None  # |i_d_demag| - fault_i_peak_A (|i_d| <= |i|: a safe bound)
