@@ -23,6 +23,7 @@ from scenarios.core.progress import Progress
 from scenarios.cosim.drive_fmu import DriveFmu
 from scenarios.drives.description import SAFE_STATES, DriveDescription, load_drive
 from scenarios.runs.fault import ZERO_CURRENT_FRACTION
+from scenarios.vehicle.longitudinal import vehicle_speed
 
 RPM = math.pi / 30.0  # rad/s per r/min
 
@@ -100,6 +101,8 @@ class FaultSweepSummary:
     points: int
     wall_s: float
     i_d_demag_A: float | None
+    onset_back_emf_rpm: float     # where the back-EMF's line-to-line peak sqrt(3) p w_m psi_m reaches u_dc
+    onset_back_emf_kmh: float     # ... the drive's car at that motor speed
     onset_rpm: float | None
     envelope: dict   # state -> {i_peak_A_max, T_brake_Nm_max, i_dc_charge_A_max, ...}
 
@@ -123,6 +126,17 @@ def envelope(rows: list[dict], I_max: float) -> tuple[float | None, dict]:
                           i_dc_charge_A_max=-charge["i_dc_steady_A"], i_dc_charge_at_rpm=charge["speed_rpm"],
                           all_steady=all(r["steady"] for r in sel))
     return onset, out
+
+
+def onset_speed(drive: DriveDescription, spec: FaultSweepSpec) -> float:
+    """rad/s, the motor speed at which the back-EMF's line-to-line peak sqrt(3) p w_m psi_m
+    reaches u_dc (contract, "Faults": the policy's boundary), psi_m the map's flux at zero current
+    at the sweep's magnet temperature (the plant's law: 1 + k_psi_T (T - T_magnet_ref))."""
+    from scenarios.maps.flux_map import read_flux_map
+    m = drive.motor
+    psi_d, psi_q = read_flux_map(m.flux_map).flux(0.0, 0.0)
+    psi_m = math.hypot(float(psi_d), float(psi_q)) * (1.0 + m.k_psi_T * (spec.T_magnet - m.T_magnet_ref))
+    return spec.u_dc / (math.sqrt(3.0) * m.pole_pairs * psi_m)
 
 
 def run_fault_sweep(drive_fmu: Path, out: Path, spec: FaultSweepSpec | None = None,
@@ -158,7 +172,10 @@ def run_fault_sweep(drive_fmu: Path, out: Path, spec: FaultSweepSpec | None = No
             w.writerows(rows)
     write_atomically(out / "fault_sweep.csv", write)
     onset, env = envelope(rows, drive.motor.I_max)
+    w_onset = onset_speed(drive, spec)
     summary = FaultSweepSummary(spec=spec.to_dict(), points=len(rows), wall_s=wall, i_d_demag_A=i_d_demag,
+                                onset_back_emf_rpm=w_onset / RPM,
+                                onset_back_emf_kmh=3.6 * vehicle_speed(w_onset, drive.vehicle),
                                 onset_rpm=onset, envelope=env)
     write_atomically(out / "summary.json", summary.to_json())
     plot_fault_envelope(rows, summary, drive.motor.I_max, out / "fault_envelope.png")
