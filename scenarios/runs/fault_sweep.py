@@ -21,6 +21,7 @@ from scenarios.core.boundary import strict_json, write_atomically
 from scenarios.core.constants import T_REFERENCE_K
 from scenarios.core.progress import Progress
 from scenarios.cosim.drive_fmu import DriveFmu
+from scenarios.cosim.fmu import CosimError
 from scenarios.drives.description import SAFE_STATES, DriveDescription, load_drive
 from scenarios.runs.fault import ZERO_CURRENT_FRACTION
 from scenarios.vehicle.longitudinal import vehicle_speed
@@ -41,6 +42,8 @@ SETTLE_S = 0.05
 FAULT_S = 0.5
 #: s, the communication step (the steady figures are the last one's means)
 STEP_S = 0.01
+#: characters of an FMU's error kept per failed point (its log line is bounded; a CSV cell stays readable)
+ERROR_CHARS = 500
 #: the steady state is reached when the last two steps' mean torques differ by less than this
 #: share of the larger (or by less than 1e-6 N m)
 STEADY_TOLERANCE = 1e-3
@@ -83,7 +86,7 @@ def fault_point(drive_fmu: Path, spec: FaultSweepSpec, params: dict, state: str,
     last, prev = steps[-1], steps[-2]
     steady = abs(last.T_shaft - prev.T_shaft) <= max(STEADY_TOLERANCE * max(abs(last.T_shaft), abs(prev.T_shaft)),
                                                      1e-6)
-    return dict(speed_rpm=rpm, state=state, load=load, T_before_Nm=before.T_e, I_before_A=math.hypot(before.i_d,
+    return dict(speed_rpm=rpm, state=state, load=load, error="", T_before_Nm=before.T_e, I_before_A=math.hypot(before.i_d,
                 before.i_q), inverter_state=last.inverter_state, i_peak_A=max(s.i_peak for s in steps),
                 T_shaft_steady_Nm=last.T_shaft, T_e_steady_Nm=last.T_e, i_dc_steady_A=last.i_dc,
                 P_dc_steady_W=last.P_dc, i_d_steady_A=last.i_d, i_q_steady_A=last.i_q,
@@ -104,20 +107,35 @@ class FaultSweepSummary:
     onset_back_emf_rpm: float     # where the back-EMF's line-to-line peak sqrt(3) p w_m psi_m reaches u_dc
     onset_back_emf_kmh: float     # ... the drive's car at that motor speed
     onset_rpm: float | None
-    envelope: dict   # state -> {i_peak_A_max, T_brake_Nm_max, i_dc_charge_A_max, ...}
+    envelope: dict   # state -> {i_peak_A_max, T_brake_Nm_max, i_dc_charge_A_max, ...} over the points that ran
+    failed: list     # [state, load, speed_rpm, error] of the points the FMU could not run
 
     def to_json(self) -> str:
         return strict_json(asdict(self))
 
 
+#: a row's figures when its point could not run (the FMU refused a step): NaN, `error` says why
+FIGURES = ("T_before_Nm", "I_before_A", "inverter_state", "i_peak_A", "T_shaft_steady_Nm", "T_e_steady_Nm",
+           "i_dc_steady_A", "P_dc_steady_W", "i_d_steady_A", "i_q_steady_A", "I_steady_A", "P_cu_steady_W",
+           "P_fe_steady_W", "P_inv_steady_W")
+
+
+def failed_point(state: str, load: str, rpm: float, error: str) -> dict:
+    return dict(speed_rpm=rpm, state=state, load=load, error=error, **{k: math.nan for k in FIGURES}, steady=False)
+
+
 def envelope(rows: list[dict], I_max: float) -> tuple[float | None, dict]:
-    """(the onset speed, per state the extremes) of the sweep's rows."""
+    """(the onset speed, per state the extremes) of the rows that ran (None: no row ran)."""
     zero = ZERO_CURRENT_FRACTION * I_max
+    rows = [r for r in rows if not r["error"]]
     onset = next((r["speed_rpm"] for r in sorted(rows, key=lambda r: r["speed_rpm"])
                   if r["state"] == "freewheel" and r["load"] == "no_load" and r["I_steady_A"] > zero), None)
     out = {}
     for state in STATES:
         sel = [r for r in rows if r["state"] == state]
+        if not sel:
+            out[state] = None
+            continue
         peak = max(sel, key=lambda r: r["i_peak_A"])
         brake = max(sel, key=lambda r: -r["T_shaft_steady_Nm"])
         charge = max(sel, key=lambda r: -r["i_dc_steady_A"])
@@ -156,7 +174,10 @@ def run_fault_sweep(drive_fmu: Path, out: Path, spec: FaultSweepSpec | None = No
     t0 = time.perf_counter()
     rows = []
     for state, load, n in points:
-        rows.append(fault_point(drive_fmu, spec, params, state, load, float(n)))
+        try:
+            rows.append(fault_point(drive_fmu, spec, params, state, load, float(n)))
+        except CosimError as e:  # the FMU refused a step: the point has no figures, and says why
+            rows.append(failed_point(state, load, float(n), str(e)[:ERROR_CHARS]))
         if bar:
             bar.update()
     if bar:
@@ -176,7 +197,8 @@ def run_fault_sweep(drive_fmu: Path, out: Path, spec: FaultSweepSpec | None = No
     summary = FaultSweepSummary(spec=spec.to_dict(), points=len(rows), wall_s=wall, i_d_demag_A=i_d_demag,
                                 onset_back_emf_rpm=w_onset / RPM,
                                 onset_back_emf_kmh=3.6 * vehicle_speed(w_onset, drive.vehicle),
-                                onset_rpm=onset, envelope=env)
+                                onset_rpm=onset, envelope=env,
+                                failed=[[r["state"], r["load"], r["speed_rpm"], r["error"]] for r in rows if r["error"]])
     write_atomically(out / "summary.json", summary.to_json())
     plot_fault_envelope(rows, summary, drive.motor.I_max, out / "fault_envelope.png")
     return summary

@@ -159,14 +159,14 @@ def test_a_speed_trigger_fires_where_the_speed_is_reached_and_once():
 #: a motorway stretch of WLTC 3b (128 -> 130 km/h in 20 s) and, per [fault] key, the table of the
 #: baseline run and of the perturbed one
 KEY_WINDOW = (1700.0, 1720.0)
-KEY_BASE = {"t_s": 1705.0}
+KEY_BASE = {"t_s": 5.0}   # the run's time: a segment's starts at 0
 PERTURBED = {
-    "t_s": {"t_s": 1710.0},
+    "t_s": {"t_s": 10.0},
     "speed_rpm": {"speed_rpm": 9000.0},
     "v_kmh": {"v_kmh": 128.0},
-    "safe_state": {"t_s": 1705.0, "safe_state": "freewheel"},
-    "duration_s": {"t_s": 1705.0, "duration_s": 2.0},
-    "i_d_demag": {"t_s": 1705.0, "i_d_demag": -321.0},
+    "safe_state": {"t_s": 5.0, "safe_state": "freewheel"},
+    "duration_s": {"t_s": 5.0, "duration_s": 2.0},
+    "i_d_demag": {"t_s": 5.0, "i_d_demag": -321.0},
 }
 
 
@@ -236,11 +236,11 @@ def test_the_trip_run_has_the_fault_keys(trip_run):
     d = json.loads((out / "summary.json").read_text())
     assert d["fault_trigger"] == "fault.v_kmh = 130 km/h" and d["fault_safe_state"] == "by_speed"
     t_trip = next(x.t for x in steps if x.fault) - 0.01
-    assert d["fault_time_s"] == pytest.approx(t_trip) and 1718.0 < t_trip < 1722.0
+    assert d["fault_time_s"] == pytest.approx(t_trip) and 18.0 < t_trip < 22.0   # a segment's time starts at 0
     assert 130.0 <= d["fault_speed_kmh"] < 130.0 + 3.6 * 0.05   # reached within a step's acceleration
     assert d["fault_speed_rpm"] == pytest.approx(d["fault_speed_kmh"] / 3.6 * 8.19 / 0.306 / RPM)
     assert d["fault_state"] == "asc"   # 130 km/h is 9300 r/min, above the onset: the policy's ASC
-    assert d["fault_duration_s"] == pytest.approx(WINDOW[1] - d["fault_time_s"])
+    assert d["fault_duration_s"] == pytest.approx(WINDOW[1] - WINDOW[0] - d["fault_time_s"])
     for k in ("fault_i_peak_A", "fault_T_peak_Nm", "fault_demag_margin_A", "fault_i_d_demag_A"):
         assert isinstance(d[k], float) and math.isfinite(d[k]), k
     assert d["fault_demag_margin_A"] == pytest.approx(abs(d["fault_i_d_demag_A"]) - d["fault_i_peak_A"])
@@ -249,7 +249,7 @@ def test_the_trip_run_has_the_fault_keys(trip_run):
     assert d["fault_T_peak_Nm"] == pytest.approx(max(-x.drive.T_shaft for x in steps if x.fault))
     # the car stops at 1795 s: the ASC current falls to zero with the speed
     assert d["fault_time_to_zero_current_s"] is not None
-    assert d["fault_time_s"] + d["fault_time_to_zero_current_s"] <= 1800.0
+    assert d["fault_time_s"] + d["fault_time_to_zero_current_s"] <= WINDOW[1] - WINDOW[0]
     assert d["undefined"] == [k for k, v in d.items() if v is None]
 
 
@@ -293,7 +293,7 @@ def test_the_trip_run_writes_its_trace_and_picture(trip_run):
     with open(out / "fault_trace.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     t = [float(r["time_s"]) for r in rows]
-    assert t[0] == pytest.approx(s.fault_time_s - 1.0 + 0.01) and t[-1] == pytest.approx(WINDOW[1])
+    assert t[0] == pytest.approx(s.fault_time_s - 1.0 + 0.01) and t[-1] == pytest.approx(WINDOW[1] - WINDOW[0])
     assert np.allclose(np.diff(t), 0.01)
     assert {r["fault"] for r in rows[:100]} == {"0"} and rows[100]["fault"] == "1"
     png = plot_fault(out, "trip", json.loads((out / "summary.json").read_text()), s.fault_i_d_demag_A)
@@ -346,13 +346,14 @@ def sweep(fault_fmus, tmp_path_factory):
     s = run_fault_sweep(fault_fmus[0].parent / "IpmsmDrive.fmu", out,
                         FaultSweepSpec(drive=load_drive(), speeds_rpm=(3000.0, 9000.0, 12000.0)), progress=False)
     with open(out / "fault_sweep.csv", newline="") as f:
-        rows = [{k: (v if k in ("state", "load") else float(v) if v not in ("True", "False") else v == "True")
+        rows = [{k: (v if k in ("state", "load", "error") else float(v) if v not in ("True", "False") else v == "True")
                  for k, v in r.items()} for r in csv.DictReader(f)]
     return s, rows, out
 
 
 def test_sweep_writes_its_files(sweep):
     s, rows, out = sweep
+    assert s.failed == [], s.failed   # every point ran: the FMU stepped each state from each operating point
     assert len(rows) == s.points == 3 * 2 * 2
     assert {(r["state"], r["load"]) for r in rows} == {(a, b) for a in ("freewheel", "asc")
                                                        for b in ("full_load", "no_load")}
@@ -376,6 +377,8 @@ def test_every_steady_point_balances_its_power(sweep):
     """T_shaft w_m = P_dc - P_inv - P_cu - P_fe in the steady state (no magnetic energy change)."""
     _, rows, _ = sweep
     for r in rows:
+        if r["error"]:
+            continue   # a point the FMU could not run: test_sweep_writes_its_files fails on it
         w = r["speed_rpm"] * RPM
         rhs = r["P_dc_steady_W"] - r["P_inv_steady_W"] - r["P_cu_steady_W"] - r["P_fe_steady_W"]
         assert r["T_shaft_steady_Nm"] * w == pytest.approx(rhs, rel=2e-3, abs=0.5), r
