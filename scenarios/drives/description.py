@@ -344,7 +344,7 @@ SCHEMA: tuple[Key, ...] = (
         "then the inverter switches again", "until the end of the run", acts="fault"),
     Key("fault", "i_d_demag", Rule("real", lo=-1e5, hi=0.0, hi_open=True), "A", "the magnets' demagnetisation limit "
         "on i_d (IpmsmDrive's `i_d_demag`; a check limit may compare the fault's peak current with it)",
-        "the FMU's `i_d_demag` start", acts="fault"),
+        "the FMU's `i_d_demag` start (0: no limit)", acts="fault"),
     # [checks]: what `python -m scenarios check` runs and gates on
     Key("checks", "cycles", Rule("strings"), "", "cycles to run: names (WLTC3b, UDDS, HWFET, US06, NEDC) or CSVs "
         "of time_s,speed_mps relative to this file", "[] (nothing to check)", acts="check"),

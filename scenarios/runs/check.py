@@ -91,7 +91,7 @@ def undefined_because(key: str, summary: dict) -> str:
         if key == "fault_time_to_zero_current_s":
             return "the current had not fallen to zero when the fault ended"
         if key == "fault_demag_margin_A":
-            return "the drive FMU has no i_d_demag"
+            return "the drive has no demagnetisation limit: set fault.i_d_demag"
     return "the run did not define it"
 
 

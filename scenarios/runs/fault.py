@@ -41,6 +41,15 @@ TRACE_AFTER_MAX_S = 120.0
 INVERTER_STATES = {0: "switching", 1: "freewheel", 2: "asc"}
 
 
+def demagnetisation_limit(unit) -> float | None:
+    """A (< 0), the drive's i_d_demag; None where it has none (0, the FMU's default, or no such
+    parameter)."""
+    if "i_d_demag" not in unit.vars:
+        return None
+    x = float(unit.get("i_d_demag"))
+    return x if x < 0.0 else None
+
+
 class FaultTrigger:
     """When the fault is on: from the first communication point at which the trigger is reached
     (a time at or after `t_s`, a motor speed at or above `speed_rpm`, a vehicle speed at or above

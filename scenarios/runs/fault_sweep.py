@@ -23,7 +23,7 @@ from scenarios.core.progress import Progress
 from scenarios.cosim.drive_fmu import DriveFmu
 from scenarios.cosim.fmu import CosimError
 from scenarios.drives.description import SAFE_STATES, DriveDescription, load_drive
-from scenarios.runs.fault import ZERO_CURRENT_FRACTION
+from scenarios.runs.fault import ZERO_CURRENT_FRACTION, demagnetisation_limit
 from scenarios.vehicle.longitudinal import vehicle_speed
 
 RPM = math.pi / 30.0  # rad/s per r/min
@@ -86,8 +86,9 @@ def fault_point(drive_fmu: Path, spec: FaultSweepSpec, params: dict, state: str,
     last, prev = steps[-1], steps[-2]
     steady = abs(last.T_shaft - prev.T_shaft) <= max(STEADY_TOLERANCE * max(abs(last.T_shaft), abs(prev.T_shaft)),
                                                      1e-6)
-    return dict(speed_rpm=rpm, state=state, load=load, error="", T_before_Nm=before.T_e, I_before_A=math.hypot(before.i_d,
-                before.i_q), inverter_state=last.inverter_state, i_peak_A=max(s.i_peak for s in steps),
+    return dict(speed_rpm=rpm, state=state, load=load, error="", T_before_Nm=before.T_e,
+                I_before_A=math.hypot(before.i_d, before.i_q), inverter_state=last.inverter_state,
+                i_peak_A=max(s.i_peak for s in steps),
                 T_shaft_steady_Nm=last.T_shaft, T_e_steady_Nm=last.T_e, i_dc_steady_A=last.i_dc,
                 P_dc_steady_W=last.P_dc, i_d_steady_A=last.i_d, i_q_steady_A=last.i_q,
                 I_steady_A=math.hypot(last.i_d, last.i_q), P_cu_steady_W=last.P_cu, P_fe_steady_W=last.P_fe,
@@ -184,7 +185,7 @@ def run_fault_sweep(drive_fmu: Path, out: Path, spec: FaultSweepSpec | None = No
         bar.close()
     wall = time.perf_counter() - t0
     with DriveFmu(drive_fmu, params) as d:
-        i_d_demag = float(d.get("i_d_demag")) if "i_d_demag" in d.vars else None
+        i_d_demag = demagnetisation_limit(d)
 
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="", encoding="utf-8") as f:
@@ -198,7 +199,8 @@ def run_fault_sweep(drive_fmu: Path, out: Path, spec: FaultSweepSpec | None = No
                                 onset_back_emf_rpm=w_onset / RPM,
                                 onset_back_emf_kmh=3.6 * vehicle_speed(w_onset, drive.vehicle),
                                 onset_rpm=onset, envelope=env,
-                                failed=[[r["state"], r["load"], r["speed_rpm"], r["error"]] for r in rows if r["error"]])
+                                failed=[[r["state"], r["load"], r["speed_rpm"], r["error"]]
+                                        for r in rows if r["error"]])
     write_atomically(out / "summary.json", summary.to_json())
     plot_fault_envelope(rows, summary, drive.motor.I_max, out / "fault_envelope.png")
     return summary

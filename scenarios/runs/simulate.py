@@ -31,7 +31,7 @@ from scenarios.cosim.fmu import Fmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
 from scenarios.runs.accounting import RunAccounts
-from scenarios.runs.fault import FaultAccounts, FaultTrigger
+from scenarios.runs.fault import FaultAccounts, FaultTrigger, demagnetisation_limit
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
 from scenarios.vehicle.cycles import Cycle, load_cycle, sampled
@@ -293,8 +293,7 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
                                                               cond.T_winding))
                          if spec.reference else None)
             if trigger is not None:
-                faults = FaultAccounts(trigger, dt, drive.motor.I_max,
-                                       sim.get("i_d_demag") if "i_d_demag" in sim.vars else None)
+                faults = FaultAccounts(trigger, dt, drive.motor.I_max, demagnetisation_limit(sim))
             for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference,
                                                    trigger)):
                 accounts.observe(step)

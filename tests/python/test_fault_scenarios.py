@@ -241,9 +241,10 @@ def test_the_trip_run_has_the_fault_keys(trip_run):
     assert d["fault_speed_rpm"] == pytest.approx(d["fault_speed_kmh"] / 3.6 * 8.19 / 0.306 / RPM)
     assert d["fault_state"] == "asc"   # 130 km/h is 9300 r/min, above the onset: the policy's ASC
     assert d["fault_duration_s"] == pytest.approx(WINDOW[1] - WINDOW[0] - d["fault_time_s"])
-    for k in ("fault_i_peak_A", "fault_T_peak_Nm", "fault_demag_margin_A", "fault_i_d_demag_A"):
+    for k in ("fault_i_peak_A", "fault_T_peak_Nm"):
         assert isinstance(d[k], float) and math.isfinite(d[k]), k
-    assert d["fault_demag_margin_A"] == pytest.approx(abs(d["fault_i_d_demag_A"]) - d["fault_i_peak_A"])
+    # trip.toml gives no i_d_demag and the FMU's default is 0, no limit: no margin
+    assert d["fault_i_d_demag_A"] is None and d["fault_demag_margin_A"] is None
     # the peak is at least every current the steps saw, and the FMU's i_peak
     assert d["fault_i_peak_A"] >= max(math.hypot(x.drive.i_d, x.drive.i_q) for x in steps if x.fault)
     assert d["fault_T_peak_Nm"] == pytest.approx(max(-x.drive.T_shaft for x in steps if x.fault))
@@ -300,13 +301,14 @@ def test_the_trip_run_writes_its_trace_and_picture(trip_run):
     assert png.stat().st_size > 20_000
 
 
-FAULT_DRIVE = '[fault]\nv_kmh = 100.0\nsafe_state = "{state}"\n[checks]\ncycles = ["{cycle}"]\n'
+FAULT_DRIVE = '[fault]\nv_kmh = 100.0\nsafe_state = "{state}"\n{demag}[checks]\ncycles = ["{cycle}"]\n'
 
 
-def _check(tmp_path, capsys, limits: dict, state: str = "asc", cycle: str = "road.csv") -> tuple[int, str]:
+def _check(tmp_path, capsys, limits: dict, state: str = "asc", cycle: str = "road.csv",
+           demag: str = "i_d_demag = -1000.0\n") -> tuple[int, str]:
     (tmp_path / "road.csv").write_text("time_s,speed_mps\n0,26.0\n3,30.0\n8,30.0\n")   # 94 -> 108 km/h
     (tmp_path / "town.csv").write_text("time_s,speed_mps\n0,0.0\n5,10.0\n8,10.0\n")
-    p = write(tmp_path, FAULT_DRIVE.format(state=state, cycle=cycle) + "".join(f"{k} = {v!r}\n"
+    p = write(tmp_path, FAULT_DRIVE.format(state=state, cycle=cycle, demag=demag) + "".join(f"{k} = {v!r}\n"
                                                                               for k, v in limits.items()))
     status = cli.main(["check", str(p), "--out", str(tmp_path / "out")])
     return status, capsys.readouterr().out + (tmp_path / "out" / "check.md").read_text()
@@ -317,9 +319,14 @@ def test_check_gates_on_the_fault_figures(fault_fmus, tmp_path, capsys):
                                              "fault_time_to_zero_current_s_max": 1e6})
     assert status == 1, text   # ASC at speed: the current does not fall to zero before the run ends
     assert "fault_i_peak_A = " in text and "ok   f/road.csv fault_i_peak_A" in text
+    assert "ok   f/road.csv fault_demag_margin_A" in text   # |-1000 A| above an ASC peak near 600 A
     assert "FAIL f/road.csv fault_time_to_zero_current_s" in text and "had not fallen to zero" in text
     status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 1.0})
     assert status == 1 and "FAIL f/road.csv fault_i_peak_A" in text
+    status, text = _check(tmp_path, capsys, {"fault_demag_margin_A_min": 0.0}, demag="i_d_demag = -10.0\n")
+    assert status == 1 and "FAIL f/road.csv fault_demag_margin_A" in text   # 10 A: any ASC current passes it
+    status, text = _check(tmp_path, capsys, {"fault_demag_margin_A_min": 0.0}, demag="")
+    assert status == 1 and "set fault.i_d_demag" in text
     status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 5000.0, "fault_braking_torque_Nm_max": 1000.0,
                                              "fault_charge_Ah_max": 1.0, "fault_energy_Wh_max": 100.0})
     assert status == 0, text
