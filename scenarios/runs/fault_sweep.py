@@ -28,8 +28,12 @@ from scenarios.vehicle.longitudinal import vehicle_speed
 
 RPM = math.pi / 30.0  # rad/s per r/min
 
-#: r/min between the sweep's speeds (the top speed is added)
+#: r/min between the sweep's speeds (the top speed is added) ...
 SPEED_STEP_RPM = 500.0
+#: ... and the low speeds before them: ASC's braking torque peaks near w_e = R_s / L_q (about
+#: 21 rad/s electrical, 50 r/min, on the default motor: 0.012 Ohm, L_q 0.57 mH at small i_q),
+#: far below the first step
+LOW_SPEEDS_RPM = (25.0, 50.0, 100.0, 200.0, 300.0)
 #: the forced states swept (IpmsmDrive's safe_state by name)
 STATES = ("freewheel", "asc")
 #: the operating points before the trip: full load (a torque command beyond reach: the controller
@@ -37,8 +41,8 @@ STATES = ("freewheel", "asc")
 LOADS = {"full_load": 1e9, "no_load": 0.0}
 #: s, before the trip: the current regulator (500 Hz bandwidth by default) settles in a few ms
 SETTLE_S = 0.05
-#: s, after the trip: ASC's slowest time constant L_q / R_s is some 40 ms on the default motor
-#: (0.5 mH / 0.012 Ohm): 0.5 s is 12 of them, a residual of e^-12
+#: s, after the trip: ASC's slowest time constant L_q / R_s is some 47 ms on the default motor
+#: (0.57 mH / 0.012 Ohm): 0.5 s is 10 of them, a residual of e^-10 (`steady` checks it per point)
 FAULT_S = 0.5
 #: s, the communication step (the steady figures are the last one's means)
 STEP_S = 0.01
@@ -68,7 +72,7 @@ class FaultSweepSpec:
 
 def speeds_up_to(top_rpm: float, step: float = SPEED_STEP_RPM) -> tuple:
     n = int(math.floor(top_rpm / step + 1e-9))
-    grid = [step * k for k in range(1, n + 1)]
+    grid = [x for x in LOW_SPEEDS_RPM if x < top_rpm] + [step * k for k in range(1, n + 1)]
     return tuple(grid if grid and abs(grid[-1] - top_rpm) < 1e-6 else [*grid, top_rpm])
 
 
@@ -107,6 +111,7 @@ class FaultSweepSummary:
     i_d_demag_A: float | None
     onset_back_emf_rpm: float     # where the back-EMF's line-to-line peak sqrt(3) p w_m psi_m reaches u_dc
     onset_back_emf_kmh: float     # ... the drive's car at that motor speed
+    onset_fundamental_rpm: float  # where p w_m psi_m reaches the conducting bridge's 2 u_dc / pi (the plant's model)
     onset_rpm: float | None
     envelope: dict   # state -> {i_peak_A_max, T_brake_Nm_max, i_dc_charge_A_max, ...} over the points that ran
     failed: list     # [state, load, speed_rpm, error] of the points the FMU could not run
@@ -198,6 +203,7 @@ def run_fault_sweep(drive_fmu: Path, out: Path, spec: FaultSweepSpec | None = No
     summary = FaultSweepSummary(spec=spec.to_dict(), points=len(rows), wall_s=wall, i_d_demag_A=i_d_demag,
                                 onset_back_emf_rpm=w_onset / RPM,
                                 onset_back_emf_kmh=3.6 * vehicle_speed(w_onset, drive.vehicle),
+                                onset_fundamental_rpm=w_onset * math.sqrt(3.0) * 2.0 / math.pi / RPM,
                                 onset_rpm=onset, envelope=env,
                                 failed=[[r["state"], r["load"], r["speed_rpm"], r["error"]]
                                         for r in rows if r["error"]])
