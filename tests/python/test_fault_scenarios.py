@@ -305,35 +305,39 @@ FAULT_DRIVE = '[fault]\nv_kmh = 100.0\nsafe_state = "{state}"\n{demag}[checks]\n
 
 
 def _check(tmp_path, capsys, limits: dict, state: str = "asc", cycle: str = "road.csv",
-           demag: str = "i_d_demag = -1000.0\n") -> tuple[int, str]:
+           demag: str = "i_d_demag = -1000.0\n", build: Path | None = None) -> tuple[int, str]:
     (tmp_path / "road.csv").write_text("time_s,speed_mps\n0,26.0\n3,30.0\n8,30.0\n")   # 94 -> 108 km/h
     (tmp_path / "town.csv").write_text("time_s,speed_mps\n0,0.0\n5,10.0\n8,10.0\n")
     p = write(tmp_path, FAULT_DRIVE.format(state=state, cycle=cycle, demag=demag) + "".join(f"{k} = {v!r}\n"
                                                                               for k, v in limits.items()))
-    status = cli.main(["check", str(p), "--out", str(tmp_path / "out")])
+    status = cli.main([*(["--build", str(build)] if build else []), "check", str(p), "--out", str(tmp_path / "out")])
     return status, capsys.readouterr().out + (tmp_path / "out" / "check.md").read_text()
 
 
 def test_check_gates_on_the_fault_figures(fault_fmus, tmp_path, capsys):
-    status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 5000.0, "fault_demag_margin_A_min": 0.0,
-                                             "fault_time_to_zero_current_s_max": 1e6})
+    build = fault_fmus[0].parent.parent   # the build folder of the FMUs under test
+    status, text = _check(tmp_path, capsys, build=build, limits={
+        "fault_i_peak_A_max": 5000.0, "fault_demag_margin_A_min": 0.0, "fault_time_to_zero_current_s_max": 1e6})
     assert status == 1, text   # ASC at speed: the current does not fall to zero before the run ends
     assert "fault_i_peak_A = " in text and "ok   f/road.csv fault_i_peak_A" in text
     assert "ok   f/road.csv fault_demag_margin_A" in text   # |-1000 A| above an ASC peak near 600 A
     assert "FAIL f/road.csv fault_time_to_zero_current_s" in text and "had not fallen to zero" in text
-    status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 1.0})
+    status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 1.0}, build=build)
     assert status == 1 and "FAIL f/road.csv fault_i_peak_A" in text
-    status, text = _check(tmp_path, capsys, {"fault_demag_margin_A_min": 0.0}, demag="i_d_demag = -10.0\n")
+    status, text = _check(tmp_path, capsys, {"fault_demag_margin_A_min": 0.0}, demag="i_d_demag = -10.0\n",
+                          build=build)
     assert status == 1 and "FAIL f/road.csv fault_demag_margin_A" in text   # 10 A: any ASC current passes it
-    status, text = _check(tmp_path, capsys, {"fault_demag_margin_A_min": 0.0}, demag="")
+    status, text = _check(tmp_path, capsys, {"fault_demag_margin_A_min": 0.0}, demag="", build=build)
     assert status == 1 and "set fault.i_d_demag" in text
-    status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 5000.0, "fault_braking_torque_Nm_max": 1000.0,
-                                             "fault_charge_Ah_max": 1.0, "fault_energy_Wh_max": 100.0})
+    status, text = _check(tmp_path, capsys, build=build, limits={
+        "fault_i_peak_A_max": 5000.0, "fault_braking_torque_Nm_max": 1000.0, "fault_charge_Ah_max": 1.0,
+        "fault_energy_Wh_max": 100.0})
     assert status == 0, text
 
 
 def test_a_cycle_that_never_trips_fails_a_fault_limit_clearly(fault_fmus, tmp_path, capsys):
-    status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 5000.0}, cycle="town.csv")
+    status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 5000.0}, cycle="town.csv",
+                          build=fault_fmus[0].parent.parent)
     assert status == 1 and "no fault in this cycle: fault.v_kmh = 100 km/h was never reached" in text
 
 
