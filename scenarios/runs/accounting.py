@@ -78,12 +78,14 @@ class RunAccounts:
         self.E_cu += m.P_cu * dt
         self.E_fe += m.P_fe * dt
         self.E_inv += s.P_inverter * dt
-        # Torque error: delivered (mean T_e) against the command within reach.
-        T_err = m.T_e - m.T_cmd
-        self.T_err2 += T_err * T_err
-        self.T_cmd2 += m.T_cmd * m.T_cmd
-        self.T_err_max = max(self.T_err_max, abs(T_err))
-        self.n_T += 1
+        # Torque error: delivered (mean T_e) against the command within reach (none in a fault:
+        # the inverter does not switch, nothing is controlled; scenarios.runs.fault)
+        if not s.fault:
+            T_err = m.T_e - m.T_cmd
+            self.T_err2 += T_err * T_err
+            self.T_cmd2 += m.T_cmd * m.T_cmd
+            self.T_err_max = max(self.T_err_max, abs(T_err))
+            self.n_T += 1
         self.speed_err2 += (s.v - s.v_ref) ** 2
         self.w_m_peak = max(self.w_m_peak, abs(s.w_m))
         if self.w_m_max is not None and abs(s.w_m) > self.w_m_max * (1.0 + TOP_SPEED_MARGIN):
@@ -97,7 +99,7 @@ class RunAccounts:
             self.last = m
         if self.reference:
             self.E_cu_opt += s.P_cu_opt * dt
-            if s.I > I_EXCESS_MIN:
+            if s.I > I_EXCESS_MIN and not s.fault:
                 self.I_excess2 += (s.I - s.I_opt) ** 2
                 self.n_I += 1
 

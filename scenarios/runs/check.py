@@ -48,6 +48,7 @@ class Verdict:
     passed: bool
     wall_s: float   # the cycle's run time (each of its verdicts reports it)
     error: str | None = None
+    note: str | None = None  # why a figure is undefined (a failure, never a pass)
 
     @property
     def rel(self) -> str:
@@ -59,7 +60,8 @@ class Verdict:
         if self.error is not None:
             return f"{self.key}: the cycle could not run: {self.error}"
         state = "holds" if self.passed else "FAILED"
-        return f"{self.key} = {self.figure:.6g}, limit {self.rel} {self.bound:.6g}: {state}"
+        return (f"{self.key} = {self.figure:.6g}, limit {self.rel} {self.bound:.6g}: {state}" +
+                ("" if self.note is None else f" ({self.note})"))
 
 
 def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[Verdict]:
@@ -74,8 +76,23 @@ def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[
         except (TypeError, ValueError):
             x = math.nan
         ok = math.isfinite(x) and (x <= bound if direction == "max" else x >= bound)
-        out.append(Verdict(cycle, name, key, x, bound, ok, wall_s))
+        out.append(Verdict(cycle, name, key, x, bound, ok, wall_s, note=None if math.isfinite(x) else
+                           undefined_because(key, summary)))
     return out
+
+
+def undefined_because(key: str, summary: dict) -> str:
+    """Why a summary's figure is undefined, in words (the verdict fails: nothing was measured)."""
+    if key.startswith("fault_"):
+        if summary.get("fault_trigger") is None:
+            return "the run had no fault: the drive has no [fault] table"
+        if summary.get("fault_time_s") is None:
+            return f"no fault in this cycle: {summary['fault_trigger']} was never reached"
+        if key == "fault_time_to_zero_current_s":
+            return "the current had not fallen to zero when the fault ended"
+        if key == "fault_demag_margin_A":
+            return "the drive has no demagnetisation limit: set fault.i_d_demag"
+    return "the run did not define it"
 
 
 def errored(cycle: str, limits: dict, error: str, wall_s: float = 0.0) -> list[Verdict]:
@@ -145,7 +162,8 @@ def markdown(drive: DriveDescription, verdicts: list[Verdict]) -> str:
              f"{len(verdicts)} limits on {len({v.cycle for v in verdicts})} cycles.", "",
              "| cycle | limit | figure | bound | result |", "|---|---|---|---|---|"]
     for v in verdicts:
-        result = "pass" if v.passed else ("**ERROR**: " + _md_cell(v.error) if v.error is not None else "**FAIL**")
+        result = "pass" if v.passed else ("**ERROR**: " + _md_cell(v.error) if v.error is not None else
+                                          "**FAIL**" + ("" if v.note is None else ": " + _md_cell(v.note)))
         lines.append(f"| {_md_cell(v.cycle)} | `{v.limit}` | {v.figure:.6g} | {v.rel} {v.bound:.6g} | {result} |")
     return "\n".join(lines) + "\n"
 

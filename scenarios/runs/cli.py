@@ -24,14 +24,22 @@ RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km
 #: ... and with the thermal network on
 THERMAL_PRINTED = ("theta_winding_max_K", "theta_magnet_max_K", "theta_winding_end_K", "theta_magnet_end_K",
                    "heat_coolant_Wh", "heat_balance_residual_Wh", "time_derated_s", "derating_min")
+#: ... and with a [fault] table (docs/faults.md)
+FAULT_PRINTED = ("fault_trigger", "fault_safe_state", "fault_time_s", "fault_speed_kmh", "fault_state",
+                 "fault_state_end", "fault_i_peak_A", "fault_demag_margin_A", "fault_T_peak_Nm", "fault_charge_Ah",
+                 "fault_energy_Wh", "fault_time_to_zero_current_s")
+#: exit status of a sweep --fault with a point the FMU could not run (its files written)
+EXIT_FAILED = 1
 
 
 def add_parsers(sub) -> None:
     sw = sub.add_parser("sweep", help="torque-speed sweep of the controller: table and plot of the optimal currents")
-    sw.add_argument("--out", type=Path, default=OUT_DIR / "sweep")
+    sw.add_argument("--out", type=Path, default=None, help="default: out/sweep (with --fault: out/sweep_fault)")
     sw.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
     sw.add_argument("--u-dc", type=float, default=None, help="V; default: the drive's controller.lut_u_dc")
     sw.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
+    sw.add_argument("--fault", action="store_true", help="the safe-state envelope instead (docs/faults.md): peak "
+                    "current, braking torque and charging current against speed, freewheeling and ASC")
 
     run = sub.add_parser("run", help="one drive cycle: summary.json, trace.csv, run.png")
     run.add_argument("cycle", help="WLTC3b, UDDS, HWFET, US06, NEDC, or a CSV of time_s,speed_mps")
@@ -99,12 +107,29 @@ def sweep(args) -> int:
     from scenarios.runs.sweep import SweepSpec, run_sweep
     number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
     drive = load_accepted(args.drive, args.build)
+    args.out = args.out or OUT_DIR / ("sweep_fault" if args.fault else "sweep")
     check_writable(args.out)
+    if args.fault:
+        return fault_sweep(args, drive)
     s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
                   SweepSpec(drive=drive, recursion=args.recursion, u_dc=args.u_dc))
     print(json.dumps({k: s.to_dict()[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
     print(f"wrote {args.out}/sweep.csv, summary.json, current_trajectories.png")
     return 0
+
+
+def fault_sweep(args, drive) -> int:
+    """sweep --fault: the safe-state envelope (scenarios.runs.fault_sweep); exit 1 when a point
+    could not run (its row and summary.json say why)."""
+    from scenarios.runs.fault_sweep import FaultSweepSpec, run_fault_sweep
+    f = run_fault_sweep(args.build / "fmu" / "IpmsmDrive.fmu", args.out, FaultSweepSpec(drive=drive, u_dc=args.u_dc))
+    keys = ("points", "wall_s", "i_d_demag_A", "onset_back_emf_rpm", "onset_back_emf_kmh", "onset_fundamental_rpm",
+            "onset_rpm", "envelope")
+    print(json.dumps({k: getattr(f, k) for k in keys}, indent=1))
+    print(f"wrote {args.out}/fault_sweep.csv, summary.json, fault_envelope.png")
+    for state, load, n, error in f.failed:
+        print(f"error: {state} from {load} at {n:g} r/min could not run: {error}", file=sys.stderr)
+    return EXIT_FAILED if f.failed else 0
 
 
 def run(args) -> int:
@@ -134,9 +159,20 @@ def run(args) -> int:
     if s.thermal_network:
         from scenarios.runs.thermal_plots import plot_thermal
         plot_thermal(out, title, drive.thermal.T_coolant)
+    d = s.to_dict()
+    fault_files = ""
+    if drive.fault is not None:
+        from scenarios.runs.fault_plots import plot_fault
+        fault_files = ", fault_trace.csv"
+        if s.fault_time_s is None:
+            print(f"warning: no fault in this run: {drive.fault.describe()} never reached", file=sys.stderr)
+        else:
+            plot_fault(out, title, d, s.fault_i_d_demag_A)
+            fault_files += ", fault.png"
     for a in drive.assumed:
         print(f"assumed: {a}", file=sys.stderr)
-    d = s.to_dict()
-    print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_network else ())}, indent=1))
-    print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_network else ""))
+    print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_network else ()) +
+                      (FAULT_PRINTED if drive.fault is not None else ())}, indent=1))
+    print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_network else "") +
+          fault_files)
     return 0

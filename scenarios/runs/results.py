@@ -38,6 +38,7 @@ class VehicleStep:
     soc: float         # battery state of charge at t
     F_demand: float = math.nan  # N, the driver's wheel-force demand, before the torque limit and blending
     F_wheel: float = math.nan   # N, the tractive force the drive delivered at the wheels
+    fault: bool = False         # the drive's fault input over the step (a [fault] table; docs/faults.md)
 
 
 @dataclass(frozen=True)
@@ -183,6 +184,23 @@ class RunSummary:
     heat_balance_residual_Wh: float | None = None  # copper + iron loss - stored - coolant - ambient
     time_derated_s: float | None = None        # time the torque limit was derated
     derating_min: float | None = None          # its lowest factor (1: none)
+    # the inverter's fault (a [fault] table; docs/faults.md): the trigger and the policy, then
+    # figures over the fault (None: no [fault] table, or no trip in the run)
+    fault_trigger: str | None = None           # e.g. "fault.v_kmh = 130 km/h"
+    fault_safe_state: str | None = None        # by_speed, freewheel or asc
+    fault_time_s: float | None = None          # the communication point of the trip
+    fault_speed_kmh: float | None = None       # the vehicle's speed there
+    fault_speed_rpm: float | None = None       # the motor's
+    fault_duration_s: float | None = None      # how long it lasted in the run
+    fault_state: str | None = None             # the inverter state it entered: freewheel or asc
+    fault_state_end: str | None = None         # ... and the one at its end (by_speed: freewheel -> asc past the onset)
+    fault_i_peak_A: float | None = None        # largest current magnitude during the fault (the drive's i_peak)
+    fault_i_d_demag_A: float | None = None     # the magnets' limit on i_d (the drive's i_d_demag)
+    fault_demag_margin_A: float | None = None  # |i_d_demag| - fault_i_peak_A (|i_d| <= |i|: a safe bound)
+    fault_T_peak_Nm: float | None = None       # largest braking shaft torque (10 ms means), a magnitude
+    fault_charge_Ah: float | None = None       # charge into the DC link from the drive during the fault
+    fault_energy_Wh: float | None = None       # ... energy
+    fault_time_to_zero_current_s: float | None = None  # from the trip until |i| stays zero (None: it did not)
 
     def to_dict(self) -> dict:
         return asdict(self)

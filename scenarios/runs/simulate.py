@@ -31,6 +31,7 @@ from scenarios.cosim.fmu import Fmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
 from scenarios.runs.accounting import RunAccounts
+from scenarios.runs.fault import FaultAccounts, FaultTrigger, demagnetisation_limit
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
 from scenarios.vehicle.cycles import Cycle, load_cycle, sampled
@@ -130,10 +131,11 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
 def _open_drive_fmu(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict,
                     **start) -> DriveFmu:
     """IpmsmDrive (built next to the controller's FMU), with the thermal network's boundary."""
-    thermal = spec.thermal()
+    thermal, fault = spec.thermal(), spec.drive.fault
     boundary = dict(T_coolant=thermal.T_coolant, T_ambient=thermal.T_ambient) if thermal.on else {}
     return DriveFmu(Path(controller_fmu).parent / "IpmsmDrive.fmu",
-                    {**c_params, **p_params, **thermal.fmu_params(), "sample_time": spec.h}, **start, **boundary)
+                    {**c_params, **p_params, **thermal.fmu_params(), "sample_time": spec.h,
+                     **(fault.fmu_params() if fault is not None else {})}, **start, **boundary)
 
 
 def _open_reference(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict,
@@ -143,6 +145,8 @@ def _open_reference(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_para
     if spec.thermal().on:
         raise InputError("(command line)", "--backend", "the drive backend with the thermal network on "
                          "([thermal] thermal_model = true)")
+    if spec.drive.fault is not None:  # the safe state's policy is IpmsmDrive's (contract, "Faults")
+        raise InputError("(command line)", "--backend", "the drive backend with a [fault] table")
     return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start)
 
 
@@ -192,10 +196,10 @@ class OptimumReference:
 
 def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], drive: DriveFmu | ReferenceDrive,
                   vehicle: Vehicle, driver: Driver, battery: Battery,
-                  reference: OptimumReference | None) -> Iterator[VehicleStep]:
+                  reference: OptimumReference | None, fault: FaultTrigger | None = None) -> Iterator[VehicleStep]:
     """The vehicle-side loop (scenarios/driver.py describes one step) over the cycle sampled at
     t_ref (len(t_ref) - 1 steps of spec.dt) around `drive`; yields each step's signals once it
-    has ended."""
+    has ended. `fault`: when the drive's fault input is on (scenarios.runs.fault)."""
     cond, vp, dt = spec.conditions, spec.drive.vehicle, spec.dt
     P_aux = spec.drive.P_aux
     drive_dt = spec.steps_per_vehicle_step() * drive.sample_time
@@ -207,12 +211,19 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
     thermal = spec.thermal().on
     T_magnet, T_winding = cond.T_magnet, cond.T_winding
     T_max_known = T_MAX_UNKNOWN
+    F_w = 0.0
     for k in range(len(t_ref) - 1):
         v = vehicle.v
         w_m = motor_speed(v, vp)
         u_dc = battery.u * cond.u_dc_scale
+        on = fault is not None and fault.on(t_ref[k], v, w_m)
+        if fault is not None:
+            drive.set_fault(on)
         F_dem = driver.demand(v_ref[k], v_ref[k + 1], v, dt)
-        b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
+        if on:  # no traction torque; the friction brakes make up what the safe state's drag (the last step's) does not
+            b = blend(F_dem - F_w, v, 0.0, 0.0, vp, spec.blend)
+        else:
+            b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
         m = drive.advance(drive_dt, b.T_ref, w_m, u_dc, T_magnet, T_winding)
         T_max_known = abs(m.T_max)
         F_w = wheel_force(m.T_shaft, vp)
@@ -222,12 +233,12 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         battery.step(P_dc + P_aux, dt)
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
-        if reference is not None:
+        if reference is not None and not on:
             I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
             P_cu_opt = reference.copper_loss(I_opt, R)
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
                           F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
-                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w)
+                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w, fault=on)
         if thermal:
             T_magnet, T_winding = m.theta_magnet, m.theta_winding
             R = winding_resistance(drive, T_winding)
@@ -271,6 +282,8 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
     accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max,
                            thermal=spec.thermal().on)
     trace = Trace(every=max(1, int(round(spec.trace_dt / dt))), keep=out is not None)
+    trigger = FaultTrigger(drive.fault) if drive.fault is not None else None
+    faults = None
     bar = Progress(n, f"{cycle.name} {method} [{cond.name}]") if progress else None
     wall0 = time.perf_counter()
     try:
@@ -279,8 +292,13 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
                                                               winding_resistance(sim, cond.T_winding),
                                                               cond.T_winding))
                          if spec.reference else None)
-            for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference)):
+            if trigger is not None:
+                faults = FaultAccounts(trigger, dt, drive.motor.I_max, demagnetisation_limit(sim))
+            for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference,
+                                                   trigger)):
                 accounts.observe(step)
+                if faults is not None:
+                    faults.observe(step)
                 trace.observe(k, step)
                 if observe is not None:
                     observe(step)
@@ -293,10 +311,13 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
     summary = accounts.summary(cycle=cycle.name, method=method, recursion=recursion, conditions=cond,
                                vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
                                wall=wall, backend=spec.backend)
-    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256)
+    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256,
+                      **(faults.figures() if faults is not None else {}))
     try:
         if out is not None:
             write_results(out, summary, trace)
+            if faults is not None:
+                faults.write_csv(out / "fault_trace.csv")
     finally:
         trace.close()
     return summary

@@ -33,7 +33,7 @@ TRACES_DIR = "traces"
 FOLD_BATCH = 256
 
 _ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), bool: pa.bool_(), "float | None": pa.float64(),
-          "int | None": pa.int64(), "bool | None": pa.bool_()}
+          "int | None": pa.int64(), "bool | None": pa.bool_(), "str | None": pa.string()}
 
 
 def _arrow_type(t) -> pa.DataType:
