@@ -154,6 +154,19 @@ class Fmu:
 
     step = do_step
 
+    def save_state(self):
+        """fmi2GetFMUstate: a copy of the instance's state (and its time) to go back to; free it
+        with free_state."""
+        return self.fmu.getFMUstate(), self.t
+
+    def restore_state(self, saved) -> None:
+        """fmi2SetFMUstate: the instance as it was when `saved` was taken."""
+        self.fmu.setFMUstate(saved[0])
+        self.t = saved[1]
+
+    def free_state(self, saved) -> None:
+        self.fmu.freeFMUstate(saved[0])
+
     def close(self) -> None:
         if self.fmu is not None:
             fatal = any(s == FMI2_FATAL for s, _, _ in self.messages)

@@ -30,7 +30,8 @@ from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
 from scenarios.cosim.fmu import Fmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
-from scenarios.runs.accounting import RunAccounts
+from scenarios.runs.accounting import DcLinkError, RunAccounts
+from scenarios.runs.power_limit import advance_within
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
 from scenarios.vehicle.cycles import Cycle, load_cycle, sampled
@@ -151,15 +152,21 @@ class OptimumReference:
         self.T_winding = T_winding  # K: the optimum's voltage ellipse at the winding's resistance too
         self.fmu = Fmu(controller_fmu, instance_name="reference",
                        **drive.controller_params(method="ferrari", recursion=2))
+        self.i_ref = (0.0, 0.0)  # A, the last command (d, q): the regulator's measured currents
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
                 T_winding: float | None = None) -> float:
         """|i| (A) of the optimal command for T_e, one controller step at t; T_winding (K) None:
         the run's start (a run with the thermal network gives the step's)."""
+        # The FMU's current regulator runs too, though only its command is wanted: its measured
+        # currents are the command it gave (the current loop closed ideally), so the regulator
+        # sees no error to integrate (left at 0 A it winds up until its voltage is not finite)
         self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
-                     T_winding=self.T_winding if T_winding is None else T_winding)
+                     T_winding=self.T_winding if T_winding is None else T_winding, i_d=self.i_ref[0],
+                     i_q=self.i_ref[1])
         self.fmu.step(t, dt)
-        return math.hypot(*self.fmu.get("i_d_ref", "i_q_ref"))
+        self.i_ref = self.fmu.get("i_d_ref", "i_q_ref")
+        return math.hypot(*self.i_ref)
 
     def copper_loss(self, I: float, R_s: float | None = None) -> float:
         """W at the current magnitude I (A, peak, amplitude-invariant dq); R_s (Ohm) None: the
@@ -183,7 +190,7 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
     t_ref (len(t_ref) - 1 steps of spec.dt) around `drive`; yields each step's signals once it
     has ended."""
     cond, vp, dt = spec.conditions, spec.drive.vehicle, spec.dt
-    P_aux = spec.drive.P_aux
+    P_aux, I_max = spec.drive.P_aux, spec.drive.motor.I_max
     drive_dt = spec.steps_per_vehicle_step() * drive.sample_time
     R = winding_resistance(drive, cond.T_winding)  # the copper loss's resistance: |i|^2 = P_cu / (1.5 R)
     # With the thermal network on, a step's copper loss is at the winding temperature the step
@@ -198,22 +205,34 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         w_m = motor_speed(v, vp)
         u_dc = battery.u * cond.u_dc_scale
         F_dem = driver.demand(v_ref[k], v_ref[k + 1], v, dt)
-        b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
-        m = drive.advance(drive_dt, b.T_ref, w_m, u_dc, T_magnet, T_winding)
+        P_charge = battery.max_charge_power(dt) + P_aux
+        b = blend(F_dem, v, T_max_known, P_charge, vp, spec.blend)
+        # the DC link: the drive draws at most what the pack delivers, returns at most what it takes
+        lim = advance_within(drive, drive_dt, b.T_ref, w_m, u_dc, T_magnet, T_winding, -P_charge,
+                             battery.max_discharge_power(dt) - P_aux, I_max, t_ref[k])
+        m, T_ref, F_brake = lim.step, lim.T_ref, b.F_brake
+        if lim.limited and b.T_ref < 0.0:  # regeneration the pack cannot take: the friction brakes take it
+            F_brake = min(F_brake + wheel_force(T_ref, vp) - wheel_force(b.T_ref, vp), vp.brake_force_max)
         T_max_known = abs(m.T_max)
         F_w = wheel_force(m.T_shaft, vp)
-        driver.applied(F_w - b.F_brake)
-        vehicle.step(F_w, b.F_brake, dt)
+        driver.applied(F_w - F_brake)
+        vehicle.step(F_w, F_brake, dt)
         P_dc = m.P_elec + m.P_inv
-        battery.step(P_dc + P_aux, dt)
+        bs = battery.step(P_dc + P_aux, dt)
+        if bs.P_unmet > 0.0 or bs.P_curtailed > 0.0:  # the limits above hold this; a broken one is an error
+            raise DcLinkError(f"at t = {t_ref[k]:.6g} s the battery could not "
+                              f"{'deliver' if bs.P_unmet > 0.0 else 'take'} the drive's {P_dc:.6g} W and the "
+                              f"auxiliaries' {P_aux:.6g} W (short by {bs.P_unmet + bs.P_curtailed:.6g} W): the DC "
+                              "link's energy balance would not close")
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
         if reference is not None:
             I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
             P_cu_opt = reference.copper_loss(I_opt, R)
-        yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
-                          F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
-                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w)
+        yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=T_ref,
+                          F_brake=F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
+                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w,
+                          battery_limited=lim.limited)
         if thermal:
             T_magnet, T_winding = m.theta_magnet, m.theta_winding
             R = winding_resistance(drive, T_winding)
@@ -270,7 +289,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     summary = accounts.summary(cycle=cycle.name, method=method, recursion=recursion, conditions=cond,
                                vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
                                wall=wall, backend=spec.backend)
-    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256)
+    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256, cycle_distance_km=cycle.distance_m / 1000.0,
+                      cycle_moving_s=cycle.moving_s)
     try:
         if out is not None:
             write_results(out, summary, trace)
