@@ -185,15 +185,17 @@ def _dispatch(args) -> int:
             raise InputError("(command line)", "--repeat", str(e)) from None
         stem = Path(args.cycle).stem + ("" if args.repeat == 1 else f"_x{args.repeat}") + (
             "" if args.drive is None else f"_{drive.name}")
+        from scenarios.runs.out_folder import run_folder
         out = args.out or inside(OUT_DIR, _slug(f"{stem}_{method}"), "run's output folder")
-        check_writable(out)
-        s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
-                                         backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
-        plot_run(out, title, drive)
-        if s.thermal_network:
-            from scenarios.runs.thermal_plots import plot_thermal
-            plot_thermal(out, title, drive.thermal.T_coolant)
+        with run_folder(out) as folder:
+            s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
+                                        backend=args.backend), fmus=fmu_paths(args.build), out=out)
+            title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
+            plot_run(out, title, drive)
+            if s.thermal_network:
+                from scenarios.runs.thermal_plots import plot_thermal
+                plot_thermal(out, title, drive.thermal.T_coolant)
+            folder.done(("summary.json", "trace.csv", "run.png") + (("thermal.png",) if s.thermal_network else ()))
         for a in drive.assumed:
             print(f"assumed: {a}", file=sys.stderr)
         d = s.to_dict()

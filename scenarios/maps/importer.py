@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -197,14 +196,8 @@ def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:
                          "Convention = amplitude-invariant dq, peak values, PM flux on +d."] +
                         [f"Import conversion: {n}" for n in imported.notes] +
                         [f"Import warning: {w}" for w in imported.warnings])
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    os.close(fd)
-    try:
-        write_flux_map(tmp, imported.flux_map(), comment)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    from scenarios.core.boundary import write_atomically  # 0644, a regular file only (docs/inputs.md)
+    write_atomically(out, lambda tmp: write_flux_map(tmp, imported.flux_map(), comment))
     return out
 
 

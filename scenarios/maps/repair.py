@@ -153,14 +153,8 @@ def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, d
                         [f"Repair assumption: {a}" for a in assumed] +
                         [f"Import warning: {w}" for w in imported.warnings])
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    os.close(fd)
-    try:
-        write_flux_map(tmp, fmap, comment)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    from scenarios.core.boundary import write_atomically  # 0644, a regular file only (docs/inputs.md)
+    write_atomically(out, lambda tmp: write_flux_map(tmp, fmap, comment))
     return Repair(changes, verdicts(out, params, build), out)
 
 
