@@ -136,6 +136,18 @@ def _run_args(args) -> None:
         raise InputError("(command line)", "--repeat", f"an integer in [1, {REPEAT_MAX}], got {args.repeat}")
 
 
+def _below_derating_zero(T: float, drive) -> None:
+    """--magnet-degC sets the magnets and the winding: below where the drive's derating takes the
+    whole torque (thermal.T_magnet_max, T_winding_max), or the car could not move at all."""
+    from scenarios.core.boundary import InputError
+    for name in ("T_magnet_max", "T_winding_max"):
+        T_max = drive.thermal.values.get(name)
+        if T_max is not None and T >= T_max:
+            raise InputError("(command line)", "--magnet-degC", f"a temperature below the drive's thermal.{name} = "
+                             f"{T_max - ZERO_CELSIUS_K:g} degC (its torque limit is zero there: the car could not "
+                             f"move), got {T - ZERO_CELSIUS_K:g}")
+
+
 def _dispatch(args) -> int:
     if args.cmd == "fmu-path":
         path = (args.build / "ssp" / f"{SSP_NAME}.ssp" if args.name == SSP_NAME
@@ -176,6 +188,7 @@ def _dispatch(args) -> int:
         drive = load_drive(args.drive)
         method = args.method or drive.controller.method
         T = args.magnet_degC + ZERO_CELSIUS_K
+        _below_derating_zero(T, drive)
         custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
         cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
         cycle = _cycle_arg(args.cycle, "cycle")
