@@ -207,15 +207,17 @@ def output_target(path: str | Path, what: str = "output", root: str | Path | Non
             from None
     if stat.S_ISLNK(st.st_mode):
         real = Path(os.path.realpath(path))
+        base = Path(os.path.realpath(root if root is not None else path.parent))
         try:
             rst = os.stat(real)
-        except OSError:
-            raise InputError(path, what, f"a regular file or a link to one; this link leads nowhere ({real})") \
-                from None
+        except OSError:  # a link to a file not written yet: only into an existing folder inside root
+            if real.parent.is_dir() and (real.parent == base or base in real.parents):
+                return real
+            raise InputError(path, what, f"a regular file or a link to one in an existing folder inside {base}; "
+                             f"this link leads nowhere ({real}), and no folder is made through a link") from None
         if not stat.S_ISREG(rst.st_mode):
             raise InputError(path, what, f"a regular file or a link to one; this link leads to a {_kind(rst.st_mode)} "
                              f"({real}), left as it is")
-        base = Path(os.path.realpath(root if root is not None else path.parent))
         if base not in real.parents:
             raise InputError(path, what, f"a link that stays inside {base}; it leads to {real}")
         return real

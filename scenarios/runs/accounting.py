@@ -125,11 +125,13 @@ class RunAccounts:
         dt = self.dt
         km = vehicle.distance / 1000.0
         E_aux = P_aux * n * dt
-        dc_residual = battery.E_terminal - self.E_dc - E_aux
+        # regeneration the pack refused (the blending keeps it rare) is dissipated on the DC side
+        dc_residual = battery.E_terminal - self.E_dc - E_aux - battery.E_curtailed
         if not abs(dc_residual) <= DC_LINK_TOLERANCE * max(self.E_dc_abs + E_aux, 1.0):
             raise DcLinkError(f"the DC link's energy balance does not close: the battery's terminals gave "
-                              f"{battery.E_terminal * WH:.9g} Wh, the drive took {self.E_dc * WH:.9g} Wh and the "
-                              f"auxiliaries {E_aux * WH:.9g} Wh (residual {dc_residual * WH:.3g} Wh)")
+                              f"{battery.E_terminal * WH:.9g} Wh, the drive took {self.E_dc * WH:.9g} Wh, the "
+                              f"auxiliaries {E_aux * WH:.9g} Wh, curtailed regeneration {battery.E_curtailed * WH:.9g} "
+                              f"Wh (residual {dc_residual * WH:.3g} Wh)")
         n_T = max(self.n_T, 1)
         return RunSummary(
             cycle=cycle, method=method, recursion=recursion, conditions=asdict(conditions),

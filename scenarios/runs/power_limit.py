@@ -1,12 +1,13 @@
-"""The battery's limits on the drive: the DC power a vehicle step may draw is what the pack can
-deliver (its matched-load maximum, Battery.max_discharge_power) less the auxiliary load, and the
-power it may return is what the pack can take (Battery.max_charge_power) plus that load. A pack
+"""The battery's limit on the drive: the DC power a vehicle step may draw is what the pack can
+deliver (its matched-load maximum, Battery.max_discharge_power) less the auxiliary load. A pack
 that cannot deliver limits the drive's torque (the car falls behind the trace, visibly); it never
-books a shortfall while the drive runs on energy nobody supplied (docs/vehicle.md).
+books a shortfall while the drive runs on energy nobody supplied (docs/vehicle.md). (Returned
+power beyond what the pack takes is the brake blending's to avoid; what remains is curtailed,
+dissipated on the DC side and booked as regen_curtailed_Wh.)
 
 The drive's DC power at a torque command is known only once the step has run, so a step whose
 limits the drive could reach is run from a saved FMU state (fmi2GetFMUstate): if its DC power is
-outside the limits, the state is restored and the torque command scaled back (a bracketing
+above the limit, the state is restored and the torque command scaled back (a bracketing
 search on the scale in [0, 1], the DC power being monotone in it) until it is inside. A step the
 drive cannot reach at all (the pack gives more than the drive can draw, as for every road car's
 pack) runs once, as it always did: the limits change nothing there.
@@ -49,16 +50,15 @@ class Limited:
 
 
 def advance_within(drive, dt: float, T_ref: float, w_m: float, u_dc: float, T_magnet: float, T_winding: float,
-                   P_min: float, P_max: float, I_max: float, t: float) -> Limited:
-    """drive.advance(dt, T_ref, ...) with the step's mean DC power P_dc in [P_min, P_max] (W):
-    T_ref scaled back toward 0 as far as needed. BatteryLimitError when even zero torque leaves it
-    outside (t: the step's start, s, for the message)."""
-    bound = drive_power_bound(u_dc, I_max)
-    if P_max >= bound and P_min <= -bound:
+                   P_max: float, I_max: float, t: float) -> Limited:
+    """drive.advance(dt, T_ref, ...) with the step's mean DC power P_dc at most P_max (W): T_ref
+    scaled back toward 0 as far as needed. BatteryLimitError when even zero torque draws more
+    (t: the step's start, s, for the message)."""
+    if P_max >= drive_power_bound(u_dc, I_max):
         return Limited(drive.advance(dt, T_ref, w_m, u_dc, T_magnet, T_winding), T_ref, False)
 
     def inside(m) -> bool:
-        return P_min <= m.P_dc <= P_max
+        return m.P_dc <= P_max
 
     saved = drive.save_state()
     try:
@@ -69,13 +69,11 @@ def advance_within(drive, dt: float, T_ref: float, w_m: float, u_dc: float, T_ma
         m = drive.advance(dt, T_ref, w_m, u_dc, T_magnet, T_winding)
         if inside(m):
             return Limited(m, T_ref, False)
-        # the excess's sign: above P_max (drawing) or below P_min (returning); at s = 0 it must be inside
-        target = P_max if m.P_dc > P_max else P_min
-        over = (lambda x: x.P_dc > P_max) if target == P_max else (lambda x: x.P_dc < P_min)
+        target = P_max
         zero = trial(0.0)
         if not inside(zero):
             raise BatteryLimitError(
-                f"at t = {t:.6g} s the battery can give the drive {P_max:.6g} W and take {-P_min:.6g} W, but the "
+                f"at t = {t:.6g} s the battery can give the drive {P_max:.6g} W, but the "
                 f"drive draws {zero.P_dc:.6g} W at zero torque (w_m = {w_m:.6g} rad/s): the pack (battery.R0, "
                 f"n_series, vehicle.P_aux) cannot run this drive")
         lo, P_lo, best = 0.0, zero.P_dc, zero   # lo: inside; hi: outside
@@ -85,7 +83,7 @@ def advance_within(drive, dt: float, T_ref: float, w_m: float, u_dc: float, T_ma
             s = lo + (hi - lo) * (target - P_lo) / (P_hi - P_lo) if P_hi != P_lo else 0.5 * (lo + hi)
             s = min(max(s, lo + 0.05 * (hi - lo)), hi - 0.05 * (hi - lo))
             last = trial(s)
-            if over(last):
+            if not inside(last):
                 hi, P_hi = s, last.P_dc
             else:
                 lo, P_lo, best = s, last.P_dc, last

@@ -186,8 +186,9 @@ class RunSummary:
     # temperatures it is given: the network's, or the run's inputs)
     time_derated_s: float | None = None        # time the torque limit was derated
     derating_min: float | None = None          # its lowest factor (1: none)
-    # the DC link's energy balance: battery terminals - drive (P_elec + P_inverter) - auxiliaries,
-    # zero up to rounding (a run where it would not close is an error, never a summary)
+    # the DC link's energy balance: battery terminals - drive (P_elec + P_inverter) - auxiliaries
+    # - curtailed regeneration (regen_curtailed_Wh, dissipated on the DC side), zero up to
+    # rounding (a run where it would not close is an error, never a summary)
     dc_link_residual_Wh: float = 0.0
     time_battery_limited_s: float = 0.0        # time the battery's power limit held the torque back
     # the cycle as driven should have been (check's cycle-following limits, scenarios.runs.check)
