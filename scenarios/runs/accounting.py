@@ -75,6 +75,7 @@ class RunAccounts:
     E_dc: float = 0.0         # J, the drive's DC side: P_elec + P_inverter
     E_dc_abs: float = 0.0     # J, the energy through the DC link (|drive| + auxiliaries)
     t_battery_limited: float = 0.0  # s with the battery's power limit holding the torque back
+    reference_lost: bool = False    # a step without the optimum: its figures are null
 
     def observe(self, s: VehicleStep) -> None:
         """One vehicle step has ended."""
@@ -113,6 +114,8 @@ class RunAccounts:
                 m.theta_winding, m.theta_magnet, m.theta_stator_yoke, m.theta_stator_tooth)))
             self.last = m
         if self.reference:
+            if math.isnan(s.I_opt):  # the optimum could not be evaluated: its figures are unknown
+                self.reference_lost = True
             self.E_cu_opt += s.P_cu_opt * dt
             if s.I > I_EXCESS_MIN:
                 self.I_excess2 += (s.I - s.I_opt) ** 2
@@ -140,10 +143,11 @@ class RunAccounts:
             speed_rmse_mps=math.sqrt(self.speed_err2 / n),
             torque_rmse_Nm=math.sqrt(self.T_err2 / n_T), torque_error_max_Nm=self.T_err_max,
             torque_cmd_rms_Nm=math.sqrt(self.T_cmd2 / n_T),
-            copper_loss_Wh=self.E_cu * WH, copper_loss_optimal_Wh=self.E_cu_opt * WH if self.reference else None,
+            copper_loss_Wh=self.E_cu * WH, copper_loss_optimal_Wh=self.E_cu_opt * WH if self.reference and not self.reference_lost else None,
             time_above_V_max_pct=100.0 * self.t_over / (n * dt), time_voltage_limited_s=self.t_sat,
             time_voltage_limited_pct=100.0 * self.t_sat / (n * dt),
-            current_excess_rms_A=math.sqrt(self.I_excess2 / self.n_I) if self.n_I else 0.0,
+            current_excess_rms_A=(math.nan if self.reference_lost else
+                                  math.sqrt(self.I_excess2 / self.n_I) if self.n_I else 0.0),
             iron_loss_Wh=self.E_fe * WH, motor_electric_Wh=self.E_elec * WH, shaft_Wh=self.E_mech * WH,
             battery_internal_loss_Wh=(battery.E_loss_R0 + battery.E_loss_R1) * WH,
             battery_energy_residual_Wh=battery.energy_residual() * WH, inverter_loss_Wh=self.E_inv * WH,

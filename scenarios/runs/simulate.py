@@ -27,7 +27,7 @@ from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
 from scenarios.cosim import BACKENDS
 from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
-from scenarios.cosim.fmu import Fmu
+from scenarios.cosim.fmu import CosimError, Fmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
 from scenarios.runs.accounting import DcLinkError, RunAccounts
@@ -142,6 +142,12 @@ def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: d
     raise ValueError(f"backend = {spec.backend!r}: one of {', '.join(BACKENDS)}")
 
 
+#: rad/s, the reference optimum's current regulator: only the command is wanted (it does not
+#: depend on the regulator), so the regulator is made slow enough that, stepped once per vehicle
+#: step, nothing it integrates can grow
+REFERENCE_CURRENT_BANDWIDTH = 1.0
+
+
 class OptimumReference:
     """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
     given torque and conditions: its current magnitude and copper loss at the winding resistance
@@ -151,8 +157,10 @@ class OptimumReference:
         self.R_s = R_s
         self.T_winding = T_winding  # K: the optimum's voltage ellipse at the winding's resistance too
         self.fmu = Fmu(controller_fmu, instance_name="reference",
-                       **drive.controller_params(method="ferrari", recursion=2))
+                       **{**drive.controller_params(method="ferrari", recursion=2),
+                          "current_bandwidth": REFERENCE_CURRENT_BANDWIDTH})
         self.i_ref = (0.0, 0.0)  # A, the last command (d, q): the regulator's measured currents
+        self.failed = ""         # why the optimum could not be evaluated (its figures then null)
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
                 T_winding: float | None = None) -> float:
@@ -223,9 +231,13 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
                               "balance would not close")
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
-        if reference is not None:
-            I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
-            P_cu_opt = reference.copper_loss(I_opt, R)
+        if reference is not None and not reference.failed:
+            try:
+                I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
+                P_cu_opt = reference.copper_loss(I_opt, R)
+            except CosimError as e:  # a side computation: the run goes on, its optimum figures are null
+                reference.failed = f"t = {k * dt:.6g} s: {e}"
+                I_opt, P_cu_opt = math.nan, 0.0
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=T_ref,
                           F_brake=F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
                           P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w,
