@@ -143,7 +143,8 @@ class RunAccounts:
             speed_rmse_mps=math.sqrt(self.speed_err2 / n),
             torque_rmse_Nm=math.sqrt(self.T_err2 / n_T), torque_error_max_Nm=self.T_err_max,
             torque_cmd_rms_Nm=math.sqrt(self.T_cmd2 / n_T),
-            copper_loss_Wh=self.E_cu * WH, copper_loss_optimal_Wh=self.E_cu_opt * WH if self.reference and not self.reference_lost else None,
+            copper_loss_Wh=self.E_cu * WH,
+            copper_loss_optimal_Wh=self.E_cu_opt * WH if self.reference and not self.reference_lost else None,
             time_above_V_max_pct=100.0 * self.t_over / (n * dt), time_voltage_limited_s=self.t_sat,
             time_voltage_limited_pct=100.0 * self.t_sat / (n * dt),
             current_excess_rms_A=(math.nan if self.reference_lost else
