@@ -49,6 +49,17 @@ def get_values(fmu: FMU2Slave, variables: Mapping, *names: str):
     return out[0] if len(out) == 1 else out
 
 
+def model_description(path: Path):
+    """fmpy's model description of the FMU at `path`; a file that is no FMU (not a zip, no
+    modelDescription.xml, a malformed one): InputError naming it and --build (exit 2)."""
+    from scenarios.core.boundary import InputError, printable
+    try:
+        return read_model_description(str(path))
+    except Exception as e:  # noqa: BLE001 - zipfile's, ElementTree's and fmpy's own refusals alike
+        raise InputError(path, "--build", f"an FMU: a zip archive with a valid modelDescription.xml (rebuild it: "
+                         f"cmake --build build); {type(e).__name__}: {printable(str(e))}") from None
+
+
 class CosimError(RuntimeError):
     """An FMI call failed (the message names the FMU, the call and the time, and quotes the FMU's
     log), or a unit was used wrongly."""
@@ -61,7 +72,7 @@ class Fmu:
     def __init__(self, path: str | Path, instance_name: str | None = None, logging: bool = False,
                  initialise: bool = True, **parameters):
         self.path = Path(path)
-        self.md = read_model_description(str(self.path))
+        self.md = model_description(self.path)
         self.name = self.md.coSimulation.modelIdentifier
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.messages: deque = deque(maxlen=200)  # (status, category, message), the latest

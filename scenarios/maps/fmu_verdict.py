@@ -31,7 +31,7 @@ class FmuVerdict:
 def verdict(fmu_path: Path, csv: Path, params: dict) -> FmuVerdict:
     """Instantiate the FMU, set flux_map and the parameters it has, initialise; accepted when
     initialisation returns without error. The log is the FMU's, as it wrote it."""
-    from fmpy import extract, read_model_description
+    from fmpy import extract
     from fmpy.fmi2 import (
         FMU2Slave,
         calloc,
@@ -42,7 +42,7 @@ def verdict(fmu_path: Path, csv: Path, params: dict) -> FmuVerdict:
         free,
     )
 
-    from scenarios.cosim.fmu import set_values
+    from scenarios.cosim.fmu import model_description, set_values
 
     log = []
 
@@ -56,7 +56,7 @@ def verdict(fmu_path: Path, csv: Path, params: dict) -> FmuVerdict:
     callbacks.logger = fmi2CallbackLoggerTYPE(logger)
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    md = read_model_description(str(fmu_path))
+    md = model_description(Path(fmu_path))
     unzipped = extract(str(fmu_path))
     variables = {v.name: v for v in md.modelVariables}
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,

@@ -64,8 +64,8 @@ def top_speed(controller_fmu: Path, drive: DriveDescription) -> float:
     """The drive's motor.w_m_max, else the controller FMU's default (rad/s)."""
     if drive.motor.w_m_max is not None:
         return drive.motor.w_m_max
-    from fmpy import read_model_description
-    md = read_model_description(str(controller_fmu))
+    from scenarios.cosim.fmu import model_description
+    md = model_description(Path(controller_fmu))
     return float(next(v.start for v in md.modelVariables if v.name == "w_m_max"))
 
 
