@@ -219,3 +219,68 @@ def test_the_import_cache_is_verified_owned_and_optional(tmp_path, monkeypatch):
     cache.chmod(0o700)
     monkeypatch.setenv("IPMSM_MAP_CACHE", "/proc/no-such-cache")   # cannot be made: optional
     assert import_cache.contract_csv(half).is_file()
+
+
+# -- the "Unclear" list: labels, escapes, modes ----------------------------------------------------
+def test_junit_labels_that_look_alike_are_told_apart(tmp_path):
+    """A file UDDS beside the standard UDDS, NFC beside NFD, a trailing space: distinct labels."""
+    import unicodedata
+
+    from scenarios.drives.description import load_drive
+    from scenarios.runs.check import _look, cycle_labels
+    nfc = unicodedata.normalize("NFC", "caf\u00e9.csv")
+    nfd = unicodedata.normalize("NFD", nfc)
+    for name in ("UDDS", nfc, nfd, "town.csv", "town.csv "):
+        gentle_cycle(tmp_path, name)
+    d = drive_file(tmp_path, "", 'cycles = ["UDDS", "./UDDS", "' + nfc + '", "' + nfd + '", "town.csv", "town.csv "]\n'
+                   "Wh_per_km_max = 1000.0")
+    labels = cycle_labels(load_drive(d))
+    assert len(labels) == 6
+    looks = [_look(v) for v in labels.values()]
+    assert len(set(looks)) == len(looks), labels
+
+
+def test_a_cycle_name_with_escape_sequences_is_shown_not_obeyed(tmp_path, capsys):
+    from scenarios.core.progress import Progress
+    bar = Progress(1, "c\x1b[2J\x1b]0;owned\x07")
+    bar.update()
+    bar.close()
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\x07" not in err and "\\x1b" in err
+
+
+def test_map_import_writes_0644_whatever_the_umask(tmp_path):
+    out = tmp_path / "imported.csv"
+    old = os.umask(0o077)
+    try:
+        r = cli("map", "import", str(DEFAULT_MAP), "--out", str(out))
+    finally:
+        os.umask(old)
+    assert r.returncode == 0, r.stderr
+    assert out.stat().st_mode & 0o777 == 0o644
+
+
+def test_a_grid_of_three_points_and_an_all_zero_map_are_refused_with_exit_2(tmp_path):
+    lines = DEFAULT_MAP.read_text().splitlines()
+    head = [x for x in lines if x.startswith("#") or x.startswith("i_d")]
+    rows = [x.split(",") for x in lines if x and not x.startswith("#") and not x.startswith("i_d")]
+    ids = sorted({float(r[0]) for r in rows})
+    iqs = sorted({float(r[1]) for r in rows})
+    keep_d, keep_q = {ids[0], ids[len(ids) // 2], ids[-1]}, {iqs[0], iqs[len(iqs) // 2], iqs[-1]}
+    g3 = tmp_path / "g3.csv"
+    g3.write_text("\n".join(head + [",".join(r) for r in rows if float(r[0]) in keep_d and float(r[1]) in keep_q]))
+    zero = tmp_path / "zero.csv"
+    zero.write_text("\n".join(head + [f"{r[0]},{r[1]},0,0" for r in rows]))
+    for m in (g3, zero):
+        for cmd in (["map", "check", str(m), "--out", str(tmp_path / "o")],
+                    ["map", "repair", str(m), "--out", str(tmp_path / "r.csv")]):
+            r = cli(*cmd)
+            assert r.returncode == 2 and str(m) in r.stderr and "Traceback" not in r.stderr, (cmd, r.stderr)
+
+
+def test_a_junk_fmu_under_build_is_refused_naming_it(tmp_path):
+    (tmp_path / "b" / "fmu").mkdir(parents=True)
+    for n in ("IpmsmController", "IpmsmPlant", "IpmsmDrive"):
+        (tmp_path / "b" / "fmu" / f"{n}.fmu").write_bytes(b"junk")
+    r = cli("--build", str(tmp_path / "b"), "run", str(gentle_cycle(tmp_path)), "--out", str(tmp_path / "o"))
+    assert r.returncode == 2 and "--build" in r.stderr and ".fmu" in r.stderr
