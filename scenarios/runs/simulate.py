@@ -161,6 +161,10 @@ class OptimumReference:
                           "current_bandwidth": REFERENCE_CURRENT_BANDWIDTH})
         self.i_ref = (0.0, 0.0)  # A, the last command (d, q): the regulator's measured currents
         self.failed = ""         # why the optimum could not be evaluated (its figures then null)
+        # The command is a function of the step's inputs alone; what the instance carries from
+        # step to step (the regulator's) is no part of it. A step that fails on that carried state
+        # is taken again from the instance as it was made (its clock restarted there).
+        self._made, self._t0 = self.fmu.save_state(), 0.0
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
                 T_winding: float | None = None) -> float:
@@ -169,10 +173,16 @@ class OptimumReference:
         # The FMU's current regulator runs too, though only its command is wanted: its measured
         # currents are the command it gave (the current loop closed ideally), so the regulator
         # sees no error to integrate (left at 0 A it winds up until its voltage is not finite)
-        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
-                     T_winding=self.T_winding if T_winding is None else T_winding, i_d=self.i_ref[0],
-                     i_q=self.i_ref[1])
-        self.fmu.step(t, dt)
+        inputs = dict(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
+                      T_winding=self.T_winding if T_winding is None else T_winding)
+        self.fmu.set(**inputs, i_d=self.i_ref[0], i_q=self.i_ref[1])
+        try:
+            self.fmu.step(t - self._t0, dt)
+        except CosimError:  # the carried state's failure: once more from the instance as made
+            self.fmu.restore_state(self._made)
+            self._t0 = t
+            self.fmu.set(**inputs)
+            self.fmu.step(0.0, dt)
         self.i_ref = self.fmu.get("i_d_ref", "i_q_ref")
         return math.hypot(*self.i_ref)
 
@@ -182,6 +192,8 @@ class OptimumReference:
         return 1.5 * (self.R_s if R_s is None else R_s) * I * I
 
     def close(self) -> None:
+        if self.fmu.fmu is not None:
+            self.fmu.free_state(self._made)
         self.fmu.close()
 
     def __enter__(self):
