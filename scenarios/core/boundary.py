@@ -227,6 +227,17 @@ def output_target(path: str | Path, what: str = "output", root: str | Path | Non
     return path
 
 
+def folders_made_here(path: str | Path, what: str) -> None:
+    """The missing folders of `path` would be made where the path says, not through a link: the
+    nearest existing ancestor is no link and has none above it (InputError, nothing made)."""
+    p = Path(os.path.abspath(path))
+    while not os.path.lexists(p) and p != p.parent:
+        p = p.parent
+    if p != Path(path).absolute() and os.path.realpath(p) != str(p):
+        raise InputError(path, what, f"a path whose missing folders are not made through a link ({p} leads to "
+                         f"{os.path.realpath(p)}): make the folder, or name the real one")
+
+
 def check_outputs(folder: str | Path, names, what: str = "--out") -> None:
     """Every named output in `folder` is one write_atomically may replace (before a run starts)."""
     for name in names:

@@ -276,6 +276,8 @@ def check(drive_file: Path | None, junit_path: Path | None, out: Path, build: Pa
         # a regular file or nothing (a device, a FIFO, a dangling link or one leading out of its
         # folder: refused, untouched); missing folders are made on the path as given, never through a link
         boundary.output_target(junit_path, "--junit")
+        if not junit_path.is_symlink():
+            boundary.folders_made_here(junit_path.parent, "--junit")
         check_writable(Path(os.path.realpath(junit_path)).parent, "--junit")
     labels = cycle_labels(drive)
     verdicts, summaries = [], {}

@@ -292,3 +292,16 @@ def test_a_junk_fmu_under_build_is_refused_naming_it(tmp_path):
         (tmp_path / "b" / "fmu" / f"{n}.fmu").write_bytes(b"junk")
     r = cli("--build", str(tmp_path / "b"), "run", str(gentle_cycle(tmp_path)), "--out", str(tmp_path / "o"))
     assert r.returncode == 2 and "--build" in r.stderr and ".fmu" in r.stderr
+
+
+def test_junit_folders_are_never_made_through_a_link(tmp_path):
+    c = gentle_cycle(tmp_path)
+    d = drive_file(tmp_path, "", f'cycles = ["{c.name}"]\nWh_per_km_max = 1000.0')
+    far = tmp_path / "far"
+    far.mkdir()
+    (tmp_path / "near").symlink_to(far)
+    r = cli("check", str(d), "--junit", str(tmp_path / "near" / "new" / "j.xml"), "--out", str(tmp_path / "chk"))
+    assert r.returncode == 2 and "--junit" in r.stderr and not (far / "new").exists()
+    r = cli("check", str(d), "--junit", str(tmp_path / "reports" / "ci" / "j.xml"), "--out", str(tmp_path / "chk"))
+    assert r.returncode == 0, r.stderr   # missing folders on a path without links: made
+    assert (tmp_path / "reports" / "ci" / "j.xml").is_file()
