@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.core.boundary import InputError, load_toml
+from scenarios.core.constants import ZERO_CELSIUS_K
 from scenarios.core.fmu_ranges import PLANT_DESCRIPTION, Range, fmu_ranges, read_starts
 from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.error import MapImportError
@@ -139,6 +140,10 @@ NON_NEGATIVE = Rule("real", lo=0.0)
 FRACTION = Rule("real", lo=0.0, hi=1.0, lo_open=True)   # an efficiency, a utilisation
 TEMPERATURE = Rule("real", lo=173.15, hi=573.15)         # K, the FMUs' range of T_magnet_ref
 COEFFICIENT = Rule("real", lo=-0.01, hi=0.01)            # 1/K, the FMUs' range of k_psi_T
+#: K, a temperature a drive operates at (coolant, ambient, the derating's maxima): not below -40 degC,
+#: the lowest operating temperature of automotive electronics (AEC-Q100's grades 0-3) and of the
+#: climatic tests of ISO 16750-4; a number below it can only be a degC value given as K
+OPERATING_TEMPERATURE = Rule("real", lo=233.15, hi=573.15)
 
 
 #: the thermal network's speed-dependent links a exp(-n / b) + c (contract, "Thermal")
@@ -287,9 +292,10 @@ SCHEMA: tuple[Key, ...] = (
     Key("thermal", "thermal_model", Rule("bool"), "", "true: the thermal network sets the winding and magnet "
         "temperatures from the losses (they start at the run's temperatures); false: they are the run's, held",
         "false (the FMU's default)"),
-    Key("thermal", "T_coolant", TEMPERATURE, "K", "coolant (water-jacket) temperature, held over the run",
+    Key("thermal", "T_coolant", OPERATING_TEMPERATURE, "K", "coolant (water-jacket) temperature, held over the run",
         "the FMU's `T_coolant` start", acts="thermal_model"),
-    Key("thermal", "T_ambient", TEMPERATURE, "K", "ambient air the rotor also rejects heat to, held over the run",
+    Key("thermal", "T_ambient", OPERATING_TEMPERATURE, "K",
+        "ambient air the rotor also rejects heat to, held over the run",
         "the FMU's `T_ambient` start", acts="thermal_model"),
     *(Key("thermal", name, rule, unit, meaning, f"the FMU's `{name}` (docs/thermal.md gives its source)",
           acts="thermal_model") for name, rule, unit, meaning in (
@@ -324,8 +330,10 @@ SCHEMA: tuple[Key, ...] = (
     # the controller's derating: it acts on the temperatures the controller is given, network or not
     *(Key("thermal", name, rule, "K", meaning, f"the FMU's `{name}` (docs/thermal.md gives its source)")
       for name, rule, meaning in (
-        ("T_winding_max", TEMPERATURE, "winding temperature at which the torque limit reaches zero"),
-        ("T_magnet_max", TEMPERATURE, "magnet temperature at which the torque limit reaches zero"),
+        ("T_winding_max", OPERATING_TEMPERATURE, "winding temperature at which the torque limit reaches zero "
+         "(above motor.T_winding_ref + derating_margin)"),
+        ("T_magnet_max", OPERATING_TEMPERATURE, "magnet temperature at which the torque limit reaches zero (above "
+         "motor.T_magnet_ref + derating_margin)"),
         ("derating_margin", POSITIVE, "the torque limit starts to fall this far below T_winding_max and "
          "T_magnet_max"))),
     # [fault]: the inverter stops switching during the run (docs/faults.md; contract "Faults")
@@ -376,8 +384,10 @@ _LIMIT_UNITS = {"Wh_per_km": "Wh/km", "speed_rmse_mps": "m/s", "torque_rmse_Nm":
                 "regen_curtailed_Wh": "Wh", "soc_end": "1", "time_above_top_speed_s": "s", "fault_i_peak_A": "A",
                 "fault_demag_margin_A": "A", "fault_T_peak_Nm": "N m", "fault_charge_Ah": "Ah",
                 "fault_energy_Wh": "Wh", "fault_time_to_zero_current_s": "s"}
+#: a limit's range where its figure has one (a fraction, a percentage); the others: >= 0
+_LIMIT_RULES = {"soc_end": Rule("real", lo=0.0, hi=1.0), "time_voltage_limited_pct": Rule("real", lo=0.0, hi=100.0)}
 SCHEMA = SCHEMA + tuple(
-    Key("checks", name, NON_NEGATIVE, _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
+    Key("checks", name, _LIMIT_RULES.get(s, NON_NEGATIVE), _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
         f"{'at most' if d == 'max' else 'at least'} this on every cycle", "no limit", acts="check")
     for name, (s, d) in LIMITS.items())
 
@@ -648,7 +658,8 @@ def _check_keys(path: Path, doc: dict) -> None:
                                                 _nearest(kp, known))
                 bad = _BY_PATH[kp].rule.check(v)
                 if bad:
-                    raise DriveDescriptionError(path, kp, bad + ("" if "got" in bad else f", got {v!r}"))
+                    raise DriveDescriptionError(path, kp, bad + ("" if "got" in bad else f", got {v!r}") +
+                                                _celsius_hint(_BY_PATH[kp], v))
         elif top in _BY_PATH:
             bad = _BY_PATH[top].rule.check(value)
             if bad:
@@ -657,6 +668,15 @@ def _check_keys(path: Path, doc: dict) -> None:
             known = [*(k.path for k in SCHEMA if not k.section), *SECTIONS]
             raise DriveDescriptionError(path, top, "a known key or table: one of " + ", ".join(known) +
                                         _nearest(top, known))
+
+
+def _celsius_hint(key: Key, value) -> str:
+    """For a temperature in K refused where value + 273.15 K would do: the likely mistake."""
+    if key.unit != "K" or key.rule.kind != "real" or isinstance(value, bool) or not isinstance(value, (int, float)):
+        return ""
+    if not _finite(value) or key.rule.check(value + ZERO_CELSIUS_K) is not None:
+        return ""
+    return f" (kelvin: {value:g} K is {value - ZERO_CELSIUS_K:g} degC; {value:g} degC is {value + ZERO_CELSIUS_K:g} K)"
 
 
 def _relative(path: Path, value: str, key: str = "(path)") -> Path:
@@ -792,8 +812,9 @@ def _load_vehicle(given: dict, motor: MotorSpec) -> tuple[VehicleParams, float]:
     return replace(VehicleParams(), J_motor=motor.J, **{k: float(x) for k, x in v.items()}), P_aux
 
 
-#: [thermal]'s temperature limits and the motor's reference each must lie above (a limit at or
-#: below it can only be meant in degC: the machine would be derated to nothing at its reference)
+#: [thermal]'s temperature limits and the motor's reference each must lie above, by more than
+#: derating_margin (a limit at or below it can only be meant in degC: the machine would be
+#: derated to nothing at its reference)
 LIMIT_ABOVE_REFERENCE = {"T_winding_max": "T_winding_ref", "T_magnet_max": "T_magnet_ref"}
 
 
@@ -803,11 +824,7 @@ def _load_thermal(path: Path, given: dict, motor: MotorSpec) -> ThermalSpec:
     except KeyError as e:
         raise DriveDescriptionError(path, f"thermal.{e.args[0]}", "a parameter the built FMUs have: rebuild them "
                                     "(their model descriptions have no such variable)") from None
-    for key, ref in LIMIT_ABOVE_REFERENCE.items():
-        limit = thermal.values.get(key)
-        if key in given and limit is not None and limit <= getattr(motor, ref):
-            raise DriveDescriptionError(path, f"thermal.{key}", f"a temperature in K above the motor's {ref} = "
-                                        f"{getattr(motor, ref):g} K, got {limit:g} K (a value in degC?)")
+    _check_derating(path, motor, thermal)
     return thermal
 
 
@@ -837,6 +854,25 @@ def _load_fault(path: Path, table: dict, ch: dict) -> FaultSpec | None:
     return FaultSpec(trigger=given[0], at=float(table[given[0]]), safe_state=table.get("safe_state", "by_speed"),
                      duration_s=float(table["duration_s"]) if "duration_s" in table else None,
                      i_d_demag=float(table["i_d_demag"]) if "i_d_demag" in table else None)
+
+
+def _check_derating(path: Path, motor: MotorSpec, thermal: ThermalSpec) -> None:
+    """The derating's maxima above the temperatures the machine's data hold at, by more than the
+    margin: a maximum at or below its reference (180 for 180 degC read as 180 K) would derate a
+    machine at its reference to zero torque, a car that never moves."""
+    margin = thermal.values.get("derating_margin")
+    for name, ref_key in LIMIT_ABOVE_REFERENCE.items():
+        T_max, ref = thermal.values.get(name), getattr(motor, ref_key)
+        if T_max is None or margin is None:
+            continue  # FMUs without the derating
+        if not T_max - margin > ref:
+            hint = (f"; {T_max:g} K is {T_max - ZERO_CELSIUS_K:g} degC: did you mean {T_max + ZERO_CELSIUS_K:g} K?"
+                    if T_max + ZERO_CELSIUS_K - margin > ref else "")
+            key = (f"thermal.{name}" if name in thermal.given else "thermal.derating_margin"
+                   if "derating_margin" in thermal.given else f"motor.{ref_key}")
+            raise DriveDescriptionError(path, key,
+                                        f"a temperature in K above motor.{ref_key} + thermal.derating_margin = "
+                                        f"{ref:g} + {margin:g} K, got {T_max:g} K{hint}")
 
 
 def check_metadata_rules(metadata: dict, file: str | Path) -> None:

@@ -24,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import printable
 from scenarios.maps import legal
-from scenarios.maps.check import analyse
+from scenarios.maps.check import analyse, machine_of
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
 from scenarios.maps.fmu_verdict import verdicts
@@ -98,17 +99,21 @@ def read_with_holes(path: Path) -> tuple[Path, list]:
 
 
 def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, drive=None) -> Repair:
-    from scenarios.maps.show import machine_parameters
     path = Path(path)
-    source, changes = read_with_holes(path)
-    try:
-        imported = import_map(source)
-    finally:
-        if source != path:
-            source.unlink(missing_ok=True)
-    changes += imported.notes
-    fmap = imported.flux_map()
-    params, assumed, _ = machine_parameters(fmap, None, I_max, drive)
+    try:  # the readers' refusals (a header, a metadata value, a grid too small): bad input, exit 2
+        source, changes = read_with_holes(path)
+        try:
+            imported = import_map(source)
+        finally:
+            if source != path:
+                source.unlink(missing_ok=True)
+        changes += imported.notes
+        fmap = imported.flux_map()
+    except MapImportError:
+        raise
+    except Exception as e:  # noqa: BLE001 - scipy's and the parsers' own words, named with the file
+        raise MapImportError(path, "(file)", "a readable flux map", printable(str(e))) from None
+    params, assumed, _ = machine_of(path, fmap, I_max, drive)
     I_lim = float(params["I_max"])
     no_magnet, box, found, _, rect = analyse(fmap, I_lim)
     n = found.count()
@@ -153,14 +158,8 @@ def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, d
                         [f"Repair assumption: {a}" for a in assumed] +
                         [f"Import warning: {w}" for w in imported.warnings])
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    os.close(fd)
-    try:
-        write_flux_map(tmp, fmap, comment)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    from scenarios.core.boundary import write_atomically  # 0644, a regular file only (docs/inputs.md)
+    write_atomically(out, lambda tmp: write_flux_map(tmp, fmap, comment))
     return Repair(changes, verdicts(out, params, build), out)
 
 

@@ -132,8 +132,20 @@ def fault_sweep(args, drive) -> int:
     return EXIT_FAILED if f.failed else 0
 
 
+def _below_derating_zero(T: float, drive) -> None:
+    """--magnet-degC sets the magnets and the winding: below where the drive's derating takes the
+    whole torque (thermal.T_magnet_max, T_winding_max), or the car could not move at all."""
+    for name in ("T_magnet_max", "T_winding_max"):
+        T_max = drive.thermal.values.get(name)
+        if T_max is not None and T >= T_max:
+            raise InputError("(command line)", "--magnet-degC", f"a temperature below the drive's thermal.{name} = "
+                             f"{T_max - ZERO_CELSIUS_K:g} degC (its torque limit is zero there: the car could not "
+                             f"move), got {T - ZERO_CELSIUS_K:g}")
+
+
 def run(args) -> int:
     from scenarios.drives.fmu_acceptance import load_accepted
+    from scenarios.runs.out_folder import run_folder
     from scenarios.runs.plots import plot_run
     from scenarios.runs.simulate import Conditions, RunSpec, fmu_paths, simulate
     from scenarios.vehicle.cycles import repeated
@@ -141,6 +153,7 @@ def run(args) -> int:
     drive = load_accepted(args.drive, args.build)
     method = args.method or drive.controller.method
     T = args.magnet_degC + ZERO_CELSIUS_K
+    _below_derating_zero(T, drive)
     custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
     cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
     cycle = cycle_arg(args.cycle, "cycle")
@@ -151,28 +164,29 @@ def run(args) -> int:
     stem = Path(args.cycle).stem + ("" if args.repeat == 1 else f"_x{args.repeat}") + (
         "" if args.drive is None else f"_{drive.name}")
     out = args.out or inside(OUT_DIR, slug(f"{stem}_{method}"), "run's output folder")
-    check_writable(out)
-    s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
-                                backend=args.backend), fmus=fmu_paths(args.build), out=out)
-    title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
-    plot_run(out, title, drive)
-    if s.thermal_network:
-        from scenarios.runs.thermal_plots import plot_thermal
-        plot_thermal(out, title, drive.thermal.T_coolant)
-    d = s.to_dict()
-    fault_files = ""
-    if drive.fault is not None:
-        from scenarios.runs.fault_plots import plot_fault
-        fault_files = ", fault_trace.csv"
-        if s.fault_time_s is None:
-            print(f"warning: no fault in this run: {drive.fault.describe()} never reached", file=sys.stderr)
-        else:
-            plot_fault(out, title, d, s.fault_i_d_demag_A)
-            fault_files += ", fault.png"
+    with run_folder(out) as folder:  # one run at a time, holding one run (scenarios.runs.out_folder)
+        s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
+                                    backend=args.backend), fmus=fmu_paths(args.build), out=out)
+        title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
+        plot_run(out, title, drive)
+        written = ["summary.json", "trace.csv", "run.png"]
+        if s.thermal_network:
+            from scenarios.runs.thermal_plots import plot_thermal
+            plot_thermal(out, title, drive.thermal.T_coolant)
+            written.append("thermal.png")
+        d = s.to_dict()
+        if drive.fault is not None:
+            from scenarios.runs.fault_plots import plot_fault
+            written.append("fault_trace.csv")
+            if s.fault_time_s is None:
+                print(f"warning: no fault in this run: {drive.fault.describe()} never reached", file=sys.stderr)
+            else:
+                plot_fault(out, title, d, s.fault_i_d_demag_A)
+                written.append("fault.png")
+        folder.done(tuple(written))
     for a in drive.assumed:
         print(f"assumed: {a}", file=sys.stderr)
     print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_network else ()) +
                       (FAULT_PRINTED if drive.fault is not None else ())}, indent=1))
-    print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_network else "") +
-          fault_files)
+    print(f"wrote {out}/" + ", ".join(written))
     return 0

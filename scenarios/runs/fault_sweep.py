@@ -245,5 +245,5 @@ def plot_fault_envelope(rows: list[dict], summary: FaultSweepSummary, I_max: flo
     fig.suptitle(f"Safe-state envelope of {summary.spec['drive']} at {u_dc:.0f} V, magnets at "
                  f"{summary.spec['T_magnet'] - 273.15:.0f} °C")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_atomically(path, lambda p: fig.savefig(p, format="png", dpi=110))
     plt.close(fig)
