@@ -30,9 +30,8 @@ from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
 from scenarios.cosim.fmu import CosimError, Fmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
-from scenarios.runs.accounting import RunAccounts
-from scenarios.runs.fault import FaultAccounts, FaultTrigger, demagnetisation_limit
 from scenarios.runs.accounting import DcLinkError, RunAccounts
+from scenarios.runs.fault import FaultAccounts, FaultTrigger, demagnetisation_limit
 from scenarios.runs.power_limit import advance_within
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
