@@ -46,6 +46,29 @@ std::string flag_name(int flag) {
     return s;
 }
 
+// The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0. False where the
+// electrical time constant is shorter than the step (a stiff map): z = exp(-tau A) (...) grows
+// like a decaying mode decays, would be badly scaled, and CVODE integrates psi itself
+// (cvode_method 2, BDF, is meant for those).
+bool linearise(Linearisation& L, const CvodeState& start, const DqFluxOde& ode, double h) {
+    double A[4];
+    const InverseFluxPoint c = ode.currents_near(start.psi[0], start.psi[1], start.i_seed[0], start.i_seed[1]);
+    ode.rhs_and_jacobian(start.psi, c, L.f0, A);
+    if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
+        throw CvodeError("no finite currents at the step's start, psi_d = " + number(start.psi[0]) +
+                         " Wb, psi_q = " + number(start.psi[1]) + " Wb");
+    L.psi0[0] = start.psi[0];
+    L.psi0[1] = start.psi[1];
+    L.i0[0] = c.i_d;
+    L.i0[1] = c.i_q;
+    L.G0[0] = c.G_dd;
+    L.G0[1] = c.G_dq;
+    L.G0[2] = c.G_qd;
+    L.G0[3] = c.G_qq;
+    L.flow = LinearFlow(A);
+    return L.flow.max_decay() * h <= kStiffLimit;
+}
+
 }  // namespace
 
 // The SUNDIALS objects, freed CVODE first (it refers to the solvers, the vector and the
@@ -293,7 +316,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     w.bad_flux.clear();
     const std::array<double, kStates> atol = tolerances(settings_, integrands, h);
     const bool new_tolerances = !w.same_tolerances(settings_.rtol, atol.data());
-    w.linearised = settings_.linearised && linearise(w, ode, h);
+    w.linearised = settings_.linearised && linearise(w.lin, state_, ode, h);
     double* y = N_VGetArrayPointer(w.h.y);
     if (w.linearised) {
         y[0] = y[1] = 0.0;
@@ -303,48 +326,21 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     }
     std::fill(y + 2, y + kStates, 0.0);  // the step integrals
     w.integrands = integrands;
-    if (w.linearised && settings_.explicit_first && explicit_step(w, h, atol.data())) return;
+    if (w.linearised && settings_.explicit_first) {  // explicit steps first (explicit_steps.hpp)
+        double y_end[kStates], psi_end[2];
+        InverseFluxPoint c_end;
+        CvodeStats est;
+        if (explicit_steps(w, h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
+            commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
+            return;
+        }
+    }
     double integrals[StepIntegrands::count] = {0, 0, 0, 0};
     const CvodeStats st = integrate(w, ode, h, atol.data(), new_tolerances, integrals);
     double psi_end[2];
     const InverseFluxPoint c_end = end_point(w, ode, h, psi_end);
     const double h_next = st.last_step;
     commit(h, psi_end, c_end, h_next > 0 && std::isfinite(h_next) ? h_next : 0.0, st, integrals, w.warning);
-}
-
-// The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0. False where the
-// electrical time constant is shorter than the step (a stiff map): z = exp(-tau A) (...) grows
-// like a decaying mode decays, would be badly scaled, and CVODE integrates psi itself
-// (cvode_method 2, BDF, is meant for those).
-bool CvodeIntegrator::linearise(Workspace& w, const DqFluxOde& ode, double h) const {
-    Linearisation& L = w.lin;
-    double A[4];
-    const InverseFluxPoint c = ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
-    ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
-    if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
-        throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
-                         " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
-    L.psi0[0] = state_.psi[0];
-    L.psi0[1] = state_.psi[1];
-    L.i0[0] = c.i_d;
-    L.i0[1] = c.i_q;
-    L.G0[0] = c.G_dd;
-    L.G0[1] = c.G_dq;
-    L.G0[2] = c.G_qd;
-    L.G0[3] = c.G_qq;
-    L.flow = LinearFlow(A);
-    return L.flow.max_decay() * h <= kStiffLimit;
-}
-
-// The explicit Runge-Kutta steps across the call (explicit_steps.hpp); where they meet the
-// tolerances, their result is the step's.
-bool CvodeIntegrator::explicit_step(Workspace& w, double h, const double* atol) {
-    double y_end[kStates], psi_end[2];
-    InverseFluxPoint c_end;
-    CvodeStats est;
-    if (!explicit_steps(w, h, settings_.rtol, atol, y_end, psi_end, c_end, est)) return false;
-    commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
-    return true;
 }
 
 // CVODE from tau = 0 to h, re-initialised at y (time relative to the step's start).
