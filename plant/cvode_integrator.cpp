@@ -47,6 +47,29 @@ std::string flag_name(int flag) {
     return s;
 }
 
+// The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0. False where the
+// electrical time constant is shorter than the step (a stiff map): z = exp(-tau A) (...) grows
+// like a decaying mode decays, would be badly scaled, and CVODE integrates psi itself
+// (cvode_method 2, BDF, is meant for those).
+bool linearise(Linearisation& L, const CvodeState& start, const DqFluxOde& ode, double h) {
+    double A[4];
+    const InverseFluxPoint c = ode.currents_near(start.psi[0], start.psi[1], start.i_seed[0], start.i_seed[1]);
+    ode.rhs_and_jacobian(start.psi, c, L.f0, A);
+    if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
+        throw CvodeError("no finite currents at the step's start, psi_d = " + number(start.psi[0]) +
+                         " Wb, psi_q = " + number(start.psi[1]) + " Wb");
+    L.psi0[0] = start.psi[0];
+    L.psi0[1] = start.psi[1];
+    L.i0[0] = c.i_d;
+    L.i0[1] = c.i_q;
+    L.G0[0] = c.G_dd;
+    L.G0[1] = c.G_dq;
+    L.G0[2] = c.G_qd;
+    L.G0[3] = c.G_qq;
+    L.flow = LinearFlow(A);
+    return L.flow.max_decay() * h <= kStiffLimit;
+}
+
 }  // namespace
 
 // The CVODE objects of one integrator and the data CVODE's callbacks see: scratch memory, never
@@ -267,36 +290,10 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     w.error.clear();
     w.warning.clear();
     w.bad_flux.clear();
-    double* y = N_VGetArrayPointer(w.h.y);
-    void* mem = w.h.mem;
     const std::array<double, kStates> atol = tolerances(settings_, integrands, h);
     const bool new_tolerances = !w.same_tolerances(settings_.rtol, atol.data());
-    const double tau_end = h;
-    double integrals[StepIntegrands::count] = {0, 0, 0, 0};
-    w.linearised = false;
-    if (settings_.linearised) {
-        // The linearisation at psi0: f0, A = -R G0 + omega J (ipmsm_ode.hpp); z(0) = 0.
-        Linearisation& L = w.lin;
-        double A[4];
-        const InverseFluxPoint c = ode.currents_near(state_.psi[0], state_.psi[1], state_.i_seed[0], state_.i_seed[1]);
-        ode.rhs_and_jacobian(state_.psi, c, L.f0, A);
-        if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
-            throw CvodeError("no finite currents at the step's start, psi_d = " + number(state_.psi[0]) +
-                             " Wb, psi_q = " + number(state_.psi[1]) + " Wb");
-        L.psi0[0] = state_.psi[0];
-        L.psi0[1] = state_.psi[1];
-        L.i0[0] = c.i_d;
-        L.i0[1] = c.i_q;
-        L.G0[0] = c.G_dd;
-        L.G0[1] = c.G_dq;
-        L.G0[2] = c.G_qd;
-        L.G0[3] = c.G_qq;
-        L.flow = LinearFlow(A);
-        // z = exp(-tau A) (...) grows like a decaying mode decays: where the electrical
-        // time constant is shorter than the step (a stiff map), z would be badly scaled,
-        // and CVODE integrates psi itself (cvode_method 2, BDF, is meant for those).
-        w.linearised = L.flow.max_decay() * h <= kStiffLimit;
-    }
+    w.linearised = settings_.linearised && linearise(w.lin, state_, ode, h);
+    double* y = N_VGetArrayPointer(w.h.y);
     if (w.linearised) {
         y[0] = y[1] = 0.0;
     } else {
@@ -305,7 +302,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     }
     std::fill(y + 2, y + kStates, 0.0);  // the step integrals
     w.integrands = integrands;
-    if (w.linearised && settings_.explicit_first) {
+    if (w.linearised && settings_.explicit_first) {  // explicit steps first (explicit_steps.hpp)
         double y_end[kStates], psi_end[2];
         InverseFluxPoint c_end;
         CvodeStats est;
@@ -314,9 +311,22 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
             return;
         }
     }
+    double integrals[StepIntegrands::count] = {0, 0, 0, 0};
+    const CvodeStats st = integrate(w, ode, h, atol.data(), new_tolerances, integrals);
+    double psi_end[2];
+    const InverseFluxPoint c_end = end_point(w, ode, h, psi_end);
+    const double h_next = st.last_step;
+    commit(h, psi_end, c_end, h_next > 0 && std::isfinite(h_next) ? h_next : 0.0, st, integrals, w.warning);
+}
+
+// CVODE from tau = 0 to h, re-initialised at y (time relative to the step's start).
+CvodeStats CvodeIntegrator::integrate(Workspace& w, const DqFluxOde& ode, double h, const double* atol,
+                                      bool new_tolerances, double* integrals) const {
+    void* mem = w.h.mem;
+    const double tau_end = h;
     w.check(CVodeReInit(mem, 0.0, w.h.y), "CVodeReInit");
     w.check(CVodeSetInitStep(mem, initial_step(ode, h, w.linearised)), "CVodeSetInitStep");
-    if (new_tolerances) w.set_tolerances(settings_.rtol, atol.data());
+    if (new_tolerances) w.set_tolerances(settings_.rtol, atol);
     w.check(CVodeSetMaxNumSteps(mem, settings_.max_steps), "CVodeSetMaxNumSteps");
     w.check(CVodeSetStopTime(mem, tau_end), "CVodeSetStopTime");
     double t_ret = 0.0;
@@ -329,6 +339,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
                  " (the flux linkages left what the flux map and its continuation can invert)";
         throw CvodeError(m);
     }
+    const double* y = N_VGetArrayPointer(w.h.y);
     if (!std::isfinite(y[0]) || !std::isfinite(y[1]))
         throw CvodeError("CVODE returned non-finite flux linkages at the end of a step of " + number(h) + " s");
     for (int k = 0; k < StepIntegrands::count; ++k) {
@@ -336,7 +347,6 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
         if (!std::isfinite(integrals[k]))
             throw CvodeError("non-finite step integrals at the end of a step of " + number(h) + " s");
     }
-
     CvodeStats st;
     CVodeGetNumSteps(mem, &st.steps);
     CVodeGetNumRhsEvals(mem, &st.rhs_evals);
@@ -345,25 +355,22 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
     CVodeGetNumNonlinSolvConvFails(mem, &st.nonlinear_failures);
     CVodeGetLastOrder(mem, &st.last_order);
     CVodeGetLastStep(mem, &st.last_step);
+    return st;
+}
 
-    double psi_end[2] = {y[0], y[1]};
-    if (w.linearised) {
-        w.lin.psi_at(w.lin.at(h), y, psi_end);
-        if (!std::isfinite(psi_end[0]) || !std::isfinite(psi_end[1]))
-            throw CvodeError("non-finite flux linkages at the end of a step of " + number(h) + " s");
-    }
-
-    InverseFluxPoint c_end;
-    if (w.linearised) {  // as in linearised_rhs: from the linearisation's prediction
-        double i_lin[2];
-        w.lin.predicted_currents(psi_end, i_lin);
-        c_end = ode.currents_near(psi_end[0], psi_end[1], i_lin[0], i_lin[1]);
-    } else {
-        c_end = ode.currents(psi_end[0], psi_end[1]);
-    }
-
-    double h_next = st.last_step;
-    commit(h, psi_end, c_end, h_next > 0 && std::isfinite(h_next) ? h_next : 0.0, st, integrals, w.warning);
+// The flux linkages at the step's end (linearised: psi(h) from z(h)) and the currents there,
+// from the linearisation's prediction as in linearised_rhs, else from the inverse map's table.
+InverseFluxPoint CvodeIntegrator::end_point(Workspace& w, const DqFluxOde& ode, double h, double* psi_end) const {
+    const double* y = N_VGetArrayPointer(w.h.y);
+    psi_end[0] = y[0];
+    psi_end[1] = y[1];
+    if (!w.linearised) return ode.currents(psi_end[0], psi_end[1]);
+    w.lin.psi_at(w.lin.at(h), y, psi_end);
+    if (!std::isfinite(psi_end[0]) || !std::isfinite(psi_end[1]))
+        throw CvodeError("non-finite flux linkages at the end of a step of " + number(h) + " s");
+    double i_lin[2];
+    w.lin.predicted_currents(psi_end, i_lin);
+    return ode.currents_near(psi_end[0], psi_end[1], i_lin[0], i_lin[1]);
 }
 
 void CvodeIntegrator::commit(double h, const double* psi_end, const InverseFluxPoint& c_end, double h_next,

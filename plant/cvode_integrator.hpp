@@ -167,6 +167,12 @@ private:
     struct Workspace;
     Workspace& workspace();
     double initial_step(const DqFluxOde& ode, double span, bool linearised) const;
+    // advance()'s jobs after the step's linearisation (cvode_integrator.cpp) and the explicit
+    // steps: CVODE over the step (its counters and the step integrals), the end's flux linkages
+    // and currents.
+    CvodeStats integrate(Workspace& w, const DqFluxOde& ode, double h, const double* atol, bool new_tolerances,
+                         double* integrals) const;
+    InverseFluxPoint end_point(Workspace& w, const DqFluxOde& ode, double h, double* psi_end) const;
 
     CvodeSettings settings_;
     CvodeState state_;

@@ -49,6 +49,7 @@
 
 #include <limits>
 
+#include "control/dq.hpp"
 #include "machine/magnet_flux.hpp"
 
 namespace ipmsm {
@@ -66,15 +67,15 @@ constexpr double kMaxRotationPerSample = 0.9 * 2.0 * 3.14159265358979323846;  //
 constexpr double kMaxBandwidthTimesStep = 3.14159265358979323846 / 2.0;
 
 struct RegulatorState {
-    double v_d = 0, v_q = 0;              // integrator, V
-    double u_d_prev = 0, u_q_prev = 0;    // voltage being applied now, V
-    double psi_ref_d = 0, psi_ref_q = 0;  // last reference flux (map at T_magnet_ref), Wb
-    bool primed = false;                  // psi_ref_* hold a previous reference
+    Dq v;                 // integrator, V
+    Dq u_prev;            // voltage being applied now, V
+    Dq psi_ref;           // last reference flux (map at T_magnet_ref), Wb
+    bool primed = false;  // psi_ref holds a previous reference
 
     // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
     template <class Field>
     void fields(Field&& field) {
-        field(v_d), field(v_q), field(u_d_prev), field(u_q_prev), field(psi_ref_d), field(psi_ref_q), field(primed);
+        field(v.d), field(v.q), field(u_prev.d), field(u_prev.q), field(psi_ref.d), field(psi_ref.q), field(primed);
     }
 };
 
@@ -89,8 +90,9 @@ public:
     // bandwidth: closed-loop current bandwidth alpha_c, rad/s.
     CurrentRegulator(double bandwidth, double R_s) : alpha_c_(bandwidth), R_s_(R_s) {}
 
-    VoltageCommand step(double i_d_ref, double i_q_ref, double i_d, double i_q, double omega, double u_dc, double h,
-                        const MagnetFlux& flux);
+    // The voltage for the current command i_ref at the measured current i (A), the electrical
+    // speed omega (rad/s), the DC link u_dc (V) and the sample time h (s).
+    VoltageCommand step(Dq i_ref, Dq i, double omega, double u_dc, double h, const MagnetFlux& flux);
 
     // The bandwidth used at sample time h: alpha_c, or kMaxBandwidthTimesStep / h if lower.
     double bandwidth_at(double h) const;

@@ -267,14 +267,12 @@ void ControllerModel::initial_outputs() {
 
 void ControllerModel::flying_start_voltage(const Conditions& c, const MagnetFlux& flux) {
     const FluxPoint f = flux.eval(i_d, i_q);
-    double u_d = c.R * i_d - c.omega * f.psi_q, u_q = c.R * i_q + c.omega * f.psi_d;
-    const double u_lim = u_dc / kSqrt3, mag = std::hypot(u_d, u_q);
-    if (mag > u_lim) {
-        u_d *= u_lim / mag;
-        u_q *= u_lim / mag;
-    }
-    regulator_.state.u_d_prev = u_d_ref = u_d;
-    regulator_.state.u_q_prev = u_q_ref = u_q;
+    Dq u = c.R * Dq{i_d, i_q} + c.omega * Dq{f.psi_d, f.psi_q}.j();  // R i + j omega psi
+    const double u_lim = u_dc / kSqrt3, mag = u.abs();
+    if (mag > u_lim) u = (u_lim / mag) * u;
+    regulator_.state.u_prev = u;
+    u_d_ref = u.d;
+    u_q_ref = u.q;
 }
 
 void ControllerModel::restart_regulator() {
@@ -288,7 +286,7 @@ void ControllerModel::do_step(double /*t*/, double h) {
     const MagnetFlux flux(*map_, c.shift);
     const CurrentCommand cmd = current_command(c);
     regulator_.set_resistance(c.R);
-    const VoltageCommand u = regulator_.step(cmd.i_d, cmd.i_q, i_d, i_q, c.omega, u_dc, h, flux);
+    const VoltageCommand u = regulator_.step({cmd.i_d, cmd.i_q}, {i_d, i_q}, c.omega, u_dc, h, flux);
     if (!(std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q) && std::isfinite(u.u_d) && std::isfinite(u.u_q)))
         throw fmi::Error("the controller produced a non-finite value (inputs out of the flux map's sensible range?)");
     if (!cmd.feasible && !warned_unreachable_ && context_->log_warning) {

@@ -133,29 +133,50 @@ InverseFluxPoint InverseFluxMap::search(double psi_d, double psi_q) const {
 }
 
 InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& options) : forward_(map) {
+    const NodeRange b = snap_legal_box(
+        map, options.legal.value_or(CurrentBox{map.i_d_min(), map.i_d_max(), map.i_q_min(), map.i_q_max()}));
+    check_one_to_one(map, b, legal_);
+    const PsiBox box = image_box(map, b, options.margin);
+    PsiTable table = psi_grid(map, b, box, options);
+    flux_tol_ = 1e-14 * std::max({std::abs(box.d_min), std::abs(box.d_max), std::abs(box.q_min), std::abs(box.q_max),
+                                  box.width_d, box.width_q});
+    step_tol_ = 1e-9 * std::max(map.i_d_max() - map.i_d_min(), map.i_q_max() - map.i_q_min());
+    index_nodes(map.table(), b, box);
+    invert_nodes(table);
+    continue_unreachable(table);
+    spline_ = BicubicSpline2D(table.psi_d, table.psi_q, {table.i_d.data(), table.i_q.data()});
+    measure_errors(map, b);
+}
+
+// B: the legal box on the grid's nodes (legal_ set to it exactly), and those nodes.
+InverseFluxMap::NodeRange InverseFluxMap::snap_legal_box(const FluxMap& map, const CurrentBox& legal) {
     const FluxMapTable& t = map.table();
-    legal_ = options.legal.value_or(CurrentBox{map.i_d_min(), map.i_d_max(), map.i_q_min(), map.i_q_max()});
-    // B's grid nodes: j0..j1 along i_d, k0..k1 along i_q.
     const int nd = static_cast<int>(t.i_d.size()), nq = static_cast<int>(t.i_q.size());
     const double tol_d = 1e-9 * (map.i_d_max() - map.i_d_min()), tol_q = 1e-9 * (map.i_q_max() - map.i_q_min());
-    int j0 = nd, j1 = -1, k0 = nq, k1 = -1;
+    NodeRange b{nd, -1, nq, -1};
     for (int j = 0; j < nd; ++j)
-        if (t.i_d[j] >= legal_.i_d_min - tol_d && t.i_d[j] <= legal_.i_d_max + tol_d) j0 = std::min(j0, j), j1 = j;
+        if (t.i_d[j] >= legal.i_d_min - tol_d && t.i_d[j] <= legal.i_d_max + tol_d) b.j0 = std::min(b.j0, j), b.j1 = j;
     for (int k = 0; k < nq; ++k)
-        if (t.i_q[k] >= legal_.i_q_min - tol_q && t.i_q[k] <= legal_.i_q_max + tol_q) k0 = std::min(k0, k), k1 = k;
-    if (j1 - j0 < 1 || k1 - k0 < 1)
-        throw FluxMapError("InverseFluxMap: the legal box " + describe(legal_) + " spans less than one grid cell");
-    legal_ = CurrentBox{t.i_d[j0], t.i_d[j1], t.i_q[k0], t.i_q[k1]};  // on the nodes exactly
+        if (t.i_q[k] >= legal.i_q_min - tol_q && t.i_q[k] <= legal.i_q_max + tol_q) b.k0 = std::min(b.k0, k), b.k1 = k;
+    if (b.j1 - b.j0 < 1 || b.k1 - b.k0 < 1)
+        throw FluxMapError("InverseFluxMap: the legal box " + describe(legal) + " spans less than one grid cell");
+    legal_ = CurrentBox{t.i_d[b.j0], t.i_d[b.j1], t.i_q[b.k0], t.i_q[b.k1]};
+    return b;
+}
 
-    // Currents must be a function of the flux linkages in B: the rule's defects (grid lines not
-    // monotone, L not a P-matrix at a node or a midpoint) must all lie beyond it.
+// Currents must be a function of the flux linkages in B: the rule's defects (grid lines not
+// monotone, L not a P-matrix at a node or a midpoint) must all lie beyond it.
+void InverseFluxMap::check_one_to_one(const FluxMap& map, const NodeRange& b, const CurrentBox& legal) {
     for (const MapDefect& e : map_defects(map).list)
-        if (e.d0 <= 2 * j1 && e.d1 >= 2 * j0 && e.q0 <= 2 * k1 && e.q1 >= 2 * k0)
-            throw FluxMapError("InverseFluxMap: " + e.what + ", where the map is to be inverted (" + describe(legal_) +
+        if (e.d0 <= 2 * b.j1 && e.d1 >= 2 * b.j0 && e.q0 <= 2 * b.k1 && e.q1 >= 2 * b.k0)
+            throw FluxMapError("InverseFluxMap: " + e.what + ", where the map is to be inverted (" + describe(legal) +
                                "): several currents give the same flux linkages there");
+}
 
-    // The psi box: bounding box of the images of B's nodes and of its edges (the spline between
-    // edge nodes may bulge slightly beyond the node values).
+// The psi box: bounding box of the images of B's nodes and of its edges (the spline between
+// edge nodes may bulge slightly beyond the node values), widened by the margin.
+InverseFluxMap::PsiBox InverseFluxMap::image_box(const FluxMap& map, const NodeRange& b, double margin) {
+    const FluxMapTable& t = map.table();
     double dmin = std::numeric_limits<double>::infinity(), dmax = -dmin, qmin = dmin, qmax = -dmin;
     auto take = [&](double id, double iq) {
         const FluxPoint p = map.eval(id, iq);
@@ -165,71 +186,80 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
         qmax = std::max(qmax, p.psi_q);
     };
     constexpr int kSub = 8;
-    for (int k = k0; k <= k1; ++k)
-        for (int j = j0; j <= j1; ++j) {
+    for (int k = b.k0; k <= b.k1; ++k)
+        for (int j = b.j0; j <= b.j1; ++j) {
             take(t.i_d[j], t.i_q[k]);
-            const bool edge_q = k == k0 || k == k1, edge_d = j == j0 || j == j1;
+            const bool edge_q = k == b.k0 || k == b.k1, edge_d = j == b.j0 || j == b.j1;
             for (int s = 1; s < kSub; ++s) {
-                if (edge_q && j < j1) take(t.i_d[j] + (t.i_d[j + 1] - t.i_d[j]) * s / kSub, t.i_q[k]);
-                if (edge_d && k < k1) take(t.i_d[j], t.i_q[k] + (t.i_q[k + 1] - t.i_q[k]) * s / kSub);
+                if (edge_q && j < b.j1) take(t.i_d[j] + (t.i_d[j + 1] - t.i_d[j]) * s / kSub, t.i_q[k]);
+                if (edge_d && k < b.k1) take(t.i_d[j], t.i_q[k] + (t.i_q[k + 1] - t.i_q[k]) * s / kSub);
             }
         }
     const double wd = dmax - dmin, wq = qmax - qmin;
     if (!(wd > 0) || !(wq > 0) || !std::isfinite(wd) || !std::isfinite(wq))
         throw FluxMapError("InverseFluxMap: the flux map's image has no extent in psi_d or psi_q");
-    dmin -= options.margin * wd;
-    dmax += options.margin * wd;
-    qmin -= options.margin * wq;
-    qmax += options.margin * wq;
-    // Automatic resolution: psi spacing at most half the smallest flux step between adjacent
-    // grid nodes along that axis (the most saturated cell then still spans two psi cells), at
-    // least three psi cells per current cell, at most kMaxTableCells whatever the current grid:
-    // the table is only Newton's start, and its nodes are each a Newton inversion at
-    // construction, so a fine current grid (a FEM export of 511 x 511 points) must not size it.
+    return {dmin - margin * wd, dmax + margin * wd, qmin - margin * wq, qmax + margin * wq, wd, wq};
+}
+
+// The table's psi grid. Automatic resolution: psi spacing at most half the smallest flux step
+// between adjacent grid nodes along that axis (the most saturated cell then still spans two psi
+// cells), at least three psi cells per current cell, at most kMaxTableCells whatever the current
+// grid: the table is only Newton's start, and its nodes are each a Newton inversion at
+// construction, so a fine current grid (a FEM export of 511 x 511 points) must not size it.
+InverseFluxMap::PsiTable InverseFluxMap::psi_grid(const FluxMap& map, const NodeRange& b, const PsiBox& box,
+                                                  const InverseFluxMapOptions& options) {
+    const FluxMapTable& t = map.table();
+    const int nd = static_cast<int>(t.i_d.size());
     double step_d = std::numeric_limits<double>::infinity(), step_q = step_d;
-    for (int k = k0; k <= k1; ++k)
-        for (int j = j0; j <= j1; ++j) {
+    for (int k = b.k0; k <= b.k1; ++k)
+        for (int j = b.j0; j <= b.j1; ++j) {
             const std::size_t i = static_cast<std::size_t>(k) * nd + j;
-            if (j < j1) step_d = std::min(step_d, std::abs(t.psi_d[i + 1] - t.psi_d[i]));
-            if (k < k1) step_q = std::min(step_q, std::abs(t.psi_q[i + nd] - t.psi_q[i]));
+            if (j < b.j1) step_d = std::min(step_d, std::abs(t.psi_d[i + 1] - t.psi_d[i]));
+            if (k < b.k1) step_q = std::min(step_q, std::abs(t.psi_q[i + nd] - t.psi_q[i]));
         }
     auto automatic = [](double width, double step, int n_current) {
         const double cells = step > 0 ? std::ceil(width / (0.5 * step)) : kMaxTableCells;
         const double lo = std::min(3.0 * (n_current - 1), kMaxTableCells);
         return static_cast<int>(std::min(std::max(cells, lo), kMaxTableCells)) + 1;
     };
-    const int md = options.n_psi_d > 0 ? options.n_psi_d : automatic(dmax - dmin, step_d, j1 - j0 + 1);
-    const int mq = options.n_psi_q > 0 ? options.n_psi_q : automatic(qmax - qmin, step_q, k1 - k0 + 1);
+    const int md = options.n_psi_d > 0 ? options.n_psi_d : automatic(box.d_max - box.d_min, step_d, b.j1 - b.j0 + 1);
+    const int mq = options.n_psi_q > 0 ? options.n_psi_q : automatic(box.q_max - box.q_min, step_q, b.k1 - b.k0 + 1);
     if (md < 2 || mq < 2) throw FluxMapError("InverseFluxMap: the psi grid needs at least 2 x 2 nodes");
-    std::vector<double> pd(md), pq(mq);
-    for (int j = 0; j < md; ++j) pd[j] = dmin + (dmax - dmin) * j / (md - 1);
-    for (int k = 0; k < mq; ++k) pq[k] = qmin + (qmax - qmin) * k / (mq - 1);
-    pd.back() = dmax;
-    pq.back() = qmax;
+    PsiTable g;
+    g.psi_d.resize(md);
+    g.psi_q.resize(mq);
+    for (int j = 0; j < md; ++j) g.psi_d[j] = box.d_min + (box.d_max - box.d_min) * j / (md - 1);
+    for (int k = 0; k < mq; ++k) g.psi_q[k] = box.q_min + (box.q_max - box.q_min) * k / (mq - 1);
+    g.psi_d.back() = box.d_max;
+    g.psi_q.back() = box.q_max;
+    g.i_d.assign(static_cast<std::size_t>(md) * mq, 0.0);
+    g.i_q.assign(g.i_d.size(), 0.0);
+    g.inverted.assign(g.i_d.size(), 0);
+    return g;
+}
 
-    const double tol = 1e-14 * std::max({std::abs(dmin), std::abs(dmax), std::abs(qmin), std::abs(qmax), wd, wq});
-    flux_tol_ = tol;
-    step_tol_ = 1e-9 * std::max(map.i_d_max() - map.i_d_min(), map.i_q_max() - map.i_q_min());
-    std::vector<double> cd(static_cast<std::size_t>(md) * mq), cq(cd.size());
-    std::vector<char> inverted(cd.size(), 0);
+// The start guesses' last resort: the node of B whose flux linkages are nearest (a k-d tree over
+// them, in units of the image's extent).
+void InverseFluxMap::index_nodes(const FluxMapTable& t, const NodeRange& b, const PsiBox& box) {
+    const int nd = static_cast<int>(t.i_d.size());
+    psi_width_[0] = box.width_d;
+    psi_width_[1] = box.width_q;
+    std::vector<double> x, y;
+    for (int k = b.k0; k <= b.k1; ++k)
+        for (int j = b.j0; j <= b.j1; ++j) {
+            const std::size_t i = static_cast<std::size_t>(k) * nd + j;
+            x.push_back(t.psi_d[i] / box.width_d);
+            y.push_back(t.psi_q[i] / box.width_q);
+            node_i_d_.push_back(t.i_d[j]);
+            node_i_q_.push_back(t.i_q[k]);
+        }
+    nodes_ = NearestPoint2D(x, y);
+}
 
-    // Start guesses: the previous node of the row (continuation), else the node below, else
-    // the node of B whose flux linkages are nearest (a k-d tree over them, in units of the
-    // image's extent).
-    psi_width_[0] = wd;
-    psi_width_[1] = wq;
-    {
-        std::vector<double> x, y;
-        for (int k = k0; k <= k1; ++k)
-            for (int j = j0; j <= j1; ++j) {
-                const std::size_t i = static_cast<std::size_t>(k) * nd + j;
-                x.push_back(t.psi_d[i] / wd);
-                y.push_back(t.psi_q[i] / wq);
-                node_i_d_.push_back(t.i_d[j]);
-                node_i_q_.push_back(t.i_q[k]);
-            }
-        nodes_ = NearestPoint2D(x, y);
-    }
+// Each psi node inverted on the regularised map, from the previous node of the row
+// (continuation), else the node below, else the nearest node of B.
+void InverseFluxMap::invert_nodes(PsiTable& g) {
+    const int md = static_cast<int>(g.psi_d.size()), mq = static_cast<int>(g.psi_q.size());
     for (int k = 0; k < mq; ++k)
         for (int j = 0; j < md; ++j) {
             const std::size_t idx = static_cast<std::size_t>(k) * md + j;
@@ -237,38 +267,42 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
             bool ok = false;
             for (int attempt = 0; attempt < 3 && !ok; ++attempt) {
                 if (attempt == 0 && j > 0) {
-                    id = cd[idx - 1];
-                    iq = cq[idx - 1];
+                    id = g.i_d[idx - 1];
+                    iq = g.i_q[idx - 1];
                 } else if (attempt <= 1 && k > 0) {
-                    id = cd[idx - md];
-                    iq = cq[idx - md];
+                    id = g.i_d[idx - md];
+                    iq = g.i_q[idx - md];
                 } else {
-                    nearest_node(pd[j], pq[k], id, iq);
+                    nearest_node(g.psi_d[j], g.psi_q[k], id, iq);
                 }
-                ok = invert_regularised(pd[j], pq[k], id, iq, tol);
+                ok = invert_regularised(g.psi_d[j], g.psi_q[k], id, iq, flux_tol_);
             }
             if (!ok) {
                 ++unreachable_nodes_;
                 continue;
             }
-            inverted[idx] = 1;
+            g.inverted[idx] = 1;
             const FluxPoint p = forward_eval(id, iq);
-            max_residual_ = std::max(max_residual_, max_abs(p.psi_d - pd[j], p.psi_q - pq[k]));
+            max_residual_ = std::max(max_residual_, max_abs(p.psi_d - g.psi_d[j], p.psi_q - g.psi_q[k]));
             const double out = outside_legal(id, iq);
             if (out > 1e-9 * std::max(legal_.i_d_max - legal_.i_d_min, legal_.i_q_max - legal_.i_q_min)) {
                 ++outside_nodes_;
                 max_outside_ = std::max(max_outside_, out);
             }
-            cd[idx] = id;
-            cq[idx] = iq;
+            g.i_d[idx] = id;
+            g.i_q[idx] = iq;
         }
     if (unreachable_nodes_ == md * mq)
         throw FluxMapError("InverseFluxMap: no node of the psi grid could be inverted: the map is not invertible");
-    // Unreachable nodes: first-order continuation of the inverse from an inverted (or already
-    // filled) neighbour, i = i_n + (d psi / d i)^-1 (psi - psi_n), sweeping outwards.
+}
+
+// Unreachable nodes: first-order continuation of the inverse from an inverted (or already
+// filled) neighbour, i = i_n + (d psi / d i)^-1 (psi - psi_n), sweeping outwards.
+void InverseFluxMap::continue_unreachable(PsiTable& g) const {
+    const int md = static_cast<int>(g.psi_d.size()), mq = static_cast<int>(g.psi_q.size());
     std::vector<std::size_t> front;
-    for (std::size_t i = 0; i < inverted.size(); ++i)
-        if (inverted[i]) front.push_back(i);
+    for (std::size_t i = 0; i < g.inverted.size(); ++i)
+        if (g.inverted[i]) front.push_back(i);
     while (!front.empty()) {
         std::vector<std::size_t> next;
         for (std::size_t from : front) {
@@ -277,27 +311,29 @@ InverseFluxMap::InverseFluxMap(const FluxMap& map, const InverseFluxMapOptions& 
             for (const auto& n : nb) {
                 if (n[0] < 0 || n[0] >= md || n[1] < 0 || n[1] >= mq) continue;
                 const std::size_t to = static_cast<std::size_t>(n[1]) * md + n[0];
-                if (inverted[to]) continue;
-                const FluxPoint p = forward_eval(cd[from], cq[from]);
+                if (g.inverted[to]) continue;
+                const FluxPoint p = forward_eval(g.i_d[from], g.i_q[from]);
                 const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
-                const double rd = pd[n[0]] - p.psi_d, rq = pq[n[1]] - p.psi_q;
-                cd[to] = cd[from] + (p.L_qq * rd - p.L_dq * rq) / det;
-                cq[to] = cq[from] + (-p.L_qd * rd + p.L_dd * rq) / det;
-                if (!std::isfinite(cd[to]) || !std::isfinite(cq[to])) {
-                    cd[to] = cd[from];
-                    cq[to] = cq[from];
+                const double rd = g.psi_d[n[0]] - p.psi_d, rq = g.psi_q[n[1]] - p.psi_q;
+                g.i_d[to] = g.i_d[from] + (p.L_qq * rd - p.L_dq * rq) / det;
+                g.i_q[to] = g.i_q[from] + (-p.L_qd * rd + p.L_dd * rq) / det;
+                if (!std::isfinite(g.i_d[to]) || !std::isfinite(g.i_q[to])) {
+                    g.i_d[to] = g.i_d[from];
+                    g.i_q[to] = g.i_q[from];
                 }
-                inverted[to] = 1;
+                g.inverted[to] = 1;
                 next.push_back(to);
             }
         }
         front.swap(next);
     }
-    spline_ = BicubicSpline2D(pd, pq, {cd.data(), cq.data()});
+}
 
-    // The honest error: at each current-grid cell's centre in B, whose fluxes are the map's there.
-    for (int k = k0; k < k1; ++k)
-        for (int j = j0; j < j1; ++j) {
+// The honest error: at each current-grid cell's centre in B, whose fluxes are the map's there.
+void InverseFluxMap::measure_errors(const FluxMap& map, const NodeRange& b) {
+    const FluxMapTable& t = map.table();
+    for (int k = b.k0; k < b.k1; ++k)
+        for (int j = b.j0; j < b.j1; ++j) {
             const double id = 0.5 * (t.i_d[j] + t.i_d[j + 1]), iq = 0.5 * (t.i_q[k] + t.i_q[k + 1]);
             const FluxPoint p = map.eval(id, iq);
             const InverseFluxPoint e = eval(p.psi_d, p.psi_q), g = table(p.psi_d, p.psi_q);

@@ -140,6 +140,27 @@ private:
     void nearest_node(double psi_d, double psi_q, double& i_d, double& i_q) const;
     double outside_legal(double i_d, double i_q) const;  // A, max norm; 0 inside B
 
+    // The construction's phases, in order (inverse_flux_map.cpp).
+    struct NodeRange {  // B's grid nodes: j0..j1 along i_d, k0..k1 along i_q
+        int j0, j1, k0, k1;
+    };
+    struct PsiBox {  // the table's flux box, and the extent of B's image (before the margin)
+        double d_min, d_max, q_min, q_max, width_d, width_q;
+    };
+    struct PsiTable {  // the table's nodes and their currents, where inverted
+        std::vector<double> psi_d, psi_q, i_d, i_q;
+        std::vector<char> inverted;
+    };
+    NodeRange snap_legal_box(const FluxMap& map, const CurrentBox& legal);
+    static void check_one_to_one(const FluxMap& map, const NodeRange& b, const CurrentBox& legal);
+    static PsiBox image_box(const FluxMap& map, const NodeRange& b, double margin);
+    static PsiTable psi_grid(const FluxMap& map, const NodeRange& b, const PsiBox& box,
+                             const InverseFluxMapOptions& options);
+    void index_nodes(const FluxMapTable& t, const NodeRange& b, const PsiBox& box);
+    void invert_nodes(PsiTable& table);
+    void continue_unreachable(PsiTable& table) const;
+    void measure_errors(const FluxMap& map, const NodeRange& b);
+
     FluxMap forward_;
     CurrentBox legal_;
     NearestPoint2D nodes_;                     // the grid nodes in B, at their fluxes / psi_width_

@@ -27,14 +27,14 @@ void expect_same_as_fresh(CurrentRegulator& kept, double i_d_ref, double i_q_ref
     CurrentRegulator fresh(kBandwidth, kRs);
     fresh.state = kept.state;
     const double i_d = -40.0, i_q = 120.0;
-    const VoltageCommand a = kept.step(i_d_ref, i_q_ref, i_d, i_q, kOmega, kUdc, kH, flux);
-    const VoltageCommand b = fresh.step(i_d_ref, i_q_ref, i_d, i_q, kOmega, kUdc, kH, flux);
+    const VoltageCommand a = kept.step({i_d_ref, i_q_ref}, {i_d, i_q}, kOmega, kUdc, kH, flux);
+    const VoltageCommand b = fresh.step({i_d_ref, i_q_ref}, {i_d, i_q}, kOmega, kUdc, kH, flux);
     EXPECT_EQ(a.u_d, b.u_d);
     EXPECT_EQ(a.u_q, b.u_q);
-    EXPECT_EQ(kept.state.v_d, fresh.state.v_d);
-    EXPECT_EQ(kept.state.v_q, fresh.state.v_q);
-    EXPECT_EQ(kept.state.psi_ref_d, fresh.state.psi_ref_d);
-    EXPECT_EQ(kept.state.psi_ref_q, fresh.state.psi_ref_q);
+    EXPECT_EQ(kept.state.v.d, fresh.state.v.d);
+    EXPECT_EQ(kept.state.v.q, fresh.state.v.q);
+    EXPECT_EQ(kept.state.psi_ref.d, fresh.state.psi_ref.d);
+    EXPECT_EQ(kept.state.psi_ref.q, fresh.state.psi_ref.q);
 }
 
 }  // namespace
@@ -43,7 +43,7 @@ TEST(CurrentRegulator, ReferenceFluxFollowsReferenceMagnetAndMap) {
     const auto map = map_with_cross(0.3), other = map_with_cross(0.6);
     CurrentRegulator reg(kBandwidth, kRs);
     const MagnetFlux cold(*map, 0.0), warm(*map, -0.006), other_cold(*other, 0.0);
-    for (int k = 0; k < 3; ++k) reg.step(-50.0, 150.0, -40.0, 120.0, kOmega, kUdc, kH, cold);  // kept
+    for (int k = 0; k < 3; ++k) reg.step({-50.0, 150.0}, {-40.0, 120.0}, kOmega, kUdc, kH, cold);  // kept
     SCOPED_TRACE("the same reference");
     expect_same_as_fresh(reg, -50.0, 150.0, cold);
     SCOPED_TRACE("a new reference");
