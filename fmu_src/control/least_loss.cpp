@@ -204,8 +204,9 @@ struct Seeds {
         }
         sort();
     }
-    void sort() {
-        std::sort(c, c + n, [](const Crossing& a, const Crossing& b) { return a.J < b.J; });
+    void sort() {  // insertion sort of at most kMax
+        for (int i = 1; i < n; ++i)
+            for (int j = i; j > 0 && c[j].J < c[j - 1].J; --j) std::swap(c[j], c[j - 1]);
     }
     double best() const { return n > 0 ? c[0].J : INFINITY; }
 };
