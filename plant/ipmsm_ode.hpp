@@ -19,7 +19,7 @@
 
 #include <cmath>
 
-#include "losses/iron_loss.hpp"
+#include "machine/iron_loss.hpp"
 #include "machine/inverse_flux_map.hpp"
 
 namespace ipmsm {

@@ -1,6 +1,6 @@
 // The drive's steady-state loss at a current command, for the controller (its least-loss commands
 // and P_loss_cmd): copper + iron + inverter with the plant's own models at the controller's
-// parameters, the one implementation of each (losses/iron_loss.hpp, inverter/inverter_loss.hpp):
+// parameters, the one implementation of each (machine/iron_loss.hpp, inverter/inverter_loss.hpp):
 //
 //     P_cu  = 1.5 R |i|^2                      (R at the winding's temperature)
 //     P_fe  = k_h f b^alpha + k_e f^2 b^2       (b = |psi(i)| / psi_ref, the map at the magnets' temperature)
@@ -12,7 +12,7 @@
 #include <cmath>
 
 #include "inverter/inverter_loss.hpp"
-#include "losses/iron_loss.hpp"
+#include "machine/iron_loss.hpp"
 
 namespace ipmsm {
 
