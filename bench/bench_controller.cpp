@@ -170,7 +170,9 @@ void least_loss_rows(const CorpusMap& c) {
             const auto t0 = Clock::now();
             const DriveLoss loss(iron, inverter, c.pole_pairs, o.w_m, c.R_s, c.u_dc);
             const CurrentCommand top = solver.solve(o.T < 0 ? -1e30 : 1e30, lim, c.R_s, 0.0, Recursion::optimal);
-            const LeastLossResult r = least_loss.solve(o.T, lim, flux, loss, top);
+            const CurrentCommand em = solver.solve(o.T, lim, c.R_s, 0.0, Recursion::optimal);
+            const CurrentPoint hint{em.i_d, em.i_q};
+            const LeastLossResult r = least_loss.solve(o.T, lim, flux, loss, top, &hint);
             ns[k] = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
             g_sink = r.cmd.i_d;
             failed += !r.check_passed;

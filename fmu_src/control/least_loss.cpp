@@ -2,11 +2,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace ipmsm {
 namespace {
 
 double sign_of(double T) { return T < 0 ? -1.0 : 1.0; }
+
+// The least |psi|^2 between a circle's samples is taken as this share of the least sampled (the
+// flux varies smoothly along a circle of 128 samples; a bound for skipping circles, not a result).
+constexpr double kFluxMargin = 0.8;
 
 // A scalar field's value, gradient and Hessian at one point.
 struct Field {
@@ -227,6 +232,22 @@ const CurrentCircles& LeastLoss::circles(double I_max) {
     return *circles_;
 }
 
+const std::vector<double>& LeastLoss::least_flux_sq(const CurrentCircles& C, double shift) {
+    const double rounded = std::round(shift / kShiftStep) * kShiftStep;
+    if (psi2_shift_ == rounded && psi2_min_.size() == CurrentCircles::kRadii && psi2_circles_ == &C) return psi2_min_;
+    psi2_min_.assign(CurrentCircles::kRadii, INFINITY);
+    for (int k = 1; k <= CurrentCircles::kRadii; ++k)
+        for (int j = 0; j < CurrentCircles::kAngles; ++j) {
+            const CurrentCircles::Sample& x = C.at(k, j);
+            // any shift within kShiftStep of the rounded one
+            const double d = std::max(0.0, std::abs(x.psi_d + rounded) - kShiftStep);
+            psi2_min_[k - 1] = std::min(psi2_min_[k - 1], d * d + x.psi_q * x.psi_q);
+        }
+    psi2_shift_ = rounded;
+    psi2_circles_ = &C;
+    return psi2_min_;
+}
+
 LossSplit LeastLoss::loss_at(const MagnetFlux& flux, const DriveLoss& loss, int pole_pairs, double i_d, double i_q) {
     const FluxPoint f = flux.eval(i_d, i_q);
     const double T_e = torque_factor(pole_pairs) * (f.psi_d * i_q - f.psi_q * i_d);
@@ -234,7 +255,7 @@ LossSplit LeastLoss::loss_at(const MagnetFlux& flux, const DriveLoss& loss, int 
 }
 
 LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const MagnetFlux& flux,
-                                 const DriveLoss& loss, const CurrentCommand& em_top) {
+                                 const DriveLoss& loss, const CurrentCommand& em_top, const CurrentPoint* hint) {
     const Problem P(lim, flux, loss, pole_pairs_);
     const CurrentCircles& C = circles(lim.I_max);
     const double s = sign_of(T_ref);
@@ -341,6 +362,35 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
     Seeds seeds;
     const double spacing = lim.I_max * 2.0 * kPi / CurrentCircles::kAngles;
     seeds.apart2 = 4.0 * spacing * spacing;
+    // Polished points: the best of them is the command.
+    struct Best {
+        Point p;
+        double J = INFINITY;
+        Region region = Region::mtpa;
+    } best;
+    auto consider = [&](const Point& p, System sys) {
+        evaluations += p.iterations;
+        Eval e{};
+        if (!p.converged || !feasible(p.i_d, p.i_q, e)) return false;
+        if (std::abs(e.h - T) > kTorqueTolerance * std::max(top.H, 1.0)) return false;
+        if (magnet_free_ && p.i_d > 1e-9 * lim.I_max) return false;
+        if (e.J < best.J)
+            best.p = p, best.J = e.J,
+            best.region = sys == System::voltage ? Region::voltage_limit
+                          : sys == System::current ? Region::current_and_voltage_limit
+                                                   : Region::mtpa;
+        return true;
+    };
+    const double rim2 = P.I2 * (1.0 - 2.0 / CurrentCircles::kRadii) * (1.0 - 2.0 / CurrentCircles::kRadii);
+    // The hint first (the least-current command for T*, near the least loss at low speed): its
+    // exact loss bounds the scan from the start.
+    if (hint != nullptr && std::isfinite(hint->i_d) && std::isfinite(hint->i_q)) {
+        if (!consider(newton(flux, P, System::interior, T, hint->i_d, hint->i_q, lim.I_max), System::interior))
+            consider(newton(flux, P, System::voltage, T, hint->i_d, hint->i_q, lim.I_max), System::voltage);
+    }
+    // A lower bound of J on a circle of radius r: a r^2 + b r + e P_fe(the least |psi|^2 sampled on
+    // it, less a margin for between the samples).
+    const std::vector<double>& psi2_min = least_flux_sq(C, P.shift);
     Sample prev[CurrentCircles::kAngles], cur[CurrentCircles::kAngles];
     {
         Eval e{};
@@ -360,8 +410,15 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
     const double shift = P.shift;
     for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
         const double r_in = C.radius(k - 1);
-        // no point beyond r_in loses less than its copper and inverter loss alone
-        if (P.a * r_in * r_in + P.b * r_in > 1.25 * seeds.best()) break;
+        // no point beyond r_in loses less than its copper and inverter loss alone; on circle k (and
+        // between k - 1 and k) no less than that bound with the circle's least iron loss
+        const double bound = std::min(seeds.best() * 1.25, best.J);
+        if (P.a * r_in * r_in + P.b * r_in > bound) break;
+        const double psi2 = std::min(psi2_min[k - 1], k >= 2 ? psi2_min[k - 2] : psi2_min[k - 1]);
+        if (P.a * r_in * r_in + P.b * r_in + P.e * P.P_fe(kFluxMargin * psi2) > bound) {
+            for (int j = 0; j < CurrentCircles::kAngles; ++j) prev[j].feasible = false, prev[j].h = NAN;
+            continue;
+        }
         const double r = C.radius(k), c = r * r, lin = P.a * c + P.b * r;
         for (int j = 0; j < CurrentCircles::kAngles; ++j) {
             const CurrentCircles::Sample& x = C.at(k, j);
@@ -380,26 +437,9 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
     }
 
     // Polish each seed: the interior stationary point, else the curve on the limit it breaks.
-    struct Best {
-        Point p;
-        double J = INFINITY;
-        Region region = Region::mtpa;
-    } best;
-    auto consider = [&](const Point& p, System sys) {
-        evaluations += p.iterations;
-        Eval e{};
-        if (!p.converged || !feasible(p.i_d, p.i_q, e)) return false;
-        if (std::abs(e.h - T) > kTorqueTolerance * std::max(top.H, 1.0)) return false;
-        if (magnet_free_ && p.i_d > 1e-9 * lim.I_max) return false;
-        if (e.J < best.J)
-            best.p = p, best.J = e.J,
-            best.region = sys == System::voltage ? Region::voltage_limit
-                          : sys == System::current ? Region::current_and_voltage_limit
-                                                   : Region::mtpa;
-        return true;
-    };
     for (int n = 0; n < seeds.n; ++n) {
         const Crossing& x = seeds.c[n];
+        if (x.J > 1.25 * best.J) continue;  // (interpolated: a margin for its error)
         const Point p = newton(flux, P, System::interior, T, x.i_d, x.i_q, lim.I_max);
         Eval e{};
         const bool interior_ok = p.converged && feasible(p.i_d, p.i_q, e);
@@ -407,13 +447,19 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         // only one no worse than its seed's neighbourhood (the crossings' loss is interpolated,
         // so within the interpolation's error)
         if (interior_ok) consider(p, System::interior);
-        if (!interior_ok || x.voltage_near) {
+        if (!interior_ok || x.voltage_near)
             consider(newton(flux, P, System::voltage, T, x.i_d, x.i_q, lim.I_max), System::voltage);
+        if (!interior_ok || x.i_d * x.i_d + x.i_q * x.i_q >= rim2)
             consider(newton(flux, P, System::current, T, x.i_d, x.i_q, lim.I_max), System::current);
-        }
+    }
+    // Near T_max the curve's stretch within the limits is short and ends on them: from T_max's point too.
+    if (!(best.J < INFINITY) || std::abs(T) > 0.9 * top.H) {
+        consider(newton(flux, P, System::current, T, top.p.i_d, top.p.i_q, lim.I_max), System::current);
+        consider(newton(flux, P, System::voltage, T, top.p.i_d, top.p.i_q, lim.I_max), System::voltage);
+        consider(newton(flux, P, System::interior, T, top.p.i_d, top.p.i_q, lim.I_max), System::interior);
     }
     // ---- 3. The check: no crossing, projected onto the curve, loses less than the command.
-    const double scale = std::max(1.0, best.J);
+    const double scale = best.J < INFINITY ? std::max(1.0, best.J) : 1.0;
     bool passed = best.J < INFINITY;
     for (int n = 0; n < seeds.n; ++n) {
         // project the crossing onto the curve along grad h (Newton in one dimension)
@@ -432,6 +478,12 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         }
         Eval e{};
         if (!feasible(i_d, i_q, e) || std::abs(e.h - T) > kTorqueTolerance * std::max(top.H, 1.0)) continue;
+        if (!(best.J < INFINITY)) {  // nothing polished: the projected crossing, exact in torque
+            passed = false;
+            out.searched = true;
+            best.p = {i_d, i_q, true, 0}, best.J = e.J, best.region = Region::mtpa;
+            continue;
+        }
         if (e.J < best.J - kLossTolerance * scale) {
             // the robust replacement: the better crossing, polished where Newton holds from it
             passed = false;

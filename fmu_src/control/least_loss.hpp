@@ -22,7 +22,9 @@
 // Magnet-free machines: mirror optima tie, the command keeps i_d <= 0 (as least current does).
 #pragma once
 
+#include <cmath>
 #include <memory>
+#include <vector>
 
 #include "control/current_circles.hpp"
 #include "losses/drive_loss.hpp"
@@ -45,8 +47,10 @@ public:
 
     // T_ref: the shaft torque asked (signed). em_top: the least-current solver's command at its
     // T_max for the same side and conditions (the seed of T_max).
+    // hint (optional): a point near the curve (the least-current command for T_ref), polished
+    // first so that its exact loss bounds the search.
     LeastLossResult solve(double T_ref, const OperatingLimits& lim, const MagnetFlux& flux, const DriveLoss& loss,
-                          const CurrentCommand& em_top);
+                          const CurrentCommand& em_top, const CurrentPoint* hint = nullptr);
 
     // The loss and shaft torque of any command (P_loss_cmd for either objective).
     static LossSplit loss_at(const MagnetFlux& flux, const DriveLoss& loss, int pole_pairs, double i_d, double i_q);
@@ -57,6 +61,13 @@ public:
 
 private:
     const CurrentCircles& circles(double I_max);
+    // The least |psi|^2 sampled on each circle, for any magnet shift within kShiftStep of `shift`
+    // rounded to it (cached: recomputed when the rounded shift or the circles change).
+    static constexpr double kShiftStep = 1e-4;  // Wb
+    const std::vector<double>& least_flux_sq(const CurrentCircles& C, double shift);
+    std::vector<double> psi2_min_;
+    double psi2_shift_ = NAN;
+    const CurrentCircles* psi2_circles_ = nullptr;
     std::shared_ptr<const FluxMap> map_;
     int pole_pairs_;
     bool magnet_free_;

@@ -168,7 +168,9 @@ void check_against_brute_force(const std::shared_ptr<const FluxMap>& map, double
         const CurrentCommand top = em.solve(side * 1e30, lim, kRs, shift, Recursion::optimal);
         if (!top.feasible) continue;
         const double T = side * top.torque_max * 1.1 * U(rng);
-        const LeastLossResult r = ll.solve(T, lim, flux, loss, top);
+        const CurrentCommand least_current = em.solve(T, lim, kRs, shift, Recursion::optimal);
+        const CurrentPoint hint{least_current.i_d, least_current.i_q};
+        const LeastLossResult r = ll.solve(T, lim, flux, loss, top, k % 2 ? &hint : nullptr);
         SCOPED_TRACE(::testing::Message() << rpm << " r/min, T = " << T << " N.m, u_dc = " << u_dc);
         ASSERT_TRUE(r.cmd.feasible);
         EXPECT_LE(std::hypot(r.cmd.i_d, r.cmd.i_q), kIMax * (1 + 1e-9));
