@@ -204,7 +204,6 @@ int main(int argc, char** argv) {
     }
     if (path.empty()) {
         for (const CorpusMap& c : corpus) corpus_rows(c);
-    for (const CorpusMap& c : corpus) least_loss_rows(c);
         for (const CorpusMap& c : corpus) least_loss_rows(c);
         return 0;
     }
