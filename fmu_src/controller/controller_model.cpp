@@ -186,6 +186,8 @@ void ControllerModel::exit_initialization() {
     check_current_limit_within_map(*map, I_max);
     if (context_->log_warning && !acceptance.warning.empty()) context_->log_warning(acceptance.warning);
     SaturatedOptimalCurrent solver(map, pole_pairs);
+    std::optional<LeastLoss> least_loss;
+    if (objective == 1) least_loss.emplace(map, pole_pairs, solver.magnet_free());
     std::shared_ptr<const TorqueTable> table;
     if (method == 2 || method == 3) {
         TableSpec spec;
@@ -198,10 +200,25 @@ void ControllerModel::exit_initialization() {
         spec.R_s = R_s;
         spec.psi_d_shift = magnet_flux_shift(*map, k_psi_T, lut_T_magnet, T_magnet_ref);
         spec.w_m_max = w_m_max;
-        table = std::make_shared<const TorqueTable>(solver, spec);
+        if (least_loss) {
+            // least-loss tables: the least-loss solver at the table's u_dc, magnet temperature
+            // and R_s (T_winding_ref), the node's speed
+            SaturatedOptimalCurrent seeds = solver;
+            const MagnetFlux flux(*map, spec.psi_d_shift);
+            const IronLossModel iron{fe_k_h, fe_alpha, fe_k_e, fe_psi_ref};
+            auto entry = [&](double T, const OperatingLimits& lim) {
+                const CurrentCommand top =
+                    seeds.solve(T < 0 ? -1e30 : 1e30, lim, spec.R_s, spec.psi_d_shift, Recursion::optimal);
+                const CurrentCommand em = seeds.solve(T, lim, spec.R_s, spec.psi_d_shift, Recursion::optimal);
+                const CurrentPoint hint{em.i_d, em.i_q};
+                const DriveLoss loss(iron, inverter, pole_pairs, lim.omega / pole_pairs, spec.R_s, spec.u_dc);
+                return least_loss->solve(T, lim, flux, loss, top, &hint).cmd;
+            };
+            table = std::make_shared<const TorqueTable>(solver, spec, entry);
+        } else {
+            table = std::make_shared<const TorqueTable>(solver, spec);
+        }
     }
-    std::optional<LeastLoss> least_loss;
-    if (objective == 1) least_loss.emplace(map, pole_pairs, solver.magnet_free());
     map_ = std::move(map);
     table_ = std::move(table);
     solver_ = std::move(solver);
@@ -275,15 +292,62 @@ DriveLoss ControllerModel::drive_loss(const Conditions& c) const {
 
 CurrentCommand ControllerModel::least_loss_command(double T, const Conditions& c) {
     // Every method and recursion: the exact least-loss solver (control/least_loss.hpp), seeded by
-    // recursion 2's checked least-current commands (its T_max point, and its command for T).
+    // recursion 2's checked least-current commands (its T_max point, and its command for T); the
+    // 2-D tables (methods 2, 3) are least-loss tables, their commands checked against it.
     const OperatingLimits lim{c.omega, c.V_max, I_max};
     const MagnetFlux flux(*map_, c.shift);
     const CurrentCommand top = solver_->solve(T < 0 ? -1e30 : 1e30, lim, c.R, c.shift, Recursion::optimal);
     const CurrentCommand em = solver_->solve(T, lim, c.R, c.shift, Recursion::optimal);
     const CurrentPoint hint{em.i_d, em.i_q};
-    const LeastLossResult r = least_loss_->solve(T, lim, flux, drive_loss(c), top, &hint);
+    const DriveLoss loss = drive_loss(c);
+    const LeastLossResult r = least_loss_->solve(T, lim, flux, loss, top, &hint);
     CurrentCommand cmd = r.cmd;
     cmd.iterations += top.iterations + em.iterations;
+    if (table_) {
+        // The least-loss table's command, checked against the exact one: its shaft torque, T_max,
+        // the limits and its loss (docs/controller.md); where it fails, the exact command.
+        const CurrentCommand raw = table_->lookup(T, w_m, c.V_max);
+        const double kT = torque_factor(pole_pairs), scale = std::max(r.cmd.torque_max, 1e-12);
+        const FluxPoint f = flux.eval(raw.i_d, raw.i_q);
+        const double T_shaft = kT * (f.psi_d * raw.i_q - f.psi_q * raw.i_d) -
+                               loss.drag(loss.iron().power(pole_pairs, w_m, f.psi_d, f.psi_q));
+        const double T_cmd_exact = std::copysign(std::min(std::abs(T), r.cmd.torque_max), T);
+        const double vd = c.R * raw.i_d - c.omega * f.psi_q, vq = c.R * raw.i_q + c.omega * f.psi_d;
+        CheckFinding finding = CheckFinding::passed;
+        if (!(std::isfinite(raw.i_d) && std::isfinite(raw.i_q))) finding = CheckFinding::not_finite;
+        else if (std::hypot(raw.i_d, raw.i_q) > I_max * (1.0 + SaturatedOptimalCurrent::kLimitTolerance))
+            finding = CheckFinding::current_limit;
+        else if (vd * vd + vq * vq > c.V_max * c.V_max * (1.0 + SaturatedOptimalCurrent::kLimitTolerance))
+            finding = CheckFinding::voltage_limit;
+        else if (std::abs(T_shaft - T_cmd_exact) > SaturatedOptimalCurrent::kTorqueTolerance * scale)
+            finding = CheckFinding::torque;
+        else if (std::abs(raw.torque_max - r.cmd.torque_max) > SaturatedOptimalCurrent::kTorqueTolerance * scale)
+            finding = CheckFinding::torque_max;
+        else if (std::abs(T) < r.cmd.torque_max &&
+                 LeastLoss::loss_at(flux, loss, pole_pairs, raw.i_d, raw.i_q).total() >
+                     r.loss.total() * (1.0 + LeastLoss::kTableLossTolerance))
+            finding = CheckFinding::not_least_loss;
+        if (finding == CheckFinding::passed) {
+            CurrentCommand out = raw;
+            out.torque = T_shaft;
+            out.iterations = cmd.iterations;
+            return out;
+        }
+        CheckRecord record;
+        record.finding = finding;
+        record.rejected = raw;
+        record.T_target = T_cmd_exact;
+        record.T_made = T_shaft;
+        record.replaced = true;
+        report_check(record);
+        if (command_check == 0) {
+            CurrentCommand out = raw;
+            out.torque = T_shaft;
+            out.iterations = cmd.iterations;
+            return out;
+        }
+        return cmd;
+    }
     if (!r.check_passed) {
         CheckRecord record;
         record.finding = CheckFinding::not_least_loss;
@@ -308,7 +372,8 @@ void ControllerModel::report_check(const CheckRecord& r) {
        << " (T_cmd = " << r.T_target << " N.m, it makes " << r.T_made << " N.m on the map); "
        << (!r.replaced          ? "no better command found: sent as is"
            : command_check == 0 ? "sent as is (command_check = 0)"
-           : objective == 1 ? "replaced by the least-loss search's command (exact in shaft torque)"
+           : objective == 1 ? (table_ ? "replaced by the exact least-loss command"
+                                      : "replaced by the least-loss search's command (exact in shaft torque)")
            : method == 1 && recursion == static_cast<int>(Recursion::optimal)
                ? "replaced by the robust search's command"
                : "replaced by recursion 2's checked command");
