@@ -181,7 +181,8 @@ void least_loss_rows(const CorpusMap& c) {
         std::sort(ns.begin(), ns.end());
         char name[96], note[160];
         std::snprintf(name, sizeof name, "least loss + check, %s, %s", c.name.c_str(), label);
-        std::snprintf(note, sizeof note, "median; p99 %.0f ns; %ld of %zu failed the check, searched %ld; target <= 2000",
+        std::snprintf(note, sizeof note,
+                      "median; p99 %.0f ns; %ld of %zu failed the check, searched %ld; target <= 2000",
                       ns[ns.size() * 99 / 100], failed, ns.size(), searched);
         row(name, ns[ns.size() / 2], note);
     }

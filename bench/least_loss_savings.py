@@ -14,11 +14,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python"))
 
-from brute_force import Drive  # noqa: E402
 from least_loss_reference import LossDrive, LossParams, max_shaft_torque  # noqa: E402
 
 from scenarios.cosim.fmu import Fmu  # noqa: E402
 from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map  # noqa: E402
+
+from brute_force import Drive  # noqa: E402
 
 FMU = ROOT / "build" / "fmu" / "IpmsmController.fmu"
 H = 1e-4

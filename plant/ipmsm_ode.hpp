@@ -19,7 +19,6 @@
 
 #include <cmath>
 
-#include "machine/iron_loss.hpp"
 #include "machine/inverse_flux_map.hpp"
 #include "machine/iron_loss.hpp"
 

@@ -38,10 +38,17 @@ struct Problem {
     double shift;  // the magnets' psi_d shift, Wb
 
     Problem(const OperatingLimits& lim, const MagnetFlux& flux, const DriveLoss& loss, int pole_pairs)
-        : kT(torque_factor(pole_pairs)), w_m(loss.w_m()), omega(lim.omega), R(loss.R()),
-          V2(lim.V_max * lim.V_max), I2(lim.I_max * lim.I_max),
+        : kT(torque_factor(pole_pairs)),
+          w_m(loss.w_m()),
+          omega(lim.omega),
+          R(loss.R()),
+          V2(lim.V_max * lim.V_max),
+          I2(lim.I_max * lim.I_max),
           a(1.5 * loss.R() * (1.0 + loss.inverter().k_ac()) + loss.inverter().k_square()),
-          b(loss.inverter().k_linear()), e(1.0 + loss.inverter().k_ac()), f(loss.frequency()), iron(&loss.iron()),
+          b(loss.inverter().k_linear()),
+          e(1.0 + loss.inverter().k_ac()),
+          f(loss.frequency()),
+          iron(&loss.iron()),
           shift(flux.shift()) {}
 
     double drag(double P_fe) const { return w_m != 0.0 ? P_fe / w_m : 0.0; }
@@ -289,14 +296,17 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         const double hd = s * F.h.d, hq = s * F.h.q;
         const double tol = 1e-6;
         switch (sys) {
-            case System::top_current: return hd * F.c.d + hq * F.c.q >= -tol * std::hypot(hd, hq) * std::hypot(F.c.d, F.c.q);
-            case System::top_voltage: return hd * F.g.d + hq * F.g.q >= -tol * std::hypot(hd, hq) * std::hypot(F.g.d, F.g.q);
+            case System::top_current:
+                return hd * F.c.d + hq * F.c.q >= -tol * std::hypot(hd, hq) * std::hypot(F.c.d, F.c.q);
+            case System::top_voltage:
+                return hd * F.g.d + hq * F.g.q >= -tol * std::hypot(hd, hq) * std::hypot(F.g.d, F.g.q);
             case System::top_corner: {
                 const double det = F.c.d * F.g.q - F.c.q * F.g.d;
                 if (det == 0.0) return false;
                 const double lambda = (hd * F.g.q - hq * F.g.d) / det, mu = (F.c.d * hq - F.c.q * hd) / det;
                 const double scale = std::hypot(hd, hq);
-                return lambda * std::hypot(F.c.d, F.c.q) >= -tol * scale && mu * std::hypot(F.g.d, F.g.q) >= -tol * scale;
+                return lambda * std::hypot(F.c.d, F.c.q) >= -tol * scale &&
+                       mu * std::hypot(F.g.d, F.g.q) >= -tol * scale;
             }
             default: return false;
         }
@@ -318,7 +328,7 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
             if (s * e.h > top.H) {
                 top.p = p;
                 top.H = s * e.h;
-                top.region = sys == System::top_current ? Region::mtpa
+                top.region = sys == System::top_current   ? Region::mtpa
                              : sys == System::top_voltage ? Region::mtpv
                                                           : Region::current_and_voltage_limit;
             }
@@ -376,7 +386,7 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         if (magnet_free_ && p.i_d > 1e-9 * lim.I_max) return false;
         if (e.J < best.J)
             best.p = p, best.J = e.J,
-            best.region = sys == System::voltage ? Region::voltage_limit
+            best.region = sys == System::voltage   ? Region::voltage_limit
                           : sys == System::current ? Region::current_and_voltage_limit
                                                    : Region::mtpa;
         return true;

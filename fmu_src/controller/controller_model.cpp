@@ -275,7 +275,8 @@ CurrentCommand ControllerModel::least_loss_command(double T, const Conditions& c
         const double T_cmd_exact = std::copysign(std::min(std::abs(T), r.cmd.torque_max), T);
         const double vd = c.R * raw.i_d - c.omega * f.psi_q, vq = c.R * raw.i_q + c.omega * f.psi_d;
         CheckFinding finding = CheckFinding::passed;
-        if (!(std::isfinite(raw.i_d) && std::isfinite(raw.i_q))) finding = CheckFinding::not_finite;
+        if (!(std::isfinite(raw.i_d) && std::isfinite(raw.i_q)))
+            finding = CheckFinding::not_finite;
         else if (std::hypot(raw.i_d, raw.i_q) > motor.I_max * (1.0 + SaturatedOptimalCurrent::kLimitTolerance))
             finding = CheckFinding::current_limit;
         else if (vd * vd + vq * vq > c.V_max * c.V_max * (1.0 + SaturatedOptimalCurrent::kLimitTolerance))
@@ -333,8 +334,8 @@ void ControllerModel::report_check(const CheckRecord& r) {
        << " (T_cmd = " << r.T_target << " N.m, it makes " << r.T_made << " N.m on the map); "
        << (!r.replaced          ? "no better command found: sent as is"
            : command_check == 0 ? "sent as is (command_check = 0)"
-           : objective == 1 ? (table_ ? "replaced by the exact least-loss command"
-                                      : "replaced by the least-loss search's command (exact in shaft torque)")
+           : objective == 1     ? (table_ ? "replaced by the exact least-loss command"
+                                          : "replaced by the least-loss search's command (exact in shaft torque)")
            : method == 1 && recursion == static_cast<int>(Recursion::optimal)
                ? "replaced by the robust search's command"
                : "replaced by recursion 2's checked command");

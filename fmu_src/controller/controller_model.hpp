@@ -70,8 +70,8 @@ public:
     bool voltage_saturated = false;
     double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
-    int check_failures = 0;  // commands that failed the check on the map (docs/controller.md)
-    double derating = 1.0;   // the torque limit's thermal factor (1: none)
+    int check_failures = 0;   // commands that failed the check on the map (docs/controller.md)
+    double derating = 1.0;    // the torque limit's thermal factor (1: none)
     double P_loss_cmd = 0.0;  // W, the command's predicted steady-state loss P_cu + P_fe + P_inv
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
@@ -111,8 +111,8 @@ private:
     void publish(const CurrentCommand& cmd, const MagnetFlux& flux, double derating_now);
     void observe(const MagnetFlux& flux);
     void initial_outputs();
-    void report_check(const CheckRecord& r);  // counts; logs the first
-    DriveLoss drive_loss(const Conditions& c) const;  // the loss model at the present conditions
+    void report_check(const CheckRecord& r);                           // counts; logs the first
+    DriveLoss drive_loss(const Conditions& c) const;                   // the loss model at the present conditions
     CurrentCommand least_loss_command(double T, const Conditions& c);  // objective 1, checked
 
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc, T_magnet and

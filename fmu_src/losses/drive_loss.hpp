@@ -26,7 +26,11 @@ class DriveLoss {
 public:
     DriveLoss(const IronLossModel& iron, const InverterParams& inverter, int pole_pairs, double w_m, double R,
               double u_dc)
-        : iron_(iron), inverter_(inverter, u_dc), pole_pairs_(pole_pairs), w_m_(w_m), R_(R),
+        : iron_(iron),
+          inverter_(inverter, u_dc),
+          pole_pairs_(pole_pairs),
+          w_m_(w_m),
+          R_(R),
           f_(IronLossModel::frequency(pole_pairs, w_m)) {}
 
     // At a current i whose flux linkage (the magnets' temperature included) is psi and torque T_e.

@@ -16,9 +16,9 @@ namespace ipmsm {
 // P_fe as a function of the squared flux-linkage magnitude s = |psi|^2 (Wb^2) at a fundamental
 // frequency f, with its first two derivatives in s (what Newton on the map needs).
 struct IronLossAtFlux {
-    double P = 0;     // W
-    double dP = 0;    // W/Wb^2
-    double d2P = 0;   // W/Wb^4
+    double P = 0;    // W
+    double dP = 0;   // W/Wb^2
+    double d2P = 0;  // W/Wb^4
 };
 
 struct IronLossModel {

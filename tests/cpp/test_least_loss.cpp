@@ -83,7 +83,8 @@ Brute brute_force(const MagnetFlux& flux, const DriveLoss& loss, const Operating
         const double P1 = at_angle(m1, d1, q1, ok1), P2 = at_angle(m2, d2, q2, ok2);
         if (ok1 && P1 < b.P) b = {d1, q1, P1};
         if (ok2 && P2 < b.P) b = {d2, q2, P2};
-        ((ok1 ? P1 : INFINITY) < (ok2 ? P2 : INFINITY) ? hi : lo) = (ok1 ? P1 : INFINITY) < (ok2 ? P2 : INFINITY) ? m2 : m1;
+        ((ok1 ? P1 : INFINITY) < (ok2 ? P2 : INFINITY) ? hi : lo) =
+            (ok1 ? P1 : INFINITY) < (ok2 ? P2 : INFINITY) ? m2 : m1;
     }
     return b;
 }
@@ -191,8 +192,8 @@ TEST(LeastLoss, LinearMapAgainstBruteForce) {
 }
 
 TEST(LeastLoss, SaturatingMapAgainstBruteForce) {
-    auto map = std::make_shared<const FluxMap>(
-        saturating_flux_map(kLd, kLq, kPsiM, 200.0, 0.15, kIMax, 1.3 * kIMax, 53));
+    auto map =
+        std::make_shared<const FluxMap>(saturating_flux_map(kLd, kLq, kPsiM, 200.0, 0.15, kIMax, 1.3 * kIMax, 53));
     std::mt19937 rng(2);
     check_against_brute_force(map, -0.005, rng, 20);
 }

@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 import pytest
+from least_loss_reference import LossDrive, LossParams, least_loss, max_shaft_torque
 from map_corpus import BY_NAME, CORPUS, CorpusMap
 
 from scenarios.maps.flux_map import read_flux_map
 
 from brute_force import Drive
-from least_loss_reference import LossDrive, LossParams, least_loss, max_shaft_torque
 
 H = 1e-4
 K_U = 0.95
