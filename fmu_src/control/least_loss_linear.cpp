@@ -87,7 +87,7 @@ Result solve(const Machine& m, const Loss& l, double T, double rho0, int max_ite
         step_quartic(m, l, T, rho, c);
         const RealRoots r = solve_quartic(c[0], c[1], c[2], c[3], c[4]);
         // the step's minimiser: of the stationary points (the real roots), the least of the
-        // majorised loss Q (its value at |i| = rho is the full loss, and below it elsewhere)
+        // majorised loss Q (Q + b rho / 2 is the full loss at |i| = rho and above it elsewhere)
         const double A = l.a + l.b / (2.0 * rho);
         double Q_best = INFINITY, bd = 0, bq = 0;
         for (int n = 0; n < r.count; ++n) {
