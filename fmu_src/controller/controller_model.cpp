@@ -117,7 +117,18 @@ const std::vector<V>& ControllerModel::variables() {
              "Derating: the torque limit starts to fall this far below T_winding_max and T_magnet_max (default: 25 K, "
              "IEC 60085 class 155 (F) to 180 (H))",
              0.0, 1000.0, true, true},
+            // least-loss control (docs/spec/INTERFACE.md, "Least-loss control"); the loss models'
+            // parameters are the plant's parts, declared once (parts/part_variables.cpp)
+            {"objective", &M::objective, Causality::parameter, Variability::fixed, "", "",
+             "0 least current (the seed's), 1 least loss P_cu + P_fe + P_inv for the shaft torque (T_cmd and T_max "
+             "are then shaft torques: T_e less the iron-loss drag)",
+             0, 1},
+            {"P_loss_cmd", &M::P_loss_cmd, Causality::output, Variability::discrete, "W", "",
+             "The command's predicted steady-state loss P_cu + P_fe + P_inv at the present speed, u_dc and "
+             "temperatures (either objective)"},
         };
+        for (auto& v : fmi::part_variables(&M::iron_loss)) t.push_back(std::move(v));
+        for (auto& v : fmi::part_variables(&M::inverter)) t.push_back(std::move(v));
         fmi::append_rest(t, &M::motor);
         return t;
     }();
@@ -136,6 +147,8 @@ void ControllerModel::exit_initialization() {
     check_current_limit_within_map(*map, motor.I_max);
     const FluxMapTable& t = map->table();
     SaturatedOptimalCurrent solver(map, motor.pole_pairs);
+    std::optional<LeastLoss> least_loss;
+    if (objective == 1) least_loss.emplace(map, motor.pole_pairs, solver.magnet_free());
     std::shared_ptr<const TorqueTable> table;
     if (method == 2 || method == 3) {
         TableSpec spec;
@@ -148,11 +161,29 @@ void ControllerModel::exit_initialization() {
         spec.R_s = motor.R_s;
         spec.psi_d_shift = magnet_flux_shift(*map, motor.k_psi_T, lut_T_magnet, motor.T_magnet_ref);
         spec.w_m_max = w_m_max;
-        table = std::make_shared<const TorqueTable>(solver, spec);
+        if (least_loss) {
+            // least-loss tables: the least-loss solver at the table's u_dc, magnet temperature
+            // and R_s (T_winding_ref), the node's speed
+            SaturatedOptimalCurrent seeds = solver;
+            const MagnetFlux flux(*map, spec.psi_d_shift);
+            auto entry = [&](double T, const OperatingLimits& lim) {
+                const CurrentCommand top =
+                    seeds.solve(T < 0 ? -1e30 : 1e30, lim, spec.R_s, spec.psi_d_shift, Recursion::optimal);
+                const CurrentCommand em = seeds.solve(T, lim, spec.R_s, spec.psi_d_shift, Recursion::optimal);
+                const CurrentPoint hint{em.i_d, em.i_q};
+                const DriveLoss loss(iron_loss, inverter, motor.pole_pairs, lim.omega / motor.pole_pairs, spec.R_s,
+                                     spec.u_dc);
+                return least_loss->solve(T, lim, flux, loss, top, &hint).cmd;
+            };
+            table = std::make_shared<const TorqueTable>(solver, spec, entry);
+        } else {
+            table = std::make_shared<const TorqueTable>(solver, spec);
+        }
     }
     map_ = std::move(map);
     table_ = std::move(table);
     solver_ = std::move(solver);
+    least_loss_ = std::move(least_loss);
     regulator_ = CurrentRegulator(current_bandwidth, motor.R_s);
     table_bytes = table_ ? static_cast<int>(table_->bytes()) : 0;
     initial_outputs();
@@ -195,6 +226,7 @@ CurrentCommand ControllerModel::checked_command(double T, const Conditions& c) {
     // Every command is checked on the map before it leaves (docs/controller.md): recursion 2's
     // inside the solver, the others against it. The 2-D tables are made at R_s (T_winding_ref)
     // and lut_T_magnet; their check is at the present temperatures.
+    if (least_loss_) return least_loss_command(T, c);
     const OperatingLimits lim{c.omega, c.V_max, motor.I_max};
     CurrentCommand cmd;
     if (method == 1 && recursion == static_cast<int>(Recursion::optimal)) {
@@ -215,6 +247,81 @@ CurrentCommand ControllerModel::checked_command(double T, const Conditions& c) {
     return cmd;
 }
 
+DriveLoss ControllerModel::drive_loss(const Conditions& c) const {
+    return DriveLoss(iron_loss, inverter, motor.pole_pairs, w_m, c.R, u_dc);
+}
+
+CurrentCommand ControllerModel::least_loss_command(double T, const Conditions& c) {
+    // Every method and recursion: the exact least-loss solver (control/least_loss.hpp), seeded by
+    // recursion 2's checked least-current commands (its T_max point, and its command for T); the
+    // 2-D tables (methods 2, 3) are least-loss tables, their commands checked against it.
+    const OperatingLimits lim{c.omega, c.V_max, motor.I_max};
+    const MagnetFlux flux(*map_, c.shift);
+    const CurrentCommand top = solver_->solve(T < 0 ? -1e30 : 1e30, lim, c.R, c.shift, Recursion::optimal);
+    const CurrentCommand em = solver_->solve(T, lim, c.R, c.shift, Recursion::optimal);
+    const CurrentPoint hint{em.i_d, em.i_q};
+    const DriveLoss loss = drive_loss(c);
+    const LeastLossResult r = least_loss_->solve(T, lim, flux, loss, top, &hint);
+    CurrentCommand cmd = r.cmd;
+    cmd.iterations += top.iterations + em.iterations;
+    if (table_) {
+        // The least-loss table's command, checked against the exact one: its shaft torque, T_max,
+        // the limits and its loss (docs/controller.md); where it fails, the exact command.
+        const CurrentCommand raw = table_->lookup(T, w_m, c.V_max);
+        const double kT = torque_factor(motor.pole_pairs), scale = std::max(r.cmd.torque_max, 1e-12);
+        const FluxPoint f = flux.eval(raw.i_d, raw.i_q);
+        const double T_shaft = kT * (f.psi_d * raw.i_q - f.psi_q * raw.i_d) -
+                               loss.drag(loss.iron().power(motor.pole_pairs, w_m, f.psi_d, f.psi_q));
+        const double T_cmd_exact = std::copysign(std::min(std::abs(T), r.cmd.torque_max), T);
+        const double vd = c.R * raw.i_d - c.omega * f.psi_q, vq = c.R * raw.i_q + c.omega * f.psi_d;
+        CheckFinding finding = CheckFinding::passed;
+        if (!(std::isfinite(raw.i_d) && std::isfinite(raw.i_q)))
+            finding = CheckFinding::not_finite;
+        else if (std::hypot(raw.i_d, raw.i_q) > motor.I_max * (1.0 + SaturatedOptimalCurrent::kLimitTolerance))
+            finding = CheckFinding::current_limit;
+        else if (vd * vd + vq * vq > c.V_max * c.V_max * (1.0 + SaturatedOptimalCurrent::kLimitTolerance))
+            finding = CheckFinding::voltage_limit;
+        else if (std::abs(T_shaft - T_cmd_exact) > SaturatedOptimalCurrent::kTorqueTolerance * scale)
+            finding = CheckFinding::torque;
+        else if (std::abs(raw.torque_max - r.cmd.torque_max) > SaturatedOptimalCurrent::kTorqueTolerance * scale)
+            finding = CheckFinding::torque_max;
+        else if (std::abs(T) < r.cmd.torque_max &&
+                 LeastLoss::loss_at(flux, loss, motor.pole_pairs, raw.i_d, raw.i_q).total() >
+                     r.loss.total() * (1.0 + LeastLoss::kTableLossTolerance))
+            finding = CheckFinding::not_least_loss;
+        if (finding == CheckFinding::passed) {
+            CurrentCommand out = raw;
+            out.torque = T_shaft;
+            out.iterations = cmd.iterations;
+            return out;
+        }
+        CheckRecord record;
+        record.finding = finding;
+        record.rejected = raw;
+        record.T_target = T_cmd_exact;
+        record.T_made = T_shaft;
+        record.replaced = true;
+        report_check(record);
+        if (command_check == 0) {
+            CurrentCommand out = raw;
+            out.torque = T_shaft;
+            out.iterations = cmd.iterations;
+            return out;
+        }
+        return cmd;
+    }
+    if (!r.check_passed) {
+        CheckRecord record;
+        record.finding = CheckFinding::not_least_loss;
+        record.rejected = cmd;
+        record.T_target = std::copysign(std::min(std::abs(T), cmd.torque_max), T);
+        record.T_made = cmd.torque;
+        record.replaced = r.searched;
+        report_check(record);
+    }
+    return cmd;
+}
+
 void ControllerModel::report_check(const CheckRecord& r) {
     ++check_failures;
     if (warned_check_ || !context_->log_warning) return;
@@ -227,6 +334,8 @@ void ControllerModel::report_check(const CheckRecord& r) {
        << " (T_cmd = " << r.T_target << " N.m, it makes " << r.T_made << " N.m on the map); "
        << (!r.replaced          ? "no better command found: sent as is"
            : command_check == 0 ? "sent as is (command_check = 0)"
+           : objective == 1     ? (table_ ? "replaced by the exact least-loss command"
+                                          : "replaced by the least-loss search's command (exact in shaft torque)")
            : method == 1 && recursion == static_cast<int>(Recursion::optimal)
                ? "replaced by the robust search's command"
                : "replaced by recursion 2's checked command");
@@ -242,6 +351,10 @@ void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux,
     if (observe_each_step) observe(flux);
     region = static_cast<int>(cmd.region);
     iterations = cmd.iterations;
+    // (u_dc > 0 holds for every value the FMU accepts; the guard keeps a NaN out where it does not)
+    P_loss_cmd = u_dc > 0.0 && std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q)
+                     ? LeastLoss::loss_at(flux, drive_loss(conditions()), motor.pole_pairs, cmd.i_d, cmd.i_q).total()
+                     : 0.0;
     derating = derating_now;
     cache_ = {true, T_ref, w_m, u_dc, T_magnet, T_winding, cmd};
 }

@@ -9,8 +9,10 @@
 
 #include "control/current_regulator.hpp"
 #include "control/derating.hpp"
+#include "control/least_loss.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
+#include "losses/drive_loss.hpp"
 #include "machine/motor_params.hpp"
 #include "model.hpp"
 #include "variable.hpp"
@@ -73,8 +75,9 @@ public:
     bool voltage_saturated = false;
     double u_ratio = 0.0;  // |u_ref| / (u_dc / sqrt 3): use of the inverter's linear range
     int table_bytes = 0;
-    int check_failures = 0;  // commands that failed the check on the map (docs/controller.md)
-    double derating = 1.0;   // the torque limit's thermal factor (1: none)
+    int check_failures = 0;   // commands that failed the check on the map (docs/controller.md)
+    double derating = 1.0;    // the torque limit's thermal factor (1: none)
+    double P_loss_cmd = 0.0;  // W, the command's predicted steady-state loss P_cu + P_fe + P_inv
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
     int recursion = 2;  // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
@@ -93,6 +96,12 @@ public:
     double T_winding_max = 453.15;  // K
     double T_magnet_max = 423.15;   // K
     double derating_margin = 25.0;  // K
+    // Least-loss control (docs/spec/MATH.md, "Least-loss control"): 0 least current (the seed's),
+    // 1 least loss (T_cmd, T_max are then shaft torques); the loss models' parameters, the
+    // plant's parts (parts/part_variables.cpp: the same names, ranges and defaults).
+    int objective = 0;
+    IronLossModel iron_loss = kDefaultMotorIronLoss;
+    InverterParams inverter;
 
 private:
     // omega (electrical), V_max, the magnet's psi_d shift, the winding's resistance and the
@@ -111,6 +120,9 @@ private:
     // linear range, as the regulator's voltage being applied and the command (a flying start).
     void flying_start_voltage(const Conditions& c, const MagnetFlux& flux);
     void report_check(const CheckRecord& r);  // counts; logs the first
+    void report_check(const CheckRecord& r);                           // counts; logs the first
+    DriveLoss drive_loss(const Conditions& c) const;                   // the loss model at the present conditions
+    CurrentCommand least_loss_command(double T, const Conditions& c);  // objective 1, checked
 
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc, T_magnet and
     // T_winding stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
@@ -135,6 +147,7 @@ private:
     std::shared_ptr<const FluxMap> map_;
     std::shared_ptr<const TorqueTable> table_;
     std::optional<SaturatedOptimalCurrent> solver_;  // its warm-start memory is state
+    std::optional<LeastLoss> least_loss_;            // objective 1 (no state: a function of the inputs)
     CurrentRegulator regulator_{0.0, 0.0};
     bool warned_unreachable_ = false;
     bool warned_check_ = false;

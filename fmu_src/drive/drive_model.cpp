@@ -275,6 +275,10 @@ const std::vector<V>& DriveModel::variables() {
              "The largest current magnitude |i| at the inner steps' ends since the last fault began (0 before any)"},
         });
         t.parameters(PlantModel::variables(), "i_d_demag", "i_d_demag");
+        // least-loss control (docs/spec/INTERFACE.md): the objective (added below with the
+        // controller's other new parameters) and the command's predicted loss
+        t.at_end(&M::controller_, "P_loss_cmd", "kW",
+                 "The controller's command's predicted steady-state loss P_cu + P_fe + P_inv, at the end of the step");
         // Every other parameter of the models, as they add them (a new motor parameter lands here by
         // itself). The drive's own new variables go before this line while it adds nothing; once a
         // release has recorded what it added (tests/data/value_references_*.json), place those above

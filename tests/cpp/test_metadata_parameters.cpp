@@ -30,7 +30,8 @@ TEST(MetadataParameters, ModelsReportTheirParametersByName) {
     EXPECT_EQ(fmi::parameter_number(plant, "alpha_cu"), plant.motor.alpha_cu);
     EXPECT_EQ(fmi::parameter_number(controller, "pole_pairs"), controller.motor.pole_pairs);
     EXPECT_EQ(fmi::parameter_number(controller, "alpha_cu"), plant.motor.alpha_cu);  // both models' copper law
-    EXPECT_FALSE(fmi::parameter_number(controller, "fe_k_h"));                       // the plant's only
+    EXPECT_EQ(fmi::parameter_number(controller, "fe_k_h"), plant.iron_loss.k_h);     // least loss: the plant's part
+    EXPECT_FALSE(fmi::parameter_number(controller, "rtol"));                         // the plant's only
     EXPECT_FALSE(fmi::parameter_number(plant, "u_d"));                               // an input, not a parameter
 }
 
