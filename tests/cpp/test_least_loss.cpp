@@ -14,6 +14,7 @@
 #include "control/least_loss_linear.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "flux_map_generators.hpp"
+#include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
 
 using namespace ipmsm;
@@ -69,13 +70,13 @@ Brute brute_force(const MagnetFlux& flux, const DriveLoss& loss, const Operating
     Brute b;
     double a_best = 0;
     for (int j = 0; j < n; ++j) {
-        const double a = 2.0 * M_PI * j / n;
+        const double a = 2.0 * kPi * j / n;
         double i_d, i_q;
         bool ok;
         const double P = at_angle(a, i_d, i_q, ok);
         if (ok && P < b.P) b = {i_d, i_q, P}, a_best = a;
     }
-    double lo = a_best - 2.0 * M_PI / n, hi = a_best + 2.0 * M_PI / n;
+    double lo = a_best - 2.0 * kPi / n, hi = a_best + 2.0 * kPi / n;
     for (int it = 0; it < 100; ++it) {
         const double m1 = lo + 0.382 * (hi - lo), m2 = lo + 0.618 * (hi - lo);
         double d1, q1, d2, q2;
@@ -95,7 +96,7 @@ TEST(LeastLossLinear, QuarticEqualsBruteForceOnALinearMachine) {
     const least_loss_linear::Machine m{kPsiM, kLd, kLq, 1.5 * kP};
     for (double rpm : {1000.0, 4000.0, 6000.0, 9000.0}) {
         for (double T : {-150.0, -40.0, -5.0, 3.0, 20.0, 80.0, 200.0}) {
-            const double w = rpm * M_PI / 30.0, f = kP * w / (2 * M_PI);
+            const double w = rpm * kPi / 30.0, f = kP * w / (2 * kPi);
             const InverterLossModel inv(kInverter, 355.0);
             const double K = (kIron.k_h * f + kIron.k_e * f * f) / (kIron.psi_ref * kIron.psi_ref);
             const double e = 1.0 + inv.k_ac();
@@ -130,10 +131,10 @@ TEST(LeastLossLinear, QuarticEqualsBruteForceOnALinearMachine) {
             const int n = 20000;
             for (int j = 0; j < n; ++j) {
                 double i_d, i_q;
-                const double a = 2 * M_PI * j / n, J = J_at(a, i_d, i_q);
+                const double a = 2 * kPi * j / n, J = J_at(a, i_d, i_q);
                 if (J < best) best = J, a_best = a, bd = i_d, bq = i_q;
             }
-            double lo = a_best - 2 * M_PI / n, hi = a_best + 2 * M_PI / n;
+            double lo = a_best - 2 * kPi / n, hi = a_best + 2 * kPi / n;
             for (int it = 0; it < 200; ++it) {
                 const double m1 = lo + 0.381966 * (hi - lo), m2 = hi - 0.381966 * (hi - lo);
                 double d1, q1, d2, q2;
@@ -161,7 +162,7 @@ void check_against_brute_force(const std::shared_ptr<const FluxMap>& map, double
     std::uniform_real_distribution<double> U(0.0, 1.0);
     for (int k = 0; k < n; ++k) {
         const double rpm = (U(rng) < 0.5 ? -1 : 1) * 12000.0 * U(rng);
-        const double w = rpm * M_PI / 30.0;
+        const double w = rpm * kPi / 30.0;
         const double u_dc = 300.0 + 100.0 * U(rng);
         const OperatingLimits lim{kP * w, 0.95 * u_dc / std::sqrt(3.0), kIMax};
         const DriveLoss loss(kIron, kInverter, kP, w, kRs, u_dc);
@@ -206,12 +207,12 @@ TEST(LeastLoss, MapSolverEqualsTheQuarticOnALinearMap) {
     const least_loss_linear::Machine m{kPsiM, kLd, kLq, 1.5 * kP};
     for (double rpm : {2000.0, 4000.0, -3000.0}) {
         for (double T : {-60.0, -10.0, 5.0, 30.0, 90.0}) {
-            const double w = rpm * M_PI / 30.0;
+            const double w = rpm * kPi / 30.0;
             const OperatingLimits lim{kP * w, 1e4, kIMax};  // no voltage limit
             const DriveLoss loss(kIron, kInverter, kP, w, kRs, 355.0);
             const CurrentCommand top = em.solve(T < 0 ? -1e30 : 1e30, lim, kRs, 0.0, Recursion::optimal);
             const LeastLossResult r = ll.solve(T, lim, flux, loss, top);
-            const double f = kP * std::abs(w) / (2 * M_PI);
+            const double f = kP * std::abs(w) / (2 * kPi);
             const double K = (kIron.k_h * f + kIron.k_e * f * f) / (kIron.psi_ref * kIron.psi_ref);
             const InverterLossModel inv(kInverter, 355.0);
             const double e = 1.0 + inv.k_ac();
