@@ -456,6 +456,48 @@ void PlantModel::update_outputs(const DqFluxOde& o, double i_d_now, double i_q_n
     R_s_T = o.R;
 }
 
+// A Newton seed this many times the grid's largest current from the origin is no start the
+// inverse map's Newton needs: the table's start is nearer.
+constexpr double kSeedReach = 10.0;
+// The heat balance's closure an FMU state must show (J/J): the exact step closes it to rounding,
+// the tests check 1e-6 of a run's heat (tests/python/test_thermal_network.py).
+constexpr double kHeatBalanceTolerance = 1e-6;
+
+PlantModel::StateRanges PlantModel::state_ranges() const {
+    StateRanges r{{"a flux linkage of the plant's state (Wb)", -kInf, kInf},
+                  {"a current of the plant's state (A)", -kInf, kInf},
+                  {"the plant's next step size (s)", 0.0, kInf},
+                  {"a thermal-network node temperature (K)", kTemperatureMin_K, kTemperatureMax_K}};
+    if (map_) {  // before initialisation there is no map, and no state but the start values
+        const MapSpan span = map_span(map_->table());
+        const double psi = flux_reach(span, map_->psi_m(), k_psi_T);
+        const double i = kSeedReach * std::max({std::abs(span.i_d[0]), std::abs(span.i_d[1]), std::abs(span.i_q[0]),
+                                                std::abs(span.i_q[1])});
+        r.flux.min = -psi, r.flux.max = psi;
+        r.current.min = -i, r.current.max = i;
+    }
+    return r;
+}
+
+void PlantModel::check_thermal_state() const {
+    if (!thermal_) return;
+    const double E_error = thermal_->heat_balance_error();
+    if (!(E_error <= kHeatBalanceTolerance))
+        throw fmi::Error("serialised FMU state: the thermal network's heat balance does not close (E_loss - E_stored - "
+                         "E_coolant - E_ambient is " +
+                         num(E_error) + " of the largest; at most " + num(kHeatBalanceTolerance) + "); not restored");
+    const bool same = theta_winding == thermal_->theta(thermal::winding) &&
+                      theta_magnet == thermal_->theta(thermal::magnet) &&
+                      theta_stator_yoke == thermal_->theta(thermal::stator_yoke) &&
+                      theta_stator_tooth == thermal_->theta(thermal::stator_tooth) &&
+                      E_coolant == thermal_->E_coolant() && E_ambient == thermal_->E_ambient() &&
+                      E_stored == thermal_->E_stored() && P_coolant == thermal_->P_coolant();
+    if (!same)
+        throw fmi::Error(
+            "serialised FMU state: the thermal outputs (theta_*, E_coolant, E_ambient, E_stored, P_coolant) are not "
+            "the thermal network's state; not restored");
+}
+
 void PlantModel::advance_thermal(double h, double E_cu_step, double E_fe_step) {
     if (thermal_ && h > 0.0) {  // the step's exact loss integrals heat the network
         thermal::StepConditions at;

@@ -51,7 +51,7 @@ VoltageCommand CurrentRegulator::step(double i_d_ref, double i_q_ref, double i_d
                                       double h, const MagnetFlux& flux) {
     const double theta = omega * h;  // electrical rotation within the sample, rad
     RegulatorState& s = state;
-    const double u_lim = u_dc / std::sqrt(3.0);       // the inverter's linear range (SVPWM)
+    const double u_lim = linear_range(u_dc);
     auto limit = [u_lim](double& u_d, double& u_q) {  // to u_lim, keeping the angle
         const double mag = std::hypot(u_d, u_q);
         if (!(mag > u_lim)) return false;

@@ -47,6 +47,7 @@
 // and the integrator is corrected by what the limit took away (anti-windup).
 #pragma once
 
+#include <cmath>
 #include <limits>
 
 #include "machine/magnet_flux.hpp"
@@ -65,16 +66,21 @@ constexpr double kMaxRotationPerSample = 0.9 * 2.0 * 3.14159265358979323846;  //
 // 1.10 I_max within a sample; at pi / 2, 0.4 % and 0.97 I_max, settling as fast.
 constexpr double kMaxBandwidthTimesStep = 3.14159265358979323846 / 2.0;
 
+// The largest voltage magnitude the inverter applies linearly (SVPWM), V: u_dc / sqrt 3.
+inline double linear_range(double u_dc) { return u_dc / std::sqrt(3.0); }
+
 struct RegulatorState {
     double v_d = 0, v_q = 0;              // integrator, V
     double u_d_prev = 0, u_q_prev = 0;    // voltage being applied now, V
     double psi_ref_d = 0, psi_ref_q = 0;  // last reference flux (map at T_magnet_ref), Wb
     bool primed = false;                  // psi_ref_* hold a previous reference
 
-    // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
-    template <class Field>
-    void fields(Field&& field) {
-        field(v_d), field(v_q), field(u_d_prev), field(u_q_prev), field(psi_ref_d), field(psi_ref_q), field(primed);
+    // field(x, what x may hold) for every member, in a fixed order (a model's state,
+    // fmi/model.hpp); the voltages only finite (the integrator is not bounded by the inverter).
+    template <class Field, class Range>
+    void fields(Field&& field, const Range& flux) {
+        field(v_d), field(v_q), field(u_d_prev), field(u_q_prev), field(psi_ref_d, flux), field(psi_ref_q, flux);
+        field(primed);
     }
 };
 

@@ -294,6 +294,15 @@ DriveModel::DriveModel(const fmi::Context& context)
     T_ambient = plant_.T_ambient;
 }
 
+void DriveModel::check_voltage_command() const {
+    const double u = std::hypot(controller_.u_d_ref, controller_.u_q_ref);
+    const double u_lim = linear_range(controller_.u_dc);
+    if (!(u <= u_lim * (1.0 + 1e-12)))  // the limit's rounding
+        throw fmi::Error("serialised FMU state: the controller's voltage command |u_ref| = " + fmi::number_text(u) +
+                         " V is beyond the inverter's linear range u_dc / sqrt 3 = " + fmi::number_text(u_lim) +
+                         " V at its u_dc = " + fmi::number_text(controller_.u_dc) + " V; not restored");
+}
+
 coupling::CoupledModels& DriveModel::coupled() {
     if (!coupled_.models) {
         const coupling::Coupling& c = drive_coupling();

@@ -45,10 +45,12 @@ public:
     void do_step(double t, double h);
     template <class Field>
     void state_fields(Field&& field) {
-        double k = static_cast<double>(k_);  // exact below 2^53 steps; the stream has no 64-bit integers
-        field(k);
+        // exact below 2^53 steps; the stream has no 64-bit integers: a count, checked before the cast
+        double k = static_cast<double>(k_);
+        field(k, fmi::FieldRange{"the drive's inner step count", 0.0, kMaxInnerSteps, true});
         k_ = static_cast<long long>(k);
         sub_model_fields(controller_, field);
+        check_voltage_command();
         sub_model_fields(plant_, field);
         controller_.state_fields(field);
         plant_.state_fields(field);
@@ -88,20 +90,28 @@ public:
     using WarningsGiven = std::map<std::string, std::string>;
 
 private:
-    // The sub-model's variables (its coupled inputs and outputs are not the drive's variables,
-    // but are state: the next inner step reads them).
+    // 2^53: the largest count a double holds exactly
+    static constexpr double kMaxInnerSteps = 9007199254740992.0;
+    // The sub-model's inputs, outputs and locals (its coupled inputs and outputs are not the
+    // drive's variables, but are state: the next inner step reads them), each checked against the
+    // sub-model's table as its fmi2SetReal would check it. Its parameters are not: they are the
+    // drive's (forwarded by name), restored and checked with the drive's variables.
     template <class Sub, class Field>
     static void sub_model_fields(Sub& sub, Field& field) {
-        for (const auto& v : Sub::variables())
+        for (const auto& v : Sub::variables()) {
+            if (v.causality == fmi::Causality::parameter) continue;
             std::visit(
                 [&](const auto& a) {
-                    // (a variable the sub-model forwards to a part of it lives in that part, which
-                    // is fixed parameters only: the plant's thermal network's)
                     if constexpr (!std::is_same_v<decltype(a), const fmi::Access<Sub, std::string>&>)
-                        if (a.member != nullptr) field(sub.*(a.member));
+                        if (a.member != nullptr) field(sub.*(a.member), v);
                 },
                 v.member);
+        }
     }
+    // The controller's voltage command, which the next inner step applies to the plant, is one the
+    // regulator can give: within the inverter's linear range at the u_dc it was given for (throws
+    // fmi::Error; a state is input, not proof).
+    void check_voltage_command() const;
     coupling::CoupledModels& coupled();
     void hold_inputs();
     void publish_end();

@@ -61,24 +61,26 @@ std::vector<std::string> metadata_warnings(const FluxMapTable& table, const std:
         if (it == table.metadata.end()) continue;
         const std::optional<double> value = parameter(k.parameter);
         if (!value) continue;
-        const std::string said =
-            "flux map " + quoted_excerpt(map_name) + " says " + k.key + ": " + quoted_excerpt(it->second);
+        // (the value as read, never the file's text: describe_token, map_file.hpp)
         const MetadataValue m = split_metadata_value(it->second);
+        const std::string said = "flux map " + quoted_excerpt(map_name) + " says " + k.key;
         if (!m.is_number) {
-            out.push_back(said + ", which does not start with a number: ignored (the parameter " + k.parameter +
-                          " is " + num(*value) + ")");
+            out.push_back(said + " with a value that does not start with a number (" + describe_token(it->second) +
+                          "): ignored (the parameter " + k.parameter + " is " + num(*value) + ")");
             continue;
         }
         const std::string unit = k.unit;
         const std::string word = m.rest.substr(0, m.rest.find_first_of(" \t("));
         if (!unit.empty() && !word.empty() && !same_unit(word, unit)) {
-            out.push_back(said + ": the unit '" + quoted_excerpt(word, 40) + "' is not the contract's SI unit " + unit +
+            out.push_back(said + ": " + num(m.value) + ", but the unit " + unit_or_description(word) +
+                          " is not the contract's SI unit " + unit +
                           "; the value is ignored (the parameter " + k.parameter + " is " + num(*value) + " " + unit +
                           ")");
             continue;
         }
         if (std::abs(m.value - *value) > 1e-9 * std::max(std::abs(m.value), std::abs(*value)))
-            out.push_back(said + ", but the parameter " + k.parameter + " is " + num(*value) +
+            out.push_back(said + ": " + num(m.value) + (unit.empty() ? "" : " " + unit) + ", but the parameter " +
+                          k.parameter + " is " + num(*value) +
                           (unit.empty() ? "" : " " + unit) + "; using the parameter");
     }
     return out;
