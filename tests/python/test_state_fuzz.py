@@ -6,8 +6,8 @@ FMU's validation of the state's content. Variants of a real state (after steps a
 without the thermal network): byte flips, truncations, extensions, and hostile values (0, -1, huge,
 tiny, NaN, infinities, enum and count extremes) written over every variable and over the model's
 internal fields. Each variant is either refused with fmi2Error (the instance unchanged and usable:
-it steps from its own state afterwards) or accepted; an accepted state is installed and stepped,
-and the step either succeeds with every output finite and physical (PHYSICAL) or is refused as a
+it steps from its own state afterwards) or accepted; an accepted state is installed and stepped
+twice (its own inputs, then a new command), and the steps either succeed with every output finite and physical (PHYSICAL) or is refused as a
 step with the same values set by fmi2Set* would be (the instance usable after).
 
 The default run draws DEFAULT_VARIANTS per configuration; @slow takes every variant (thousands
@@ -15,10 +15,14 @@ per FMU). tests/python/test_sanitizers.py runs this module under ASan and UBSan.
 """
 from __future__ import annotations
 
+import json
 import math
 import random
 import struct
+import subprocess
+import sys
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import pytest
 
@@ -34,6 +38,9 @@ CONFIGS = {
     "drive": ("IpmsmDrive", {}, {"T_ref": 150.0, "w_m": 400.0}),
     "drive-thermal": ("IpmsmDrive", {"thermal_model": True}, {"T_ref": 150.0, "w_m": 400.0}),
 }
+#: the inputs of a second step after an accepted state: a new command, solved from the state's memory
+NEW_INPUTS = {"controller": {"T_ref": -120.0, "w_m": 900.0}, "plant": {"u_d": 40.0, "u_q": -30.0},
+              "drive": {"T_ref": -120.0, "w_m": 900.0}}
 STEP = 1e-4  # s: every FMU's default (IpmsmDrive: its sample_time)
 STEPS_BEFORE = 20
 DEFAULT_VARIANTS = 400
@@ -87,6 +94,7 @@ class Layout:
     time_at: int
     reals: list[int] = field(default_factory=list)  # offsets of the variables' doubles
     ints: list[int] = field(default_factory=list)   # offsets of their int32s
+    at: list[int] = field(default_factory=list)     # each variable's value, by value reference
     block: tuple[int, int] = (0, 0)                 # the model's state fields: [start, end)
 
 
@@ -103,6 +111,7 @@ def layout(blob: bytes) -> Layout:
     for _ in range(n_vars):
         kind = blob[p]
         p += 1
+        out.at.append(p)
         if kind == 0:
             out.reals.append(p)
             p += 8
@@ -204,11 +213,15 @@ def fuzz(config: str, tmp_path, sample: int | None) -> Tally:
             (t,) = struct.unpack_from("<d", data, layout(data).time_at)
             step = a.step(STEP, t=t)
             if step in (OK, WARNING):
+                for x, v in NEW_INPUTS[config.split("-")[0]].items():
+                    a.set_status(x, v)
+                step = a.step(STEP, t=t + STEP)
+            if step in (OK, WARNING):
                 for n in outputs:
                     s, v = a.get_status(n)
                     why = physical_violation(n, float(v)) if s == OK else f"fmi2Get {n}: {raw.STATUS.get(s)}"
                     if why:
-                        tally.failures.append(f"{what}: accepted, after a step {why}")
+                        tally.failures.append(f"{what}: accepted, after two steps {why}")
                         break
             else:
                 tally.step_refused += 1
@@ -252,26 +265,55 @@ def _state(name: str, start: dict, inputs: dict, tmp_path):
     return a, a.serialize(a.get_state())
 
 
+_METHOD_CHILD = r"""
+import json, struct, sys, tempfile
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])
+from test_state_fuzz import STEP, _state, layout, sealed
+method = int(sys.argv[2])
+a, blob = _state("IpmsmDrive", {}, {"T_ref": 150.0, "w_m": 400.0}, Path(tempfile.mkdtemp()))
+good = a.get_state()
+lay = layout(blob)
+out = {"variable": None, "fields": []}
+body = bytearray(blob[:-8])
+# the drive's variable `method` ...
+struct.pack_into("<i", body, lay.at[a.fmu.vars["method"].valueReference], method)
+status, state = a.deserialize_status(sealed(bytes(body)))
+out["variable"] = [status, a.log.text()[-300:]]
+# ... and every int32 1 of the model's fields (format 3 held the controller's method there again)
+for at in range(lay.block[0], lay.block[1] - 3):
+    if struct.unpack_from("<i", blob, at)[0] != 1:
+        continue
+    body = bytearray(blob[:-8])
+    struct.pack_into("<i", body, at, method)
+    status, state = a.deserialize_status(sealed(bytes(body)))
+    stepped = None
+    if status == 0:
+        a.set_state(state)
+        a.set(T_ref=-120.0, w_m=900.0)  # a new command: the controller solves it by its method
+        (t,) = struct.unpack_from("<d", body, lay.time_at)
+        stepped = a.step(STEP, t=t)
+        a.set_state(good)
+    out["fields"].append([at, status, stepped])
+print(json.dumps(out))
+"""
+
+
 @pytest.mark.parametrize("method", [0, 4, -1, 2**31 - 1])
-def test_a_drive_state_with_an_invalid_controller_method_is_refused(method, tmp_path):
-    """The drive's state held its controller's parameters a second time, unchecked: method 0, 4
-    or -1 passed and the next fmi2DoStep crashed (SIGSEGV). The drive's variables hold them once."""
-    a, blob = _state("IpmsmDrive", {}, {"T_ref": 150.0, "w_m": 400.0}, tmp_path)
-    try:
-        lay = layout(blob)
-        body = bytearray(blob[:-8])
-        # every int32 1 (the method's value) among the variables and the fields, set to `method`
-        hits = [at for at in [*lay.ints, *range(lay.block[0], lay.block[1] - 3)]
-                if struct.unpack_from("<i", body, at)[0] == 1]
-        assert hits
-        for at in hits:
-            struct.pack_into("<i", body, at, method)
-        status, state = a.deserialize_status(sealed(bytes(body)))
-        assert status == ERROR and state is None, a.log.text()
-        assert "method" in a.log.text() or "out of range" in a.log.text(), a.log.text()
-        assert a.step(STEP) == OK
-    finally:
-        a.free()
+def test_a_drive_state_with_an_invalid_controller_method_never_crashes(method):
+    """A drive state whose embedded controller `method` was 0, 4 or -1 passed and the next
+    fmi2DoStep crashed (SIGSEGV): the drive held its controller's parameters a second time,
+    unchecked. Now the drive's variables hold them once: the variable is refused naming it, and
+    no int32 of the model's fields set to the method crashes a step (in a child process)."""
+    r = subprocess.run([sys.executable, "-c", _METHOD_CHILD, str(Path(__file__).parent), str(method)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, f"the child died ({r.returncode}): {r.stderr[-2000:]}"
+    out = json.loads(r.stdout.splitlines()[-1])
+    status, log = out["variable"]
+    assert status == ERROR and "method" in log and "out of range" in log, log
+    assert out["fields"], "no int32 1 among the fields"
+    for at, status, stepped in out["fields"]:
+        assert status == ERROR or stepped in (OK, WARNING, ERROR), (at, status, stepped)
 
 
 @pytest.mark.parametrize("name", ["IpmsmPlant", "IpmsmDrive"])
