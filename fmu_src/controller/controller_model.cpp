@@ -5,12 +5,12 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "machine/flux_map_cache.hpp"
-#include "machine/flux_map_metadata.hpp"
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
 #include "machine/map_file.hpp"
 #include "machine/operating_region.hpp"
+#include "parts/motor_map.hpp"
+#include "parts/part_variables.hpp"
 
 namespace ipmsm {
 
@@ -25,104 +25,104 @@ constexpr double kSqrt3 = 1.7320508075688772;
 }  // namespace
 
 const std::vector<V>& ControllerModel::variables() {
-    static const std::vector<V> table = {
-        // inputs
-        {"T_ref", &M::T_ref, Causality::input, Variability::continuous, "N.m", "", "Torque command (either sign)"},
-        {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm",
-         "Mechanical rotor speed (either sign)"},
-        {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "", "Measured DC-link voltage", 0.0, kInf,
-         true},
-        {"i_d", &M::i_d, Causality::input, Variability::continuous, "A", "",
-         "Measured d-axis current (peak, amplitude-invariant)"},
-        {"i_q", &M::i_q, Causality::input, Variability::continuous, "A", "",
-         "Measured q-axis current (peak, amplitude-invariant)"},
-        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC",
-         "Magnet temperature (estimate)", kTemperatureMin_K, kTemperatureMax_K},
-        // outputs
-        {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "", "d-axis current command"},
-        {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "", "q-axis current command"},
-        {"u_d_ref", &M::u_d_ref, Causality::output, Variability::discrete, "V", "",
-         "d-axis voltage command, within the inverter's linear range; to be applied over the next step"},
-        {"u_q_ref", &M::u_q_ref, Causality::output, Variability::discrete, "V", "",
-         "q-axis voltage command, within the inverter's linear range; to be applied over the next step"},
-        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "",
-         "Torque actually commanded: T_ref clamped to what the limits allow now"},
-        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "",
-         "Largest torque magnitude reachable now, with the sign of T_ref"},
-        {"T_est", &M::T_est, Causality::output, Variability::discrete, "N.m", "",
-         "Torque estimated from the measured currents and the flux map"},
-        {"region", &M::region, Causality::output, Variability::discrete, "", "",
-         "0 zero torque, 1 MTPA, 2 voltage limit (Case ii), 3 current and voltage limit, 4 MTPV"},
-        {"iterations", &M::iterations, Causality::output, Variability::discrete, "", "",
-         "Inductance-recursion (recursion 1) or Newton (recursion 2) iterations used this step"},
-        {"voltage_saturated", &M::voltage_saturated, Causality::output, Variability::discrete, "", "",
-         "The current regulator's voltage was limited to the inverter's linear range this step"},
-        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "",
-         "Voltage command relative to the inverter's linear range u_dc/sqrt(3) (1: the regulator is voltage-limited)"},
-        {"table_bytes", &M::table_bytes, Causality::output, Variability::discrete, "", "",
-         "Memory of the 2-D tables (methods 2, 3), bytes; 0 for Ferrari"},
-        // parameters
-        {"method", &M::method, Causality::parameter, Variability::fixed, "", "",
-         "1 Ferrari (online), 2 2-D table over torque x speed, 3 2-D table over torque x V_max/omega", 1, 3},
-        {"recursion", &M::recursion, Causality::parameter, Variability::fixed, "", "",
-         "0 nominal inductances, 1 apparent-inductance recursion (the paper), 2 optimal on the flux map", 0, 2},
-        {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "",
-         "Path of a flux-map CSV; empty: the default map in resources/"},
-        {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)",
-         1, 100},
-        {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "", "Stator resistance", 0.0, kInf},
-        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "", "Peak current limit", 0.0, kInf, true},
-        {"k_u", &M::k_u, Causality::parameter, Variability::fixed, "1", "",
-         "Voltage utilisation of the current commands: V_max = k_u u_dc / sqrt(3)", 0.0, 1.0, true},
-        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC",
-         "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
-        {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "",
-         "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
-        {"lut_u_dc", &M::lut_u_dc, Causality::parameter, Variability::fixed, "V", "",
-         "DC voltage the 2-D tables are built for (methods 2, 3)", 0.0, kInf, true},
-        {"lut_T_magnet", &M::lut_T_magnet, Causality::parameter, Variability::fixed, "K", "degC",
-         "Magnet temperature the 2-D tables are built for (methods 2, 3)", kTemperatureMin_K, kTemperatureMax_K},
-        {"lut_n_torque", &M::lut_n_torque, Causality::parameter, Variability::fixed, "", "",
-         "2-D table grid points along torque", 3, 1001},
-        {"lut_n_speed", &M::lut_n_speed, Causality::parameter, Variability::fixed, "", "",
-         "2-D table grid points along speed (method 2) or V_max/omega (method 3)", 3, 1001},
-        {"w_m_max", &M::w_m_max, Causality::parameter, Variability::fixed, "rad/s", "rpm",
-         "Top of the 2-D tables' speed axis", 0.0, kInf, true},
-        {"current_bandwidth", &M::current_bandwidth, Causality::parameter, Variability::fixed, "rad/s", "",
-         "Closed-loop bandwidth of the current regulator", 0.0, kInf, true},
-        // appended: the value references above stay as they were
-        {"command_check", &M::command_check, Causality::parameter, Variability::fixed, "", "",
-         "1: a command that fails its check on the flux map is replaced by a checked one; 0: it is sent as the "
-         "method made it, counted in check_failures and logged once (to study a method's own commands)",
-         0, 1},
-        {"check_failures", &M::check_failures, Causality::output, Variability::discrete, "", "",
-         "Commands that failed the check on the flux map so far (each replaced by a checked one where found; the "
-         "first is logged)"},
-        // appended: the temperatures a drive uses (docs/thermal.md, "Controller")
-        {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC",
-         "Winding temperature (measured or estimated): the voltage limit and the current regulator use "
-         "R = R_s (1 + alpha_cu (T_winding - T_winding_ref))",
-         kTemperatureMin_K, kTemperatureMax_K},
-        {"derating", &M::derating, Causality::output, Variability::discrete, "1", "",
-         "Thermal factor of the torque limit (1: none): T_max and the commands are this share of the machine's "
-         "limit; it falls linearly from 1 at derating_margin below T_winding_max or T_magnet_max to 0 there"},
-        {"T_winding_ref", &M::T_winding_ref, Causality::parameter, Variability::fixed, "K", "degC",
-         "Winding temperature at which R_s holds", kTemperatureMin_K, kTemperatureMax_K},
-        {"alpha_cu", &M::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "",
-         "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
-        {"T_winding_max", &M::T_winding_max, Causality::parameter, Variability::fixed, "K", "degC",
-         "Derating: winding temperature at which the torque limit reaches zero (default: IEC 60085 thermal class "
-         "180 (H))",
-         kTemperatureMin_K, kTemperatureMax_K},
-        {"T_magnet_max", &M::T_magnet_max, Causality::parameter, Variability::fixed, "K", "degC",
-         "Derating: magnet temperature at which the torque limit reaches zero (default: 150 degC, sintered NdFeB "
-         "of the SH grades)",
-         kTemperatureMin_K, kTemperatureMax_K},
-        {"derating_margin", &M::derating_margin, Causality::parameter, Variability::fixed, "K", "degC",
-         "Derating: the torque limit starts to fall this far below T_winding_max and T_magnet_max (default: 25 K, "
-         "IEC 60085 class 155 (F) to 180 (H))",
-         0.0, 1000.0, true, true},
-    };
+    const auto motor = [](const char* name) { return fmi::part_variable(&M::motor, name); };
+    static const std::vector<V> table = [&] {
+        std::vector<V> t = {
+            // inputs
+            {"T_ref", &M::T_ref, Causality::input, Variability::continuous, "N.m", "", "Torque command (either sign)"},
+            {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm",
+             "Mechanical rotor speed (either sign)"},
+            {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "", "Measured DC-link voltage", 0.0,
+             kInf, true},
+            {"i_d", &M::i_d, Causality::input, Variability::continuous, "A", "",
+             "Measured d-axis current (peak, amplitude-invariant)"},
+            {"i_q", &M::i_q, Causality::input, Variability::continuous, "A", "",
+             "Measured q-axis current (peak, amplitude-invariant)"},
+            {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC",
+             "Magnet temperature (estimate)", kTemperatureMin_K, kTemperatureMax_K},
+            // outputs
+            {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "", "d-axis current command"},
+            {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "", "q-axis current command"},
+            {"u_d_ref", &M::u_d_ref, Causality::output, Variability::discrete, "V", "",
+             "d-axis voltage command, within the inverter's linear range; to be applied over the next step"},
+            {"u_q_ref", &M::u_q_ref, Causality::output, Variability::discrete, "V", "",
+             "q-axis voltage command, within the inverter's linear range; to be applied over the next step"},
+            {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "",
+             "Torque actually commanded: T_ref clamped to what the limits allow now"},
+            {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "",
+             "Largest torque magnitude reachable now, with the sign of T_ref"},
+            {"T_est", &M::T_est, Causality::output, Variability::discrete, "N.m", "",
+             "Torque estimated from the measured currents and the flux map"},
+            {"region", &M::region, Causality::output, Variability::discrete, "", "",
+             "0 zero torque, 1 MTPA, 2 voltage limit (Case ii), 3 current and voltage limit, 4 MTPV"},
+            {"iterations", &M::iterations, Causality::output, Variability::discrete, "", "",
+             "Inductance-recursion (recursion 1) or Newton (recursion 2) iterations used this step"},
+            {"voltage_saturated", &M::voltage_saturated, Causality::output, Variability::discrete, "", "",
+             "The current regulator's voltage was limited to the inverter's linear range this step"},
+            {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "",
+             "Voltage command relative to the inverter's linear range u_dc/sqrt(3) (1: the regulator is "
+             "voltage-limited)"},
+            {"table_bytes", &M::table_bytes, Causality::output, Variability::discrete, "", "",
+             "Memory of the 2-D tables (methods 2, 3), bytes; 0 for Ferrari"},
+            // parameters
+            {"method", &M::method, Causality::parameter, Variability::fixed, "", "",
+             "1 Ferrari (online), 2 2-D table over torque x speed, 3 2-D table over torque x V_max/omega", 1, 3},
+            {"recursion", &M::recursion, Causality::parameter, Variability::fixed, "", "",
+             "0 nominal inductances, 1 apparent-inductance recursion (the paper), 2 optimal on the flux map", 0, 2},
+            motor("flux_map"),
+            motor("pole_pairs"),
+            motor("R_s"),
+            motor("I_max"),
+            {"k_u", &M::k_u, Causality::parameter, Variability::fixed, "1", "",
+             "Voltage utilisation of the current commands: V_max = k_u u_dc / sqrt(3)", 0.0, 1.0, true},
+            motor("T_magnet_ref"),
+            motor("k_psi_T"),
+            {"lut_u_dc", &M::lut_u_dc, Causality::parameter, Variability::fixed, "V", "",
+             "DC voltage the 2-D tables are built for (methods 2, 3)", 0.0, kInf, true},
+            {"lut_T_magnet", &M::lut_T_magnet, Causality::parameter, Variability::fixed, "K", "degC",
+             "Magnet temperature the 2-D tables are built for (methods 2, 3)", kTemperatureMin_K, kTemperatureMax_K},
+            {"lut_n_torque", &M::lut_n_torque, Causality::parameter, Variability::fixed, "", "",
+             "2-D table grid points along torque", 3, 1001},
+            {"lut_n_speed", &M::lut_n_speed, Causality::parameter, Variability::fixed, "", "",
+             "2-D table grid points along speed (method 2) or V_max/omega (method 3)", 3, 1001},
+            {"w_m_max", &M::w_m_max, Causality::parameter, Variability::fixed, "rad/s", "rpm",
+             "Top of the 2-D tables' speed axis", 0.0, kInf, true},
+            {"current_bandwidth", &M::current_bandwidth, Causality::parameter, Variability::fixed, "rad/s", "",
+             "Closed-loop bandwidth of the current regulator", 0.0, kInf, true},
+            // appended: the value references above stay as they were
+            {"command_check", &M::command_check, Causality::parameter, Variability::fixed, "", "",
+             "1: a command that fails its check on the flux map is replaced by a checked one; 0: it is sent as the "
+             "method made it, counted in check_failures and logged once (to study a method's own commands)",
+             0, 1},
+            {"check_failures", &M::check_failures, Causality::output, Variability::discrete, "", "",
+             "Commands that failed the check on the flux map so far (each replaced by a checked one where found; the "
+             "first is logged)"},
+            // appended: the temperatures a drive uses (docs/thermal.md, "Controller")
+            {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC",
+             "Winding temperature (measured or estimated): the voltage limit and the current regulator use R = R_s (1 "
+             "+ alpha_cu (T_winding - T_winding_ref))",
+             kTemperatureMin_K, kTemperatureMax_K},
+            {"derating", &M::derating, Causality::output, Variability::discrete, "1", "",
+             "Thermal factor of the torque limit (1: none): T_max and the commands are this share of the machine's "
+             "limit; it falls linearly from 1 at derating_margin below T_winding_max or T_magnet_max to 0 there"},
+            motor("T_winding_ref"),
+            motor("alpha_cu"),
+            {"T_winding_max", &M::T_winding_max, Causality::parameter, Variability::fixed, "K", "degC",
+             "Derating: winding temperature at which the torque limit reaches zero (default: IEC 60085 thermal class "
+             "180 (H))",
+             kTemperatureMin_K, kTemperatureMax_K},
+            {"T_magnet_max", &M::T_magnet_max, Causality::parameter, Variability::fixed, "K", "degC",
+             "Derating: magnet temperature at which the torque limit reaches zero (default: 150 degC, sintered NdFeB "
+             "of the SH grades)",
+             kTemperatureMin_K, kTemperatureMax_K},
+            {"derating_margin", &M::derating_margin, Causality::parameter, Variability::fixed, "K", "degC",
+             "Derating: the torque limit starts to fall this far below T_winding_max and T_magnet_max (default: 25 K, "
+             "IEC 60085 class 155 (F) to 180 (H))",
+             0.0, 1000.0, true, true},
+        };
+        fmi::append_rest(t, &M::motor);
+        return t;
+    }();
     return table;
 }
 
@@ -153,25 +153,14 @@ ControllerModel::StateRanges ControllerModel::state_ranges() const {
 
 void ControllerModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.
-    if (const std::string e = winding_law_error(alpha_cu, T_winding_ref); !e.empty()) throw fmi::Error(e);
-    const std::string path = flux_map.empty() ? context_->resource_dir + "/" + default_flux_map : flux_map;
-    if (flux_map.empty() && context_->resource_dir.empty())
-        throw fmi::Error(
-            "flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
-            "set flux_map to a flux-map CSV");
-    // Parsed once per content (flux_map_cache.hpp): Initialization Mode's previews do not parse it again.
-    std::shared_ptr<const FluxMap> map = shared_flux_map(path);  // FluxMapError: says file and line
-
+    if (const std::string e = winding_law_error(motor.alpha_cu, motor.T_winding_ref); !e.empty()) throw fmi::Error(e);
+    const std::string path = flux_map_path(motor, *context_);
+    const MotorMap loaded = load_motor_map(motor, path, *context_,
+                                           [this](const std::string& p) { return fmi::parameter_number(*this, p); });
+    std::shared_ptr<const FluxMap> map = loaded.map;
+    check_current_limit_within_map(*map, motor.I_max);
     const FluxMapTable& t = map->table();
-    if (context_->log_warning)
-        for (const std::string& w :
-             metadata_warnings(t, path, [this](const std::string& p) { return fmi::parameter_number(*this, p); }))
-            context_->log_warning(w);
-    // The map must be legal where the drive operates (operating_region.hpp); beyond, one warning.
-    const MapAcceptance acceptance = accept_flux_map(*map, I_max, path);
-    check_current_limit_within_map(*map, I_max);
-    if (context_->log_warning && !acceptance.warning.empty()) context_->log_warning(acceptance.warning);
-    SaturatedOptimalCurrent solver(map, pole_pairs);
+    SaturatedOptimalCurrent solver(map, motor.pole_pairs);
     std::shared_ptr<const TorqueTable> table;
     if (method == 2 || method == 3) {
         TableSpec spec;
@@ -180,16 +169,16 @@ void ControllerModel::exit_initialization() {
         spec.n_second = lut_n_speed;
         spec.u_dc = lut_u_dc;
         spec.k_u = k_u;
-        spec.I_max = I_max;
-        spec.R_s = R_s;
-        spec.psi_d_shift = magnet_flux_shift(*map, k_psi_T, lut_T_magnet, T_magnet_ref);
+        spec.I_max = motor.I_max;
+        spec.R_s = motor.R_s;
+        spec.psi_d_shift = magnet_flux_shift(*map, motor.k_psi_T, lut_T_magnet, motor.T_magnet_ref);
         spec.w_m_max = w_m_max;
         table = std::make_shared<const TorqueTable>(solver, spec);
     }
     map_ = std::move(map);
     table_ = std::move(table);
     solver_ = std::move(solver);
-    regulator_ = CurrentRegulator(current_bandwidth, R_s);
+    regulator_ = CurrentRegulator(current_bandwidth, motor.R_s);
     table_bytes = table_ ? static_cast<int>(table_->bytes()) : 0;
     initial_outputs();
     if (context_->log_info) {
@@ -202,8 +191,8 @@ void ControllerModel::exit_initialization() {
 }
 
 ControllerModel::Conditions ControllerModel::conditions() const {
-    return {pole_pairs * w_m, k_u * u_dc / kSqrt3, magnet_flux_shift(*map_, k_psi_T, T_magnet, T_magnet_ref),
-            winding_resistance(R_s, alpha_cu, T_winding, T_winding_ref),
+    return {motor.pole_pairs * w_m, k_u * u_dc / kSqrt3,
+            magnet_flux_shift(*map_, motor.k_psi_T, T_magnet, motor.T_magnet_ref), motor.resistance(T_winding),
             thermal_derating({T_winding_max, T_magnet_max, derating_margin}, T_winding, T_magnet)};
 }
 
@@ -231,7 +220,7 @@ CurrentCommand ControllerModel::checked_command(double T, const Conditions& c) {
     // Every command is checked on the map before it leaves (docs/controller.md): recursion 2's
     // inside the solver, the others against it. The 2-D tables are made at R_s (T_winding_ref)
     // and lut_T_magnet; their check is at the present temperatures.
-    const OperatingLimits lim{c.omega, c.V_max, I_max};
+    const OperatingLimits lim{c.omega, c.V_max, motor.I_max};
     CurrentCommand cmd;
     if (method == 1 && recursion == static_cast<int>(Recursion::optimal)) {
         cmd = solver_->solve(T, lim, c.R, c.shift, Recursion::optimal);
@@ -283,7 +272,7 @@ void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux,
 }
 
 void ControllerModel::observe(const MagnetFlux& flux) {
-    T_est = torque_factor(pole_pairs) * flux.reduced_torque(i_d, i_q);
+    T_est = torque_factor(motor.pole_pairs) * flux.reduced_torque(i_d, i_q);
     u_ratio = std::hypot(u_d_ref, u_q_ref) / (u_dc / kSqrt3);
 }
 
@@ -319,7 +308,7 @@ void ControllerModel::do_step(double /*t*/, double h) {
         throw fmi::Error("the controller produced a non-finite value (inputs out of the flux map's sensible range?)");
     if (!cmd.feasible && !warned_unreachable_ && context_->log_warning) {
         std::ostringstream os;
-        os << "no current within I_max = " << I_max << " A keeps the voltage within V_max = " << c.V_max
+        os << "no current within I_max = " << motor.I_max << " A keeps the voltage within V_max = " << c.V_max
            << " V at w_m = " << w_m << " rad/s: above the maximum speed; commanding i_d = " << cmd.i_d << " A";
         context_->log_warning(os.str());
     }

@@ -11,7 +11,7 @@
 #include "control/derating.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
-#include "machine/winding_resistance.hpp"
+#include "machine/motor_params.hpp"
 #include "model.hpp"
 #include "variable.hpp"
 
@@ -72,32 +72,23 @@ public:
     int check_failures = 0;  // commands that failed the check on the map (docs/controller.md)
     double derating = 1.0;   // the torque limit's thermal factor (1: none)
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
-    int method = 1;        // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
-    int recursion = 2;     // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
-    std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
-    int pole_pairs = 4;
-    double R_s = 0.012;    // Ohm at T_winding_ref
-    double I_max = 500.0;  // A
+    int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
+    int recursion = 2;  // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
+    MotorParams motor;  // the motor (machine/motor_params.hpp), shared with the plant's declaration
     double k_u = 0.95;
-    double T_magnet_ref = 293.15;  // K
-    double k_psi_T = -0.0012;      // 1/K
     double lut_u_dc = 355.0;       // V
     double lut_T_magnet = 293.15;  // K
     int lut_n_torque = 41;
     int lut_n_speed = 41;
     double w_m_max = 1256.6370614359173;            // rad/s (12 000 r/min): top of the tables' speed axis
     double current_bandwidth = 3141.5926535897932;  // rad/s (500 Hz)
-    int command_check = 1;          // 1: failing commands replaced; 0: reported only (docs/controller.md)
-    double T_winding_ref = 293.15;  // K
-    double alpha_cu = kCopperTemperatureCoefficient;  // 1/K
+    int command_check = 1;  // 1: failing commands replaced; 0: reported only (docs/controller.md)
     // Derating (docs/thermal.md, "Controller"): the winding's limit is IEC 60085's thermal class
     // 180 (H), the magnets' the maximum operating temperature of sintered NdFeB of the SH grades
     // (150 degC), and each derates over the 25 K from class 155 (F) to class 180 (H).
     double T_winding_max = 453.15;  // K
     double T_magnet_max = 423.15;   // K
     double derating_margin = 25.0;  // K
-
-    static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:
     // omega (electrical), V_max, the magnet's psi_d shift, the winding's resistance and the
