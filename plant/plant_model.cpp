@@ -364,7 +364,7 @@ PlantModel::StateRanges PlantModel::state_ranges() const {
                   {"a thermal-network node temperature (K)", kTemperatureMin_K, kTemperatureMax_K}};
     if (map_) {  // before initialisation there is no map, and no state but the start values
         const MapSpan span = map_span(map_->table());
-        const double psi = flux_reach(span, map_->psi_m(), k_psi_T);
+        const double psi = flux_reach(span, map_->psi_m(), motor.k_psi_T);
         const double i = kSeedReach * std::max({std::abs(span.i_d[0]), std::abs(span.i_d[1]), std::abs(span.i_q[0]),
                                                 std::abs(span.i_q[1])});
         r.flux.min = -psi, r.flux.max = psi;
