@@ -25,6 +25,11 @@ using M = PlantModel;
 
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// The most internal steps one fmi2DoStep may take (cvode_max_steps' maximum): one step cannot be
+// interrupted, so its work is bounded: 2e5 steps of a few microseconds (docs/spec/INTERFACE.md,
+// "Bounded steps"), 10 times the default. A step needing more is a stiff map for BDF
+// (cvode_method 2) or a communication step to cut, not a reason to compute for minutes.
+constexpr int kMaxCvodeSteps = 200000;
 constexpr double kVoltageMax = 1e4;  // V: far beyond any traction inverter
 constexpr double kSpeedMax = 1e4;    // rad/s mechanical (95 000 r/min)
 
@@ -155,7 +160,7 @@ const std::vector<V>& PlantModel::variables() {
                 {"cvode_max_order", &M::cvode_max_order, Causality::parameter, Variability::fixed, "", "",
                  "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
                 {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
-                 "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
+                 "Internal steps allowed per communication step before CVODE fails", 1, kMaxCvodeSteps},
                 // I_max (0.2.0) here: 0.1.0's value references above stay theirs, and 0.2.0's thermal
                 // ones below stay theirs (0.2.0 had it before i_d_start; CHANGELOG)
                 motor("I_max"),

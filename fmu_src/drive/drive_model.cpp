@@ -217,7 +217,7 @@ const std::vector<V>& DriveModel::variables() {
             {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms",
              "Sample time of the controller, and step of the inner coupling; a communication step must be a whole "
              "multiple of it",
-             1e-7, 1.0},
+             1e-7, kMaxSampleTime},
         });
         t.parameters(fmi::part_table<InverterParams>());
         t.parameters(ControllerModel::variables(), "method", "current_bandwidth");
@@ -382,9 +382,20 @@ void DriveModel::do_step(double t, double h) {
     const double E_elec0 = plant_.E_elec, E_mech0 = plant_.E_mech, E_cu0 = plant_.E_cu, E_fe0 = plant_.E_fe;
     const double impulse0 = plant_.T_e_impulse;
     double s_P_inv = 0;
+    double plant_steps = 0;  // the work bound (max_plant_steps_per_step)
     for (long long j = 0; j < n; ++j) {
         cm.step();
         s_P_inv += plant_.P_inv;
+        plant_steps += plant_.cvode_steps;
+        if (plant_steps > max_plant_steps_per_step) {
+            std::ostringstream os;
+            os << "the communication step " << fmi::number_text(h) << " s needed more than "
+               << fmi::number_text(max_plant_steps_per_step) << " internal steps of the plant after "
+               << fmi::number_text(static_cast<double>(j + 1) * sample_time)
+               << " s: one fmi2DoStep computes at most that many (its wall time is bounded); step in parts, or "
+                  "loosen rtol/atol";
+            throw fmi::Error(os.str());
+        }
     }
     E_inv = plant_.E_inv;
     k_ = cm.k();

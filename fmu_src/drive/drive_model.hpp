@@ -74,6 +74,17 @@ public:
     // The most inner steps one fmi2DoStep computes (10 s at the default sample_time): a step cannot be
     // interrupted, so a larger one is refused rather than computed for minutes.
     static constexpr double max_samples_per_step = 1e5;
+    // The plant's internal steps one fmi2DoStep may take over all its inner steps (each at most
+    // cvode_max_steps): with max_samples_per_step, what bounds a step's wall time at any parameter
+    // in range (docs/spec/INTERFACE.md, "Bounded steps"). A 10 s step at the defaults takes about
+    // 1e5; a step that needs more is refused, undone, and can be taken in parts.
+    static constexpr double max_plant_steps_per_step = 5e5;
+    // The longest sample_time: the current regulator closes its loop up to 0.9 of an electrical
+    // turn per sample (control/current_regulator.hpp, kMaxRotationPerSample), which at 1 ms is
+    // 12 000 r/min with 4 pole pairs, and its bandwidth is at most pi / (2 sample_time) (ibid.):
+    // 250 Hz at 1 ms. A longer sample is no current loop (traction inverters sample at their PWM
+    // frequency, 2-20 kHz); 0.2's 1 s let one sample run the plant open-loop for a second.
+    static constexpr double kMaxSampleTime = 1e-3;
 
     // The sub-models' warnings given so far, each with the model that gave it first ("controller"
     // or "plant"): one given by both reaches the importer once (drive_model.cpp, prefixed()).
