@@ -382,15 +382,15 @@ void PlantModel::check_thermal_state() const {
     if (!thermal_) return;
     const double E_error = thermal_->heat_balance_error();
     if (!(E_error <= kHeatBalanceTolerance))
-        throw fmi::Error("serialised FMU state: the thermal network's heat balance does not close (E_loss - E_stored - "
-                         "E_coolant - E_ambient is " +
-                         num(E_error) + " of the largest; at most " + num(kHeatBalanceTolerance) + "); not restored");
-    const bool same = theta_winding == thermal_->theta(thermal::winding) &&
-                      theta_magnet == thermal_->theta(thermal::magnet) &&
-                      theta_stator_yoke == thermal_->theta(thermal::stator_yoke) &&
-                      theta_stator_tooth == thermal_->theta(thermal::stator_tooth) &&
-                      E_coolant == thermal_->E_coolant() && E_ambient == thermal_->E_ambient() &&
-                      E_stored == thermal_->E_stored() && P_coolant == thermal_->P_coolant();
+        throw fmi::Error(
+            "serialised FMU state: the thermal network's heat balance does not close (E_loss - E_stored - "
+            "E_coolant - E_ambient is " +
+            num(E_error) + " of the largest; at most " + num(kHeatBalanceTolerance) + "); not restored");
+    const bool same =
+        theta_winding == thermal_->theta(thermal::winding) && theta_magnet == thermal_->theta(thermal::magnet) &&
+        theta_stator_yoke == thermal_->theta(thermal::stator_yoke) &&
+        theta_stator_tooth == thermal_->theta(thermal::stator_tooth) && E_coolant == thermal_->E_coolant() &&
+        E_ambient == thermal_->E_ambient() && E_stored == thermal_->E_stored() && P_coolant == thermal_->P_coolant();
     if (!same)
         throw fmi::Error(
             "serialised FMU state: the thermal outputs (theta_*, E_coolant, E_ambient, E_stored, P_coolant) are not "

@@ -137,14 +137,16 @@ const V& ControllerModel::input(const char* name) {
 ControllerModel::StateRanges ControllerModel::state_ranges() const {
     constexpr double kCountMax = std::numeric_limits<int>::max();
     const double i_reach = motor.I_max * (1.0 + 1e-9);  // the disk |i| <= I_max, with the circle's rounding
-    StateRanges r{{"a current of the controller's state (A, within the limit I_max)", -i_reach, i_reach},
-                  {"a flux linkage of the controller's state (Wb)", -kInf, kInf},
-                  {"a torque of the controller's state (N.m)", -kInf, kInf},
-                  {"the controller's region", static_cast<double>(Region::zero_torque), static_cast<double>(Region::mtpv)},
-                  {"a count of the controller's state", 0.0, kCountMax, true}};
+    StateRanges r{
+        {"a current of the controller's state (A, within the limit I_max)", -i_reach, i_reach},
+        {"a flux linkage of the controller's state (Wb)", -kInf, kInf},
+        {"a torque of the controller's state (N.m)", -kInf, kInf},
+        {"the controller's region", static_cast<double>(Region::zero_torque), static_cast<double>(Region::mtpv)},
+        {"a count of the controller's state", 0.0, kCountMax, true}};
     if (map_) {  // before initialisation there is no map: the state holds no command yet
         const double psi = flux_reach(map_span(map_->table()), map_->psi_m(), motor.k_psi_T);
-        const double T = torque_factor(motor.pole_pairs) * psi * motor.I_max;  // |T| = 1.5 p |psi x i| <= 1.5 p |psi| |i|
+        const double T =
+            torque_factor(motor.pole_pairs) * psi * motor.I_max;  // |T| = 1.5 p |psi x i| <= 1.5 p |psi| |i|
         r.flux.min = -psi, r.flux.max = psi;
         r.torque.min = -T, r.torque.max = T;
     }

@@ -258,8 +258,8 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
         }
         const auto f = split_commas(s);
         if (f.size() != 4)
-            fail_line(line, "expected 4 comma-separated values (i_d,i_q,psi_d,psi_q), found " +
-                                std::to_string(f.size()));
+            fail_line(line,
+                      "expected 4 comma-separated values (i_d,i_q,psi_d,psi_q), found " + std::to_string(f.size()));
         if (rows.size() == kMaxGridPoints)
             fail_line(line, "more than " + std::to_string(kMaxGridPoints) + " data rows, the limit for a flux map (" +
                                 std::to_string(kMaxGridAxis) + " x " + std::to_string(kMaxGridAxis) + ")");
@@ -269,11 +269,12 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
             switch (parse_number(f[c], r.v[c])) {
                 case NumStatus::ok: break;
                 case NumStatus::not_a_number:
-                    fail_line(line, std::string("column ") + kColumns[c] + ": " + describe_token(f[c]) +
-                                        " is not a number");
+                    fail_line(line,
+                              std::string("column ") + kColumns[c] + ": " + describe_token(f[c]) + " is not a number");
                     break;
                 case NumStatus::non_finite:
-                    fail_line(line, std::string("column ") + kColumns[c] + ": a non-finite value (infinite, not a number, or beyond a double's range)");
+                    fail_line(line, std::string("column ") + kColumns[c] +
+                                        ": a non-finite value (infinite, not a number, or beyond a double's range)");
                     break;
             }
         }

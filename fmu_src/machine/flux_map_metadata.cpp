@@ -73,15 +73,14 @@ std::vector<std::string> metadata_warnings(const FluxMapTable& table, const std:
         const std::string word = m.rest.substr(0, m.rest.find_first_of(" \t("));
         if (!unit.empty() && !word.empty() && !same_unit(word, unit)) {
             out.push_back(said + ": " + num(m.value) + ", but the unit " + unit_or_description(word) +
-                          " is not the contract's SI unit " + unit +
-                          "; the value is ignored (the parameter " + k.parameter + " is " + num(*value) + " " + unit +
-                          ")");
+                          " is not the contract's SI unit " + unit + "; the value is ignored (the parameter " +
+                          k.parameter + " is " + num(*value) + " " + unit + ")");
             continue;
         }
         if (std::abs(m.value - *value) > 1e-9 * std::max(std::abs(m.value), std::abs(*value)))
             out.push_back(said + ": " + num(m.value) + (unit.empty() ? "" : " " + unit) + ", but the parameter " +
-                          k.parameter + " is " + num(*value) +
-                          (unit.empty() ? "" : " " + unit) + "; using the parameter");
+                          k.parameter + " is " + num(*value) + (unit.empty() ? "" : " " + unit) +
+                          "; using the parameter");
     }
     return out;
 }

@@ -45,8 +45,8 @@ void MotorThermal::advance(double h, double E_cu_step, double E_fe_step, const S
 
 double MotorThermal::heat_balance_error() const {
     const double stored = E_stored();
-    const double scale = std::max({std::abs(E_loss_), std::abs(stored), std::abs(E_boundary_[coolant]),
-                                   std::abs(E_boundary_[ambient])});
+    const double scale =
+        std::max({std::abs(E_loss_), std::abs(stored), std::abs(E_boundary_[coolant]), std::abs(E_boundary_[ambient])});
     if (scale == 0.0) return 0.0;
     return std::abs(E_loss_ - stored - E_boundary_[coolant] - E_boundary_[ambient]) / scale;
 }

@@ -115,5 +115,6 @@ def _repair(args) -> int:
             print(f"    {m}")
     for f in r.simulation:
         print(f"  short simulation (IpmsmDrive): {f}")
-    print(f"wrote {r.out}" if r.out is not None else f"not written: {args.out} (the repaired map failed the checks above)")
+    print(f"wrote {r.out}" if r.out is not None
+          else f"not written: {args.out} (the repaired map failed the checks above)")
     return 0 if r.accepted else 1

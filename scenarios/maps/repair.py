@@ -37,7 +37,6 @@ from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
 from scenarios.maps.fmu_verdict import verdicts
 from scenarios.maps.importer import import_map
 
-
 #: The largest share of a grid's points a repair may change: it mends defects (a fold at the
 #: rim, measurement noise), a few per cent of a map; the default map with psi_q negated needs 98.6 %.
 MAX_CHANGED_FRACTION = 0.10

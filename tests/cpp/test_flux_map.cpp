@@ -183,11 +183,11 @@ TEST(FluxMapReader, BadNumbers) {
 TEST(FluxMapReader, NeverEchoesTheFile) {
     const std::string secret = "root:$6$SECRETHASHxyz:19000:0:99999:7:::";
     const std::vector<std::string> files = {
-        secret + "\nbin:*:19000:0:99999:7:::\n",                               // wrong header
-        "i_d,i_q,psi_d,psi_q\n" + secret + "\n",                              // a row of 1 field
-        "i_d,i_q,psi_d,psi_q\n1,2," + secret + ",4\n",                        // not a number
+        secret + "\nbin:*:19000:0:99999:7:::\n",                            // wrong header
+        "i_d,i_q,psi_d,psi_q\n" + secret + "\n",                            // a row of 1 field
+        "i_d,i_q,psi_d,psi_q\n1,2," + secret + ",4\n",                      // not a number
         "i_d,i_q,psi_d,psi_q\n1,2,3,4\n" + std::string(70000, 'S') + "\n",  // a line too long
-        "# R_s_ohm: SECRETHASH\n" + make_csv(5, 5),                            // metadata read as a number below
+        "# R_s_ohm: SECRETHASH\n" + make_csv(5, 5),                         // metadata read as a number below
     };
     for (std::size_t n = 0; n < files.size(); ++n) {
         const std::string path = write_file("echo" + std::to_string(n) + ".csv", files[n]);

@@ -1,18 +1,17 @@
 """FMU states that cannot lie (issue 35, finding 6): a fuzz of every FMU's serialised state.
 
 A serialised state's checksum is FNV-1a (docs: fmu_src/fmi/README.md), not a MAC: anyone can
-recompute it. So each variant here has its checksum recomputed, and what is exercised is the
-FMU's validation of the state's content. Variants of a real state (after steps at load, with and
-without the thermal network): byte flips, truncations, extensions, and hostile values (0, -1, huge,
-tiny, NaN, infinities, enum and count extremes) written over every variable and over the model's
-internal fields. Each variant is either refused with fmi2Error (the instance unchanged and usable:
-it steps from its own state afterwards) or accepted; an accepted state is installed and stepped
-twice (its own inputs, then a new command), and the steps either succeed with every output finite and physical (PHYSICAL) or is refused as a
-step with the same values set by fmi2Set* would be (the instance usable after).
+recompute it. So each variant here has its checksum recomputed, and what is exercised is the FMU's
+validation of the state's content. Variants of a real state (after steps at load, with and without
+the thermal network): byte flips, truncations, extensions, and hostile values (0, -1, huge, tiny,
+NaN, infinities, enum and count extremes) written over every variable and over the model's internal
+fields. Each variant is either refused with fmi2Error (the instance unchanged and usable: it steps
+from its own state afterwards) or accepted; an accepted state is installed and stepped twice (its
+own inputs, then a new command), and the steps either succeed with every output finite and physical
+(physical_violation) or are refused with fmi2Error, the instance usable after.
 
-The default run draws DEFAULT_VARIANTS per configuration; @slow takes every variant (thousands
-per FMU). tests/python/test_sanitizers.py runs this module under ASan and UBSan.
-"""
+The default run draws DEFAULT_VARIANTS per configuration; @slow takes every variant (thousands per
+FMU). tests/python/test_sanitizers.py runs this module under ASan and UBSan."""
 from __future__ import annotations
 
 import json
