@@ -8,10 +8,10 @@ them). The optimum
 reference (an extra controller FMU call per vehicle step, for the copper-loss comparison) is left
 out unless --reference.
 
-    .venv/bin/python bench/bench_drive.py [--cycle WLTC3b] [--until SECONDS] [--backend drive|fmpy]
+    .venv/bin/python bench/bench_drive.py [--cycle WLTC3b] [--until SECONDS] [--backend drive|reference]
                                           [--reference] [--split]
 
-With --backend fmpy (the reference loop) the split counts both FMUs' steps.
+With --backend reference (the reference loop) the split counts both FMUs' steps.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-from scenarios.cosim import BACKENDS
+from scenarios.cosim import BACKEND_ALIASES, BACKENDS
 from scenarios.cosim.fmu import Fmu
 from scenarios.runs.simulate import RunSpec, fmu_paths, simulate
 from scenarios.vehicle.cycles import load_cycle, segment
@@ -75,7 +75,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cycle", default="WLTC3b")
     ap.add_argument("--until", type=float, default=None, help="run only the cycle's first SECONDS")
-    ap.add_argument("--backend", default="drive", choices=BACKENDS)
+    ap.add_argument("--backend", default="drive", choices=BACKENDS + tuple(BACKEND_ALIASES))
     ap.add_argument("--reference", action="store_true")
     ap.add_argument("--split", action="store_true", help="add an instrumented run: time inside fmi2DoStep vs the rest")
     ap.add_argument("--build", type=Path, default=ROOT / "build")

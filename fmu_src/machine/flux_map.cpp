@@ -15,6 +15,7 @@
 #include <sstream>
 #include <system_error>
 
+#include "machine/flux_map_metadata.hpp"
 #include "machine/machine.hpp"
 #include "machine/map_file.hpp"
 
@@ -324,7 +325,8 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
              " i_q points; at least 4 x 4 are needed");
 
     // Monotonicity is not the reader's to judge: where a map must be legal depends on the drive
-    // (operating_region.hpp, the FMUs' initialisation).
+    // (operating_region.hpp, the FMUs' initialisation). The metadata's values are (one rule).
+    check_metadata(t.metadata, source_name);
     return t;
 }
 

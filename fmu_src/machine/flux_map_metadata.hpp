@@ -4,6 +4,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -21,10 +22,27 @@ struct MetadataKey {
     const char* unit;  // "" for a number without unit
     const char* parameter;
     bool checked;
+    bool whole_number = false;  // a count (pole_pairs): 7.99 is refused, never truncated
 };
 
-// The table, in the order the warnings come in: the one C++ statement of the mapping.
+// The table, in the order the warnings come in: the one statement of the mapping, for both
+// languages (the build writes it for the Python side: write_map_rules.cpp).
 const std::vector<MetadataKey>& metadata_keys();
+
+// A temperature a key states in K is at least this: a value below it can only be meant in degC
+// (-73 degC; no traction machine is rated below -40 degC, IEC 60068-2-1's coldest test).
+inline constexpr double kColdestKelvin = 200.0;
+
+// A contract key's value by the one rule (docs/maps.md, "Metadata"; the Python reader applies the
+// same): a finite number, then optionally the key's SI unit (case aside), then optionally a
+// comment in parentheses, and nothing else; a whole number for a count; at least kColdestKelvin
+// for a temperature in K. "12 mOhm", "12000 rpm", "4 poles" and "7.99" (pole_pairs) are refused:
+// FluxMapError naming the key.
+double metadata_value(const MetadataKey& key, const std::string& text);
+
+// Every contract key the map states, read by that rule: FluxMapError naming the first that
+// breaks it (map_name: for the message).
+void check_metadata(const std::map<std::string, std::string>& metadata, const std::string& map_name);
 
 // The contract's SI unit of a metadata key ("Ohm" for R_s_ohm, "" for pole_pairs and unknown keys).
 const char* metadata_unit(const std::string& key);
@@ -33,11 +51,8 @@ const char* metadata_unit(const std::string& key);
 using ParameterValue = std::function<std::optional<double>(const std::string& parameter)>;
 
 // One warning per checked key whose parameter the model has and that is in the map's metadata,
-// when its value
-// - does not start with a number ("# pole_pairs: four"),
-// - is followed by a unit other than the key's SI unit ("# R_s_ohm: 12 mOhm"; words after a
-//   unitless key's number, or in parentheses, are a comment: "# pole_pairs: 4 (8 poles)"), or
-// - differs from the parameter by more than 1e-9 relative.
+// when its value (read by metadata_value: a value it refuses is an error, as the reader's)
+// differs from the parameter by more than 1e-9 relative.
 std::vector<std::string> metadata_warnings(const FluxMapTable& table, const std::string& map_name,
                                            const ParameterValue& parameter);
 

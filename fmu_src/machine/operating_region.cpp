@@ -117,7 +117,7 @@ MapDefects map_defects(const FluxMap& map, std::size_t max_defects) {
             const double id = lattice(t.i_d, a), iq = lattice(t.i_q, b);
             const FluxPoint p = map.eval(id, iq);
             const double det = p.L_dd * p.L_qq - p.L_dq * p.L_qd;
-            if (p.L_dd > 0 && p.L_qq > 0 && det > 1e-12 * std::abs(p.L_dd * p.L_qq)) continue;
+            if (p.L_dd > 0 && p.L_qq > 0 && det > kFoldRelative * std::abs(p.L_dd * p.L_qq)) continue;
             char w[320];
             std::snprintf(w, sizeof w,
                           "the flux map folds at i_d = %.6g A, i_q = %.6g A: the incremental inductances "

@@ -34,6 +34,9 @@ inline constexpr double kOperatingMargin = 0.1;
 // A machine has a magnet when psi_d(0, 0) is at least this fraction of the map's largest |psi_d|
 // (a magnet-free map's psi_d(0, 0) is zero to its noise; docs/maps.md).
 inline constexpr double kMagnetFraction = 0.01;
+// The map folds where the determinant of the incremental inductances is at most this fraction of
+// L_dd L_qq: zero to the spline's rounding (some 4500 times the rounding unit of a double, 2.2e-16).
+inline constexpr double kFoldRelative = 1e-12;
 
 // A box of currents, A (closed).
 struct CurrentBox {

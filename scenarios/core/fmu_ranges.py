@@ -113,23 +113,18 @@ def fmu_starts() -> dict[str, float | bool]:
     return out
 
 
-#: the C++ header of the FMUs' acceptance rule for a flux map (docs/maps.md)
-OPERATING_REGION_HEADER = located("fmu_src/machine/operating_region.hpp")
+#: the FMUs' flux-map reader's rules as the build writes them from the C++ declarations
+#: (fmu_src/machine/write_map_rules.cpp: the metadata table, the reader's limits, the operating
+#: region's constants); the repository's copy of build/map_rules.json, kept equal by a test
+MAP_RULES = located("fmu_src/machine/map_rules.json")
 
 
-@functools.cache
-def operating_region_constant(name: str) -> float:
-    """A constant of the FMUs' map-acceptance rule (kOperatingMargin, kMagnetFraction), read from
-    its declaration, so that `map check` counts what the FMUs refuse by the FMUs' own numbers."""
-    import re
-    m = re.search(r"constexpr\s+double\s+" + name + r"\s*=\s*([0-9.eE+-]+)\s*;", OPERATING_REGION_HEADER.read_text())
-    if m is None:
-        raise RuntimeError(f"{name} is not declared in {OPERATING_REGION_HEADER}")
-    return float(m.group(1))
-
-
-#: the C++ headers declaring the FMUs' bounds on a flux-map file (the one place they are written)
-MAP_LIMIT_HEADERS = (located("fmu_src/machine/flux_map.hpp"), located("fmu_src/machine/map_file.hpp"))
+@functools.lru_cache(maxsize=1)
+def map_rules() -> dict:
+    """The contents of MAP_RULES: "metadata" (the key table), "coldest_kelvin", "map_limits",
+    "operating_region" ("margin", "magnet_fraction")."""
+    import json
+    return json.loads(MAP_RULES.read_text())
 
 
 @dataclass(frozen=True)
@@ -142,22 +137,13 @@ class MapLimits:
     max_points: int
 
 
-@functools.lru_cache(maxsize=1)
 def map_limits() -> MapLimits:
-    """The FMUs' flux-map limits, read from their declarations in fmu_src/machine/*.hpp."""
-    import re
-    text = "\n".join(p.read_text() for p in MAP_LIMIT_HEADERS)
+    """The FMUs' flux-map limits (kMaxMapFileBytes, kMaxLineChars, kMaxGridAxis, kMaxGridPoints)."""
+    return MapLimits(**map_rules()["map_limits"])
 
-    def const(name: str) -> int:
-        m = re.search(r"constexpr\s+std::size_t\s+" + name + r"\s*=\s*([^;]+);", text)
-        if m is None:
-            raise RuntimeError(f"{name} is not declared in {', '.join(map(str, MAP_LIMIT_HEADERS))}")
-        expr = re.sub(r"std::size_t\{(\d+)\}", r"\1", m.group(1))
-        for known in ("kMaxGridAxis",):
-            expr = expr.replace(known, str(const(known)) if known != name else known)
-        if not re.fullmatch(r"[\d\s*<>()+]+", expr):
-            raise RuntimeError(f"{name} = {m.group(1)}: not a constant expression this reader knows")
-        return int(eval(expr, {"__builtins__": {}}))  # digits, * and << only (checked above)
 
-    return MapLimits(const("kMaxMapFileBytes"), const("kMaxLineChars"), const("kMaxGridAxis"),
-                     const("kMaxGridPoints"))
+def operating_region_constant(name: str) -> float:
+    """A constant of the FMUs' map-acceptance rule (operating_region.hpp): "margin"
+    (kOperatingMargin), "magnet_fraction" (kMagnetFraction) or "fold_relative" (kFoldRelative),
+    so that `map check` counts what the FMUs refuse by the FMUs' own numbers."""
+    return float(map_rules()["operating_region"][name])

@@ -31,9 +31,8 @@ FROM_WHEEL = SHIPPED_DIR.is_dir()
 SHIPPED = ("build/fmu/IpmsmController.fmu", "build/fmu/IpmsmPlant.fmu", "build/fmu/IpmsmDrive.fmu",
            "build/ssp/IpmsmControllerPlant.ssp", "fmu_src/resources/ev_ipmsm_default.csv",
            "fmu_src/coupling/ipmsm_drive.coupling", "docs/motor/efficiency_map.json",
-           # the FMUs' parameter ranges and flux-map limits, as the C++ declares them (core/fmu_ranges.py)
-           "modelDescription.xml", "plant/modelDescription.xml", "fmu_src/machine/flux_map.hpp",
-           "fmu_src/machine/map_file.hpp", "fmu_src/machine/operating_region.hpp")
+           # the FMUs' parameter ranges and flux-map rules, as the C++ declares them (core/fmu_ranges.py)
+           "modelDescription.xml", "plant/modelDescription.xml", "fmu_src/machine/map_rules.json")
 
 
 def located(path: str | Path) -> Path:

@@ -5,8 +5,9 @@ fast path of every run, study and check, stepped at the vehicle side's step (10 
         r = drive.advance(0.01, T_ref=120.0, w_m=100.0, u_dc=355.0, T_magnet=353.15, T_winding=373.15)
         r.T_shaft, r.P_dc, r.E_dc, r.i_q      # a DriveStep: the FMU's outputs after the step
 
-One fmi2SetReal of the five inputs and one fmi2DoStep per call, one fmi2GetReal of every Real
-output and one fmi2GetInteger of the region: the per-step Python cost is four calls, whatever the
+One fmi2SetReal of the five inputs and one fmi2DoStep per call, one fmi2GetReal of the Real
+outputs DriveStep records and one fmi2GetInteger of its Integer ones (by name, from the model
+description), each call's status checked: the per-step Python cost is four calls, whatever the
 number of inner steps. The reference loop (scenarios.cosim.reference) couples the two FMUs in
 Python and returns the same DriveStep.
 """
@@ -17,7 +18,7 @@ from ctypes import c_double, c_int
 from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 
-from scenarios.cosim.fmu import FMI2_OK, CosimError, Fmu
+from scenarios.cosim.fmu import FMI2_OK, FMI2_WARNING, CosimError, Fmu
 
 INPUTS = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")
 #: the thermal network's boundary temperatures (contract, "Thermal"): inputs when the FMU has them
@@ -27,7 +28,10 @@ THERMAL_INPUTS = ("T_coolant", "T_ambient")
 @dataclass(slots=True)
 class DriveStep:
     """The IpmsmDrive's outputs after a step (INTERFACE.md, section IpmsmDrive): means over the
-    step, integrals since the start, and the values at its end. SI units."""
+    step, integrals since the start, and the values at its end. SI units. Filled by name from the
+    FMU's outputs of the same names: a new output of the drive is one line here. A field without a
+    default is an output every drive FMU has; one with a default keeps it where the FMU has no
+    such output."""
     T_shaft: float
     T_e: float
     i_dc: float
@@ -64,9 +68,23 @@ class DriveStep:
     derating: float = 1.0
 
 
-_REALS = tuple(f.name for f in fields(DriveStep) if f.name != "region" and f.default is MISSING)
-#: the optional outputs in DriveStep's order: an FMU gives the longest prefix it has of them
-OPTIONAL_OUTPUTS = tuple(f.name for f in fields(DriveStep) if f.default is not MISSING)
+#: DriveStep's fields, in order; those every drive FMU must have
+RECORD = tuple(f.name for f in fields(DriveStep))
+REQUIRED = tuple(f.name for f in fields(DriveStep) if f.default is MISSING)
+
+
+def recorded_outputs(unit: Fmu) -> dict[str, tuple[str, ...]]:
+    """The unit's outputs that DriveStep records, by FMI type ("Real", "Integer"), in the record's
+    order; CosimError naming the first required one the unit lacks."""
+    missing = [n for n in REQUIRED if n not in unit.vars or unit.vars[n].causality != "output"]
+    if missing:
+        raise CosimError(f"{unit.name} has no output {missing[0]!r}: not a drive FMU this record fits")
+    by_type: dict[str, tuple[str, ...]] = {}
+    for name in RECORD:
+        v = unit.vars.get(name)
+        if v is not None and v.causality == "output":
+            by_type[v.type] = by_type.get(v.type, ()) + (name,)
+    return by_type
 
 
 def winding_resistance(unit, T_winding: float) -> float:
@@ -94,18 +112,15 @@ class DriveFmu(Fmu):
             self.exit_initialization()
             self.sample_time = self.get("sample_time")
             self._boundary = tuple(boundary.values())
-            optional = []
-            for name in OPTIONAL_OUTPUTS:
-                if name not in self.vars:
-                    break
-                optional.append(name)
-            self.outputs = _REALS + tuple(optional)
+            outputs = recorded_outputs(self)
+            self.outputs = outputs.get("Real", ()) + outputs.get("Integer", ())
             # the value references and values every advance() passes (fmi2ValueReference, fmi2Real,
             # fmi2Integer arrays)
             self._u_vr, self._u = self.vrs(*self.inputs), (c_double * len(self.inputs))()
-            self._y_vr, self._y = self.vrs(*self.outputs), (c_double * len(self.outputs))()
-            self._n_core = len(_REALS)
-            self._region_vr, self._region = self.vrs("region"), (c_int * 1)()
+            self._reals = outputs.get("Real", ())
+            self._y_vr, self._y = self.vrs(*self._reals), (c_double * len(self._reals))()
+            self._ints = outputs.get("Integer", ())
+            self._n_vr, self._n = self.vrs(*self._ints), (c_int * len(self._ints))()
         except BaseException:
             self.close()
             raise
@@ -115,16 +130,18 @@ class DriveFmu(Fmu):
         """One step of dt (a whole multiple of sample_time) with the inputs held over it."""
         dll, c = self.dll, self.c
         self._u[:] = (T_ref, w_m, u_dc, T_magnet, T_winding, *self._boundary)
-        dll.fmi2SetReal(c, self._u_vr, len(self._u), self._u)
+        if (status := dll.fmi2SetReal(c, self._u_vr, len(self._u), self._u)) > FMI2_WARNING:
+            self.fail("fmi2SetReal of the inputs", status)
         status = dll.fmi2DoStep(c, self.t, dt, 1)
         if status != FMI2_OK:
             raise CosimError(f"IpmsmDrive: fmi2DoStep from t = {self.t:.9g} s by {dt:.9g} s returned status "
                              f"{status}; the FMU says: {self.last_messages()}")
         self.t += dt
-        dll.fmi2GetReal(c, self._y_vr, len(self._y), self._y)
-        dll.fmi2GetInteger(c, self._region_vr, 1, self._region)
-        y, n = self._y[:], self._n_core
-        return DriveStep(*y[:n], self._region[0], *y[n:])
+        if (status := dll.fmi2GetReal(c, self._y_vr, len(self._y), self._y)) > FMI2_WARNING:
+            self.fail("fmi2GetReal of the outputs", status)
+        if (status := dll.fmi2GetInteger(c, self._n_vr, len(self._n), self._n)) > FMI2_WARNING:
+            self.fail("fmi2GetInteger of the outputs", status)
+        return DriveStep(**dict(zip(self._reals, self._y)), **dict(zip(self._ints, self._n)))
 
 
 def steps_of(dt: float, sample_time: float) -> int:

@@ -59,12 +59,15 @@ class Fmu:
     initialise=False, fmi2ExitInitializationMode at construction. A context manager (frees it)."""
 
     def __init__(self, path: str | Path, instance_name: str | None = None, logging: bool = False,
-                 initialise: bool = True, **parameters):
+                 initialise: bool = True, keep_log: int | None = 200, quiet: bool = False, **parameters):
+        """keep_log: the latest messages kept (None: all); quiet: the FMU's log kept, not passed to
+        logging (a caller that reports it itself)."""
         self.path = Path(path)
         self.md = read_model_description(str(self.path))
         self.name = self.md.coSimulation.modelIdentifier
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.messages: deque = deque(maxlen=200)  # (status, category, message), the latest
+        self.messages: deque = deque(maxlen=keep_log)  # (status, category, message), the latest
+        self._quiet = quiet
         self.t = 0.0
         self.fmu = None
         self.initialised = False  # fmi2Terminate is allowed only once initialisation has succeeded
@@ -88,7 +91,8 @@ class Fmu:
         def logger(env, instance, status, category, message):
             text = (message or b"").decode(errors="replace").replace("%%", "%")  # as printf would
             self.messages.append((status, (category or b"").decode(errors="replace"), text))
-            LOG.log(_LEVEL.get(status, logging.ERROR), "[%s] %s", self.name, text)
+            if not self._quiet:
+                LOG.log(_LEVEL.get(status, logging.ERROR), "[%s] %s", self.name, text)
 
         self._logger = fmi2CallbackLoggerTYPE(logger)  # alive as long as the instance
         cb = fmi2CallbackFunctions()
@@ -130,22 +134,45 @@ class Fmu:
         self.call(f"fmi2Get{kind}", vrs, len(vrs), out)
 
     def set(self, **values) -> None:
-        """Variables by name (parameters, inputs), each converted to its type."""
-        for name in values:
-            if self.variable(name).causality not in ("parameter", "input"):
-                raise CosimError(f"{self.name}.{name} is {self.vars[name].causality}: only parameters and inputs "
-                                 "are set")
+        """Variables by name (parameters, inputs), each converted to its type: one fmi2Set<Type>
+        per type."""
+        by_kind: dict[str, tuple[list, list]] = {}
+        for name, value in values.items():
+            v = self.variable(name)
+            if v.causality not in ("parameter", "input"):
+                raise CosimError(f"{self.name}.{name} is {v.causality}: only parameters and inputs are set")
+            kind, convert = _SETTERS[v.type]
+            vrs, xs = by_kind.setdefault(kind, ([], []))
+            vrs.append(v.valueReference)
+            xs.append(convert(value))
         try:
-            set_values(self.fmu, self.vars, **values)
+            for kind, (vrs, xs) in by_kind.items():
+                getattr(self.fmu, "set" + kind)(vrs, xs)
         except Exception as e:  # fmpy raises on a status above fmi2Warning
             raise CosimError(f"{self.name}: setting {', '.join(values)} failed ({e}); the FMU says: "
                              f"{self.last_messages()}") from None
 
     def get(self, *names: str):
-        """The variables' values (Real, Integer, Boolean): one value for one name, else a list."""
-        for name in names:
-            self.variable(name)
-        return get_values(self.fmu, self.vars, *names)
+        """The variables' values (Real, Integer, Boolean, String): one value for one name, else a
+        list; one fmi2Get<Type> per type."""
+        out = self.values(*names)
+        return out[0] if len(out) == 1 else out
+
+    def values(self, *names: str) -> list:
+        """The variables' values, a list (as get())."""
+        by_kind: dict[str, list[int]] = {}
+        for i, name in enumerate(names):
+            by_kind.setdefault(_SETTERS[self.variable(name).type][0], []).append(i)
+        out: list = [None] * len(names)
+        try:
+            for kind, where in by_kind.items():
+                got = getattr(self.fmu, "get" + kind)([self.vars[names[i]].valueReference for i in where])
+                for i, x in zip(where, got):
+                    out[i] = x
+        except Exception as e:  # fmpy raises on a status above fmi2Warning
+            raise CosimError(f"{self.name}: getting {', '.join(names)} failed ({e}); the FMU says: "
+                             f"{self.last_messages()}") from None
+        return out
 
     def do_step(self, t: float, h: float) -> None:
         self.t = t

@@ -20,7 +20,7 @@ import difflib
 import hashlib
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +30,7 @@ from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
 from scenarios.maps.machine import machine_values
+from scenarios.maps.metadata import MetadataError, metadata_keys, metadata_value
 from scenarios.vehicle.battery import OCV_FITS, BatteryParams
 from scenarios.vehicle.driver import P_AUX_DEFAULT
 from scenarios.vehicle.longitudinal import VehicleParams
@@ -539,12 +540,10 @@ def inverter_defaults() -> dict:
 
 
 # -- the loader -----------------------------------------------------------------------------------
-#: motor key -> the flux map's metadata key that gives its default
-MOTOR_METADATA = {"pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_A", "T_magnet_ref": "T_magnet_ref_K",
-                  "T_winding_ref": "T_winding_ref_K", "alpha_cu": "alpha_cu_per_K", "k_psi_T": "k_psi_T_per_K",
-                  "fe_k_h": "fe_k_h_W_per_Hz", "fe_alpha": "fe_alpha",
-                  "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb"}
-CONTROLLER_METADATA = {"k_u": "k_u", "lut_u_dc": "u_dc_V"}
+#: a flux map's metadata key -> the schema key whose default it gives and whose rule its value
+#: obeys: the one table (scenarios.maps.metadata), each key's parameter by its schema name
+METADATA_RULE = {k.key: next(f"{s}.{k.parameter}" for s in ("motor", "controller") if f"{s}.{k.parameter}" in _BY_PATH)
+                 for k in metadata_keys().values()}
 
 #: a hook for FEM exports: path -> a contract CSV (default: scenarios.maps.importer.contract_csv)
 MapResolver = Callable[[Path], Path]
@@ -647,38 +646,59 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
     doc, raw = _read_toml(path)
     _check_keys(path, doc)
     sec = {s: doc.get(s, {}) for s in SECTIONS}
-    if "flux_map" not in sec["motor"]:
-        raise DriveDescriptionError(path, "motor.flux_map", "a flux-map file: the one key every drive must give")
-    map_path, fmap = _load_map(path, sec["motor"]["flux_map"], resolve_map or _map_resolver())
+    motor, controller, assumed = _load_machine(path, sec["motor"], sec["controller"], resolve_map or _map_resolver())
+    vehicle, P_aux = _load_vehicle(sec["vehicle"], motor)
+    return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),
+                            motor=motor, inverter=_load_inverter(sec["inverter"]),
+                            battery=_load_battery(path, sec["battery"]), vehicle=vehicle, P_aux=P_aux,
+                            controller=controller, checks=_load_checks(path, sec["checks"], motor),
+                            assumed=tuple(assumed), thermal=_load_thermal(path, sec["thermal"], motor))
 
-    given = sec["motor"]
-    c = sec["controller"]
-    from_file = {**{k: given[k] for k in MOTOR_METADATA if k in given},
-                 **({"w_m_max": given["w_m_max"]} if "w_m_max" in given else {}),
-                 **{m: c[k] for k, m in (("k_u", "k_u"), ("lut_u_dc", "u_dc")) if k in c}}
+
+def _load_machine(path: Path, given: dict, c: dict, resolve: MapResolver) -> tuple[MotorSpec, ControllerSpec, list]:
+    """[motor] and [controller]: each key the file gives, else its flux map's metadata (the
+    default motor's where the map has none, an assumption named); the map's values obey the file's
+    rules."""
+    if "flux_map" not in given:
+        raise DriveDescriptionError(path, "motor.flux_map", "a flux-map file: the one key every drive must give")
+    map_path, fmap = _load_map(path, given["flux_map"], resolve)
+    from_file = {}
+    for key in METADATA_RULE.values():
+        section, name = key.split(".")
+        if name in {"motor": given, "controller": c}[section]:
+            from_file[name] = {"motor": given, "controller": c}[section][name]
     try:
         values, assumed = machine_values(fmap, from_file)
-        for k in ("pole_pairs",):  # an integer key from the metadata: a whole finite number
-            if not _finite(values[k]) or float(values[k]) != int(values[k]):
-                raise ValueError(f"{k} = {values[k]!r} is not a whole number")
+        J = from_file["J"] if "J" in from_file else fmap.number("J_kg_m2", VehicleParams().J_motor)
     except (KeyError, ValueError, OverflowError) as e:
         raise DriveDescriptionError(path, "motor", f"values in the file or numbers in the map's metadata ({e})") \
             from None
-    vp_default = VehicleParams()
-    motor = MotorSpec(flux_map=map_path, J=float(given.get("J", fmap.metadata.get("J_kg_m2", vp_default.J_motor))),
-                      w_m_max=None if values["w_m_max"] is None else float(values["w_m_max"]),
-                      **{k: (int(values[k]) if k == "pole_pairs" else float(values[k])) for k in MOTOR_METADATA})
-    if "J" not in given and "J_kg_m2" not in fmap.metadata and map_path != DEFAULT_MAP.resolve():
-        assumed.append(f"J = {vp_default.J_motor:.4g} kg m^2: the default motor's rotor (no `J_kg_m2` in the map's "
-                       "metadata)")
-    for key in MOTOR_METADATA:   # metadata values obey the same rules as the file's
-        bad = _BY_PATH[f"motor.{key}"].rule.check(getattr(motor, key))
+    if "J" not in from_file and "J_kg_m2" not in fmap.metadata and map_path != DEFAULT_MAP.resolve():
+        assumed.append(f"J = {J:.4g} kg m^2: the default motor's rotor (no `J_kg_m2` in the map's metadata)")
+    real = {k: (v if k == "pole_pairs" or v is None else float(v)) for k, v in values.items()}
+    motor = MotorSpec(flux_map=map_path, J=float(J), **{f.name: real[f.name] for f in fields(MotorSpec)
+                                                        if f.name not in ("flux_map", "J")})
+    controller = ControllerSpec(
+        method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
+        command_check=c.get("command_check", COMMAND_CHECK_DEFAULT), k_u=real["k_u"],
+        current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
+        lut_u_dc=real["lut_u_dc"])
+    spec = {"motor": motor, "controller": controller}
+    for key in METADATA_RULE.values():   # values from the map obey the same rules as the file's
+        section, name = key.split(".")
+        value = getattr(spec[section], name)
+        bad = None if value is None else _BY_PATH[key].rule.check(value)
         if bad:
-            raise DriveDescriptionError(path, f"motor.{key}", f"{bad} (from the map's metadata)")
+            raise DriveDescriptionError(path, key, f"{bad} (from the file or the map's metadata)")
+    return motor, controller, assumed
 
-    inverter = {**inverter_defaults(), **{k: float(v) for k, v in sec["inverter"].items()}}
 
-    b = dict(sec["battery"])
+def _load_inverter(given: dict) -> dict:
+    return {**inverter_defaults(), **{k: float(v) for k, v in given.items()}}
+
+
+def _load_battery(path: Path, given: dict) -> BatteryParams:
+    b = dict(given)
     ocv = b.pop("ocv", None)
     battery = replace(BatteryParams(), **{k: (v if k in ("n_series", "n_parallel") else float(v))
                                           for k, v in b.items()})
@@ -696,42 +716,58 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
         Ocv(battery)
     except Exception as e:  # the reader's own words (a short or huge row, a negative voltage)
         raise DriveDescriptionError(path, "battery.ocv", f"a usable OCV curve ({e})") from None
+    return battery
 
-    v = dict(sec["vehicle"])
+
+def _load_vehicle(given: dict, motor: MotorSpec) -> tuple[VehicleParams, float]:
+    v = dict(given)
     P_aux = float(v.pop("P_aux", P_AUX_DEFAULT))
-    vehicle = replace(vp_default, J_motor=motor.J, **{k: float(x) for k, x in v.items()})
+    return replace(VehicleParams(), J_motor=motor.J, **{k: float(x) for k, x in v.items()}), P_aux
 
-    controller = ControllerSpec(
-        method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
-        command_check=c.get("command_check", COMMAND_CHECK_DEFAULT),
-        k_u=float(values["k_u"]), current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
-        lut_u_dc=float(values["u_dc"]))
-    for key in ("k_u", "lut_u_dc"):   # from the map's metadata too: the same rules as the file's
-        bad = _BY_PATH[f"controller.{key}"].rule.check(getattr(controller, key))
-        if bad:
-            raise DriveDescriptionError(path, f"controller.{key}", f"{bad} (from the file or the map's metadata)")
 
+#: [thermal]'s temperature limits and the motor's reference each must lie above (a limit at or
+#: below it can only be meant in degC: the machine would be derated to nothing at its reference)
+LIMIT_ABOVE_REFERENCE = {"T_winding_max": "T_winding_ref", "T_magnet_max": "T_magnet_ref"}
+
+
+def _load_thermal(path: Path, given: dict, motor: MotorSpec) -> ThermalSpec:
     try:
-        thermal = ThermalSpec.of({k: (v if k == "thermal_model" else float(v)) for k, v in sec["thermal"].items()})
+        thermal = ThermalSpec.of({k: (v if k == "thermal_model" else float(v)) for k, v in given.items()})
     except KeyError as e:
         raise DriveDescriptionError(path, f"thermal.{e.args[0]}", "a parameter the built FMUs have: rebuild them "
                                     "(their model descriptions have no such variable)") from None
-    ch = sec["checks"]
+    for key, ref in LIMIT_ABOVE_REFERENCE.items():
+        limit = thermal.values.get(key)
+        if key in given and limit is not None and limit <= getattr(motor, ref):
+            raise DriveDescriptionError(path, f"thermal.{key}", f"a temperature in K above the motor's {ref} = "
+                                        f"{getattr(motor, ref):g} K, got {limit:g} K (a value in degC?)")
+    return thermal
+
+
+def _load_checks(path: Path, ch: dict, motor: MotorSpec) -> ChecksSpec:
     if "time_above_top_speed_s_max" in ch and motor.w_m_max is None:  # a limit nothing could measure
         raise DriveDescriptionError(path, "checks.time_above_top_speed_s_max",
                                     "a top speed to judge it by: `motor.w_m_max` or `w_m_max_rad_s` in the map's "
                                     "metadata")
-    checks = ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),
-                        limits={k: float(x) for k, x in ch.items() if k in LIMITS})
-    return DriveDescription(name=doc.get("name", path.stem), source=path, sha256=hashlib.sha256(raw).hexdigest(),
-                            motor=motor, inverter=inverter, battery=battery, vehicle=vehicle, P_aux=P_aux,
-                            controller=controller, checks=checks, assumed=tuple(assumed), thermal=thermal)
+    return ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),
+                      limits={k: float(x) for k, x in ch.items() if k in LIMITS})
 
 
-#: a flux map's metadata key (scenarios.maps.machine) -> the schema key whose rule it obeys
-METADATA_RULE = {**{meta: f"motor.{k}" for k, meta in MOTOR_METADATA.items()},
-                 **{meta: f"controller.{k}" for k, meta in CONTROLLER_METADATA.items()},
-                 "w_m_max_rad_s": "motor.w_m_max"}
+def check_metadata_rules(metadata: dict, file: str | Path) -> None:
+    """Each contract key of a map's metadata (key -> its text, or a number an importer made) by
+    the metadata rule (scenarios.maps.metadata) and the schema's rule of the key it gives the
+    default of, as a drive description's value would be: InputError naming `file` and the key."""
+    for meta, key in METADATA_RULE.items():
+        if meta not in metadata:
+            continue
+        text, rule = str(metadata[meta]), _BY_PATH[key].rule
+        try:
+            value = metadata_value(meta, text)
+        except MetadataError as e:
+            raise InputError(file, meta, f"{e.expected} ({rule.describe()}), got {e.text[:80]!r}") from None
+        bad = rule.check(value)
+        if bad:
+            raise InputError(file, meta, bad + ("" if "got" in bad else f", got {text[:80]!r}"))
 
 
 def check_map_machine(map_file: str | Path, u_dc: float | None = None, I_max: float | None = None) -> None:
@@ -752,20 +788,7 @@ def check_map_machine(map_file: str | Path, u_dc: float | None = None, I_max: fl
         raise
     except Exception as e:  # the readers' own words: which file, which line or field
         raise InputError(path, "(file)", f"a readable flux map ({e})") from None
-    for meta, key in METADATA_RULE.items():
-        if meta not in fmap.metadata:
-            continue
-        try:
-            value = fmap.number(meta)
-        except ValueError:
-            raise InputError(path, meta, f"a number ({_BY_PATH[key].rule.describe()}), got "
-                             f"{fmap.metadata[meta][:80]!r}") from None
-        rule = _BY_PATH[key].rule
-        if rule.kind == "int" and _finite(value) and value == int(value):
-            value = int(value)
-        bad = rule.check(value)
-        if bad:
-            raise InputError(path, meta, bad + ("" if "got" in bad else f", got {fmap.metadata[meta][:80]!r}"))
+    check_metadata_rules(fmap.metadata, path)
     limit = I_max if I_max is not None else (fmap.number("I_max_A") if "I_max_A" in fmap.metadata else None)
     if limit is not None and limit < grid_resolution(fmap):
         where = ("(command line)", "--I-max") if I_max is not None else (path, "I_max_A")

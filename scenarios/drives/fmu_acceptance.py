@@ -70,3 +70,12 @@ def refuse_unless_fmus_accept(drive: DriveDescription, build: Path) -> None:
             key, what = _refused_key(drive, reason)
             raise DriveDescriptionError(drive.source, key,
                                         f"{what} the {name} FMU accepts with this motor; it refuses it: {reason}")
+
+
+def load_accepted(path: Path | None, build: Path) -> DriveDescription:
+    """The drive description at `path` (None: the default drive), refused (DriveDescriptionError:
+    exit 2) unless the FMUs in `build` accept its map, motor and thermal network."""
+    from scenarios.drives.description import load_drive
+    drive = load_drive(path)
+    refuse_unless_fmus_accept(drive, build)
+    return drive

@@ -50,6 +50,8 @@ def main(args: argparse.Namespace) -> int:
         if args.map_cmd == "import":
             from scenarios.maps.importer import import_map, write_contract_csv
             imported = import_map(args.file)
+            if getattr(args, "check_metadata", None) is not None:  # never write what the loader refuses
+                args.check_metadata(imported.metadata, args.file)
             write_contract_csv(imported, args.out)
             print(f"{args.file} ({imported.source_format}): {len(imported.i_d)} x {len(imported.i_q)} points")
             for n in imported.notes:

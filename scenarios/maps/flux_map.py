@@ -4,7 +4,6 @@ the reference in the tests."""
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,6 +11,7 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
 from scenarios.core.paths import located
+from scenarios.maps.metadata import MetadataError, check_metadata, metadata_value
 
 
 @dataclass
@@ -46,20 +46,17 @@ class FluxMap:
         tensor-product evaluation, far faster than flux() at the same points scattered."""
         return (self._sd(i_d, i_q, dx=dx, dy=dy, grid=True), self._sq(i_d, i_q, dx=dx, dy=dy, grid=True))
 
-    def number(self, key: str, default: float | None = None) -> float:
-        """The leading number of a '# key: value' line; trailing words ('4 (8 poles)') are ignored,
-        as the FMUs' reader does (fmu_src/machine/flux_map_metadata)."""
+    def number(self, key: str, default: float | None = None) -> float | int:
+        """The value of a '# key: value' line of a contract key (scenarios.maps.metadata: the
+        FMUs' rule; MetadataError for one it refuses); `default` where the map has none."""
         if key in self.metadata:
-            match = _LEADING_NUMBER.match(self.metadata[key])
-            if match is None:
-                raise ValueError(f"flux map metadata '{key}: {self.metadata[key][:80]}' does not start with a number")
-            return float(match.group(0))
+            return metadata_value(key, self.metadata[key])
         if default is None:
             raise KeyError(f"flux map has no metadata '{key}'")
         return default
 
-
-_LEADING_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+#: the UTF-8 byte-order mark a spreadsheet export may begin with (the FMUs' reader skips it too)
+BOM = "\ufeff"
 
 #: the default motor's flux map (tools/default_motor/ makes it); its metadata is the motor's data sheet
 DEFAULT_MAP = located("fmu_src/resources/ev_ipmsm_default.csv")
@@ -93,6 +90,7 @@ def read_flux_map(path: str | Path, holes: bool = False) -> FluxMap:
     path = Path(path)
     lim = map_limits()
     text = decode_utf8(path, read_bounded(path, lim.max_bytes, "flux map (CSV)"), "flux map (CSV)")
+    text = text.removeprefix(BOM)  # as the FMUs' reader: spreadsheets export UTF-8 with one
     metadata = {}
     rows: list[str] = []
     linenos: list[int] = []
@@ -119,6 +117,10 @@ def read_flux_map(path: str | Path, holes: bool = False) -> FluxMap:
         linenos.append(lineno)
     if not rows:
         raise InputError(path, "(file)", "a header i_d,i_q,psi_d,psi_q and grid rows")
+    try:
+        check_metadata(metadata)
+    except MetadataError as e:  # as the FMUs' reader: the map is refused, naming the key
+        raise InputError(path, e.key, f"{e.expected}, got {e.text[:80]!r} (docs/maps.md, \"Metadata\")") from None
     try:
         data = _parse_rows(rows)
         ok = data.ndim == 2 and data.shape[1] == 4 and all(map(_legal(holes), data.T[2:].ravel())) \

@@ -3,7 +3,6 @@ instantiated and initialised on the map with the machine's parameters, its log k
 are the one source of truth of what they accept; nothing here re-implements their rule."""
 from __future__ import annotations
 
-import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,53 +28,19 @@ class FmuVerdict:
 
 
 def verdict(fmu_path: Path, csv: Path, params: dict) -> FmuVerdict:
-    """Instantiate the FMU, set flux_map and the parameters it has, initialise; accepted when
-    initialisation returns without error. The log is the FMU's, as it wrote it."""
-    from fmpy import extract, read_model_description
-    from fmpy.fmi2 import (
-        FMU2Slave,
-        calloc,
-        fmi2CallbackAllocateMemoryTYPE,
-        fmi2CallbackFreeMemoryTYPE,
-        fmi2CallbackFunctions,
-        fmi2CallbackLoggerTYPE,
-        free,
-    )
+    """Instantiate the FMU (the one handle, scenarios.cosim.fmu.Fmu), set flux_map and the
+    parameters it has, initialise; accepted when initialisation returns without error. The log
+    is the FMU's, as it wrote it, whole."""
+    from scenarios.cosim.fmu import CosimError, Fmu
 
-    from scenarios.cosim.fmu import set_values
-
-    log = []
-
-    def logger(env, instance, status, category, message):
-        # FMI 2.0 passes the message as a printf format (an FMU writes % as %%); it has no
-        # arguments here, so formatting it is undoing that escape.
-        text = message.decode("utf-8", "replace").replace("%%", "%") if message else ""
-        log.append(f"{STATUS[status] if 0 <= status < len(STATUS) else status}: {text}")
-
-    callbacks = fmi2CallbackFunctions()
-    callbacks.logger = fmi2CallbackLoggerTYPE(logger)
-    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-    md = read_model_description(str(fmu_path))
-    unzipped = extract(str(fmu_path))
-    variables = {v.name: v for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName=fmu_path.stem)
-    accepted = False
-    try:
-        fmu.instantiate(callbacks=callbacks, loggingOn=True)
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
-        set_values(fmu, variables, flux_map=str(csv),
-                   **{k: v for k, v in params.items() if k in variables and k != "flux_map"})
+    with Fmu(fmu_path, fmu_path.stem, logging=True, initialise=False, keep_log=None, quiet=True) as f:
+        f.set(flux_map=str(csv), **{k: v for k, v in params.items() if k in f.vars and k != "flux_map"})
         try:
-            fmu.exitInitializationMode()
+            f.exit_initialization()
             accepted = True
-        except Exception:  # fmpy raises Exception on fmi2Error; the FMU's log says why
-            pass
-        fmu.freeInstance()
-    finally:
-        shutil.rmtree(unzipped, ignore_errors=True)
+        except CosimError:  # fmi2Error: the FMU's log says why
+            accepted = False
+        log = [f"{STATUS[s] if 0 <= s < len(STATUS) else s}: {m}" for s, _, m in f.messages]
     return FmuVerdict(fmu_path.stem, accepted, [m for m in log if "resources in" not in m])
 
 

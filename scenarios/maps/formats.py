@@ -137,6 +137,10 @@ def load_mat(path: Path) -> dict:
 def _array(path: Path, mat: dict, key: str, label: str) -> np.ndarray:
     if key not in mat:
         raise MapImportError(path, key, f"the variable {key} ({label})", "no such variable")
+    kind = np.asarray(mat[key]).dtype.kind
+    if kind == "b" or (kind in "iu" and "flux" in label):  # logical, or a flux counted in integers: not Vs
+        raise MapImportError(path, key, f"a floating-point array ({label})",
+                             f"a {'logical' if kind == 'b' else 'integer'} array ({np.asarray(mat[key]).dtype})")
     if np.iscomplexobj(mat[key]) and np.any(np.imag(mat[key]) != 0):
         raise MapImportError(path, key, f"a real array ({label})", "complex values with a non-zero imaginary part")
     try:
@@ -195,11 +199,12 @@ def read_syre(path: Path, mat: dict) -> RawMap:
     return raw
 
 
-#: SyR-e motorModel.data field -> (contract metadata key, conversion to SI)
+#: SyR-e motorModel.data field -> (contract metadata key, conversion to SI); every field but the
+#: temperatures (degC: zero and below are temperatures too) must be positive
 RPM = 2.0 * math.pi / 60.0
 ZERO_CELSIUS_K = 273.15
 SYRE_DATA = {
-    "p": ("pole_pairs", lambda x: int(round(x))),
+    "p": ("pole_pairs", lambda x: x),  # a count: a whole number, checked (never rounded)
     "Rs": ("R_s_ohm", float),
     "tempCu": ("T_winding_ref_K", lambda x: x + ZERO_CELSIUS_K),
     "tempPM": ("T_magnet_ref_K", lambda x: x + ZERO_CELSIUS_K),
@@ -213,12 +218,36 @@ SYRE_DATA = {
 }
 
 
+SYRE_TEMPERATURES = ("tempCu", "tempPM")
+
+
 def _syre_scalar(rec, name: str) -> float | None:
     try:
         v = np.asarray(rec[name][0, 0], dtype=float).ravel()
     except (ValueError, IndexError, KeyError, TypeError):
         return None
     return float(v[0]) if v.size and np.isfinite(v[0]) else None
+
+
+def _syre_field(path: Path, data, name: str) -> float | None:
+    """A motorModel.data field (None: absent): one finite number, positive but for a temperature
+    (degC, above absolute zero), a whole number for the pole pairs; else MapImportError naming it."""
+    try:
+        v = np.asarray(data[name][0, 0], dtype=float).ravel()
+    except (ValueError, IndexError, KeyError, TypeError):
+        return None
+    where = f"motorModel.data.{name}"
+    if v.size != 1 or not math.isfinite(v[0]):
+        raise MapImportError(path, where, "one finite number", f"{v.size} values" if v.size != 1 else repr(v[0].item()))
+    x = float(v[0])
+    if name in SYRE_TEMPERATURES:
+        if x <= -ZERO_CELSIUS_K:
+            raise MapImportError(path, where, "a temperature in degC above absolute zero", repr(x))
+    elif x <= 0.0:
+        raise MapImportError(path, where, "a positive number", repr(x))
+    if name == "p" and x != math.floor(x):
+        raise MapImportError(path, where, "a whole number of pole pairs", repr(x))
+    return x
 
 
 def _syre_machine_data(path: Path, model, raw: RawMap) -> None:
@@ -231,9 +260,9 @@ def _syre_machine_data(path: Path, model, raw: RawMap) -> None:
     if data is not None:
         got = []
         for field_name, (key, conv) in SYRE_DATA.items():
-            x = _syre_scalar(data, field_name)
-            if x is not None and x > 0:
-                raw.metadata[key] = conv(x)
+            x = _syre_field(path, data, field_name)
+            if x is not None:
+                raw.metadata[key] = int(x) if field_name == "p" else conv(x)
                 got.append(f"{field_name} -> {key}")
         raw.notes.append("SyR-e machine data motorModel.data: " + ", ".join(got))
     try:
@@ -294,13 +323,17 @@ def _scalar(mat: dict, key: str) -> float | None:
 
 
 def _positive(path: Path, mat: dict, key: str, unit: str) -> float | None:
-    """A scalar the file gives (None: absent): finite and positive, else MapImportError naming it."""
+    """A scalar the file gives (None: absent): one finite positive number, else MapImportError
+    naming it (a vector of several values is not reduced to one of them)."""
     if key not in mat:
         return None
     try:
         v = np.asarray(mat[key], dtype=float).ravel()
     except (TypeError, ValueError):
         v = np.array([])
+    if v.size > 1:
+        raise MapImportError(path, key, f"one number ({unit}), the export's single operating point",
+                             f"{v.size} values")
     if not v.size or not math.isfinite(v[0]) or v[0] <= 0.0:
         raise MapImportError(path, key, f"a finite positive number ({unit})",
                              repr(v[0].item()) if v.size else "no number")

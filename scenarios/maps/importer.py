@@ -75,6 +75,11 @@ def _import(path: Path) -> ImportedMap:
         raise MapImportError(path, "file", "a flux map: a contract .csv or a SyR-e / Motor-CAD .mat",
                              f"a '{path.suffix}' file")
     mat = map_formats.load_mat(path)
+    layouts = [name for name, holds in (("PLECS", map_formats.is_plecs), ("Motor-CAD", map_formats.is_motorcad),
+                                        ("SyR-e", map_formats.is_syre)) if holds(mat)]
+    if len(layouts) > 1:  # which one is the map is not the importer's guess to make
+        raise MapImportError(path, "variables", "one tool's layout (PLECS', Motor-CAD's or SyR-e's): save the map "
+                             "without the other's variables", f"the layouts of {' and '.join(layouts)}")
     if map_formats.is_plecs(mat):
         raw = map_formats.read_plecs(path, mat)
     elif map_formats.is_motorcad(mat):
@@ -89,9 +94,12 @@ def _import(path: Path) -> ImportedMap:
 
 
 def _import_csv(path: Path) -> ImportedMap:
+    from scenarios.core.boundary import InputError
     _check_csv_numbers(path)
     try:
         fmap = read_flux_map(path)
+    except InputError as e:  # read_flux_map names the line or the metadata key
+        raise MapImportError(path, e.key, e.expected) from None
     except (ValueError, IndexError) as e:  # read_flux_map's message names the line's problem
         raise MapImportError(path, "rows", "the contract's CSV: header i_d,i_q,psi_d,psi_q, then numbers "
                              "forming a full rectangular grid", str(e).replace(f"{path}: ", "")) from e
@@ -151,6 +159,7 @@ def _to_contract(raw: map_formats.RawMap, path: Path) -> ImportedMap:
     i_d, i_q, psi_d, psi_q, mirrored, _ = symmetry.complete(i_d, i_q, psi_d, psi_q, magnet_free)
     notes += mirrored
     _check(i_d, i_q, raw.keys)
+    _check_metadata(metadata)
     if i_d[-1] <= 0.0:
         warnings.append("no i_d > 0 in the map (a PM machine: no symmetry completes it): where an optimum lies at "
                         "i_d > 0 the FMUs extrapolate beyond the grid")
@@ -186,6 +195,24 @@ def _check(i_d, i_q, keys) -> None:
         if not ax[0] <= 0.0 <= ax[-1]:
             raise MapImportError(None, k, "a grid that contains zero current (psi_m = psi_d(0, 0))",
                                  f"{ax[0]:.6g} ... {ax[-1]:.6g} A")
+
+
+def _check_metadata(metadata: dict) -> None:
+    """Metadata the map's readers refuse is never written (scenarios.maps.metadata: the FMUs' rule;
+    and each value inside the FMUs' range of its parameter): MapImportError naming the key."""
+    from scenarios.core.fmu_ranges import fmu_ranges
+    from scenarios.maps.metadata import MetadataError, metadata_keys, metadata_value
+    for key, k in metadata_keys().items():
+        if key not in metadata:
+            continue
+        try:
+            value = metadata_value(key, str(metadata[key]))
+        except MetadataError as e:
+            raise MapImportError(None, key, e.expected, repr(e.text)) from None
+        r = fmu_ranges().get(k.parameter)
+        if r is not None and not ((r.lo is None or value >= r.lo) and (r.hi is None or value <= r.hi)):
+            lo, hi = ("-inf" if r.lo is None else f"{r.lo:g}"), ("inf" if r.hi is None else f"{r.hi:g}")
+            raise MapImportError(None, key, f"a value in the FMUs' range of {k.parameter}, [{lo}, {hi}]", repr(value))
 
 
 def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:

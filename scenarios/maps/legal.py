@@ -22,9 +22,6 @@ import numpy as np
 from scenarios.core.fmu_ranges import operating_region_constant
 from scenarios.maps.flux_map import FluxMap
 
-#: a determinant of the incremental inductances below this, relative to L_dd L_qq, is a fold
-#: (the FMUs' InverseFluxMap uses the same relative bound, fmu_src/machine/inverse_flux_map.cpp)
-FOLD_REL = 1e-12
 #: the variance of the 4th difference of white noise is C(8, 4) = 70 sigma^2 (Rice, Ann. Stat.
 #: 12 (1984) 1215, difference-based variance estimators); a smooth map's 4th differences are small
 FOURTH_DIFF_VAR = 70.0
@@ -58,7 +55,8 @@ def defects(fmap: FluxMap) -> Defects:
         L_dd, L_qd = fmap.flux_on_grid(x, y, dx=1)
         L_dq, L_qq = fmap.flux_on_grid(x, y, dy=1)
         det = L_dd * L_qq - L_dq * L_qd
-        j, k = np.nonzero(~(det > FOLD_REL * np.abs(L_dd * L_qq)))
+        # a fold: the determinant at most the FMUs' kFoldRelative of L_dd L_qq (operating_region.hpp)
+        j, k = np.nonzero(~(det > operating_region_constant("fold_relative") * np.abs(L_dd * L_qq)))
         folds.append(np.column_stack([j, j + dj, k, k + dk]))
     return Defects(np.column_stack([jd, jd + 1, kd, kd]), np.column_stack([jq, jq, kq, kq + 1]),
                    np.concatenate(folds).astype(int))
@@ -84,13 +82,13 @@ def has_magnet(fmap: FluxMap) -> bool:
     """The FMUs' test (fmu_src/machine/operating_region.hpp): psi_d(0, 0) on the map's spline is
     positive and at least kMagnetFraction of the largest |psi_d| on the grid."""
     psi_m = float(fmap.flux(0.0, 0.0)[0])
-    return psi_m > 0.0 and psi_m >= operating_region_constant("kMagnetFraction") * float(np.abs(fmap.psi_d).max())
+    return psi_m > 0.0 and psi_m >= operating_region_constant("magnet_fraction") * float(np.abs(fmap.psi_d).max())
 
 
 def refused_box(fmap: FluxMap, I_max: float) -> tuple[float, float, float, float]:
     """The FMUs' required box (operating_region.hpp): required_box widened by kOperatingMargin
     I_max on every side and cut to the grid; a defect inside it makes the FMUs refuse the map."""
-    m = operating_region_constant("kOperatingMargin") * I_max
+    m = operating_region_constant("margin") * I_max
     lo_d, hi_d, lo_q, hi_q = required_box(I_max, not has_magnet(fmap))
 
     def cut(lo, hi, a, b):

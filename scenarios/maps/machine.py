@@ -17,14 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, read_flux_map
+from scenarios.maps.metadata import metadata_keys
 
-#: parameter name (the FMUs' and the drive descriptions') -> the metadata key that gives it
-METADATA_KEYS = {
-    "pole_pairs": "pole_pairs", "R_s": "R_s_ohm", "I_max": "I_max_A", "T_magnet_ref": "T_magnet_ref_K",
-    "T_winding_ref": "T_winding_ref_K", "alpha_cu": "alpha_cu_per_K", "k_psi_T": "k_psi_T_per_K",
-    "fe_k_h": "fe_k_h_W_per_Hz", "fe_alpha": "fe_alpha", "fe_k_e": "fe_k_e_W_per_Hz2", "fe_psi_ref": "fe_psi_ref_Wb",
-    "k_u": "k_u", "u_dc": "u_dc_V", "w_m_max": "w_m_max_rad_s",
-}
+#: parameter name (the FMUs' and the drive descriptions') -> the metadata key that gives it: the
+#: one table (scenarios.maps.metadata), but for the rotor's inertia J, which is the vehicle side's
+METADATA_KEYS = {k.parameter: k.key for k in metadata_keys().values() if k.parameter != "J"}
 #: the iron-loss model's coefficients hold together (one core, one flux reference): all or none
 IRON_LOSS = ("fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref")
 
@@ -63,7 +60,8 @@ def largest_flux(fmap: FluxMap, I_max: float) -> float:
 
 
 def machine_values(fmap: FluxMap, given: dict | None = None) -> tuple[dict, list[str]]:
-    """parameter -> value (SI; pole_pairs an int) and the list of assumptions, in words. `given`
+    """parameter -> value (SI; pole_pairs an int: a count the map states is whole, by the rule of
+    scenarios.maps.metadata) and the list of assumptions, in words. `given`
     (parameter -> value, e.g. a drive description's or the command line's) overrides the map."""
     given = given or {}
     dmap = default_map()
@@ -94,5 +92,4 @@ def machine_values(fmap: FluxMap, given: dict | None = None) -> tuple[dict, list
     if iron_given and len(iron_given) < len(IRON_LOSS):
         missing = [k for k in IRON_LOSS if k not in iron_given]
         assumed.append(f"iron loss: {', '.join(missing)} the default motor's, the rest the map's")
-    values["pole_pairs"] = int(values["pole_pairs"])
     return values, assumed

@@ -86,7 +86,7 @@ def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = 
         m = drive.motor
         given = {k: getattr(m, k) for k in ("pole_pairs", "R_s", "I_max", "T_magnet_ref", "T_winding_ref", "alpha_cu",
                                             "k_psi_T", "fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref", "w_m_max")}
-        given.update(k_u=drive.controller.k_u, u_dc=drive.controller.lut_u_dc)
+        given.update(k_u=drive.controller.k_u, lut_u_dc=drive.controller.lut_u_dc)
         assumed = [f"{a} (drive {drive.name})" for a in drive.assumed]
         values, _ = machine_values(fmap, given)
     else:
@@ -95,9 +95,9 @@ def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = 
         values["I_max"] = float(I_max)
         assumed = [a for a in assumed if not a.startswith("I_max")]
     if u_dc is not None:
-        values["u_dc"] = float(u_dc)
-        assumed = [a for a in assumed if not a.startswith("u_dc")]
-    u = float(values.pop("u_dc"))
+        values["lut_u_dc"] = float(u_dc)
+        assumed = [a for a in assumed if not a.startswith("lut_u_dc")]
+    u = float(values.pop("lut_u_dc"))
     if values["w_m_max"] is None:
         values.pop("w_m_max")
     return values, assumed, u

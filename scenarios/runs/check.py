@@ -29,7 +29,7 @@ from pathlib import Path
 from scenarios.core import boundary
 from scenarios.core.boundary import InputError, check_writable, printable
 from scenarios.core.paths import BUILD_DIR
-from scenarios.cosim import BACKENDS
+from scenarios.cosim import BACKEND_ALIASES, BACKENDS
 from scenarios.drives.description import LIMITS, DriveDescription, DriveDescriptionError, load_drive
 from scenarios.drives.fmu_acceptance import refuse_unless_fmus_accept
 
@@ -244,8 +244,8 @@ def add_parser(sub) -> None:
     p.add_argument("drive", type=Path, help="drive description (TOML) with a [checks] table")
     p.add_argument("--junit", type=Path, default=None, help="write JUnit XML here")
     p.add_argument("--out", type=Path, default=Path("out") / "check", help="folder of check.md")
-    p.add_argument("--backend", default="drive", choices=BACKENDS,
-                   help="drive: the IpmsmDrive FMU; fmpy: the reference loop")
+    p.add_argument("--backend", default="drive", choices=BACKENDS + tuple(BACKEND_ALIASES),
+                   help="drive: the IpmsmDrive FMU; reference (or fmpy): the reference loop")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -162,7 +162,7 @@ class RunSummary:
     dt_s: float
     wall_s: float
     real_time_factor: float
-    backend: str                      # how the drive was simulated: drive (IpmsmDrive) or fmpy (reference loop)
+    backend: str                      # how the drive was simulated: drive (IpmsmDrive) or reference (reference loop)
     drive: str = ""                   # the drive description's name (scenarios.drives.description)
     drive_sha256: str = ""            # ... and the SHA-256 of its file: which drive, exactly
     w_m_peak_rpm: float = 0.0         # the highest rotor speed of the run

@@ -1,8 +1,8 @@
 """One drive cycle with the FMUs: the vehicle side (driver, brake blending, vehicle, battery,
-inverter losses) at dt = 10 ms around the drive: the IpmsmDrive FMU (scenarios.cosim.drive_fmu),
-or the reference loop coupling IpmsmController and IpmsmPlant at h = 100 us in Python
-(scenarios.cosim.reference); both return the drive's step record. Results per the contract:
-summary.json and trace.csv
+inverter losses) at dt = 10 ms around an opened drive, which returns the drive's step record
+(DriveStep): the IpmsmDrive FMU (scenarios.cosim.drive_fmu) or the reference loop coupling
+IpmsmController and IpmsmPlant at h = 100 us in Python (scenarios.cosim.reference), as
+spec.backend names (open_drive). Results per the contract: summary.json and trace.csv
 (scenarios.runs.results).
 
 The loop (`vehicle_steps`) only simulates: it yields each vehicle step's signals, which the
@@ -25,7 +25,7 @@ from scenarios.core.boundary import InputError
 from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
-from scenarios.cosim import BACKENDS
+from scenarios.cosim import BACKENDS, backend_name
 from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
 from scenarios.cosim.fmu import Fmu
 from scenarios.cosim.reference import ReferenceDrive
@@ -87,11 +87,14 @@ class RunSpec:
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
     trace_dt: float = 0.1     # s, trace.csv sampling
-    backend: str = "drive"    # one of BACKENDS
+    backend: str = "drive"    # one of BACKENDS (or an alias, scenarios.cosim.BACKEND_ALIASES)
     reference: bool = True    # evaluate the exact optimum per vehicle step
     lut_grid: tuple[int, int] | None = None  # 2-D tables' points (torque, speed or V_max/w); None: the FMU's
     driver: DriverParams = field(default_factory=DriverParams)
     blend: BlendParams = field(default_factory=BlendParams)
+
+    def __post_init__(self):
+        self.backend = backend_name(self.backend)
 
     @property
     def method_name(self) -> str:
@@ -124,21 +127,32 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
     return build / "fmu" / "IpmsmController.fmu", build / "fmu" / "IpmsmPlant.fmu"
 
 
-def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict, **start):
-    """The drive of a run by spec.backend: IpmsmDrive (built next to the controller's FMU), or the
-    reference loop; the same parameters either way (the inverter's among the plant's)."""
+def _open_drive_fmu(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict,
+                    **start) -> DriveFmu:
+    """IpmsmDrive (built next to the controller's FMU), with the thermal network's boundary."""
     thermal = spec.thermal()
-    if spec.backend == "drive":
-        boundary = dict(T_coolant=thermal.T_coolant, T_ambient=thermal.T_ambient) if thermal.on else {}
-        return DriveFmu(Path(controller_fmu).parent / "IpmsmDrive.fmu",
-                        {**c_params, **p_params, **thermal.fmu_params(), "sample_time": spec.h},
-                        **start, **boundary)
-    if thermal.on:  # the reference loop's record has no temperatures
+    boundary = dict(T_coolant=thermal.T_coolant, T_ambient=thermal.T_ambient) if thermal.on else {}
+    return DriveFmu(Path(controller_fmu).parent / "IpmsmDrive.fmu",
+                    {**c_params, **p_params, **thermal.fmu_params(), "sample_time": spec.h}, **start, **boundary)
+
+
+def _open_reference(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict,
+                    **start) -> ReferenceDrive:
+    """The reference loop. Not with the thermal network: the plant FMU alone advances it at every
+    100 us step, IpmsmDrive once per communication step (docs/thermal.md), so the two would differ."""
+    if spec.thermal().on:
         raise InputError("(command line)", "--backend", "the drive backend with the thermal network on "
                          "([thermal] thermal_model = true)")
-    if spec.backend == "fmpy":
-        return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start)
-    raise ValueError(f"backend = {spec.backend!r}: one of {', '.join(BACKENDS)}")
+    return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start)
+
+
+#: backend -> how a run opens its drive: the same parameters either way (the inverter's among the plant's)
+OPEN_DRIVE = {"drive": _open_drive_fmu, "reference": _open_reference}
+
+
+def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict, **start):
+    """The drive of a run, by spec.backend (OPEN_DRIVE)."""
+    return OPEN_DRIVE[spec.backend](spec, controller_fmu, plant_fmu, c_params, p_params, **start)
 
 
 class OptimumReference:
@@ -222,24 +236,36 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
 def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, Path] | None = None,
              out: Path | None = None, progress: bool = True,
              observe: Callable[[VehicleStep], None] | None = None) -> RunSummary:
-    """Run `cycle` with spec.drive; returns the summary (and writes summary.json, trace.csv to
-    `out`). The FMUs' parameters (map, motor, controller settings, inverter) and the vehicle side
-    all follow spec.drive; so does the reference optimum. `observe`, if given, sees every vehicle
-    step (a test's independent account of the run)."""
+    """Run `cycle` with spec.drive on spec.backend's drive (open_drive); returns the summary (and
+    writes summary.json, trace.csv to `out`). The FMUs' parameters (map, motor, controller
+    settings, inverter) and the vehicle side all follow spec.drive; so does the reference optimum.
+    `observe`, if given, sees every vehicle step (a test's independent account of the run)."""
     spec = spec if spec is not None else RunSpec()
     spec = replace(spec, conditions=spec.resolved_conditions())
-    drive, method, recursion = spec.drive, spec.method_name, spec.recursion_level
     cycle = load_cycle(cycle) if isinstance(cycle, (str, Path)) else cycle
     controller_fmu, plant_fmu = fmus or fmu_paths()
-    cond, vp, dt = spec.conditions, drive.vehicle, spec.dt
-    n_inner = spec.steps_per_vehicle_step()
-    c_params = drive.controller_params(method, recursion, cond.lut_u_dc, cond.lut_T_magnet, spec.command_check)
+    c_params = spec.drive.controller_params(spec.method_name, spec.recursion_level, spec.conditions.lut_u_dc,
+                                            spec.conditions.lut_T_magnet, spec.command_check)
     if spec.lut_grid is not None:
         c_params.update(lut_n_torque=spec.lut_grid[0], lut_n_speed=spec.lut_grid[1])
-    p_params = drive.plant_params()
+    # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
+    v0, cond = float(sampled(cycle, spec.dt, 1)[1][0]), spec.conditions
+    start = dict(w_m=motor_speed(v0, spec.drive.vehicle), u_dc=Battery(spec.drive.battery).u * cond.u_dc_scale,
+                 T_magnet=cond.T_magnet, T_winding=cond.T_winding)
+    with open_drive(spec, controller_fmu, plant_fmu, c_params, spec.drive.plant_params(), **start) as drive:
+        return drive_cycle(cycle, spec, drive, controller_fmu, out, progress, observe)
+
+
+def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, controller_fmu: Path,
+                out: Path | None = None, progress: bool = True,
+                observe: Callable[[VehicleStep], None] | None = None) -> RunSummary:
+    """simulate() on an opened drive `sim` (its conditions resolved, started as simulate starts
+    it); controller_fmu: the reference optimum's FMU."""
+    drive, method, recursion = spec.drive, spec.method_name, spec.recursion_level
+    cond, vp, dt = spec.conditions, drive.vehicle, spec.dt
+    n_inner = spec.steps_per_vehicle_step()
     n = int(round(cycle.duration_s / dt))
     t_ref, v_ref = sampled(cycle, dt, n)  # computed block by block: bounded memory for any length
-    # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
     vehicle, driver = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver)
     battery = Battery(drive.battery)
     accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max,
@@ -249,9 +275,6 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     wall0 = time.perf_counter()
     try:
         with ExitStack() as stack:
-            start = dict(w_m=motor_speed(vehicle.v, vp), u_dc=battery.u * cond.u_dc_scale,
-                         T_magnet=cond.T_magnet, T_winding=cond.T_winding)
-            sim = stack.enter_context(open_drive(spec, controller_fmu, plant_fmu, c_params, p_params, **start))
             reference = (stack.enter_context(OptimumReference(controller_fmu, drive,
                                                               winding_resistance(sim, cond.T_winding),
                                                               cond.T_winding))

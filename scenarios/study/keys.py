@@ -20,7 +20,7 @@ from scenarios.vehicle.cycles import Cycle
 KEY_VERSION = 1
 
 #: the FMUs a run uses (the drive by backend "drive"; the controller for the optimum, and with the
-#: plant by the reference loop, backend "fmpy")
+#: plant by the reference loop, backend "reference")
 FMU_NAMES = ("IpmsmController.fmu", "IpmsmPlant.fmu", "IpmsmDrive.fmu")
 
 #: scenarios/ modules that do not change a run's numbers (presentation, the command line)

@@ -226,18 +226,24 @@ def test_metadata_trailing_words_in_python_as_in_the_fmus():
 
 
 @pytest.mark.parametrize("name", FMUS)
-def test_metadata_in_another_unit_is_a_warning_naming_it(make, tmp_path, good_map, name):
-    path = _with_metadata(good_map, tmp_path, "R_s_ohm: 12 mOhm")
+@pytest.mark.parametrize("line, key", [("R_s_ohm: 12 mOhm", "R_s_ohm"), ("w_m_max_rad_s: 12000 rpm", "w_m_max_rad_s"),
+                                       ("pole_pairs: 7.99", "pole_pairs"), ("T_winding_ref_K: 20", "T_winding_ref_K")])
+def test_metadata_in_another_unit_is_refused_naming_the_key(make, tmp_path, good_map, name, line, key):
+    """The one rule (docs/maps.md, "Metadata"; Python's reader applies it too): a value in another
+    unit, a count that is not whole, a temperature in K that can only be degC: the map is refused
+    (fmi2Error), the FMU's log naming the key, the value and the rule."""
+    path = _with_metadata(good_map, tmp_path, line)
     a = make(name, logging_on=True)
     assert a.setup() == OK and a.enter() == OK
     a.set(flux_map=str(path))
-    assert a.exit() == OK, a.log.text()  # completed: fmi2OK, the warning goes to the logger
-    warnings = [m for s, _, m in a.log.records if s == WARNING]
-    assert any("'mOhm' is not the contract's SI unit Ohm" in w for w in warnings), a.log.text()
+    assert a.exit() == ERROR, a.log.text()
+    errors = [m for s, _, m in a.log.records if s >= ERROR]
+    number = line.split(": ", 1)[1].split()[0]  # the value as read, never the line's text (issue 35)
+    assert any(f"metadata {key} ({number}" in m and "docs/maps.md" in m for m in errors), a.log.text()
 
 
 def test_metadata_warnings_are_the_same_in_both_fmus(make, tmp_path, good_map):
-    path = _with_metadata(good_map, tmp_path, "R_s_ohm: 12 mOhm")
+    path = _with_metadata(good_map, tmp_path, "R_s_ohm: 0.5 Ohm")  # not the parameter's 0.012 Ohm
     said = []
     for name in FMUS:
         a = make(name, logging_on=True)

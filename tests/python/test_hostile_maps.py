@@ -154,3 +154,146 @@ def test_a_motorcad_export_with_a_good_frequency_still_imports(tmp_path):
     r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"))
     assert r.returncode == 0, r.err
     assert "# pole_pairs: 4" in (tmp_path / "x.csv").read_text()
+
+
+# --- issue 35, "Units dropped": one rule for a metadata value in both readers (docs/maps.md) ---
+UNIT_CASES = {
+    # case: (line replaced, new line, key named, words)
+    "R_s in mOhm": ("# R_s_ohm: 0.012", "# R_s_ohm: 12 mOhm", "R_s_ohm", "another unit is not converted"),
+    "top speed in rpm": ("# w_m_max_rad_s: 1256.63706144", "# w_m_max_rad_s: 12000 rpm", "w_m_max_rad_s", "rad/s"),
+    "pole pairs 7.99": ("# pole_pairs: 4", "# pole_pairs: 7.99", "pole_pairs", "an integer"),
+    "reference temperature in degC": ("# T_winding_ref_K: 293.15", "# T_winding_ref_K: 20", "T_winding_ref_K",
+                                      "degC"),
+}
+
+
+def _unit_map(tmp_path, case):
+    old, new, key, words = UNIT_CASES[case]
+    text = DEFAULT_MAP.read_text()
+    assert old + "\n" in text
+    m = tmp_path / "m.csv"
+    m.write_text(text.replace(old + "\n", new + "\n"))
+    return m, key, words
+
+
+@pytest.mark.parametrize("case", list(UNIT_CASES))
+@pytest.mark.parametrize("cmd", ["show", "check", "repair"])
+def test_map_commands_refuse_metadata_in_another_unit(case, cmd, tmp_path):
+    m, key, words = _unit_map(tmp_path, case)
+    out = tmp_path / ("out" if cmd == "show" else "out.csv" if cmd == "repair" else "out")
+    r = cli("map", cmd, str(m), "--out", str(out))
+    assert_refused(r, m, key, words)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("case", list(UNIT_CASES))
+@pytest.mark.parametrize("cmd", ["run", "check"])
+def test_drives_over_metadata_in_another_unit_are_refused(case, cmd, tmp_path):
+    """`run` and `check` took 7 from 7.99 and 12 Ohm from 12 mOhm: now the drive is refused at load,
+    naming the drive's motor.flux_map, the map and its key."""
+    m, key, words = _unit_map(tmp_path, case)
+    d = drive(tmp_path, '[checks]\ncycles = ["UDDS"]\nWh_per_km_max = 500.0\n', name="d.toml", flux_map=str(m))
+    argv = ["run", "UDDS", "--drive", str(d)] if cmd == "run" else ["check", str(d)]
+    r = cli(*argv, "--out", str(tmp_path / "out"))
+    assert_refused(r, d, "motor.flux_map", str(m), key, words)
+    assert not (tmp_path / "out").exists()
+    assert r.wall < 30.0
+
+
+def test_a_map_with_a_utf8_byte_order_mark_is_read_by_python_as_by_the_fmus(tmp_path):
+    """Spreadsheets export UTF-8 with a BOM: the FMUs skip it, and so does Python (map show runs)."""
+    from scenarios.cosim.fmu import Fmu
+
+    from conftest import fmu_path
+    m = tmp_path / "bom.csv"
+    m.write_bytes(b"\xef\xbb\xbf" + DEFAULT_MAP.read_bytes())
+    assert read_flux_map(m).metadata == read_flux_map(DEFAULT_MAP).metadata
+    for name in ("IpmsmController", "IpmsmPlant"):
+        with Fmu(fmu_path(name), flux_map=str(m)):
+            pass
+    r = cli("map", "check", str(m), "--out", str(tmp_path / "out"))
+    assert r.returncode == 0, r.err[-2000:]
+
+
+@pytest.mark.parametrize("line, key", [("T_winding_max = 180.0", "thermal.T_winding_max"),
+                                       ("T_magnet_max = 250.0", "thermal.T_magnet_max")])
+def test_a_temperature_limit_below_the_reference_is_refused(line, key, tmp_path):
+    """180 meant as degC is 180 K, below T_winding_ref: the car would never move (derated to 0)."""
+    d = drive(tmp_path, f"[thermal]\n{line}\n", name="d.toml")
+    r = cli("run", "UDDS", "--drive", str(d), "--out", str(tmp_path / "out"))
+    assert_refused(r, d, key, "degC")
+    assert not (tmp_path / "out").exists()
+
+
+# --- the importers: every choice refused or named; no metadata the loader refuses is written ---
+def _syre_with(tmp_path, **data):
+    """The shipped SyR-e motor model with motorModel.data fields replaced."""
+    import scipy.io as sio
+
+    from scenarios.core.paths import DATA_DIR
+    mat = sio.loadmat(DATA_DIR / "fluxmaps" / "real" / "syre_RAWP.mat", struct_as_record=True)
+    rec = mat["motorModel"][0, 0]["data"][0, 0]
+    for name, value in data.items():
+        rec[name] = np.array(value, dtype=float).reshape(1, -1) if np.ndim(value) else np.array([[value]])
+    path = tmp_path / "syre.mat"
+    sio.savemat(path, {k: v for k, v in mat.items() if not k.startswith("__")})
+    return path
+
+
+@pytest.mark.parametrize("field, value, words", [("p", 2.5, "whole number"), ("p", 0.0, "positive"),
+                                                 ("Vdc", 1e300, "100000"), ("Rs", -1.0, "positive"),
+                                                 ("tempCu", -300.0, "absolute zero")])
+def test_syre_machine_data_the_loader_would_refuse_is_not_imported(field, value, words, tmp_path):
+    m = _syre_with(tmp_path, **{field: value})
+    r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"))
+    key = {"Vdc": "u_dc_V"}.get(field, f"motorModel.data.{field}")
+    assert_refused(r, m, key, words)
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_syre_winding_temperature_at_or_below_zero_degc_is_a_temperature(tmp_path):
+    """tempCu = -10 degC is a valid reference (it was dropped: R_s then held at 20 degC)."""
+    from scenarios.maps.importer import import_map
+    md = import_map(_syre_with(tmp_path, tempCu=-10.0, tempPM=0.0)).metadata
+    assert md["T_winding_ref_K"] == pytest.approx(263.15) and md["T_magnet_ref_K"] == pytest.approx(273.15)
+
+
+@pytest.mark.parametrize("dtype", [bool, np.int32])
+def test_a_flux_array_of_logical_or_integer_values_is_refused(dtype, tmp_path):
+    import scipy.io as sio
+    from test_map_import import motorcad_dq
+
+    from scenarios.maps.flux_map import linear_flux_map
+    data = motorcad_dq(linear_flux_map(2e-4, 5e-4, 0.08, 500.0, n=11))
+    data["Flux_Linkage_D"] = (np.asarray(data["Flux_Linkage_D"]) * 100).astype(dtype)
+    m = tmp_path / "mc.mat"
+    sio.savemat(m, data)
+    r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"))
+    assert_refused(r, m, "Flux_Linkage_D", "floating-point")
+    assert not (tmp_path / "x.csv").exists()
+
+
+def test_a_vector_frequency_is_refused_not_reduced_to_its_first_value(tmp_path):
+    import scipy.io as sio
+    from test_map_import import motorcad_dq
+
+    from scenarios.maps.flux_map import linear_flux_map
+    data = motorcad_dq(linear_flux_map(2e-4, 5e-4, 0.08, 500.0, n=11))
+    data.update(Frequency=np.array([[400.0, 800.0]]), Speed=np.array([[6000.0]]))
+    m = tmp_path / "mc.mat"
+    sio.savemat(m, data)
+    r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"))
+    assert_refused(r, m, "Frequency", "2 values")
+
+
+def test_a_file_holding_two_tools_layouts_is_refused_naming_both(tmp_path):
+    import scipy.io as sio
+
+    from scenarios.core.paths import DATA_DIR
+    plecs = sio.loadmat(DATA_DIR / "fluxmaps" / "real" / "plecs_prius_lut.mat")
+    syre = sio.loadmat(DATA_DIR / "fluxmaps" / "real" / "syre_RAWP.mat")
+    both = {k: v for d in (plecs, syre) for k, v in d.items() if not k.startswith("__")}
+    m = tmp_path / "both.mat"
+    sio.savemat(m, both)
+    r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"))
+    assert_refused(r, m, "variables", "PLECS", "SyR-e")

@@ -1,7 +1,7 @@
 """The reference loop (scenarios/cosim/reference.py: IpmsmController + IpmsmPlant coupled in Python
-by the coupling description, fmu_src/coupling/ipmsm_drive.coupling): the same step record as the
-IpmsmDrive FMU (the fast path) on torque steps and a speed ramp, and the same currents as an
-independent plain loop (every input set every step by name); time is k h; the coupling is by name
+by the coupling description, fmu_src/coupling/ipmsm_drive.coupling, a plain loop by variable name):
+the same step record as the IpmsmDrive FMU (the fast path) on torque steps and a speed ramp, and
+the same currents at every inner step; the drive's record filled by name; time is k h; the coupling is by name
 (the description's lines in another order give the same numbers, bad descriptions name their line,
 names the FMUs lack are refused); bad input raises CosimError naming the FMU and leaves the loop
 usable; a failing step raises naming the FMU and the call.
@@ -13,7 +13,7 @@ import pytest
 
 from scenarios.cosim.coupling import DRIVE, Coupling, CouplingError
 from scenarios.cosim.drive_fmu import DriveFmu
-from scenarios.cosim.fmu import CosimError, Fmu
+from scenarios.cosim.fmu import CosimError
 from scenarios.cosim.reference import ReferenceDrive
 
 from conftest import fmu_path
@@ -72,31 +72,29 @@ def test_the_inverter_loss_is_the_drive_fmus(records, drive_records):
     assert records[-1].E_inv == pytest.approx(sum(r.P_inv * n * H for r, n in zip(records, CHUNKS)), rel=1e-9)
 
 
-def test_same_as_the_plain_fmpy_loop(controller_fmu, plant_fmu):
-    """A loop by hand (scenarios.cosim.fmu, every input set every step) gives the same currents,
-    bit for bit: the reference loop couples as the description says."""
+def test_every_inner_step_as_the_drive_fmus(controller_fmu, plant_fmu):
+    """The plain loop (every coupled input set every step by name, as simulate_fmi2_cs.c) and
+    IpmsmDrive (the same coupling inside, in C++) stepped by one inner step at a time: the same
+    currents and commands at every step, bit for bit."""
     chunks = CHUNKS[:4]
-    ref, steps = reference(controller_fmu, plant_fmu), []
-    with ref:
+    k = 0
+    with reference(controller_fmu, plant_fmu) as ref, DriveFmu(fmu_path("IpmsmDrive"), **START) as drive:
         for j, n in enumerate(chunks):
-            steps += [ref.advance(H, **profile(j)) for _ in range(n)]
-    with Fmu(plant_fmu, **START) as p:
-        i_d, i_q = p.get("i_d", "i_q")  # the controller starts from the measured current
-        with Fmu(controller_fmu, w_m=W0, T_magnet=333.15, T_winding=353.15, u_dc=355.0, i_d=i_d, i_q=i_q) as c:
-            u_d, u_q = c.get("u_d_ref", "u_q_ref")
-            k = 0
-            for j, n in enumerate(chunks):
-                x = profile(j)
-                for _ in range(n):
-                    i_d, i_q = p.get("i_d", "i_q")
-                    p.set(u_d=u_d, u_q=u_q, w_m=x["w_m"], T_magnet=x["T_magnet"], T_winding=x["T_winding"])
-                    c.set(T_ref=x["T_ref"], w_m=x["w_m"], u_dc=x["u_dc"], T_magnet=x["T_magnet"],
-                          T_winding=x["T_winding"], i_d=i_d, i_q=i_q)
-                    p.step(k * H, H)
-                    c.step(k * H, H)
-                    u_d, u_q = c.get("u_d_ref", "u_q_ref")
-                    assert (steps[k].i_d, steps[k].i_q) == tuple(p.get("i_d", "i_q")), k
-                    k += 1
+            for _ in range(n):
+                a, b = ref.advance(H, **profile(j)), drive.advance(H, **profile(j))
+                assert (a.i_d, a.i_q, a.i_d_ref, a.i_q_ref, a.T_cmd) == (b.i_d, b.i_q, b.i_d_ref, b.i_q_ref, b.T_cmd), k
+                k += 1
+    assert k == sum(chunks)
+
+
+def test_the_record_is_filled_by_name():
+    """Every field of the drive's record is the FMU's output of that name (read here one by one
+    through the FMU handle), so a new output is one field of DriveStep."""
+    with DriveFmu(fmu_path("IpmsmDrive"), **START) as drive:
+        step = drive.advance(37 * H, **profile(0))
+        names = [f.name for f in dataclasses.fields(step)]
+        assert set(names) <= set(drive.vars)
+        assert [getattr(step, n) for n in names] == drive.get(*names)
 
 
 def test_time_is_k_times_h(controller_fmu, plant_fmu):
@@ -178,3 +176,14 @@ def test_a_description_the_fmus_do_not_fit_is_refused(controller_fmu, plant_fmu)
     wrong = Coupling.parse(DRIVE.text.replace("-> plant.u_q", "-> plant.u_x"))
     with pytest.raises(CosimError, match="IpmsmPlant has no variable 'u_x'"):
         reference(controller_fmu, plant_fmu, coupling=wrong)
+
+
+def test_the_drive_fmu_checks_every_calls_status():
+    """An input the drive refuses (fmi2SetReal returns fmi2Error) ends the step with the call and
+    the FMU's words; before, the step ran on the previous inputs."""
+    with DriveFmu(fmu_path("IpmsmDrive"), **START) as drive:
+        good = drive.advance(10 * H, **profile(1))
+        bad = {**profile(1), "T_winding": -1.0}
+        with pytest.raises(CosimError, match=r"^IpmsmDrive: fmi2SetReal of the inputs failed .*T_winding"):
+            drive.advance(10 * H, **bad)
+        assert drive.t == pytest.approx(10 * H) and math.isfinite(good.T_e)
