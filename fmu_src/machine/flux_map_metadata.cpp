@@ -62,10 +62,11 @@ double metadata_value(const MetadataKey& k, const std::string& text) {
     const std::string unit = k.unit;
     const MetadataValue m = split_metadata_value(text);
     // what the value is, never the file's text (a map parameter may name any file: map_file.hpp)
-    const std::string shown = m.is_number ? num(m.value) + (m.rest.empty() ? "" : " then " + unit_or_description(m.rest))
-                                          : describe_token(text);
+    const std::string shown = m.is_number
+                                  ? num(m.value) + (m.rest.empty() ? "" : " then " + unit_or_description(m.rest))
+                                  : describe_token(text);
     auto refuse = [&](const std::string& why) -> double {
-        throw FluxMapError(std::string("metadata ") + k.key + " (" + shown + "): " + why +
+        throw FluxMapError(std::string("metadata ") + k.key + ": " + shown + ": " + why +
                            " (docs/maps.md, \"Metadata\")");
     };
     if (!m.is_number)

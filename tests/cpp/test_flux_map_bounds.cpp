@@ -183,7 +183,7 @@ TEST(FluxMapBounds, MetadataLeadingNumberAndUnits) {
         read_flux_map(write("meta_mohm.csv", grid("\n", "# pole_pairs: 4 (8 poles)\n# R_s_ohm: 12 mOhm\n")));
         FAIL() << "12 mOhm accepted";
     } catch (const FluxMapError& e) {
-        EXPECT_NE(std::string(e.what()).find("metadata R_s_ohm (12 then 'mOhm')"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("metadata R_s_ohm: 12 then 'mOhm'"), std::string::npos) << e.what();
     }
     FluxMapTable t = read_flux_map(
         write("meta.csv", grid("\n",

@@ -239,7 +239,7 @@ def test_metadata_in_another_unit_is_refused_naming_the_key(make, tmp_path, good
     assert a.exit() == ERROR, a.log.text()
     errors = [m for s, _, m in a.log.records if s >= ERROR]
     number = line.split(": ", 1)[1].split()[0]  # the value as read, never the line's text (issue 35)
-    assert any(f"metadata {key} ({number}" in m and "docs/maps.md" in m for m in errors), a.log.text()
+    assert any(f"metadata {key}: {number}" in m and "docs/maps.md" in m for m in errors), a.log.text()
 
 
 def test_metadata_warnings_are_the_same_in_both_fmus(make, tmp_path, good_map):
