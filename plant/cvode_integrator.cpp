@@ -15,6 +15,7 @@
 #include <sunmatrix/sunmatrix_dense.h>
 #include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
+#include "cvode_handles.hpp"
 #include "explicit_steps.hpp"
 #include "linearised_step.hpp"
 
@@ -47,31 +48,6 @@ std::string flag_name(int flag) {
 }
 
 }  // namespace
-
-// The SUNDIALS objects, freed CVODE first (it refers to the solvers, the vector and the
-// context), the context last.
-struct CvodeHandles {
-    SUNContext ctx = nullptr;
-    N_Vector y = nullptr;
-    N_Vector atol = nullptr;  // the absolute tolerances of y's components
-    void* mem = nullptr;
-    SUNNonlinearSolver nls = nullptr;
-    SUNMatrix A = nullptr;
-    SUNLinearSolver ls = nullptr;
-
-    CvodeHandles() = default;
-    CvodeHandles(const CvodeHandles&) = delete;
-    CvodeHandles& operator=(const CvodeHandles&) = delete;
-    ~CvodeHandles() {
-        if (mem != nullptr) CVodeFree(&mem);
-        if (ls != nullptr) SUNLinSolFree(ls);
-        if (A != nullptr) SUNMatDestroy(A);
-        if (nls != nullptr) SUNNonlinSolFree(nls);
-        if (atol != nullptr) N_VDestroy(atol);
-        if (y != nullptr) N_VDestroy(y);
-        if (ctx != nullptr) SUNContext_Free(&ctx);
-    }
-};
 
 // The CVODE objects of one integrator and the data CVODE's callbacks see: scratch memory, never
 // copied, at a fixed address (the callbacks' user data).

@@ -207,6 +207,25 @@ const std::vector<V>& PlantModel::variables() {
                  "Inverter-loss energy since the start, P_inv h summed over the steps"},
             },
             fmi::part_variables(&M::inverter),
+            {
+                // the inverter's safe states (docs/spec/INTERFACE.md, "Faults"; docs/faults.md): appended
+                {"inverter_state", &M::inverter_state, Causality::input, Variability::discrete, "", "",
+                 "What the inverter does: 0 switching (u_d, u_q applied), 1 freewheeling (all gates off: the diode "
+                 "bridge "
+                 "rectifies into u_dc once the back-EMF can drive a current into it), 2 active short circuit (u_d = "
+                 "u_q = 0); "
+                 "changeable at any communication point",
+                 0.0, 2.0},
+                {"i_d_demag", &M::i_d_demag, Causality::parameter, Variability::fixed, "A", "",
+                 "The magnets' demagnetisation limit on i_d (negative; 0: none): a warning, once, when i_d passes it",
+                 -1e6, 0.0},
+                {"i_dc", &M::i_dc, Causality::output, Variability::continuous, "A", "",
+                 "DC-link current of the inverter over the last step, losses included (+ motoring): (E_elec's increase "
+                 "+ "
+                 "P_inv h) / (u_dc h); freewheeling, -(3/pi) |i| and the diodes' loss; ASC: 0"},
+                {"bridge_switchings", &M::bridge_switchings, Causality::output, Variability::discrete, "", "",
+                 "Freewheeling: the diode bridge's switchings between conducting and blocking since the start"},
+            },
         });
         fmi::append_rest(t, &M::motor);
         fmi::append_rest(t, &M::iron_loss);
@@ -298,10 +317,16 @@ void PlantModel::exit_initialization() {
     cvode_rhs_evals = 0;
     // The fluxes are the map's at the start currents, so those are exactly the currents there
     // (the inverse map would return them to its rounding, not bit for bit).
-    update_outputs(ode(), i_d_start, i_q_start);
+    blocked_ = false;
+    demag_warned_ = false;
+    bridge_switchings = 0;
+    update_outputs(terminal_voltage(ode(), i_d_start, i_q_start), i_d_start, i_q_start);
     update_thermal_outputs();
     E_inv = 0.0;
-    P_inv = inverter_loss_now(P_elec);  // at the start: the start current and the power the inputs make
+    // at the start: the start current and the power the inputs make
+    const double I2 = i_d * i_d + i_q * i_q;
+    P_inv = inverter_loss_in_state(P_elec, std::sqrt(I2), I2);
+    i_dc = (P_elec + P_inv) / u_dc;
 
     if (ctx.log_info) {
         std::ostringstream os;
@@ -413,6 +438,29 @@ void PlantModel::advance_thermal(double h, double E_cu_step, double E_fe_step) {
     update_thermal_outputs();
 }
 
+DqFluxOde PlantModel::terminal_voltage(DqFluxOde o, double i_d_now, double i_q_now) const {
+    switch (static_cast<InverterState>(inverter_state)) {
+        case InverterState::switching: break;
+        case InverterState::asc: o.u_d = o.u_q = 0.0; break;
+        case InverterState::freewheeling: {
+            const double r = std::hypot(i_d_now, i_q_now), k = bridge_amplitude(u_dc);
+            o.u_d = r > 0.0 ? -k * i_d_now / r : 0.0;  // blocked (i = 0): no current, no power
+            o.u_q = r > 0.0 ? -k * i_q_now / r : 0.0;
+            break;
+        }
+    }
+    return o;
+}
+
+double PlantModel::inverter_loss_in_state(double P_ac, double I, double I2) const {
+    switch (static_cast<InverterState>(inverter_state)) {
+        case InverterState::switching: return inverter_loss_now(P_ac);
+        case InverterState::freewheeling: return diode_bridge_loss(inverter.V_D0, inverter.r_D, I, I2);
+        case InverterState::asc: break;
+    }
+    return 0.0;  // the ideal short: no voltage across the switches, no loss (docs/faults.md)
+}
+
 double PlantModel::inverter_loss_now(double P_ac) const {
     const double I2 = i_d * i_d + i_q * i_q;
     try {
@@ -440,42 +488,51 @@ void PlantModel::update_thermal_outputs() {
 }
 
 void PlantModel::do_step(double t, double h) {
-    const DqFluxOde o = ode();
+    const auto state = static_cast<InverterState>(inverter_state);
+    DqFluxOde o = ode();
+    if (state == InverterState::asc) o.u_d = o.u_q = 0.0;
+    if (state != InverterState::freewheeling) blocked_ = false;
     integrator_.set_settings(settings());  // rtol, atol, cvode_max_steps are tunable
     CvodeState start = integrator_.state();
     start.t = t;  // bookkeeping: the integration runs in time relative to t (cvode_integrator.hpp)
     integrator_.set_state(start);
+    const double E_elec_before = E_elec;
     try {
-        const StepIntegrands q = integrands();
-        integrator_.advance(o, h, &q);
-        const CvodeState& end = integrator_.state();
-        const InverseFluxPoint& c = integrator_.end_currents();
-        if (!std::isfinite(c.i_d) || !std::isfinite(c.i_q))
-            throw CvodeError("no current on the flux map or its linear continuation gives the flux linkages psi_d = " +
-                             num(end.psi[0]) + " Wb, psi_q = " + num(end.psi[1]) +
-                             " Wb reached at the end of the step");
-        update_outputs(o, c.i_d, c.i_q);
-        const double* e = integrator_.step_integrals();
-        const double E_elec_before = E_elec;
-        E_elec += e[StepIntegrands::P_elec];
-        // the step's mean AC power as the increase of E_elec (what a master holding E_elec sees)
-        P_inv = inverter_loss_now((E_elec - E_elec_before) / h);
-        E_inv += P_inv * h;
-        E_cu += e[StepIntegrands::P_cu];
-        E_fe += e[StepIntegrands::P_fe];
-        E_mech += w_m * e[StepIntegrands::T_e] - e[StepIntegrands::P_fe];
-        T_e_impulse += e[StepIntegrands::T_e];
-        if (thermal_each_step) advance_thermal(h, e[StepIntegrands::P_cu], e[StepIntegrands::P_fe]);
+        if (state == InverterState::freewheeling) {
+            freewheel_step(o, h);
+        } else {
+            const StepIntegrands q = integrands();
+            integrator_.advance(o, h, &q);
+            const CvodeState& end = integrator_.state();
+            const InverseFluxPoint& c = integrator_.end_currents();
+            if (!std::isfinite(c.i_d) || !std::isfinite(c.i_q))
+                throw CvodeError(
+                    "no current on the flux map or its linear continuation gives the flux linkages psi_d = " +
+                    num(end.psi[0]) + " Wb, psi_q = " + num(end.psi[1]) + " Wb reached at the end of the step");
+            update_outputs(o, c.i_d, c.i_q);
+            const double* e = integrator_.step_integrals();
+            E_elec += e[StepIntegrands::P_elec];
+            // the step's mean AC power as the increase of E_elec (what a master holding E_elec sees)
+            P_inv = state == InverterState::asc ? 0.0 : inverter_loss_now((E_elec - E_elec_before) / h);
+            E_inv += P_inv * h;
+            E_cu += e[StepIntegrands::P_cu];
+            E_fe += e[StepIntegrands::P_fe];
+            E_mech += w_m * e[StepIntegrands::T_e] - e[StepIntegrands::P_fe];
+            T_e_impulse += e[StepIntegrands::T_e];
+            if (thermal_each_step) advance_thermal(h, e[StepIntegrands::P_cu], e[StepIntegrands::P_fe]);
+            const CvodeStats& st = integrator_.stats();
+            cvode_steps = static_cast<int>(st.steps);
+            cvode_rhs_evals = static_cast<int>(st.rhs_evals);
+        }
     } catch (const std::exception& e) {
         std::ostringstream os;
         os << e.what() << " [inputs u_d = " << num(u_d) << " V, u_q = " << num(u_q) << " V, w_m = " << num(w_m)
-           << " rad/s; state psi_d = " << num(start.psi[0]) << " Wb, psi_q = " << num(start.psi[1]) << " Wb; rtol "
-           << num(rtol) << ", atol " << num(atol) << ", cvode_max_steps " << cvode_max_steps << "]";
+           << " rad/s, inverter_state " << inverter_state << "; state psi_d = " << num(start.psi[0])
+           << " Wb, psi_q = " << num(start.psi[1]) << " Wb; rtol " << num(rtol) << ", atol " << num(atol)
+           << ", cvode_max_steps " << cvode_max_steps << "]";
         throw fmi::Error(os.str());
     }
-    const CvodeStats& st = integrator_.stats();
-    cvode_steps = static_cast<int>(st.steps);
-    cvode_rhs_evals = static_cast<int>(st.rhs_evals);
+    i_dc = (E_elec - E_elec_before + P_inv * h) / (u_dc * h);
 
     const fmi::Context& ctx = *context_;
     if (!integrator_.warnings().empty() && ctx.log_warning)
@@ -491,6 +548,53 @@ void PlantModel::do_step(double t, double h) {
         ctx.log_warning(os.str());
     }
     outside_warned_ = outside;
+    warn_demagnetising(t + h);
+}
+
+double PlantModel::back_emf_line_peak() const {
+    const FluxPoint z = inverse_->forward_eval(0.0, 0.0);
+    const double psi0_d = z.psi_d + magnet_flux_shift(*map_, motor.k_psi_T, magnet_temperature(), motor.T_magnet_ref);
+    return std::sqrt(3.0) * std::abs(motor.pole_pairs * w_m) * std::hypot(psi0_d, z.psi_q);
+}
+
+void PlantModel::warn_demagnetising(double t_now) {
+    if (demag_warned_ || !(i_d_demag < 0.0) || !(i_d < i_d_demag)) return;
+    demag_warned_ = true;
+    const fmi::Context& ctx = *context_;
+    if (ctx.log_warning)
+        ctx.log_warning("at t = " + num(t_now) + " s i_d = " + num(i_d) +
+                        " A passed the magnets' demagnetisation limit " + "i_d_demag = " + num(i_d_demag) +
+                        " A (inverter_state " + std::to_string(inverter_state) + "; warned once)");
+}
+
+void PlantModel::freewheel_step(const DqFluxOde& o, double h) {
+    const StepIntegrands q = integrands();
+    CvodeState s = integrator_.state();
+    // a step entering freewheeling without current starts blocked (psi is psi_0 there)
+    const bool blocked = blocked_ || (i_d == 0.0 && i_q == 0.0);
+    const FreewheelStep r =
+        freewheel_.advance(o, bridge_amplitude(u_dc), q, settings(), h, s.psi, blocked, s.i_seed, s.h_next);
+    s.t += h;
+    s.psi[0] = r.psi[0];
+    s.psi[1] = r.psi[1];
+    s.i_seed[0] = r.c.i_d;
+    s.i_seed[1] = r.c.i_q;
+    s.h_next = r.h_last;
+    integrator_.set_state(s);
+    blocked_ = r.blocked;
+    bridge_switchings += r.switchings;
+    update_outputs(terminal_voltage(o, r.c.i_d, r.c.i_q), r.c.i_d, r.c.i_q);
+    const double* e = r.integrals;
+    E_elec += e[StepIntegrands::P_elec];
+    P_inv = diode_bridge_loss(inverter.V_D0, inverter.r_D, r.I_integral / h, r.I2_integral / h);  // exact means
+    E_inv += P_inv * h;
+    E_cu += e[StepIntegrands::P_cu];
+    E_fe += e[StepIntegrands::P_fe];
+    E_mech += w_m * e[StepIntegrands::T_e] - e[StepIntegrands::P_fe];
+    T_e_impulse += e[StepIntegrands::T_e];
+    if (thermal_each_step) advance_thermal(h, e[StepIntegrands::P_cu], e[StepIntegrands::P_fe]);
+    cvode_steps = static_cast<int>(r.steps);
+    cvode_rhs_evals = static_cast<int>(r.rhs_evals);
 }
 
 }  // namespace ipmsm

@@ -17,7 +17,9 @@
 #include <vector>
 
 #include "cvode_integrator.hpp"
+#include "freewheel_integrator.hpp"
 #include "inverter/inverter_loss.hpp"
+#include "inverter_state.hpp"
 #include "ipmsm_ode.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
@@ -89,6 +91,7 @@ public:
         field(s.t), field(s.psi, r.flux), field(s.h_next, r.step), field(s.i_seed, r.current);
         integrator_.set_state(s);  // what was read in; the same state when the fields were written
         field(outside_warned_);
+        field(blocked_), field(demag_warned_);
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
         field(saved);
         check_map_content(saved, map_.get());
@@ -106,6 +109,7 @@ public:
     double T_coolant = 293.15;    // K, the thermal network's coolant (thermal_model)
     double T_ambient = 293.15;    // K, the thermal network's ambient air (thermal_model)
     double u_dc = 355.0;          // V, the DC link the inverter switches (its loss: P_inv)
+    int inverter_state = 0;       // InverterState: 0 switching, 1 freewheeling, 2 ASC (inverter_state.hpp)
     // --- outputs
     double i_d = 0.0, i_q = 0.0;                                // A
     double psi_d = 0.0, psi_q = 0.0;                            // Wb
@@ -123,14 +127,17 @@ public:
     double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;         // J since the start
     // the inverter feeding the machine (inverter/inverter_loss.hpp): its loss over the last step,
     // from the current sampled at the step's end and the step's mean AC power, and since the start
-    double P_inv = 0.0;       // W
-    double E_inv = 0.0;       // J
-    int cvode_steps = 0;      // internal steps in the last step
-    int cvode_rhs_evals = 0;  // right-hand-side evaluations in the last step
+    double P_inv = 0.0;         // W
+    double E_inv = 0.0;         // J
+    double i_dc = 0.0;          // A, the DC-link current of the last step, losses included (+ motoring)
+    int bridge_switchings = 0;  // freewheeling: the bridge's conduct/block switchings since the start
+    int cvode_steps = 0;        // internal steps in the last step
+    int cvode_rhs_evals = 0;    // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     MotorParams motor;                                // the motor (machine/motor_params.hpp), as the controller's
     IronLossModel iron_loss = kDefaultMotorIronLoss;  // its iron loss (machine/iron_loss.hpp)
     double i_d_start = 0.0, i_q_start = 0.0;          // A
+    double i_d_demag = 0.0;                           // A, the magnets' demagnetisation limit on i_d (< 0; 0: none)
     double rtol = 1e-6;
     double atol = 1e-8;           // Wb (what CVODE's error control sees: cvode_integrator.hpp)
     int cvode_method = 1;         // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
@@ -147,6 +154,11 @@ public:
     // Heats the network over h (s) with the loss integrals E_cu_step, E_fe_step (J), at the present
     // speed, currents and boundary temperatures; updates the thermal outputs.
     void advance_thermal(double h, double E_cu_step, double E_fe_step);
+
+    // The back-EMF's line-to-line peak at zero current, sqrt 3 |p w_m| |psi(0, 0)| (V, the magnets'
+    // flux at the present magnet temperature): the diode bridge conducts once it exceeds u_dc
+    // (docs/faults.md). The model must be initialised.
+    double back_emf_line_peak() const;
 
 private:
     // What the internal state may hold: fluxes the machine on the map reaches (flux_reach), Newton
@@ -170,6 +182,15 @@ private:
     // The inverter's loss (W) at the present currents (the sample at a step's end), with the mean
     // AC power P_ac (W) and u_dc.
     double inverter_loss_now(double P_ac) const;
+    // One step of h freewheeling (freewheel_integrator.hpp) from the step's start state.
+    void freewheel_step(const DqFluxOde& o, double h);
+    // o with the voltage at the terminals in the present inverter_state at the currents i: the
+    // inputs (switching), zero (ASC), the diode bridge's (freewheeling; zero while blocked).
+    DqFluxOde terminal_voltage(DqFluxOde o, double i_d_now, double i_q_now) const;
+    // The inverter's loss (W) in the present inverter_state: the switching model at the mean AC
+    // power P_ac; the diodes' at the mean |i| = I and |i|^2 = I2 (freewheeling); none (ASC).
+    double inverter_loss_in_state(double P_ac, double I, double I2) const;
+    void warn_demagnetising(double t);
 
     fmi::SharedContext context_;
     std::shared_ptr<const FluxMap> map_;
@@ -177,6 +198,9 @@ private:
     CvodeIntegrator integrator_;
     std::optional<thermal::MotorThermal> thermal_;  // thermal_model: made at initialisation
     bool outside_warned_ = false;                   // the currents left the map's grid (warned once per excursion)
+    FreewheelIntegrator freewheel_;                 // scratch (its state is the plant's)
+    bool blocked_ = false;                          // freewheeling: the bridge blocks, i = 0
+    bool demag_warned_ = false;                     // i_d passed i_d_demag (warned once)
 };
 
 }  // namespace ipmsm

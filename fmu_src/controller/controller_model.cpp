@@ -288,6 +288,11 @@ void ControllerModel::initial_outputs() {
     const MagnetFlux flux(*map_, c.shift);
     cache_.valid = false;
     const CurrentCommand cmd = current_command(c);
+    flying_start_voltage(c, flux);
+    publish(cmd, flux, c.derating);
+}
+
+void ControllerModel::flying_start_voltage(const Conditions& c, const MagnetFlux& flux) {
     const FluxPoint f = flux.eval(i_d, i_q);
     double u_d = c.R * i_d - c.omega * f.psi_q, u_q = c.R * i_q + c.omega * f.psi_d;
     const double u_lim = u_dc / kSqrt3, mag = std::hypot(u_d, u_q);
@@ -297,7 +302,12 @@ void ControllerModel::initial_outputs() {
     }
     regulator_.state.u_d_prev = u_d_ref = u_d;
     regulator_.state.u_q_prev = u_q_ref = u_q;
-    publish(cmd, flux, c.derating);
+}
+
+void ControllerModel::restart_regulator() {
+    const Conditions c = conditions();
+    regulator_.state = RegulatorState{};
+    flying_start_voltage(c, MagnetFlux(*map_, c.shift));
 }
 
 void ControllerModel::do_step(double /*t*/, double h) {

@@ -38,6 +38,11 @@ public:
     // end calls observe() then.
     void observe();
     bool observe_each_step = true;
+    // The current regulator stopped while the inverter does not switch (IpmsmDrive in a fault,
+    // docs/faults.md): its state restarts from the measured currents i_d, i_q as at initialisation
+    // (integrator empty, the voltage command the one that holds them: a flying start), so that
+    // switching resumes from the currents the fault left, without a torque jump.
+    void restart_regulator();
     // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
     template <class Field>
     void state_fields(Field&& field) {
@@ -103,6 +108,9 @@ private:
     void publish(const CurrentCommand& cmd, const MagnetFlux& flux, double derating_now);
     void observe(const MagnetFlux& flux);
     void initial_outputs();
+    // The voltage that holds the measured currents (R i + j omega psi(i)) within the inverter's
+    // linear range, as the regulator's voltage being applied and the command (a flying start).
+    void flying_start_voltage(const Conditions& c, const MagnetFlux& flux);
     void report_check(const CheckRecord& r);  // counts; logs the first
 
     // What the internal state may hold (a state is input, not proof: fmi/model.hpp), from the

@@ -258,6 +258,23 @@ const std::vector<V>& DriveModel::variables() {
              -200.0, 200.0, false, true},
         });
         t.parameters(ControllerModel::variables(), "T_winding_max", "derating_margin");
+        // the inverter's safe states (docs/spec/INTERFACE.md, "Faults"; docs/faults.md)
+        t.add_all({
+            {"fault", &M::fault, Causality::input, Variability::discrete, "", "",
+             "true: the inverter must stop switching; the drive stops its current regulator and enters safe_state "
+             "(false again: the regulator restarts from the measured currents)"},
+            {"safe_state", &M::safe_state, Causality::parameter, Variability::fixed, "", "",
+             "The inverter's state in a fault: 0 by speed (freewheeling while the back-EMF's line-to-line peak stays "
+             "below u_dc, active short circuit above, and from freewheeling to it when the speed rises past that in "
+             "the fault), 1 always freewheeling, 2 always active short circuit",
+             0.0, 2.0},
+            {"inverter_state", &M::inverter_state, Causality::output, Variability::discrete, "", "",
+             "The inverter's state over the last step: 0 switching, 1 freewheeling, 2 active short circuit (the "
+             "plant's inverter_state)"},
+            {"i_peak", &M::i_peak, Causality::output, Variability::discrete, "A", "",
+             "The largest current magnitude |i| at the inner steps' ends since the last fault began (0 before any)"},
+        });
+        t.parameters(PlantModel::variables(), "i_d_demag", "i_d_demag");
         // Every other parameter of the models, as they add them (a new motor parameter lands here by
         // itself). The drive's own new variables go before this line while it adds nothing; once a
         // release has recorded what it added (tests/data/value_references_*.json), place those above
@@ -336,11 +353,27 @@ void DriveModel::hold_inputs() {
     controller_.T_magnet = (network ? plant_.theta_magnet : T_magnet) + T_magnet_estimate_error;
 }
 
+int DriveModel::next_inverter_state() const {
+    if (!fault) return static_cast<int>(InverterState::switching);
+    const auto forced = static_cast<InverterState>(safe_state);
+    if (forced != InverterState::switching) return safe_state;
+    // by speed: ASC where the bridge would conduct; once in ASC, ASC until the fault clears
+    if (inverter_state == static_cast<int>(InverterState::asc)) return inverter_state;
+    return static_cast<int>(plant_.back_emf_line_peak() >= u_dc ? InverterState::asc : InverterState::freewheeling);
+}
+
 void DriveModel::exit_initialization() {
     coupled_.models.reset();  // sample_time is final now
     k_ = 0;
     hold_inputs();
+    inverter_state = 0;
+    plant_.inverter_state = 0;
     coupled().initialise();
+    if (fault) {  // a fault from the start: the plant's state from its initialised magnet flux
+        inverter_state = plant_.inverter_state = next_inverter_state();
+        controller_.restart_regulator();
+    }
+    i_peak = fault ? std::hypot(plant_.i_d, plant_.i_q) : 0.0;
     k_ = coupled().k();
     // The outputs before the first step: the plant's values at the start, nothing integrated.
     P_inv = plant_.P_inv;
@@ -382,10 +415,17 @@ void DriveModel::do_step(double t, double h) {
     const double E_elec0 = plant_.E_elec, E_mech0 = plant_.E_mech, E_cu0 = plant_.E_cu, E_fe0 = plant_.E_fe;
     const double impulse0 = plant_.T_e_impulse;
     double s_P_inv = 0;
+    const int next = next_inverter_state();
+    if (next != 0 && inverter_state == 0) i_peak = std::hypot(plant_.i_d, plant_.i_q);  // a fault begins
+    inverter_state = plant_.inverter_state = next;
     double plant_steps = 0;  // the work bound (max_plant_steps_per_step)
     for (long long j = 0; j < n; ++j) {
         cm.step();
         s_P_inv += plant_.P_inv;
+        if (next != 0) {  // the regulator stopped: it restarts from each sample's currents
+            controller_.restart_regulator();
+            i_peak = std::max(i_peak, std::hypot(plant_.i_d, plant_.i_q));
+        }
         plant_steps += plant_.cvode_steps;
         if (plant_steps > max_plant_steps_per_step) {
             std::ostringstream os;

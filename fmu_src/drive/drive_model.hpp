@@ -59,6 +59,10 @@ public:
     // --- inputs (held over the communication step)
     double T_ref = 0.0, w_m = 0.0, u_dc = 0.0, T_magnet = 0.0, T_winding = 0.0;
     double T_coolant = 0.0, T_ambient = 0.0;  // K, the plant's thermal network (thermal_model)
+    bool fault = false;                       // the inverter must stop switching (docs/faults.md)
+    // --- outputs: the inverter's safe states (docs/faults.md)
+    int inverter_state = 0;  // InverterState the plant is in over the last step
+    double i_peak = 0.0;     // A, the largest |i| at the inner steps' ends since the last fault began
     // --- outputs: means over the last communication step
     double T_shaft = 0.0, T_e = 0.0, i_dc = 0.0;                           // N.m, N.m, A
     double P_dc = 0.0, P_mech = 0.0, P_cu = 0.0, P_fe = 0.0, P_inv = 0.0;  // W
@@ -71,6 +75,7 @@ public:
     // K: the controller's magnet temperature is the machine's (the network's, or the T_magnet
     // input) plus this, as a drive estimates it (docs/thermal.md, "Controller")
     double T_magnet_estimate_error = 0.0;
+    int safe_state = 0;  // on a fault: 0 by speed, 1 freewheeling, 2 ASC (docs/faults.md)
     // The most inner steps one fmi2DoStep computes (10 s at the default sample_time): a step cannot be
     // interrupted, so a larger one is refused rather than computed for minutes.
     static constexpr double max_samples_per_step = 1e5;
@@ -116,6 +121,8 @@ private:
     coupling::CoupledModels& coupled();
     void hold_inputs();
     void publish_end();
+    // The inverter's state for the next step from fault, safe_state and the present one.
+    int next_inverter_state() const;
 
     std::shared_ptr<WarningsGiven> warnings_given_;  // shared by the models' contexts and the drive's copies
     ControllerModel controller_;

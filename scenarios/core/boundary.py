@@ -186,16 +186,73 @@ def strict_json(obj, indent: int | None = 2) -> str:
     return json.dumps(strict(obj), indent=indent, allow_nan=False)
 
 
-def _target(path: Path) -> Path:
-    """Where writing `path` lands: through a symlink to its target (a link stays a link)."""
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
+def _kind(mode: int) -> str:
+    return ("folder" if stat.S_ISDIR(mode) else "FIFO" if stat.S_ISFIFO(mode) else "socket" if stat.S_ISSOCK(mode)
+            else "device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "special file")
+
+
+def output_target(path: str | Path, what: str = "output", root: str | Path | None = None) -> Path:
+    """Where writing `path` lands, refused (InputError naming `what`) unless an output may go
+    there: nothing yet, or a regular file; through a symlink only to an existing regular file
+    inside `root` (None: the link's own folder), so a link stays a link. A device, a FIFO, a
+    folder, a dangling link or one leading out of `root` is refused and left as it is: an output
+    replaces only a file it could have written."""
+    path = Path(path)
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return path
+    except (OSError, ValueError) as e:
+        raise InputError(path, what, f"a path an output can be written to ({getattr(e, 'strerror', None) or e})") \
+            from None
+    if stat.S_ISLNK(st.st_mode):
+        real = Path(os.path.realpath(path))
+        base = Path(os.path.realpath(root if root is not None else path.parent))
+        try:
+            rst = os.stat(real)
+        except OSError:  # a link to a file not written yet: only into an existing folder inside root
+            if real.parent.is_dir() and (real.parent == base or base in real.parents):
+                return real
+            raise InputError(path, what, f"a regular file or a link to one in an existing folder inside {base}; "
+                             f"this link leads nowhere ({real}), and no folder is made through a link") from None
+        if not stat.S_ISREG(rst.st_mode):
+            raise InputError(path, what, f"a regular file or a link to one; this link leads to a {_kind(rst.st_mode)} "
+                             f"({real}), left as it is")
+        if base not in real.parents:
+            raise InputError(path, what, f"a link that stays inside {base}; it leads to {real}")
+        return real
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(path, what, f"a regular file (or nothing) to write; it is a {_kind(st.st_mode)}, left as "
+                         "it is")
+    return path
+
+
+def folders_made_here(path: str | Path, what: str) -> None:
+    """The missing folders of `path` would be made where the path says, not through a link: the
+    nearest existing ancestor is no link and has none above it (InputError, nothing made)."""
+    p = Path(os.path.abspath(path))
+    while not os.path.lexists(p) and p != p.parent:
+        p = p.parent
+    if p != Path(path).absolute() and os.path.realpath(p) != str(p):
+        raise InputError(path, what, f"a path whose missing folders are not made through a link ({p} leads to "
+                         f"{os.path.realpath(p)}): make the folder, or name the real one")
+
+
+def check_outputs(folder: str | Path, names, what: str = "--out") -> None:
+    """Every named output in `folder` is one write_atomically may replace (before a run starts)."""
+    for name in names:
+        output_target(Path(folder) / name, what, folder)
 
 
 def write_atomically(path: str | Path, data: bytes | str | Callable[[Path], None],
-                     verify: Callable[[Path], None] | None = None) -> Path:
+                     verify: Callable[[Path], None] | None = None, what: str = "output",
+                     root: str | Path | None = None) -> Path:
     """`data` (bytes, text, or a function writing the temporary path) to `path`: written beside
-    it, flushed, checked by `verify` (raises on a bad file), made 0644, renamed over the target."""
-    path = _target(Path(path))
+    it, flushed, checked by `verify` (raises on a bad file), made 0644 (whatever the umask: an
+    output is for others to read), renamed over the target. The target is output_target's (a
+    device, a FIFO, a link out of `root`: InputError, nothing touched); missing folders are made
+    on the path as given, never through a link."""
+    path = output_target(Path(path), what, root)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:

@@ -12,7 +12,9 @@ LOG_EVERY_S = 30.0
 class Progress:
     def __init__(self, total: int, label: str, every_s: float = 0.5):
         self.tty = sys.stderr.isatty()
-        self.total, self.label, self.every = total, label, every_s if self.tty else LOG_EVERY_S
+        # the label names a cycle, a file: its escape sequences and controls are shown, not obeyed
+        from scenarios.core.boundary import printable
+        self.total, self.label, self.every = total, printable(label, limit=200), every_s if self.tty else LOG_EVERY_S
         self.n = 0
         self.t0 = self._last = time.perf_counter()
 

@@ -66,6 +66,10 @@ class DriveStep:
     E_ambient: float = math.nan
     E_stored: float = math.nan
     derating: float = 1.0
+    # the inverter's safe states (contract, "Faults"): the largest current magnitude since the last
+    # fault began (0 before any), and the state the inverter is in (0 switching, 1 freewheeling, 2 ASC)
+    i_peak: float = 0.0
+    inverter_state: int = 0
 
 
 #: DriveStep's fields, in order; those every drive FMU must have
@@ -85,6 +89,10 @@ def recorded_outputs(unit: Fmu) -> dict[str, tuple[str, ...]]:
         if v is not None and v.causality == "output":
             by_type[v.type] = by_type.get(v.type, ()) + (name,)
     return by_type
+
+
+#: IpmsmDrive's fault input (contract, "Faults"; its outputs inverter_state and i_peak are DriveStep's)
+FAULT_INPUT = "fault"
 
 
 def winding_resistance(unit, T_winding: float) -> float:
@@ -121,9 +129,22 @@ class DriveFmu(Fmu):
             self._y_vr, self._y = self.vrs(*self._reals), (c_double * len(self._reals))()
             self._ints = outputs.get("Integer", ())
             self._n_vr, self._n = self.vrs(*self._ints), (c_int * len(self._ints))()
+            self.has_fault = FAULT_INPUT in self.vars   # contract, "Faults"
+            self.fault = False
+            if self.has_fault:
+                self._fault_vr = self.vrs(FAULT_INPUT)
         except BaseException:
             self.close()
             raise
+
+    def set_fault(self, on: bool) -> None:
+        """IpmsmDrive's `fault` input from the next step on (the inverter stops switching, or
+        switches again); an FMU without it: CosimError."""
+        if not self.has_fault:
+            raise CosimError(f"{self.path} has no `fault` input (contract, \"Faults\"): rebuild the FMUs")
+        if on != self.fault:
+            self.call("fmi2SetBoolean", self._fault_vr, 1, (c_int * 1)(1 if on else 0))
+            self.fault = on
 
     def advance(self, dt: float, T_ref: float, w_m: float, u_dc: float, T_magnet: float,
                 T_winding: float) -> DriveStep:

@@ -49,6 +49,17 @@ def get_values(fmu: FMU2Slave, variables: Mapping, *names: str):
     return out[0] if len(out) == 1 else out
 
 
+def model_description(path: Path):
+    """fmpy's model description of the FMU at `path`; a file that is no FMU (not a zip, no
+    modelDescription.xml, a malformed one): InputError naming it and --build (exit 2)."""
+    from scenarios.core.boundary import InputError, printable
+    try:
+        return read_model_description(str(path))
+    except Exception as e:  # noqa: BLE001 - zipfile's, ElementTree's and fmpy's own refusals alike
+        raise InputError(path, "--build", f"an FMU: a zip archive with a valid modelDescription.xml (rebuild it: "
+                         f"cmake --build build); {type(e).__name__}: {printable(str(e))}") from None
+
+
 class CosimError(RuntimeError):
     """An FMI call failed (the message names the FMU, the call and the time, and quotes the FMU's
     log), or a unit was used wrongly."""
@@ -63,7 +74,7 @@ class Fmu:
         """keep_log: the latest messages kept (None: all); quiet: the FMU's log kept, not passed to
         logging (a caller that reports it itself)."""
         self.path = Path(path)
-        self.md = read_model_description(str(self.path))
+        self.md = model_description(self.path)
         self.name = self.md.coSimulation.modelIdentifier
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.messages: deque = deque(maxlen=keep_log)  # (status, category, message), the latest
@@ -180,6 +191,19 @@ class Fmu:
         self.t = t + h
 
     step = do_step
+
+    def save_state(self):
+        """fmi2GetFMUstate: a copy of the instance's state (and its time) to go back to; free it
+        with free_state."""
+        return self.fmu.getFMUstate(), self.t
+
+    def restore_state(self, saved) -> None:
+        """fmi2SetFMUstate: the instance as it was when `saved` was taken."""
+        self.fmu.setFMUstate(saved[0])
+        self.t = saved[1]
+
+    def free_state(self, saved) -> None:
+        self.fmu.freeFMUstate(saved[0])
 
     def close(self) -> None:
         if self.fmu is not None:

@@ -123,6 +123,22 @@ class ReferenceDrive:
         r["i_dc"] = r["P_dc"] / u_dc
         return DriveStep(**r)
 
+    def save_state(self):
+        """Both units' states and the loop's own (its step count, the plant's integrals): to go
+        back to; free it with free_state."""
+        return ({r: f.save_state() for r, f in self.units.items()}, self.k, list(self._integrals), self._E_coolant,
+                dict(self.held))
+
+    def restore_state(self, saved) -> None:
+        units, self.k, integrals, self._E_coolant, held = saved
+        for role, f in self.units.items():
+            f.restore_state(units[role])
+        self._integrals, self.held = list(integrals), dict(held)
+
+    def free_state(self, saved) -> None:
+        for role, f in self.units.items():
+            f.free_state(saved[0][role])
+
     def close(self) -> None:
         for f in reversed(list(self.units.values())):
             f.close()

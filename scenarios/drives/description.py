@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.core.boundary import InputError, load_toml
+from scenarios.core.constants import ZERO_CELSIUS_K
 from scenarios.core.fmu_ranges import PLANT_DESCRIPTION, Range, fmu_ranges, read_starts
 from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.error import MapImportError
@@ -41,6 +42,11 @@ DEFAULT_DRIVE = DRIVES_DIR / "default.toml"
 
 #: the controller's methods by the contract's names (the FMU's `method` parameter)
 METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
+
+#: the [fault] table's safe states by IpmsmDrive's `safe_state` values (contract, "Faults")
+SAFE_STATES = {"by_speed": 0, "freewheel": 1, "asc": 2}
+#: the [fault] table's triggers: exactly one is given
+FAULT_TRIGGERS = ("t_s", "speed_rpm", "v_kmh")
 
 
 class DriveDescriptionError(InputError):
@@ -134,6 +140,10 @@ NON_NEGATIVE = Rule("real", lo=0.0)
 FRACTION = Rule("real", lo=0.0, hi=1.0, lo_open=True)   # an efficiency, a utilisation
 TEMPERATURE = Rule("real", lo=173.15, hi=573.15)         # K, the FMUs' range of T_magnet_ref
 COEFFICIENT = Rule("real", lo=-0.01, hi=0.01)            # 1/K, the FMUs' range of k_psi_T
+#: K, a temperature a drive operates at (coolant, ambient, the derating's maxima): not below -40 degC,
+#: the lowest operating temperature of automotive electronics (AEC-Q100's grades 0-3) and of the
+#: climatic tests of ISO 16750-4; a number below it can only be a degC value given as K
+OPERATING_TEMPERATURE = Rule("real", lo=233.15, hi=573.15)
 
 
 #: the thermal network's speed-dependent links a exp(-n / b) + c (contract, "Thermal")
@@ -282,9 +292,10 @@ SCHEMA: tuple[Key, ...] = (
     Key("thermal", "thermal_model", Rule("bool"), "", "true: the thermal network sets the winding and magnet "
         "temperatures from the losses (they start at the run's temperatures); false: they are the run's, held",
         "false (the FMU's default)"),
-    Key("thermal", "T_coolant", TEMPERATURE, "K", "coolant (water-jacket) temperature, held over the run",
+    Key("thermal", "T_coolant", OPERATING_TEMPERATURE, "K", "coolant (water-jacket) temperature, held over the run",
         "the FMU's `T_coolant` start", acts="thermal_model"),
-    Key("thermal", "T_ambient", TEMPERATURE, "K", "ambient air the rotor also rejects heat to, held over the run",
+    Key("thermal", "T_ambient", OPERATING_TEMPERATURE, "K",
+        "ambient air the rotor also rejects heat to, held over the run",
         "the FMU's `T_ambient` start", acts="thermal_model"),
     *(Key("thermal", name, rule, unit, meaning, f"the FMU's `{name}` (docs/thermal.md gives its source)",
           acts="thermal_model") for name, rule, unit, meaning in (
@@ -319,10 +330,29 @@ SCHEMA: tuple[Key, ...] = (
     # the controller's derating: it acts on the temperatures the controller is given, network or not
     *(Key("thermal", name, rule, "K", meaning, f"the FMU's `{name}` (docs/thermal.md gives its source)")
       for name, rule, meaning in (
-        ("T_winding_max", TEMPERATURE, "winding temperature at which the torque limit reaches zero"),
-        ("T_magnet_max", TEMPERATURE, "magnet temperature at which the torque limit reaches zero"),
+        ("T_winding_max", OPERATING_TEMPERATURE, "winding temperature at which the torque limit reaches zero "
+         "(above motor.T_winding_ref + derating_margin)"),
+        ("T_magnet_max", OPERATING_TEMPERATURE, "magnet temperature at which the torque limit reaches zero (above "
+         "motor.T_magnet_ref + derating_margin)"),
         ("derating_margin", POSITIVE, "the torque limit starts to fall this far below T_winding_max and "
          "T_magnet_max"))),
+    # [fault]: the inverter stops switching during the run (docs/faults.md; contract "Faults")
+    *(Key("fault", name, rule, unit, meaning, "none: one trigger is required", acts="fault")
+      for name, rule, unit, meaning in (
+        ("t_s", NON_NEGATIVE, "s", "trigger: the fault begins at the first communication point at or after "
+         "this time of the cycle (exactly one of t_s, speed_rpm, v_kmh)"),
+        ("speed_rpm", POSITIVE, "r/min", "trigger: ... at the first communication point where the motor "
+         "speed is at or above this"),
+        ("v_kmh", POSITIVE, "km/h", "trigger: ... at the first communication point where the vehicle speed "
+         "is at or above this"))),
+    Key("fault", "safe_state", Rule("str", choices=tuple(SAFE_STATES)), "", "the state the inverter enters: "
+        "`by_speed` (freewheeling below the onset of uncontrolled generation, ASC above: IpmsmDrive's "
+        "`safe_state` 0), `freewheel` (1) or `asc` (2)", "`by_speed`", acts="fault"),
+    Key("fault", "duration_s", Rule("real", lo=0.0, hi=1e7, lo_open=True), "s", "how long the fault lasts; "
+        "then the inverter switches again", "until the end of the run", acts="fault"),
+    Key("fault", "i_d_demag", Rule("real", lo=-1e5, hi=0.0, hi_open=True), "A", "the magnets' demagnetisation limit "
+        "on i_d (IpmsmDrive's `i_d_demag`; a check limit may compare the fault's peak current with it)",
+        "the FMU's `i_d_demag` start (0: no limit)", acts="fault"),
     # [checks]: what `python -m scenarios check` runs and gates on
     Key("checks", "cycles", Rule("strings"), "", "cycles to run: names (WLTC3b, UDDS, HWFET, US06, NEDC) or CSVs "
         "of time_s,speed_mps relative to this file", "[] (nothing to check)", acts="check"),
@@ -339,12 +369,25 @@ LIMITS = {
     "regen_curtailed_Wh_max": ("regen_curtailed_Wh", "max"),
     "soc_end_min": ("soc_end", "min"),
     "time_above_top_speed_s_max": ("time_above_top_speed_s", "max"),
+    # the fault's figures (a [fault] table; docs/faults.md): a limit on them needs one
+    "fault_i_peak_A_max": ("fault_i_peak_A", "max"),
+    "fault_demag_margin_A_min": ("fault_demag_margin_A", "min"),
+    "fault_braking_torque_Nm_max": ("fault_T_peak_Nm", "max"),
+    "fault_charge_Ah_max": ("fault_charge_Ah", "max"),
+    "fault_energy_Wh_max": ("fault_energy_Wh", "max"),
+    "fault_time_to_zero_current_s_max": ("fault_time_to_zero_current_s", "max"),
 }
+#: the limits that judge the fault's figures: refused without a [fault] table
+FAULT_LIMITS = tuple(k for k in LIMITS if k.startswith("fault_"))
 _LIMIT_UNITS = {"Wh_per_km": "Wh/km", "speed_rmse_mps": "m/s", "torque_rmse_Nm": "N m",
                 "torque_error_max_Nm": "N m", "time_voltage_limited_pct": "%", "current_excess_rms_A": "A",
-                "regen_curtailed_Wh": "Wh", "soc_end": "1", "time_above_top_speed_s": "s"}
+                "regen_curtailed_Wh": "Wh", "soc_end": "1", "time_above_top_speed_s": "s", "fault_i_peak_A": "A",
+                "fault_demag_margin_A": "A", "fault_T_peak_Nm": "N m", "fault_charge_Ah": "Ah",
+                "fault_energy_Wh": "Wh", "fault_time_to_zero_current_s": "s"}
+#: a limit's range where its figure has one (a fraction, a percentage); the others: >= 0
+_LIMIT_RULES = {"soc_end": Rule("real", lo=0.0, hi=1.0), "time_voltage_limited_pct": Rule("real", lo=0.0, hi=100.0)}
 SCHEMA = SCHEMA + tuple(
-    Key("checks", name, NON_NEGATIVE, _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
+    Key("checks", name, _LIMIT_RULES.get(s, NON_NEGATIVE), _LIMIT_UNITS[s], f"limit: the summary's `{s}` must be "
         f"{'at most' if d == 'max' else 'at least'} this on every cycle", "no limit", acts="check")
     for name, (s, d) in LIMITS.items())
 
@@ -368,7 +411,12 @@ FMU_PARAMETER.update({f"inverter.{n}": n for n in INVERTER_KEYS})
 SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges().get(FMU_PARAMETER[k.path]))) if k.path in FMU_PARAMETER
                else k for k in SCHEMA)
 
-SECTIONS = ("motor", "inverter", "battery", "vehicle", "controller", "thermal", "checks")
+if "i_d_demag" in fmu_ranges():   # the FMUs' fault parameter (contract, "Faults"), where they have it
+    FMU_PARAMETER["fault.i_d_demag"] = "i_d_demag"
+    SCHEMA = tuple(replace(k, rule=k.rule.within(fmu_ranges()["i_d_demag"])) if k.path == "fault.i_d_demag" else k
+                   for k in SCHEMA)
+
+SECTIONS = ("motor", "inverter", "battery", "vehicle", "controller", "thermal", "fault", "checks")
 _BY_PATH = {k.path: k for k in SCHEMA}
 
 
@@ -454,6 +502,31 @@ class ThermalSpec:
 
 
 @dataclass(frozen=True)
+class FaultSpec:
+    """The [fault] table: when the inverter stops switching (one trigger: a time of the cycle, a
+    motor speed or a vehicle speed, whichever the file gives), the safe state it enters, for how
+    long (None: until the end) and the magnets' limit (None: the FMU's default)."""
+
+    trigger: str                       # one of FAULT_TRIGGERS
+    at: float                          # s, r/min or km/h, by the trigger
+    safe_state: str = "by_speed"       # one of SAFE_STATES
+    duration_s: float | None = None
+    i_d_demag: float | None = None     # A (< 0)
+
+    def value(self, name: str):
+        return (self.at if name == self.trigger else None) if name in FAULT_TRIGGERS else getattr(self, name)
+
+    def fmu_params(self) -> dict:
+        """IpmsmDrive's parameters of the fault (contract, "Faults")."""
+        return {"safe_state": SAFE_STATES[self.safe_state],
+                **({} if self.i_d_demag is None else {"i_d_demag": self.i_d_demag})}
+
+    def describe(self) -> str:
+        unit = {"t_s": "s", "speed_rpm": "r/min", "v_kmh": "km/h"}[self.trigger]
+        return f"fault.{self.trigger} = {self.at:g} {unit}"
+
+
+@dataclass(frozen=True)
 class ChecksSpec:
     cycles: tuple[str, ...] = ()      # names, or CSV paths made absolute
     limits: dict = field(default_factory=dict)   # LIMITS key -> value
@@ -476,6 +549,7 @@ class DriveDescription:
     checks: ChecksSpec
     assumed: tuple[str, ...] = ()  # the motor's values neither the file nor its map gives, in words
     thermal: ThermalSpec = field(default_factory=lambda: ThermalSpec.of({}))  # [thermal]
+    fault: FaultSpec | None = None  # [fault]; None: the inverter never stops
 
     def value(self, path: str):
         """The value of a schema key ("vehicle.mass", "name", ...) in this description."""
@@ -490,6 +564,8 @@ class DriveDescription:
             return list(self.checks.cycles) if name == "cycles" else self.checks.limits.get(name)
         if section == "thermal":
             return self.thermal.values.get(name)
+        if section == "fault":
+            return None if self.fault is None else self.fault.value(name)
         if section == "inverter":
             return self.inverter[name]
         return getattr({"motor": self.motor, "battery": self.battery,
@@ -582,7 +658,8 @@ def _check_keys(path: Path, doc: dict) -> None:
                                                 _nearest(kp, known))
                 bad = _BY_PATH[kp].rule.check(v)
                 if bad:
-                    raise DriveDescriptionError(path, kp, bad + ("" if "got" in bad else f", got {v!r}"))
+                    raise DriveDescriptionError(path, kp, bad + ("" if "got" in bad else f", got {v!r}") +
+                                                _celsius_hint(_BY_PATH[kp], v))
         elif top in _BY_PATH:
             bad = _BY_PATH[top].rule.check(value)
             if bad:
@@ -591,6 +668,15 @@ def _check_keys(path: Path, doc: dict) -> None:
             known = [*(k.path for k in SCHEMA if not k.section), *SECTIONS]
             raise DriveDescriptionError(path, top, "a known key or table: one of " + ", ".join(known) +
                                         _nearest(top, known))
+
+
+def _celsius_hint(key: Key, value) -> str:
+    """For a temperature in K refused where value + 273.15 K would do: the likely mistake."""
+    if key.unit != "K" or key.rule.kind != "real" or isinstance(value, bool) or not isinstance(value, (int, float)):
+        return ""
+    if not _finite(value) or key.rule.check(value + ZERO_CELSIUS_K) is not None:
+        return ""
+    return f" (kelvin: {value:g} K is {value - ZERO_CELSIUS_K:g} degC; {value:g} degC is {value + ZERO_CELSIUS_K:g} K)"
 
 
 def _relative(path: Path, value: str, key: str = "(path)") -> Path:
@@ -652,7 +738,8 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
                             motor=motor, inverter=_load_inverter(sec["inverter"]),
                             battery=_load_battery(path, sec["battery"]), vehicle=vehicle, P_aux=P_aux,
                             controller=controller, checks=_load_checks(path, sec["checks"], motor),
-                            assumed=tuple(assumed), thermal=_load_thermal(path, sec["thermal"], motor))
+                            assumed=tuple(assumed), thermal=_load_thermal(path, sec["thermal"], motor),
+                            fault=_load_fault(path, sec["fault"], sec["checks"]))
 
 
 def _load_machine(path: Path, given: dict, c: dict, resolve: MapResolver) -> tuple[MotorSpec, ControllerSpec, list]:
@@ -725,8 +812,9 @@ def _load_vehicle(given: dict, motor: MotorSpec) -> tuple[VehicleParams, float]:
     return replace(VehicleParams(), J_motor=motor.J, **{k: float(x) for k, x in v.items()}), P_aux
 
 
-#: [thermal]'s temperature limits and the motor's reference each must lie above (a limit at or
-#: below it can only be meant in degC: the machine would be derated to nothing at its reference)
+#: [thermal]'s temperature limits and the motor's reference each must lie above, by more than
+#: derating_margin (a limit at or below it can only be meant in degC: the machine would be
+#: derated to nothing at its reference)
 LIMIT_ABOVE_REFERENCE = {"T_winding_max": "T_winding_ref", "T_magnet_max": "T_magnet_ref"}
 
 
@@ -736,11 +824,7 @@ def _load_thermal(path: Path, given: dict, motor: MotorSpec) -> ThermalSpec:
     except KeyError as e:
         raise DriveDescriptionError(path, f"thermal.{e.args[0]}", "a parameter the built FMUs have: rebuild them "
                                     "(their model descriptions have no such variable)") from None
-    for key, ref in LIMIT_ABOVE_REFERENCE.items():
-        limit = thermal.values.get(key)
-        if key in given and limit is not None and limit <= getattr(motor, ref):
-            raise DriveDescriptionError(path, f"thermal.{key}", f"a temperature in K above the motor's {ref} = "
-                                        f"{getattr(motor, ref):g} K, got {limit:g} K (a value in degC?)")
+    _check_derating(path, motor, thermal)
     return thermal
 
 
@@ -751,6 +835,44 @@ def _load_checks(path: Path, ch: dict, motor: MotorSpec) -> ChecksSpec:
                                     "metadata")
     return ChecksSpec(cycles=tuple(_cycle_entry(path, n) for n in ch.get("cycles", [])),
                       limits={k: float(x) for k, x in ch.items() if k in LIMITS})
+
+
+def _load_fault(path: Path, table: dict, ch: dict) -> FaultSpec | None:
+    """[fault] (its values already checked by the schema): exactly one trigger; a [checks] limit on
+    the fault's figures needs the table (else it could judge nothing)."""
+    if not table:
+        for name in FAULT_LIMITS:
+            if name in ch:
+                raise DriveDescriptionError(path, f"checks.{name}", "a [fault] table: this limit judges the figures "
+                                            "of the fault it describes (docs/faults.md)")
+        return None
+    given = [k for k in FAULT_TRIGGERS if k in table]
+    if len(given) != 1:
+        key = "fault" if not given else f"fault.{given[1]}"
+        raise DriveDescriptionError(path, key, "exactly one trigger: " + ", ".join(f"fault.{k}" for k in FAULT_TRIGGERS)
+                                    + (f" (got {', '.join(given)})" if given else " (none given)"))
+    return FaultSpec(trigger=given[0], at=float(table[given[0]]), safe_state=table.get("safe_state", "by_speed"),
+                     duration_s=float(table["duration_s"]) if "duration_s" in table else None,
+                     i_d_demag=float(table["i_d_demag"]) if "i_d_demag" in table else None)
+
+
+def _check_derating(path: Path, motor: MotorSpec, thermal: ThermalSpec) -> None:
+    """The derating's maxima above the temperatures the machine's data hold at, by more than the
+    margin: a maximum at or below its reference (180 for 180 degC read as 180 K) would derate a
+    machine at its reference to zero torque, a car that never moves."""
+    margin = thermal.values.get("derating_margin")
+    for name, ref_key in LIMIT_ABOVE_REFERENCE.items():
+        T_max, ref = thermal.values.get(name), getattr(motor, ref_key)
+        if T_max is None or margin is None:
+            continue  # FMUs without the derating
+        if not T_max - margin > ref:
+            hint = (f"; {T_max:g} K is {T_max - ZERO_CELSIUS_K:g} degC: did you mean {T_max + ZERO_CELSIUS_K:g} K?"
+                    if T_max + ZERO_CELSIUS_K - margin > ref else "")
+            key = (f"thermal.{name}" if name in thermal.given else "thermal.derating_margin"
+                   if "derating_margin" in thermal.given else f"motor.{ref_key}")
+            raise DriveDescriptionError(path, key,
+                                        f"a temperature in K above motor.{ref_key} + thermal.derating_margin = "
+                                        f"{ref:g} + {margin:g} K, got {T_max:g} K{hint}")
 
 
 def check_metadata_rules(metadata: dict, file: str | Path) -> None:
@@ -814,6 +936,7 @@ def known_fields() -> dict[str, tuple[str, ...]]:
     return {s: tuple(k.name for k in SCHEMA if k.section == s) for s in ("", *SECTIONS)}
 
 
-__all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "INVERTER_KEYS", "LIMITS", "METHODS", "SCHEMA", "ChecksSpec",
-           "ControllerSpec", "DriveDescription", "DriveDescriptionError", "Key", "MotorSpec", "Rule", "ThermalSpec",
+__all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "FAULT_LIMITS", "FAULT_TRIGGERS", "INVERTER_KEYS", "LIMITS", "METHODS",
+           "SAFE_STATES", "SCHEMA", "ChecksSpec", "ControllerSpec", "DriveDescription", "DriveDescriptionError",
+           "FaultSpec", "Key", "MotorSpec", "Rule", "ThermalSpec",
            "inverter_defaults", "load_drive", "schema_markdown"]

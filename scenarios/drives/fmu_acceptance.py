@@ -45,8 +45,12 @@ def _refused_key(drive: DriveDescription, reason: str) -> tuple[str, str]:
     given = [k for k in drive.thermal.given if k != "thermal_model"]
     named = [k for k in given if k in words]
     fitted = [k for k in given if k.rsplit("_", 1)[0] in words]  # R_magnet_coolant_0: R_magnet_coolant's fit
-    key = (named or fitted or [None])[0]
-    return (f"thermal.{key}" if key else "thermal"), "a thermal network"
+    if named or fitted:
+        return f"thermal.{(named or fitted)[0]}", "a thermal network"
+    # a refusal of the network as a whole (its time constants, a node's conductances): the keys the
+    # file gives are what made it; none given: the network was switched on with the FMU's own values
+    keys = ", ".join(f"thermal.{k}" for k in given) or "thermal.thermal_model"
+    return keys, "a thermal network (with these keys' values)"
 
 
 def refuse_unless_fmus_accept(drive: DriveDescription, build: Path) -> None:

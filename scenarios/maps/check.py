@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.core.boundary import strict_json, write_atomically
+from scenarios.core.boundary import printable, strict_json, write_atomically
 from scenarios.maps import legal
 from scenarios.maps.flux_map import FluxMap, read_flux_map
 from scenarios.maps.fmu_verdict import verdicts
@@ -95,12 +95,37 @@ def analyse(fmap: FluxMap, I_max: float):
     return no_magnet, box, found, summaries, rect
 
 
+def readable(path: Path) -> tuple[Path, object]:
+    """(the contract CSV, its FluxMap) of a map file, or MapImportError naming the file (exit 2):
+    the readers' own words (a header, a metadata value, a grid too small for the spline)."""
+    from scenarios.maps.error import MapImportError
+    try:
+        csv = contract_csv(path)
+        return csv, read_flux_map(csv)
+    except MapImportError:
+        raise
+    except Exception as e:  # noqa: BLE001 - every reader's refusal, scipy's too: bad input, not a crash
+        raise MapImportError(path, "(file)", "a readable flux map", f"{printable(str(e))}") from None
+
+
+def machine_of(path: Path, fmap, I_max, drive):
+    """show.machine_parameters, a bad metadata value refused naming the file (exit 2)."""
+    from scenarios.maps.error import MapImportError
+    from scenarios.maps.show import machine_parameters
+    try:
+        return machine_parameters(fmap, None, I_max, drive)
+    except (KeyError, ValueError, OverflowError) as e:
+        if isinstance(e, MapImportError):
+            raise
+        raise MapImportError(path, "(metadata)", "numbers the schema allows in the map's `# key: value` metadata",
+                             printable(str(e))) from None
+
+
 def check_map(path: Path, out: Path, build: Path, I_max: float | None = None, drive=None) -> MapCheck:
-    from scenarios.maps.show import machine_parameters, reciprocity
+    from scenarios.maps.show import reciprocity
     path = Path(path)
-    csv = contract_csv(path)
-    fmap = read_flux_map(csv)
-    params, assumed, _ = machine_parameters(fmap, None, I_max, drive)
+    csv, fmap = readable(path)
+    params, assumed, _ = machine_of(path, fmap, I_max, drive)
     I_lim = float(params["I_max"])
     no_magnet, box, _, summaries, rect = analyse(fmap, I_lim)
     _, rec_max, rec_rel, rec_at = reciprocity(fmap, I_lim)

@@ -45,7 +45,22 @@ def add_parser(sub) -> None:
                       help="drive description (TOML) whose motor parameters to use (default: the map's metadata)")
 
 
+def _outputs_writable(args) -> None:
+    """The output folder (check, show) or file (import, repair) refused (exit 2, --out) before any
+    work when it cannot be written: a read-only folder, a FIFO or a device in the file's place."""
+    from scenarios.core.boundary import check_writable, output_target
+    from scenarios.core.paths import OUT_DIR
+    if args.map_cmd in ("import", "repair"):
+        output_target(args.out, "--out")
+        check_writable(Path(args.out).parent, "--out")
+        return
+    if args.out is None:
+        args.out = OUT_DIR / (f"map_check_{args.file.stem}" if args.map_cmd == "check" else f"map_{args.file.stem}")
+    check_writable(args.out, "--out")
+
+
 def main(args: argparse.Namespace) -> int:
+    _outputs_writable(args)
     try:
         if args.map_cmd == "import":
             from scenarios.maps.importer import import_map, write_contract_csv

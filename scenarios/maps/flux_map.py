@@ -13,6 +13,9 @@ from scipy.interpolate import RectBivariateSpline
 from scenarios.core.paths import located
 from scenarios.maps.metadata import MetadataError, check_metadata, metadata_value
 
+#: the degree of the map's interpolating splines (bicubic)
+SPLINE_DEGREE = 3
+
 
 @dataclass
 class FluxMap:
@@ -25,7 +28,13 @@ class FluxMap:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        # Interpolating (s=0) bicubic splines.
+        # Interpolating (s=0) bicubic splines: a cubic needs more points than its degree per axis
+        n = (len(self.i_d), len(self.i_q))
+        if min(n) <= SPLINE_DEGREE:
+            raise ValueError(f"a grid of at least {SPLINE_DEGREE + 1} currents on each axis (the map's bicubic "
+                             f"spline), got {n[0]} x {n[1]}")
+        if not (np.any(self.psi_d) or np.any(self.psi_q)):
+            raise ValueError("flux values: all of them are zero (no machine has no flux linkage anywhere)")
         self._sd = RectBivariateSpline(self.i_d, self.i_q, self.psi_d, kx=3, ky=3, s=0)
         self._sq = RectBivariateSpline(self.i_d, self.i_q, self.psi_q, kx=3, ky=3, s=0)
 

@@ -14,9 +14,6 @@ MapImportError naming the file, the field and what was expected.
 """
 from __future__ import annotations
 
-import hashlib
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -224,56 +221,10 @@ def write_contract_csv(imported: ImportedMap, out: str | Path) -> Path:
                          "Convention = amplitude-invariant dq, peak values, PM flux on +d."] +
                         [f"Import conversion: {n}" for n in imported.notes] +
                         [f"Import warning: {w}" for w in imported.warnings])
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    os.close(fd)
-    try:
-        write_flux_map(tmp, imported.flux_map(), comment)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    from scenarios.core.boundary import write_atomically  # 0644, a regular file only (docs/inputs.md)
+    write_atomically(out, lambda tmp: write_flux_map(tmp, imported.flux_map(), comment))
     return out
 
 
-def cache_dir() -> Path:
-    """Where imported .mat maps are cached: $IPMSM_MAP_CACHE, else $XDG_CACHE_HOME/ipmsm-fmu/maps,
-    else ~/.cache/ipmsm-fmu/maps."""
-    if os.environ.get("IPMSM_MAP_CACHE"):
-        return Path(os.environ["IPMSM_MAP_CACHE"])
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "ipmsm-fmu" / "maps"
-
-
-def contract_csv(path: str | Path) -> Path:
-    """A contract CSV for `path`: a CSV that needs no conversion is checked and returned as is;
-    anything else (a .mat, a half-map CSV, ...) is imported once into the cache (cache_dir(), the
-    name keyed by the file's content and the importer's version) and that CSV returned."""
-    path = Path(path)
-    cached = _cached_name(path) if path.is_file() else None
-    if cached is not None and cached.is_file():
-        return cached  # imported before, from these very bytes
-    as_is = cached.with_suffix(".as-is") if cached is not None else None
-    if as_is is not None and as_is.is_file():
-        return path  # checked before, these very bytes: a contract CSV that needs no conversion
-    imported = import_map(path)
-    if imported.source_format == "contract CSV" and not imported.notes:
-        try:
-            as_is.parent.mkdir(parents=True, exist_ok=True)
-            as_is.write_text(f"{path}\n")
-        except OSError:
-            pass  # no cache: checked again next time
-        return path
-    return write_contract_csv(imported, cached)
-
-
-def _cached_name(path: Path) -> Path | None:
-    """The cache's name for these bytes; None for a file the FMUs' size limit refuses (import_map
-    then says why), so that no unknown file is read whole into memory."""
-    from scenarios.core.boundary import InputError, read_bounded
-    from scenarios.core.fmu_ranges import map_limits
-    try:
-        h = hashlib.sha256(read_bounded(path, map_limits().max_bytes, "flux map"))
-    except InputError:
-        return None
-    h.update(f"importer {IMPORTER_VERSION}".encode())
-    return cache_dir() / f"{path.stem}-{h.hexdigest()[:16]}.csv"
+# the import cache (keyed by content, owned, optional): scenarios.maps.import_cache
+from scenarios.maps.import_cache import cache_dir, contract_csv  # noqa: E402

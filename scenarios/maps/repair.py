@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import printable
 from scenarios.maps import legal
-from scenarios.maps.check import analyse
+from scenarios.maps.check import analyse, machine_of
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import FluxMap, read_flux_map, write_flux_map
 from scenarios.maps.fmu_verdict import verdicts
@@ -196,17 +197,21 @@ def read_with_holes(path: Path) -> tuple[Path, list]:
 
 
 def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, drive=None) -> Repair:
-    from scenarios.maps.show import machine_parameters
     path = Path(path)
-    source, changes = read_with_holes(path)
-    try:
-        imported = import_map(source)
-    finally:
-        if source != path:
-            source.unlink(missing_ok=True)
-    changes += imported.notes
-    fmap = imported.flux_map()
-    params, assumed, _ = machine_parameters(fmap, None, I_max, drive)
+    try:  # the readers' refusals (a header, a metadata value, a grid too small): bad input, exit 2
+        source, changes = read_with_holes(path)
+        try:
+            imported = import_map(source)
+        finally:
+            if source != path:
+                source.unlink(missing_ok=True)
+        changes += imported.notes
+        fmap = imported.flux_map()
+    except MapImportError:
+        raise
+    except Exception as e:  # noqa: BLE001 - scipy's and the parsers' own words, named with the file
+        raise MapImportError(path, "(file)", "a readable flux map", printable(str(e))) from None
+    params, assumed, _ = machine_of(path, fmap, I_max, drive)
     I_lim = float(params["I_max"])
     source_map = fmap
     no_magnet, box, found, _, rect = analyse(fmap, I_lim)
@@ -257,20 +262,17 @@ def repair_map(path: Path, out: Path, build: Path, I_max: float | None = None, d
                         [f"Repair assumption: {a}" for a in assumed] +
                         [f"Import warning: {w}" for w in imported.warnings])
     out.parent.mkdir(parents=True, exist_ok=True)
-    # written beside out, verified there (the FMUs read the file), put in place only if it passes
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}.", suffix=".csv", dir=out.parent)
-    os.close(fd)
-    try:
+    from scenarios.core.boundary import write_atomically  # 0644, a regular file only (docs/inputs.md)
+    # verified where the FMUs read it (a temporary folder), then written in place only if it passes
+    with tempfile.TemporaryDirectory(prefix="ipmsm-repair-") as work:
+        tmp = Path(work) / out.name
         write_flux_map(tmp, fmap, comment)
-        fmus = verdicts(Path(tmp), params, build)
-        simulation = short_simulation(Path(tmp), params, build) if all(v.accepted for v in fmus) else []
-        result = Repair(changes, fmus, None, simulation)
-        if result.accepted:
-            os.chmod(tmp, 0o644)
-            os.replace(tmp, out)
-            result.out = out
-    finally:
-        Path(tmp).unlink(missing_ok=True)
+        fmus = verdicts(tmp, params, build)
+        simulation = short_simulation(tmp, params, build) if all(v.accepted for v in fmus) else []
+    result = Repair(changes, fmus, None, simulation)
+    if result.accepted:
+        write_atomically(out, lambda t: write_flux_map(t, fmap, comment))
+        result.out = out
     return result
 
 

@@ -230,7 +230,7 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max
     plot_machine(out / "map.png", fmap, s, env, speeds, mtpa, mismatch, eff_speeds, eff_torques, eta)
     s.wall_s = time.perf_counter() - t0
     write_atomically(out / "map.json", strict_json(asdict(s), indent=1))  # an undefined figure: null
-    (out / "map.md").write_text(markdown(s, P_cu, P_fe, P_inv))
+    write_atomically(out / "map.md", markdown(s, P_cu, P_fe, P_inv))
     return s
 
 

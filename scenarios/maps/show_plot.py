@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from scenarios.core.boundary import write_atomically
 from scenarios.maps.flux_map import FluxMap
 
 RPM = 2 * np.pi / 60
@@ -106,5 +107,5 @@ def plot_machine(png, fmap: FluxMap, s, env, speeds, mtpa, mismatch, eff_speeds,
     a.legend(fontsize=7)
 
     fig.tight_layout()
-    fig.savefig(png, dpi=90)
+    write_atomically(png, lambda p: fig.savefig(p, format="png", dpi=90))
     plt.close(fig)

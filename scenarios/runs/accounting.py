@@ -31,6 +31,15 @@ RPM = math.pi / 30.0  # rad/s per r/min
 #: temperatures: rounding must not count)
 DERATING_MARGIN = 1e-9
 
+#: the DC link's energy balance closes when its residual is within this fraction of the energy
+#: through the link (each step's terms are one product apart: rounding leaves ~1e-15 per step)
+DC_LINK_TOLERANCE = 1e-6
+
+
+class DcLinkError(RuntimeError):
+    """The DC link's energy balance (battery, drive, auxiliaries) does not close: the run's
+    figures would be energy from nothing, so there are none."""
+
 
 @dataclass
 class RunAccounts:
@@ -63,6 +72,10 @@ class RunAccounts:
     t_derated: float = 0.0    # s with the torque limit derated
     derating_min: float = 1.0
     last: object = None       # the last step's drive record (the run's end)
+    E_dc: float = 0.0         # J, the drive's DC side: P_elec + P_inverter
+    E_dc_abs: float = 0.0     # J, the energy through the DC link (|drive| + auxiliaries)
+    t_battery_limited: float = 0.0  # s with the battery's power limit holding the torque back
+    reference_lost: bool = False    # a step without the optimum: its figures are null
 
     def observe(self, s: VehicleStep) -> None:
         """One vehicle step has ended."""
@@ -78,26 +91,35 @@ class RunAccounts:
         self.E_cu += m.P_cu * dt
         self.E_fe += m.P_fe * dt
         self.E_inv += s.P_inverter * dt
-        # Torque error: delivered (mean T_e) against the command within reach.
-        T_err = m.T_e - m.T_cmd
-        self.T_err2 += T_err * T_err
-        self.T_cmd2 += m.T_cmd * m.T_cmd
-        self.T_err_max = max(self.T_err_max, abs(T_err))
-        self.n_T += 1
+        self.E_dc += s.P_dc * dt
+        self.E_dc_abs += abs(s.P_dc) * dt
+        if s.battery_limited:
+            self.t_battery_limited += dt
+        # Torque error: delivered (mean T_e) against the command within reach (none in a fault:
+        # the inverter does not switch, nothing is controlled; scenarios.runs.fault)
+        if not s.fault:
+            T_err = m.T_e - m.T_cmd
+            self.T_err2 += T_err * T_err
+            self.T_cmd2 += m.T_cmd * m.T_cmd
+            self.T_err_max = max(self.T_err_max, abs(T_err))
+            self.n_T += 1
         self.speed_err2 += (s.v - s.v_ref) ** 2
         self.w_m_peak = max(self.w_m_peak, abs(s.w_m))
         if self.w_m_max is not None and abs(s.w_m) > self.w_m_max * (1.0 + TOP_SPEED_MARGIN):
             self.t_above_top += dt
+        # the controller derates on the temperatures it is given, the network's or the inputs
+        if m.derating < 1.0 - DERATING_MARGIN:
+            self.t_derated += dt
+        self.derating_min = min(self.derating_min, m.derating)
         if self.thermal:
             self.theta_max = tuple(max(a, b) for a, b in zip(self.theta_max, (
                 m.theta_winding, m.theta_magnet, m.theta_stator_yoke, m.theta_stator_tooth)))
-            if m.derating < 1.0 - DERATING_MARGIN:
-                self.t_derated += dt
-            self.derating_min = min(self.derating_min, m.derating)
             self.last = m
         if self.reference:
+            if math.isnan(s.I_opt):  # the optimum could not be evaluated: its figures are unknown
+                self.reference_lost = True
             self.E_cu_opt += s.P_cu_opt * dt
-            if s.I > I_EXCESS_MIN:
+            if s.I > I_EXCESS_MIN and not s.fault:
                 self.I_excess2 += (s.I - s.I_opt) ** 2
                 self.n_I += 1
 
@@ -107,6 +129,14 @@ class RunAccounts:
         scenarios.vehicle.longitudinal.Vehicle and scenarios.vehicle.battery.Battery after the run."""
         dt = self.dt
         km = vehicle.distance / 1000.0
+        E_aux = P_aux * n * dt
+        # regeneration the pack refused (the blending keeps it rare) is dissipated on the DC side
+        dc_residual = battery.E_terminal - self.E_dc - E_aux - battery.E_curtailed
+        if not abs(dc_residual) <= DC_LINK_TOLERANCE * max(self.E_dc_abs + E_aux, 1.0):
+            raise DcLinkError(f"the DC link's energy balance does not close: the battery's terminals gave "
+                              f"{battery.E_terminal * WH:.9g} Wh, the drive took {self.E_dc * WH:.9g} Wh, the "
+                              f"auxiliaries {E_aux * WH:.9g} Wh, curtailed regeneration {battery.E_curtailed * WH:.9g} "
+                              f"Wh (residual {dc_residual * WH:.3g} Wh)")
         n_T = max(self.n_T, 1)
         return RunSummary(
             cycle=cycle, method=method, recursion=recursion, conditions=asdict(conditions),
@@ -115,19 +145,23 @@ class RunAccounts:
             speed_rmse_mps=math.sqrt(self.speed_err2 / n),
             torque_rmse_Nm=math.sqrt(self.T_err2 / n_T), torque_error_max_Nm=self.T_err_max,
             torque_cmd_rms_Nm=math.sqrt(self.T_cmd2 / n_T),
-            copper_loss_Wh=self.E_cu * WH, copper_loss_optimal_Wh=self.E_cu_opt * WH if self.reference else None,
+            copper_loss_Wh=self.E_cu * WH,
+            copper_loss_optimal_Wh=self.E_cu_opt * WH if self.reference and not self.reference_lost else None,
             time_above_V_max_pct=100.0 * self.t_over / (n * dt), time_voltage_limited_s=self.t_sat,
             time_voltage_limited_pct=100.0 * self.t_sat / (n * dt),
-            current_excess_rms_A=math.sqrt(self.I_excess2 / self.n_I) if self.n_I else 0.0,
+            current_excess_rms_A=(math.nan if self.reference_lost else
+                                  math.sqrt(self.I_excess2 / self.n_I) if self.n_I else 0.0),
             iron_loss_Wh=self.E_fe * WH, motor_electric_Wh=self.E_elec * WH, shaft_Wh=self.E_mech * WH,
             battery_internal_loss_Wh=(battery.E_loss_R0 + battery.E_loss_R1) * WH,
             battery_energy_residual_Wh=battery.energy_residual() * WH, inverter_loss_Wh=self.E_inv * WH,
-            aux_Wh=P_aux * n * dt * WH, friction_brake_Wh=vehicle.E_brake * WH,
+            aux_Wh=E_aux * WH, friction_brake_Wh=vehicle.E_brake * WH,
             regen_curtailed_Wh=battery.E_curtailed * WH, soc_end=battery.soc,
             steps=n * n_inner, vehicle_steps=n, h_s=h, dt_s=dt, wall_s=wall, real_time_factor=n * dt / wall,
             backend=backend, w_m_peak_rpm=self.w_m_peak / RPM,
             w_m_max_rpm=None if self.w_m_max is None else self.w_m_max / RPM,
-            time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top, **self.thermal_figures(),
+            time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top,
+            time_derated_s=self.t_derated, derating_min=self.derating_min, dc_link_residual_Wh=dc_residual * WH,
+            time_battery_limited_s=self.t_battery_limited, **self.thermal_figures(),
         )
 
     def thermal_figures(self) -> dict:
@@ -140,5 +174,4 @@ class RunAccounts:
             theta_stator_yoke_max_K=self.theta_max[2], theta_stator_tooth_max_K=self.theta_max[3],
             theta_winding_end_K=m.theta_winding, theta_magnet_end_K=m.theta_magnet,
             heat_coolant_Wh=m.E_coolant * WH, heat_ambient_Wh=m.E_ambient * WH, heat_stored_Wh=m.E_stored * WH,
-            heat_balance_residual_Wh=(m.E_cu + m.E_fe - m.E_stored - m.E_coolant - m.E_ambient) * WH,
-            time_derated_s=self.t_derated, derating_min=self.derating_min)
+            heat_balance_residual_Wh=(m.E_cu + m.E_fe - m.E_stored - m.E_coolant - m.E_ambient) * WH)

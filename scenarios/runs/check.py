@@ -35,6 +35,20 @@ from scenarios.drives.fmu_acceptance import refuse_unless_fmus_accept
 
 EXIT_PASS, EXIT_FAIL, EXIT_BAD_INPUT = 0, 1, 2
 
+#: m/s per km/h
+KMH = 1.0 / 3.6
+#: Every check fails a cycle the car did not follow, whatever limits the drive names (a limit on
+#: energy or torque error says nothing about a car that fell behind or never moved):
+#: the speed error's RMS at most the WLTP drive-trace index RMSSE's 1.3 km/h (Regulation (EU)
+#: 2017/1151 Annex XXI as amended by Regulation (EU) 2018/1832, the UN GTR 15 test's speed trace) ...
+CYCLE_SPEED_RMSE_MAX = 1.3 * KMH
+#: ... and the distance at least the cycle's less the trace's speed tolerance, 2 km/h (UN GTR 15;
+#: EPA's 2 mph, 40 CFR 86.115-78, is 3.2 km/h), over the time the trace is moving
+CYCLE_SPEED_TOLERANCE = 2.0 * KMH
+#: the verdicts every check adds to the drive's limits: name -> (summary key, direction)
+CYCLE_FOLLOWING = {"cycle_speed_rmse_mps_max": ("speed_rmse_mps", "max"),
+                   "cycle_distance_km_min": ("distance_km", "min")}
+
 
 @dataclass(frozen=True)
 class Verdict:
@@ -48,6 +62,7 @@ class Verdict:
     passed: bool
     wall_s: float   # the cycle's run time (each of its verdicts reports it)
     error: str | None = None
+    note: str | None = None  # why a figure is undefined (a failure, never a pass)
 
     @property
     def rel(self) -> str:
@@ -59,29 +74,64 @@ class Verdict:
         if self.error is not None:
             return f"{self.key}: the cycle could not run: {self.error}"
         state = "holds" if self.passed else "FAILED"
-        return f"{self.key} = {self.figure:.6g}, limit {self.rel} {self.bound:.6g}: {state}"
+        return (f"{self.key} = {self.figure:.6g}, limit {self.rel} {self.bound:.6g}: {state}" +
+                ("" if self.note is None else f" ({self.note})"))
+
+
+def cycle_following(summary: dict) -> dict:
+    """The cycle-following limits of a run (CYCLE_FOLLOWING name -> bound): NaN bounds, which
+    fail, when the summary lacks the cycle's figures."""
+    try:
+        km = float(summary["cycle_distance_km"]) - CYCLE_SPEED_TOLERANCE * float(summary["cycle_moving_s"]) / 1000.0
+    except (KeyError, TypeError, ValueError):
+        km = math.nan
+    return {"cycle_speed_rmse_mps_max": CYCLE_SPEED_RMSE_MAX, "cycle_distance_km_min": max(km, 0.0)}
 
 
 def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[Verdict]:
-    """The verdicts of one cycle's summary on every limit (a NaN or missing figure, e.g. Wh_per_km
-    of a run that covered no distance, fails)."""
+    """The verdicts of one cycle's summary on every limit and on the cycle-following limits every
+    check applies (a NaN or missing figure, e.g. Wh_per_km of a run that covered no distance,
+    fails)."""
     out = []
-    for name, bound in limits.items():
-        key, direction = LIMITS[name]
+    for name, bound in {**limits, **cycle_following(summary)}.items():
+        key, direction = LIMITS[name] if name in LIMITS else CYCLE_FOLLOWING[name]
         value = summary.get(key)
         try:
             x = math.nan if value is None else float(value)
         except (TypeError, ValueError):
             x = math.nan
         ok = math.isfinite(x) and (x <= bound if direction == "max" else x >= bound)
-        out.append(Verdict(cycle, name, key, x, bound, ok, wall_s))
+        out.append(Verdict(cycle, name, key, x, bound, ok, wall_s, note=None if math.isfinite(x) else
+                           undefined_because(key, summary)))
     return out
+
+
+def undefined_because(key: str, summary: dict) -> str:
+    """Why a summary's figure is undefined, in words (the verdict fails: nothing was measured)."""
+    if key.startswith("fault_"):
+        if summary.get("fault_trigger") is None:
+            return "the run had no fault: the drive has no [fault] table"
+        if summary.get("fault_time_s") is None:
+            return f"no fault in this cycle: {summary['fault_trigger']} was never reached"
+        if key == "fault_time_to_zero_current_s":
+            return "the current had not fallen to zero when the fault ended"
+        if key == "fault_demag_margin_A":
+            return "the drive has no demagnetisation limit: set fault.i_d_demag"
+    return "the run did not define it"
 
 
 def errored(cycle: str, limits: dict, error: str, wall_s: float = 0.0) -> list[Verdict]:
     """The verdicts of a cycle that could not run: every limit an error."""
-    return [Verdict(cycle, name, LIMITS[name][0], math.nan, bound, False, wall_s, error)
-            for name, bound in limits.items()]
+    return [Verdict(cycle, name, (LIMITS[name] if name in LIMITS else CYCLE_FOLLOWING[name])[0], math.nan, bound,
+                    False, wall_s, error)
+            for name, bound in {**limits, **cycle_following({})}.items()]
+
+
+def derated(summaries: dict) -> list[str]:
+    """A line per cycle whose torque limit was derated (label -> summary dict): how long, how far."""
+    return [f"{label}: torque limit derated for {s['time_derated_s']:.6g} s (lowest factor {s['derating_min']:.6g})"
+            for label, s in summaries.items()
+            if s is not None and isinstance(s.get("time_derated_s"), (int, float)) and s["time_derated_s"] > 0.0]
 
 
 def cycle_labels(drive: DriveDescription) -> dict[str, str]:
@@ -98,7 +148,22 @@ def cycle_labels(drive: DriveDescription) -> dict[str, str]:
             except ValueError:
                 label = c
         labels[c] = label
+    # Labels a reader would take for one another (UDDS beside a file ./UDDS, NFC beside NFD, a
+    # trailing space): each such CSV is labelled by its whole path, escaped (ascii: a decomposed
+    # accent or a space shows), so no two rows of a report or JUnit read alike
+    seen = {_look(label) for c, label in labels.items() if not Path(c).is_absolute()}
+    for c, label in labels.items():
+        if Path(c).is_absolute():
+            if _look(label) in seen:
+                labels[c] = ascii(c)
+            seen.add(_look(labels[c]))
     return labels
+
+
+def _look(label: str) -> str:
+    """What a label looks like to a reader: compatibility-normalised, case-folded, stripped."""
+    import unicodedata
+    return unicodedata.normalize("NFKC", label).strip().casefold()
 
 
 def load_cycles(drive: DriveDescription) -> dict:
@@ -136,7 +201,7 @@ def _md_cell(text: str) -> str:
     return printable(text).replace("|", "\\|").replace("`", "'")
 
 
-def markdown(drive: DriveDescription, verdicts: list[Verdict]) -> str:
+def markdown(drive: DriveDescription, verdicts: list[Verdict], notes: list[str] = ()) -> str:
     ok = all(v.passed for v in verdicts)
     errors = any(v.error is not None for v in verdicts)
     state = "PASS" if ok else ("ERROR" if errors else "FAIL")
@@ -145,8 +210,12 @@ def markdown(drive: DriveDescription, verdicts: list[Verdict]) -> str:
              f"{len(verdicts)} limits on {len({v.cycle for v in verdicts})} cycles.", "",
              "| cycle | limit | figure | bound | result |", "|---|---|---|---|---|"]
     for v in verdicts:
-        result = "pass" if v.passed else ("**ERROR**: " + _md_cell(v.error) if v.error is not None else "**FAIL**")
+        result = "pass" if v.passed else ("**ERROR**: " + _md_cell(v.error) if v.error is not None else
+                                          "**FAIL**" + ("" if v.note is None else ": " + _md_cell(v.note)))
         lines.append(f"| {_md_cell(v.cycle)} | `{v.limit}` | {v.figure:.6g} | {v.rel} {v.bound:.6g} | {result} |")
+    lines += ["", "`cycle_*` limits: every check's (the car followed the cycle: scenarios.runs.check.CYCLE_FOLLOWING)."]
+    if notes:
+        lines += ["", "## Derating", ""] + [f"- {_md_cell(n)}" for n in notes]
     return "\n".join(lines) + "\n"
 
 
@@ -161,7 +230,7 @@ def xml_text(text: str) -> str:
     return _XML_FORBIDDEN.sub(lambda m: f"\\u{ord(m.group()):04x}", str(text))
 
 
-def junit(drive: DriveDescription, verdicts: list[Verdict]) -> ET.ElementTree:
+def junit(drive: DriveDescription, verdicts: list[Verdict], notes: list[str] = ()) -> ET.ElementTree:
     """<testsuites><testsuite name=drive>, a <testcase> per verdict (classname drive/cycle,
     name the limit), a <failure> with the figure and the bound when it does not hold, an <error>
     when its cycle could not run."""
@@ -174,6 +243,8 @@ def junit(drive: DriveDescription, verdicts: list[Verdict]) -> ET.ElementTree:
     props = ET.SubElement(suite, "properties")
     ET.SubElement(props, "property", name="drive_file", value=xml_text(str(drive.source)))
     ET.SubElement(props, "property", name="drive_sha256", value=drive.sha256)
+    for i, n in enumerate(notes):
+        ET.SubElement(props, "property", name=f"derating_{i}", value=xml_text(n))
     for v in verdicts:
         case = ET.SubElement(suite, "testcase", classname=xml_text(f"{drive.name}/{v.cycle}"), name=v.limit,
                              time=f"{v.wall_s:.3f}")
@@ -216,23 +287,33 @@ def check(drive_file: Path | None, junit_path: Path | None, out: Path, build: Pa
         raise DriveDescriptionError(drive.source, "checks", "at least one limit (" + ", ".join(LIMITS) + ")")
     cycles = load_cycles(drive)
     check_writable(out, "--out")
+    boundary.check_outputs(out, ("check.md",), "--out")
     if junit_path is not None:
         if junit_path.is_dir():
             raise InputError(junit_path, "--junit", "a file name, not a folder")
+        # a regular file or nothing (a device, a FIFO, a dangling link or one leading out of its
+        # folder: refused, untouched); missing folders are made on the path as given, never through a link
+        boundary.output_target(junit_path, "--junit")
+        if not junit_path.is_symlink():
+            boundary.folders_made_here(junit_path.parent, "--junit")
         check_writable(Path(os.path.realpath(junit_path)).parent, "--junit")
     labels = cycle_labels(drive)
-    verdicts = []
+    verdicts, summaries = [], {}
     for ident, (summary, wall, error) in run_cycles(drive, build, backend, progress, cycles).items():
         verdicts += (judge(labels[ident], summary, drive.checks.limits, wall) if error is None else
                      errored(labels[ident], drive.checks.limits, error, wall))
+        summaries[labels[ident]] = summary
+    notes = derated(summaries)
     if junit_path is not None:
-        tree = junit(drive, verdicts)
+        tree = junit(drive, verdicts, notes)
         boundary.write_atomically(junit_path, lambda p: tree.write(p, encoding="utf-8", xml_declaration=True),
-                                  verify=_parses_as_junit(len(verdicts)))
-    write_atomically(out / "check.md", lambda p: p.write_text(markdown(drive, verdicts), encoding="utf-8"))
+                                  verify=_parses_as_junit(len(verdicts)), what="--junit")
+    write_atomically(out / "check.md", lambda p: p.write_text(markdown(drive, verdicts, notes), encoding="utf-8"))
     for v in verdicts:
         state = "ok  " if v.passed else ("ERROR" if v.error is not None else "FAIL")
         print(printable(f"{state} {drive.name}/{v.cycle} {v.message}", limit=2000))
+    for n in notes:
+        print(printable(f"note {drive.name}/{n}", limit=2000))
     if any(v.error is not None for v in verdicts):
         return EXIT_BAD_INPUT
     return EXIT_PASS if all(v.passed for v in verdicts) else EXIT_FAIL

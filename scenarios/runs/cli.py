@@ -24,14 +24,22 @@ RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km
 #: ... and with the thermal network on
 THERMAL_PRINTED = ("theta_winding_max_K", "theta_magnet_max_K", "theta_winding_end_K", "theta_magnet_end_K",
                    "heat_coolant_Wh", "heat_balance_residual_Wh", "time_derated_s", "derating_min")
+#: ... and with a [fault] table (docs/faults.md)
+FAULT_PRINTED = ("fault_trigger", "fault_safe_state", "fault_time_s", "fault_speed_kmh", "fault_state",
+                 "fault_state_end", "fault_i_peak_A", "fault_demag_margin_A", "fault_T_peak_Nm", "fault_charge_Ah",
+                 "fault_energy_Wh", "fault_time_to_zero_current_s")
+#: exit status of a sweep --fault with a point the FMU could not run (its files written)
+EXIT_FAILED = 1
 
 
 def add_parsers(sub) -> None:
     sw = sub.add_parser("sweep", help="torque-speed sweep of the controller: table and plot of the optimal currents")
-    sw.add_argument("--out", type=Path, default=OUT_DIR / "sweep")
+    sw.add_argument("--out", type=Path, default=None, help="default: out/sweep (with --fault: out/sweep_fault)")
     sw.add_argument("--recursion", type=int, default=2, choices=(0, 1, 2))
     sw.add_argument("--u-dc", type=float, default=None, help="V; default: the drive's controller.lut_u_dc")
     sw.add_argument("--drive", type=Path, default=None, help=DRIVE_HELP)
+    sw.add_argument("--fault", action="store_true", help="the safe-state envelope instead (docs/faults.md): peak "
+                    "current, braking torque and charging current against speed, freewheeling and ASC")
 
     run = sub.add_parser("run", help="one drive cycle: summary.json, trace.csv, run.png")
     run.add_argument("cycle", help="WLTC3b, UDDS, HWFET, US06, NEDC, or a CSV of time_s,speed_mps")
@@ -99,7 +107,10 @@ def sweep(args) -> int:
     from scenarios.runs.sweep import SweepSpec, run_sweep
     number_as_key(args.u_dc, "--u-dc", "controller.lut_u_dc")
     drive = load_accepted(args.drive, args.build)
+    args.out = args.out or OUT_DIR / ("sweep_fault" if args.fault else "sweep")
     check_writable(args.out)
+    if args.fault:
+        return fault_sweep(args, drive)
     s = run_sweep(args.build / "fmu" / "IpmsmController.fmu", args.out,
                   SweepSpec(drive=drive, recursion=args.recursion, u_dc=args.u_dc))
     print(json.dumps({k: s.to_dict()[k] for k in ("points", "wall_s", "T_max_Nm_by_speed_rpm")}, indent=1))
@@ -107,8 +118,34 @@ def sweep(args) -> int:
     return 0
 
 
+def fault_sweep(args, drive) -> int:
+    """sweep --fault: the safe-state envelope (scenarios.runs.fault_sweep); exit 1 when a point
+    could not run (its row and summary.json say why)."""
+    from scenarios.runs.fault_sweep import FaultSweepSpec, run_fault_sweep
+    f = run_fault_sweep(args.build / "fmu" / "IpmsmDrive.fmu", args.out, FaultSweepSpec(drive=drive, u_dc=args.u_dc))
+    keys = ("points", "wall_s", "i_d_demag_A", "onset_back_emf_rpm", "onset_back_emf_kmh", "onset_fundamental_rpm",
+            "onset_rpm", "envelope")
+    print(json.dumps({k: getattr(f, k) for k in keys}, indent=1))
+    print(f"wrote {args.out}/fault_sweep.csv, summary.json, fault_envelope.png")
+    for state, load, n, error in f.failed:
+        print(f"error: {state} from {load} at {n:g} r/min could not run: {error}", file=sys.stderr)
+    return EXIT_FAILED if f.failed else 0
+
+
+def _below_derating_zero(T: float, drive) -> None:
+    """--magnet-degC sets the magnets and the winding: below where the drive's derating takes the
+    whole torque (thermal.T_magnet_max, T_winding_max), or the car could not move at all."""
+    for name in ("T_magnet_max", "T_winding_max"):
+        T_max = drive.thermal.values.get(name)
+        if T_max is not None and T >= T_max:
+            raise InputError("(command line)", "--magnet-degC", f"a temperature below the drive's thermal.{name} = "
+                             f"{T_max - ZERO_CELSIUS_K:g} degC (its torque limit is zero there: the car could not "
+                             f"move), got {T - ZERO_CELSIUS_K:g}")
+
+
 def run(args) -> int:
     from scenarios.drives.fmu_acceptance import load_accepted
+    from scenarios.runs.out_folder import run_folder
     from scenarios.runs.plots import plot_run
     from scenarios.runs.simulate import Conditions, RunSpec, fmu_paths, simulate
     from scenarios.vehicle.cycles import repeated
@@ -116,6 +153,7 @@ def run(args) -> int:
     drive = load_accepted(args.drive, args.build)
     method = args.method or drive.controller.method
     T = args.magnet_degC + ZERO_CELSIUS_K
+    _below_derating_zero(T, drive)
     custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
     cond = Conditions("custom" if custom else "nominal", u_dc_scale=args.u_dc_scale, T_magnet=T, T_winding=T)
     cycle = cycle_arg(args.cycle, "cycle")
@@ -126,17 +164,29 @@ def run(args) -> int:
     stem = Path(args.cycle).stem + ("" if args.repeat == 1 else f"_x{args.repeat}") + (
         "" if args.drive is None else f"_{drive.name}")
     out = args.out or inside(OUT_DIR, slug(f"{stem}_{method}"), "run's output folder")
-    check_writable(out)
-    s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
-                                backend=args.backend), fmus=fmu_paths(args.build), out=out)
-    title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
-    plot_run(out, title, drive)
-    if s.thermal_network:
-        from scenarios.runs.thermal_plots import plot_thermal
-        plot_thermal(out, title, drive.thermal.T_coolant)
+    with run_folder(out) as folder:  # one run at a time, holding one run (scenarios.runs.out_folder)
+        s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
+                                    backend=args.backend), fmus=fmu_paths(args.build), out=out)
+        title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
+        plot_run(out, title, drive)
+        written = ["summary.json", "trace.csv", "run.png"]
+        if s.thermal_network:
+            from scenarios.runs.thermal_plots import plot_thermal
+            plot_thermal(out, title, drive.thermal.T_coolant)
+            written.append("thermal.png")
+        d = s.to_dict()
+        if drive.fault is not None:
+            from scenarios.runs.fault_plots import plot_fault
+            written.append("fault_trace.csv")
+            if s.fault_time_s is None:
+                print(f"warning: no fault in this run: {drive.fault.describe()} never reached", file=sys.stderr)
+            else:
+                plot_fault(out, title, d, s.fault_i_d_demag_A)
+                written.append("fault.png")
+        folder.done(tuple(written))
     for a in drive.assumed:
         print(f"assumed: {a}", file=sys.stderr)
-    d = s.to_dict()
-    print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_network else ())}, indent=1))
-    print(f"wrote {out}/summary.json, trace.csv, run.png" + (", thermal.png" if s.thermal_network else ""))
+    print(json.dumps({k: d[k] for k in RUN_PRINTED + (THERMAL_PRINTED if s.thermal_network else ()) +
+                      (FAULT_PRINTED if drive.fault is not None else ())}, indent=1))
+    print(f"wrote {out}/" + ", ".join(written))
     return 0

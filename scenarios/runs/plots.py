@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from scenarios.core.boundary import write_atomically
 from scenarios.core.paths import located
 from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map
 
@@ -125,8 +126,10 @@ def save_figure(fig, title: str, path: Path, dpi: int) -> Path:
     import matplotlib.pyplot as plt
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        write_atomically(path, lambda p: fig.savefig(p, format="png", dpi=dpi))
+    finally:
+        plt.close(fig)
     return path
 
 

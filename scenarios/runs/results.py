@@ -38,6 +38,8 @@ class VehicleStep:
     soc: float         # battery state of charge at t
     F_demand: float = math.nan  # N, the driver's wheel-force demand, before the torque limit and blending
     F_wheel: float = math.nan   # N, the tractive force the drive delivered at the wheels
+    fault: bool = False         # the drive's fault input over the step (a [fault] table; docs/faults.md)
+    battery_limited: bool = False  # the battery's power limit took torque away (scenarios.runs.power_limit)
 
 
 @dataclass(frozen=True)
@@ -181,8 +183,35 @@ class RunSummary:
     heat_ambient_Wh: float | None = None       # ... into the ambient air
     heat_stored_Wh: float | None = None        # ... stored in the machine at the end
     heat_balance_residual_Wh: float | None = None  # copper + iron loss - stored - coolant - ambient
+    # the controller's thermal derating of the torque limit, network on or off (it derates on the
+    # temperatures it is given: the network's, or the run's inputs)
     time_derated_s: float | None = None        # time the torque limit was derated
     derating_min: float | None = None          # its lowest factor (1: none)
+    # the inverter's fault (a [fault] table; docs/faults.md): the trigger and the policy, then
+    # figures over the fault (None: no [fault] table, or no trip in the run)
+    fault_trigger: str | None = None           # e.g. "fault.v_kmh = 130 km/h"
+    fault_safe_state: str | None = None        # by_speed, freewheel or asc
+    fault_time_s: float | None = None          # the communication point of the trip
+    fault_speed_kmh: float | None = None       # the vehicle's speed there
+    fault_speed_rpm: float | None = None       # the motor's
+    fault_duration_s: float | None = None      # how long it lasted in the run
+    fault_state: str | None = None             # the inverter state it entered: freewheel or asc
+    fault_state_end: str | None = None         # ... and the one at its end (by_speed: freewheel -> asc past the onset)
+    fault_i_peak_A: float | None = None        # largest current magnitude during the fault (the drive's i_peak)
+    fault_i_d_demag_A: float | None = None     # the magnets' limit on i_d (the drive's i_d_demag)
+    fault_demag_margin_A: float | None = None  # |i_d_demag| - fault_i_peak_A (|i_d| <= |i|: a safe bound)
+    fault_T_peak_Nm: float | None = None       # largest braking shaft torque (10 ms means), a magnitude
+    fault_charge_Ah: float | None = None       # charge into the DC link from the drive during the fault
+    fault_energy_Wh: float | None = None       # ... energy
+    fault_time_to_zero_current_s: float | None = None  # from the trip until |i| stays zero (None: it did not)
+    # the DC link's energy balance: battery terminals - drive (P_elec + P_inverter) - auxiliaries
+    # - curtailed regeneration (regen_curtailed_Wh, dissipated on the DC side), zero up to
+    # rounding (a run where it would not close is an error, never a summary)
+    dc_link_residual_Wh: float = 0.0
+    time_battery_limited_s: float = 0.0        # time the battery's power limit held the torque back
+    # the cycle as driven should have been (check's cycle-following limits, scenarios.runs.check)
+    cycle_distance_km: float | None = None     # the trace's distance (trapezoidal, as Cycle.distance_m)
+    cycle_moving_s: float | None = None        # the time the trace is not standing
 
     def to_dict(self) -> dict:
         return asdict(self)

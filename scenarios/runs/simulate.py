@@ -27,10 +27,12 @@ from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
 from scenarios.cosim import BACKENDS, backend_name
 from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
-from scenarios.cosim.fmu import Fmu
+from scenarios.cosim.fmu import CosimError, Fmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
-from scenarios.runs.accounting import RunAccounts
+from scenarios.runs.accounting import DcLinkError, RunAccounts
+from scenarios.runs.fault import FaultAccounts, FaultTrigger, demagnetisation_limit
+from scenarios.runs.power_limit import advance_within
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
 from scenarios.vehicle.cycles import Cycle, load_cycle, sampled
@@ -130,10 +132,11 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
 def _open_drive_fmu(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict,
                     **start) -> DriveFmu:
     """IpmsmDrive (built next to the controller's FMU), with the thermal network's boundary."""
-    thermal = spec.thermal()
+    thermal, fault = spec.thermal(), spec.drive.fault
     boundary = dict(T_coolant=thermal.T_coolant, T_ambient=thermal.T_ambient) if thermal.on else {}
     return DriveFmu(Path(controller_fmu).parent / "IpmsmDrive.fmu",
-                    {**c_params, **p_params, **thermal.fmu_params(), "sample_time": spec.h}, **start, **boundary)
+                    {**c_params, **p_params, **thermal.fmu_params(), "sample_time": spec.h,
+                     **(fault.fmu_params() if fault is not None else {})}, **start, **boundary)
 
 
 def _open_reference(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict,
@@ -143,6 +146,8 @@ def _open_reference(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_para
     if spec.thermal().on:
         raise InputError("(command line)", "--backend", "the drive backend with the thermal network on "
                          "([thermal] thermal_model = true)")
+    if spec.drive.fault is not None:  # the safe state's policy is IpmsmDrive's (contract, "Faults")
+        raise InputError("(command line)", "--backend", "the drive backend with a [fault] table")
     return ReferenceDrive(controller_fmu, plant_fmu, c_params, p_params, h=spec.h, **start)
 
 
@@ -155,6 +160,12 @@ def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: d
     return OPEN_DRIVE[spec.backend](spec, controller_fmu, plant_fmu, c_params, p_params, **start)
 
 
+#: rad/s, the reference optimum's current regulator: only the command is wanted (it does not
+#: depend on the regulator), so the regulator is made slow enough that, stepped once per vehicle
+#: step, nothing it integrates can grow
+REFERENCE_CURRENT_BANDWIDTH = 1.0
+
+
 class OptimumReference:
     """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
     given torque and conditions: its current magnitude and copper loss at the winding resistance
@@ -164,16 +175,34 @@ class OptimumReference:
         self.R_s = R_s
         self.T_winding = T_winding  # K: the optimum's voltage ellipse at the winding's resistance too
         self.fmu = Fmu(controller_fmu, instance_name="reference",
-                       **drive.controller_params(method="ferrari", recursion=2))
+                       **{**drive.controller_params(method="ferrari", recursion=2),
+                          "current_bandwidth": REFERENCE_CURRENT_BANDWIDTH})
+        self.i_ref = (0.0, 0.0)  # A, the last command (d, q): the regulator's measured currents
+        self.failed = ""         # why the optimum could not be evaluated (its figures then null)
+        # The command is a function of the step's inputs alone; what the instance carries from
+        # step to step (the regulator's) is no part of it. A step that fails on that carried state
+        # is taken again from the instance as it was made (its clock restarted there).
+        self._made, self._t0 = self.fmu.save_state(), 0.0
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
                 T_winding: float | None = None) -> float:
         """|i| (A) of the optimal command for T_e, one controller step at t; T_winding (K) None:
         the run's start (a run with the thermal network gives the step's)."""
-        self.fmu.set(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
-                     T_winding=self.T_winding if T_winding is None else T_winding)
-        self.fmu.step(t, dt)
-        return math.hypot(*self.fmu.get("i_d_ref", "i_q_ref"))
+        # The FMU's current regulator runs too, though only its command is wanted: its measured
+        # currents are the command it gave (the current loop closed ideally), so the regulator
+        # sees no error to integrate (left at 0 A it winds up until its voltage is not finite)
+        inputs = dict(T_ref=T_e, w_m=w_m, u_dc=u_dc, T_magnet=T_magnet,
+                      T_winding=self.T_winding if T_winding is None else T_winding)
+        self.fmu.set(**inputs, i_d=self.i_ref[0], i_q=self.i_ref[1])
+        try:
+            self.fmu.step(t - self._t0, dt)
+        except CosimError:  # the carried state's failure: once more from the instance as made
+            self.fmu.restore_state(self._made)
+            self._t0 = t
+            self.fmu.set(**inputs)
+            self.fmu.step(0.0, dt)
+        self.i_ref = self.fmu.get("i_d_ref", "i_q_ref")
+        return math.hypot(*self.i_ref)
 
     def copper_loss(self, I: float, R_s: float | None = None) -> float:
         """W at the current magnitude I (A, peak, amplitude-invariant dq); R_s (Ohm) None: the
@@ -181,6 +210,8 @@ class OptimumReference:
         return 1.5 * (self.R_s if R_s is None else R_s) * I * I
 
     def close(self) -> None:
+        if self.fmu.fmu is not None:
+            self.fmu.free_state(self._made)
         self.fmu.close()
 
     def __enter__(self):
@@ -192,12 +223,12 @@ class OptimumReference:
 
 def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], drive: DriveFmu | ReferenceDrive,
                   vehicle: Vehicle, driver: Driver, battery: Battery,
-                  reference: OptimumReference | None) -> Iterator[VehicleStep]:
+                  reference: OptimumReference | None, fault: FaultTrigger | None = None) -> Iterator[VehicleStep]:
     """The vehicle-side loop (scenarios/driver.py describes one step) over the cycle sampled at
     t_ref (len(t_ref) - 1 steps of spec.dt) around `drive`; yields each step's signals once it
-    has ended."""
+    has ended. `fault`: when the drive's fault input is on (scenarios.runs.fault)."""
     cond, vp, dt = spec.conditions, spec.drive.vehicle, spec.dt
-    P_aux = spec.drive.P_aux
+    P_aux, I_max = spec.drive.P_aux, spec.drive.motor.I_max
     drive_dt = spec.steps_per_vehicle_step() * drive.sample_time
     R = winding_resistance(drive, cond.T_winding)  # the copper loss's resistance: |i|^2 = P_cu / (1.5 R)
     # With the thermal network on, a step's copper loss is at the winding temperature the step
@@ -207,27 +238,47 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
     thermal = spec.thermal().on
     T_magnet, T_winding = cond.T_magnet, cond.T_winding
     T_max_known = T_MAX_UNKNOWN
+    F_w = 0.0
     for k in range(len(t_ref) - 1):
         v = vehicle.v
         w_m = motor_speed(v, vp)
         u_dc = battery.u * cond.u_dc_scale
+        on = fault is not None and fault.on(t_ref[k], v, w_m)
+        if fault is not None:
+            drive.set_fault(on)
         F_dem = driver.demand(v_ref[k], v_ref[k + 1], v, dt)
-        b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
-        m = drive.advance(drive_dt, b.T_ref, w_m, u_dc, T_magnet, T_winding)
+        if on:  # no traction torque; the friction brakes make up what the safe state's drag (the last step's) does not
+            b = blend(F_dem - F_w, v, 0.0, 0.0, vp, spec.blend)
+        else:
+            b = blend(F_dem, v, T_max_known, battery.max_charge_power(dt) + P_aux, vp, spec.blend)
+        # the DC link: the drive draws at most what the pack delivers (regeneration beyond what the
+        # pack takes, which the blending's limit keeps rare, is curtailed: dissipated, and booked)
+        lim = advance_within(drive, drive_dt, b.T_ref, w_m, u_dc, T_magnet, T_winding,
+                             battery.max_discharge_power(dt) - P_aux, I_max, t_ref[k])
+        m, T_ref, F_brake = lim.step, lim.T_ref, b.F_brake
         T_max_known = abs(m.T_max)
         F_w = wheel_force(m.T_shaft, vp)
-        driver.applied(F_w - b.F_brake)
-        vehicle.step(F_w, b.F_brake, dt)
+        driver.applied(F_w - F_brake)
+        vehicle.step(F_w, F_brake, dt)
         P_dc = m.P_elec + m.P_inv
-        battery.step(P_dc + P_aux, dt)
+        bs = battery.step(P_dc + P_aux, dt)
+        if bs.P_unmet > 0.0:  # the limit above holds this; a broken one is an error, never energy from nothing
+            raise DcLinkError(f"at t = {t_ref[k]:.6g} s the battery could not deliver the drive's {P_dc:.6g} W and "
+                              f"the auxiliaries' {P_aux:.6g} W (short by {bs.P_unmet:.6g} W): the DC link's energy "
+                              "balance would not close")
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
         I_opt, P_cu_opt = math.nan, 0.0
-        if reference is not None:
-            I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
-            P_cu_opt = reference.copper_loss(I_opt, R)
-        yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
-                          F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
-                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w)
+        if reference is not None and not on and not reference.failed:
+            try:
+                I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
+                P_cu_opt = reference.copper_loss(I_opt, R)
+            except CosimError as e:  # a side computation: the run goes on, its optimum figures are null
+                reference.failed = f"t = {k * dt:.6g} s: {e}"
+                I_opt, P_cu_opt = math.nan, 0.0
+        yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=T_ref,
+                          F_brake=F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
+                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w, fault=on,
+                          battery_limited=lim.limited)
         if thermal:
             T_magnet, T_winding = m.theta_magnet, m.theta_winding
             R = winding_resistance(drive, T_winding)
@@ -271,6 +322,8 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
     accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max,
                            thermal=spec.thermal().on)
     trace = Trace(every=max(1, int(round(spec.trace_dt / dt))), keep=out is not None)
+    trigger = FaultTrigger(drive.fault) if drive.fault is not None else None
+    faults = None
     bar = Progress(n, f"{cycle.name} {method} [{cond.name}]") if progress else None
     wall0 = time.perf_counter()
     try:
@@ -279,8 +332,13 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
                                                               winding_resistance(sim, cond.T_winding),
                                                               cond.T_winding))
                          if spec.reference else None)
-            for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference)):
+            if trigger is not None:
+                faults = FaultAccounts(trigger, dt, drive.motor.I_max, demagnetisation_limit(sim))
+            for k, step in enumerate(vehicle_steps(spec, t_ref, v_ref, sim, vehicle, driver, battery, reference,
+                                                   trigger)):
                 accounts.observe(step)
+                if faults is not None:
+                    faults.observe(step)
                 trace.observe(k, step)
                 if observe is not None:
                     observe(step)
@@ -293,10 +351,13 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
     summary = accounts.summary(cycle=cycle.name, method=method, recursion=recursion, conditions=cond,
                                vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
                                wall=wall, backend=spec.backend)
-    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256)
+    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256, cycle_distance_km=cycle.distance_m / 1000.0,
+                      cycle_moving_s=cycle.moving_s, **(faults.figures() if faults is not None else {}))
     try:
         if out is not None:
             write_results(out, summary, trace)
+            if faults is not None:
+                faults.write_csv(out / "fault_trace.csv")
     finally:
         trace.close()
     return summary

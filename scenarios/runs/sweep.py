@@ -64,8 +64,8 @@ def top_speed(controller_fmu: Path, drive: DriveDescription) -> float:
     """The drive's motor.w_m_max, else the controller FMU's default (rad/s)."""
     if drive.motor.w_m_max is not None:
         return drive.motor.w_m_max
-    from fmpy import read_model_description
-    md = read_model_description(str(controller_fmu))
+    from scenarios.cosim.fmu import model_description
+    md = model_description(Path(controller_fmu))
     return float(next(v.start for v in md.modelVariables if v.name == "w_m_max"))
 
 
@@ -122,10 +122,12 @@ def run_sweep(controller_fmu: Path, out: Path, spec: SweepSpec | None = None) ->
                 bar.update()
     bar.close()
     wall = time.perf_counter() - t0
-    with open(out / "sweep.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    def write_csv(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+    write_atomically(out / "sweep.csv", write_csv)
     envelope = {n: max(r["T_max_Nm"] for r in rows if r["speed_rpm"] == n) for n in spec.speeds()}
     summary = SweepSummary(spec=spec.to_dict(), points=len(rows), wall_s=wall, T_max_Nm_by_speed_rpm=envelope,
                            P_max_kW_by_speed_rpm={n: T * n * RPM / 1e3 for n, T in envelope.items()})
@@ -182,5 +184,5 @@ def plot_sweep(rows, spec: SweepSpec, path: Path) -> None:
     ax2.set_title(f"Torque-speed envelope at {spec.u_dc:.0f} V, {I_max:.0f} A")
     ax2.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    write_atomically(path, lambda p: fig.savefig(p, format="png", dpi=120))
     plt.close(fig)

@@ -134,12 +134,14 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
     keys = ("cycle", "conditions", "variant", "Wh_per_km", "energy_battery_Wh", "distance_km", "speed_rmse_mps",
             "torque_rmse_Nm", "torque_error_max_Nm", "copper_loss_Wh", "copper_loss_optimal_Wh",
             "current_excess_rms_A", "iron_loss_Wh", "inverter_loss_Wh", "wall_s", "run_dir")
-    with open(out / "summary.csv", "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(keys)
-        for r in results:
-            d = r.to_dict()
-            w.writerow([r.condition if k == "conditions" else d[k] for k in keys])
+    def write_csv(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(keys)
+            for r in results:
+                d = r.to_dict()
+                w.writerow([r.condition if k == "conditions" else d[k] for k in keys])
+    write_atomically(out / "summary.csv", write_csv)
     write_atomically(out / "summary.json", strict_json(dict(results=[r.to_dict() for r in results],
                                                             controller_ns_per_call=costs)))
     plot_study(out, results, drive)
@@ -177,7 +179,7 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
             lines += _thermal_lines([r for r in results if r.summary.cycle == cycle and r.condition == cond])
     lines += ["![Study](study.png)", "",
               "Per-run pictures: `runs/*/run.png`; traces: `runs/*/trace.csv`; all figures: `summary.csv`."]
-    (out / "report.md").write_text("\n".join(lines) + "\n")
+    write_atomically(out / "report.md", "\n".join(lines) + "\n")
 
 
 def _thermal_lines(results: list[StudyRun]) -> list[str]:
@@ -233,5 +235,5 @@ def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
     ax[0].legend(fontsize=7)
     fig.suptitle(f"{cycle}: Ferrari versus 2-D tables")
     fig.tight_layout()
-    fig.savefig(out / "study.png", dpi=100)
+    write_atomically(out / "study.png", lambda p: fig.savefig(p, format="png", dpi=100))
     plt.close(fig)

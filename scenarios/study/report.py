@@ -125,6 +125,6 @@ def plot_study(out: Path, groups: dict[str, list[dict]]) -> Path:
         fig.suptitle(f"the first {len(names)} of {len(groups)} groups (all in report.md and runs.parquet)", fontsize=9)
     fig.tight_layout()
     path = out / "study.png"
-    fig.savefig(path, dpi=90)
+    write_atomically(path, lambda p: fig.savefig(p, format="png", dpi=90))
     plt.close(fig)
     return path

@@ -179,7 +179,7 @@ def _value(field: str, v, path: Path | None, key: str):
             raise SpecError(f"{_where(path, key)}: expected one of {RECURSIONS}, got {r}")
         return r
     if field in ("command_check", "thermal_model"):
-        r = int(v) if isinstance(v, bool) else _number(v, path, key, integer=True)
+        r = _number(v, path, key, integer=True)  # 0 or 1, as documented: a TOML true is not an integer
         if r not in (0, 1):
             raise SpecError(f"{_where(path, key)}: expected 0 or 1, got {r}")
         return r

@@ -20,6 +20,7 @@ import pyarrow as pa
 import pyarrow.csv as pa_csv
 import pyarrow.parquet as pq
 
+from scenarios.core.boundary import write_atomically
 from scenarios.core.version import VERSION
 from scenarios.runs.results import RunSummary
 from scenarios.runs.simulate import Conditions
@@ -33,7 +34,7 @@ TRACES_DIR = "traces"
 FOLD_BATCH = 256
 
 _ARROW = {str: pa.string(), int: pa.int64(), float: pa.float64(), bool: pa.bool_(), "float | None": pa.float64(),
-          "int | None": pa.int64(), "bool | None": pa.bool_()}
+          "int | None": pa.int64(), "bool | None": pa.bool_(), "str | None": pa.string()}
 
 
 def _arrow_type(t) -> pa.DataType:
@@ -92,21 +93,16 @@ def summary_of(row: dict) -> RunSummary:
 def write_trace_csv(trace_parquet: Path, dest: Path) -> None:
     """A trace as trace.csv (the format of scenarios.runs.results.Trace.write_csv: floats as repr)."""
     t = pq.read_table(trace_parquet)
-    with open(dest, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(t.column_names)
-        w.writerows(zip(*(t.column(n).to_pylist() for n in t.column_names)))
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(t.column_names)
+            w.writerows(zip(*(t.column(n).to_pylist() for n in t.column_names)))
+    write_atomically(dest, write)
 
 
 def _atomic_write_table(table: pa.Table, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
-    try:
-        pq.write_table(table, tmp)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    write_atomically(path, lambda tmp: pq.write_table(table, tmp))
 
 
 def write_part(out: Path, row: dict) -> Path:

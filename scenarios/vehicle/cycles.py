@@ -62,6 +62,12 @@ class Cycle:
         """Trapezoidal integral of the samples (as in SOURCES.md)."""
         return float(np.trapezoid(self.speed_mps, self.time_s))
 
+    @property
+    def moving_s(self) -> float:
+        """Time the trace is not standing (either end of a sample interval above 0), s."""
+        moving = (self.speed_mps[:-1] > 0.0) | (self.speed_mps[1:] > 0.0)
+        return float(np.sum(np.diff(self.time_s)[moving]))
+
     def speed_at(self, t):
         """Reference speed at time(s) t, linear between samples, held outside the trace."""
         return np.interp(t, self.time_s, self.speed_mps)
@@ -231,6 +237,9 @@ def repeated(cycle: Cycle, n: int) -> Cycle:
     "<name> x<n>". The cycle must end at the speed it starts at (a standard cycle's standstill)."""
     if n < 1:
         raise ValueError(f"a cycle is repeated at least once, got {n}")
+    if n * cycle.duration_s > CYCLE_MAX_DURATION_S:  # before any copy is made
+        raise ValueError(f"{n} copies of {cycle.name}'s {cycle.duration_s:g} s are {n * cycle.duration_s:g} s, past "
+                         f"the longest run ({CYCLE_MAX_DURATION_S:g} s, a week)")
     if n == 1:
         return cycle
     t, v = cycle.time_s - cycle.time_s[0], cycle.speed_mps

@@ -6,6 +6,7 @@
 
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -20,6 +21,8 @@
 
 #include "cvode_integrator.hpp"
 #include "flux_map_generators.hpp"
+#include "freewheel_integrator.hpp"
+#include "inverter_state.hpp"
 #include "ipmsm_ode.hpp"
 #include "linear_flow.hpp"
 #include "machine/flux_map.hpp"
@@ -503,4 +506,67 @@ TEST(PlantModel, CopySaveAndLoadAreExact) {
             ASSERT_TRUE(same_bits(a[j], c[j])) << "restored, step " << k << ", output " << j;
         }
     }
+}
+
+// --- the inverter's safe states (plant/inverter_state.hpp, freewheel_integrator.hpp) -----------
+
+// On an isotropic machine (L0 = l I) the bridge's directions are +-e0/|e0| with
+// lambda = (+-|e0| - k) / l: the onset direction +e0 above the onset, two decaying ones below.
+TEST(BridgeDirections, IsotropicMachineClosedForm) {
+    const double l = 2e-4, L0[4] = {l, 0, 0, l}, k = 226.0;
+    for (double e : {100.0, 200.0, 250.0, 400.0}) {
+        const double e0[2] = {0.3 * e, -std::sqrt(1 - 0.09) * e};
+        const BridgeDirections d = bridge_directions(e0, k, L0);
+        EXPECT_EQ(d.has_onset, e > k) << e;
+        if (e > k) {
+            EXPECT_NEAR(d.onset[0], e0[0] / e, 1e-12);
+            EXPECT_NEAR(d.onset[1], e0[1] / e, 1e-12);
+            ASSERT_EQ(d.n_decay, 1);  // against the back-EMF
+            EXPECT_NEAR(d.decay[0][0], -e0[0] / e, 1e-12);
+        } else {
+            ASSERT_EQ(d.n_decay, 2);  // with and against the back-EMF
+            const double dot = d.decay[0][0] * d.decay[1][0] + d.decay[0][1] * d.decay[1][1];
+            EXPECT_NEAR(dot, -1.0, 1e-12);
+        }
+    }
+}
+
+// Each direction solves e0 = (k I + lambda L0) n on an anisotropic, cross-coupled L0.
+TEST(BridgeDirections, SolveTheirEquation) {
+    const double L0[4] = {1.2e-4, 0.1e-4, 0.1e-4, 4.0e-4}, k = 226.0;
+    for (double e : {150.0, 300.0}) {
+        const double e0[2] = {0.2 * e, -std::sqrt(0.96) * e};
+        const BridgeDirections d = bridge_directions(e0, k, L0);
+        std::vector<std::array<double, 2>> all;
+        for (int j = 0; j < d.n_decay; ++j) all.push_back({d.decay[j][0], d.decay[j][1]});
+        if (d.has_onset) all.push_back({d.onset[0], d.onset[1]});
+        ASSERT_GE(all.size(), 2u);
+        for (const auto& n : all) {
+            const double l[2] = {L0[0] * n[0] + L0[1] * n[1], L0[2] * n[0] + L0[3] * n[1]};
+            const double r[2] = {e0[0] - k * n[0], e0[1] - k * n[1]};
+            EXPECT_NEAR(l[0] * r[1] - l[1] * r[0], 0.0, 1e-10 * e * 4e-4);  // (e0 - k n) parallel to L0 n
+            EXPECT_NEAR(std::hypot(n[0], n[1]), 1.0, 1e-14);
+        }
+    }
+}
+
+// Blocked below the onset, a freewheeling step is exact: i = 0, psi = psi_0, only the iron loss.
+TEST(FreewheelIntegrator, BlockedStepIsExact) {
+    const FluxMap map(linear_flux_map(0.25e-3, 0.6e-3, 0.08, 1000.0, 21));
+    const InverseFluxMap inverse(map);
+    DqFluxOde o;
+    o.inverse = &inverse;
+    o.omega = 2000.0;  // |e0| = 160 V < k
+    o.R = 0.05;
+    StepIntegrands q{4, 500.0, IronLossModel{1.0, 2.0, 0.005, 0.08}};
+    CvodeSettings s;
+    FreewheelIntegrator fw;
+    const double psi0[2] = {0.08, 0.0}, seed[2] = {0.0, 0.0};
+    const FreewheelStep r = fw.advance(o, 226.0, q, s, 1e-4, psi0, true, seed, 0.0);
+    EXPECT_TRUE(r.blocked);
+    EXPECT_EQ(r.switchings, 0);
+    EXPECT_EQ(r.integrals[StepIntegrands::P_elec], 0.0);
+    EXPECT_EQ(r.integrals[StepIntegrands::P_cu], 0.0);
+    EXPECT_EQ(r.integrals[StepIntegrands::T_e], 0.0);
+    EXPECT_DOUBLE_EQ(r.integrals[StepIntegrands::P_fe], 1e-4 * q.fe.power(4, 500.0, 0.08, 0.0));
 }

@@ -10,7 +10,7 @@ import pytest
 
 from scenarios import __main__ as cli
 from scenarios.maps.flux_map import DEFAULT_MAP
-from scenarios.runs.check import judge
+from scenarios.runs.check import CYCLE_FOLLOWING, judge
 
 #: two short user cycles (CSV, relative to the drive file): a start, cruise and stop of 30 s, and
 #: a faster one of 20 s that ends at speed
@@ -48,10 +48,10 @@ def test_passing_drive_exits_0_with_a_clean_report(tmp_path, capsys):
     suites = root.findall("testsuite")
     assert [s.get("name") for s in suites] == ["gate"]
     cases = suites[0].findall("testcase")
-    assert len(cases) == 2 * len(PASSING) and suites[0].get("tests") == str(len(cases))
+    assert len(cases) == 2 * (len(PASSING) + len(CYCLE_FOLLOWING)) and suites[0].get("tests") == str(len(cases))
     assert suites[0].get("failures") == "0" and not list(root.iter("failure"))
     assert {c.get("classname") for c in cases} == {"gate/town.csv", "gate/road.csv"}
-    assert {c.get("name") for c in cases} == set(PASSING)
+    assert {c.get("name") for c in cases} == set(PASSING) | set(CYCLE_FOLLOWING)
     md = (out / "check.md").read_text()
     assert "PASS" in md and md.count("| pass |") == len(cases)
     assert not list(junit.parent.glob(".*")) and not list(out.glob(".*"))   # no temporary files left
@@ -66,7 +66,7 @@ def test_failing_limit_exits_1_and_names_figure_and_limit(tmp_path, capsys):
                 if c.find("failure") is not None]
     assert [(cls, name) for cls, name, _ in failures] == [("gate/town.csv", "Wh_per_km_max"),
                                                           ("gate/road.csv", "Wh_per_km_max")]
-    assert suite.get("failures") == "2" and suite.get("tests") == str(2 * len(limits))
+    assert suite.get("failures") == "2" and suite.get("tests") == str(2 * (len(limits) + len(CYCLE_FOLLOWING)))
     for _, _, f in failures:
         msg = f.get("message")
         figure = float(msg.split("Wh_per_km = ")[1].split(",")[0])
@@ -96,4 +96,5 @@ def test_bad_input_exits_2_and_writes_nothing(case, tmp_path, capsys):
 def test_judge_directions_and_nan():
     s = {"Wh_per_km": 120.0, "soc_end": 0.45, "speed_rmse_mps": math.nan}
     v = judge("c", s, {"Wh_per_km_max": 130.0, "soc_end_min": 0.5, "speed_rmse_mps_max": 1.0})
-    assert [x.passed for x in v] == [True, False, False]   # a NaN figure never passes
+    assert [x.passed for x in v] == [True, False, False, False, False]   # a NaN figure never passes
+    assert [x.limit for x in v[3:]] == list(CYCLE_FOLLOWING)  # every check's: no cycle figures, no pass

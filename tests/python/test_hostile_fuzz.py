@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from scenarios.drives.description import SCHEMA, DriveDescriptionError, load_drive
+from scenarios.drives.description import FAULT_TRIGGERS, SCHEMA, DriveDescriptionError, load_drive
 from scenarios.maps.flux_map import linear_flux_map, write_flux_map
 
 #: TOML texts of hostile values
@@ -67,6 +67,8 @@ def _file(folder: Path, small_map: Path, path: str, value: str) -> Path:
         text += f"{name} = {value}\n"
     elif section and section != "motor":
         text += f"[{section}]\n{name} = {value}\n"
+        if section == "fault" and name not in FAULT_TRIGGERS:   # the one trigger every [fault] needs
+            text += "t_s = 1.0\n"
     p = folder / "fuzz.toml"
     p.write_text(text)
     return p

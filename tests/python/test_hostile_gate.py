@@ -14,8 +14,11 @@ import pytest
 
 from scenarios import __main__ as cli
 from scenarios.maps.flux_map import DEFAULT_MAP
+from scenarios.runs.check import CYCLE_FOLLOWING
 
 LIMITS = {"Wh_per_km_max": 200.0, "soc_end_min": 0.5}
+#: the verdicts of one cycle: the drive's limits and every check's cycle-following ones
+VERDICTS = {**LIMITS, **CYCLE_FOLLOWING}
 
 
 @dataclass
@@ -39,7 +42,9 @@ def fake_runs(monkeypatch):
         if top == 7.0:
             raise RuntimeError("fmi2DoStep failed: the FMU refused\x1b[31m")
         wh = {20.0: 300.0, 5.0: 100.0, 0.0: None}[top]
-        return FakeSummary({"Wh_per_km": wh, "soc_end": 0.9})
+        km = 5.0 * top / 1000.0  # the car followed the cycle: its distance, no speed error
+        return FakeSummary({"Wh_per_km": wh, "soc_end": 0.9, "speed_rmse_mps": 0.0, "distance_km": km,
+                            "cycle_distance_km": km, "cycle_moving_s": 10.0})
 
     import scenarios.runs.simulate as sim
     monkeypatch.setattr(sim, "simulate", simulate)
@@ -90,7 +95,7 @@ def test_two_cycles_of_one_name_are_two_cycles(tmp_path, capsys, fake_runs):
     status, junit, io = run(tmp_path, drive(tmp_path, [a, b]), capsys)
     assert status == 1, io.err
     cases = cases_of(junit)
-    assert len(cases) == 2 * len(LIMITS) and len(set(cases)) == len(cases)
+    assert len(cases) == 2 * len(VERDICTS) and len(set(cases)) == len(cases)
     assert ("gate/a/x.csv", "Wh_per_km_max", "failure") in cases
     assert ("gate/b/x.csv", "Wh_per_km_max", "pass") in cases
     assert "FAIL gate/a/x.csv Wh_per_km" in io.out and "FAIL" in (tmp_path / "out" / "check.md").read_text()
@@ -99,7 +104,7 @@ def test_two_cycles_of_one_name_are_two_cycles(tmp_path, capsys, fake_runs):
 def test_the_same_cycle_listed_twice_runs_once(tmp_path, capsys, fake_runs):
     a = cycle(tmp_path, "x.csv", 5.0)
     status, junit, io = run(tmp_path, drive(tmp_path, [a, a]), capsys)
-    assert status == 0 and len(cases_of(junit)) == len(LIMITS) and fake_runs == [5.0]
+    assert status == 0 and len(cases_of(junit)) == len(VERDICTS) and fake_runs == [5.0]
 
 
 def test_a_cycle_that_cannot_run_is_an_error_not_a_pass(tmp_path, capsys, fake_runs):
@@ -108,10 +113,10 @@ def test_a_cycle_that_cannot_run_is_an_error_not_a_pass(tmp_path, capsys, fake_r
     status, junit, io = run(tmp_path, drive(tmp_path, [good, bad]), capsys)
     assert status == 2, io.err
     cases = cases_of(junit)
-    assert {(n, o) for c, n, o in cases if c == "gate/bad.csv"} == {(k, "error") for k in LIMITS}
+    assert {(n, o) for c, n, o in cases if c == "gate/bad.csv"} == {(k, "error") for k in VERDICTS}
     assert {o for c, n, o in cases if c == "gate/good.csv"} == {"pass"}
     suite = ET.parse(junit).getroot().find("testsuite")
-    assert suite.get("errors") == str(len(LIMITS)) and suite.get("tests") == str(2 * len(LIMITS))
+    assert suite.get("errors") == str(len(VERDICTS)) and suite.get("tests") == str(2 * len(VERDICTS))
     assert "\x1b" not in io.out + io.err and "ERROR" in (tmp_path / "out" / "check.md").read_text()
 
 
@@ -129,7 +134,7 @@ def test_names_with_any_character_give_well_formed_junit(tmp_path, capsys, fake_
     status, junit, io = run(tmp_path, path, capsys)
     assert status == 0, io.err
     root = ET.parse(junit).getroot()   # well-formed XML 1.0
-    assert len(list(root.iter("testcase"))) == len(LIMITS)
+    assert len(list(root.iter("testcase"))) == len(VERDICTS)
     assert all(ch.isprintable() or ch in "\n" for ch in io.out), repr(io.out)
 
 

@@ -1,0 +1,342 @@
+#include "freewheel_integrator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "cvode_handles.hpp"
+#include "inverter_state.hpp"
+
+namespace ipmsm {
+
+namespace {
+
+// y: psi_d, psi_q, the step integrals, int |i|, int |i|^2.
+constexpr int kY = 2 + StepIntegrands::count + 2;
+constexpr int kAbsI = 2 + StepIntegrands::count, kAbsI2 = kAbsI + 1;
+// Segments (between roots) per call before the call is refused: each root ends one, and a
+// trajectory has at most a few (a false root, an arming, a block).
+constexpr int kMaxSegments = 64;
+// A falling root of g = i . n_b is the current's zero when the flux there is within this many
+// tolerances of psi_0 (|L_0 i| <= kZeroTolerances (rtol |psi_0| + atol)); a turn of the current
+// by 90 degrees away from n_b crosses g = 0 at amperes.
+constexpr double kZeroTolerances = 100.0;
+// Currents below this fraction of the map's current scale are i = 0 for the bridge's direction:
+// the inverse map returns rounding-sized currents of any direction at psi_0.
+constexpr double kZeroCurrent = 1e-9;
+// The bridge's voltage is continued past a zero of g_j (the crossing of the line i = s n_j) only
+// where |i| is below this fraction of the current scale: a current crossing that line at amperes
+// (a false root) keeps the bridge's own voltage.
+constexpr double kContinuedCurrent = 1e-3;
+
+std::string number(double x) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.17g", x);
+    return b;
+}
+
+}  // namespace
+
+struct FreewheelIntegrator::Workspace {
+    DqFluxOde ode;
+    const StepIntegrands* integrands = nullptr;
+    double k = 0;
+    BridgeDirections dirs;    // the directions a current reaches zero along (inverter_state.hpp)
+    bool dirs_valid = false;  // ... computed for e_0, k, L_0 = dirs_for
+    double dirs_for[7] = {};
+    double n_zero[2] = {0, 0};  // the bridge's direction at i = 0 exactly (the onset direction)
+    bool armed[4] = {};         // falling zero of g_j wanted; the voltage continued past it (above)
+    double r_zero = 0;          // A: a current below this is i = 0 (the bridge's direction n_zero)
+    double r_continue = 0;      // A: the voltage is continued past a zero only below this current
+    double seed[2] = {0, 0};    // the last currents: the next Newton's start
+    std::string error;
+    CvodeHandles h;
+
+    Workspace() {
+        if (SUNContext_Create(nullptr, &h.ctx) != 0 || h.ctx == nullptr) throw CvodeError("SUNContext_Create failed");
+        h.y = N_VNew_Serial(kY, h.ctx);
+        h.atol = N_VNew_Serial(kY, h.ctx);
+        if (h.y == nullptr || h.atol == nullptr) throw CvodeError("N_VNew_Serial failed");
+        N_VConst(0.0, h.y);
+        N_VConst(1.0, h.atol);
+        h.mem = CVodeCreate(CV_BDF, h.ctx);
+        if (h.mem == nullptr) throw CvodeError("CVodeCreate failed");
+        check(CVodeSetErrHandlerFn(h.mem, &Workspace::handler, this), "CVodeSetErrHandlerFn");
+        check(CVodeInit(h.mem, &Workspace::rhs, 0.0, h.y), "CVodeInit");
+        check(CVodeSetUserData(h.mem, this), "CVodeSetUserData");
+        check(CVodeSVtolerances(h.mem, 1e-6, h.atol), "CVodeSVtolerances");
+        h.A = SUNDenseMatrix(kY, kY, h.ctx);
+        if (h.A == nullptr) throw CvodeError("SUNDenseMatrix failed");
+        h.ls = SUNLinSol_Dense(h.y, h.A, h.ctx);
+        if (h.ls == nullptr) throw CvodeError("SUNLinSol_Dense failed");
+        check(CVodeSetLinearSolver(h.mem, h.ls, h.A), "CVodeSetLinearSolver");
+        check(CVodeSetJacFn(h.mem, &Workspace::jac), "CVodeSetJacFn");
+    }
+    Workspace(const Workspace&) = delete;
+    Workspace& operator=(const Workspace&) = delete;
+
+    void check(int flag, const char* call) {
+        if (flag >= 0) return;
+        char* name = CVodeGetReturnFlagName(flag);
+        std::string m = std::string("CVODE ") + call + " failed (" + (name != nullptr ? name : "?") + ")";
+        std::free(name);
+        if (!error.empty()) m += ": " + error;
+        throw CvodeError(m);
+    }
+
+    InverseFluxPoint currents(const double* psi) {
+        const InverseFluxPoint c = ode.currents_near(psi[0], psi[1], seed[0], seed[1]);
+        if (std::isfinite(c.i_d) && std::isfinite(c.i_q)) {
+            seed[0] = c.i_d;
+            seed[1] = c.i_q;
+        }
+        return c;
+    }
+
+    // The bridge's voltage direction at the currents i (|i| = r), continued past the zero in an
+    // armed segment; sigma its sign relative to i/|i|.
+    void direction(const InverseFluxPoint& c, double r, double* n, double& sigma) const {
+        if (r <= r_zero) {
+            n[0] = n_zero[0];
+            n[1] = n_zero[1];
+            sigma = 1.0;
+            return;
+        }
+        sigma = 1.0;
+        if (r < r_continue)
+            for (int j = 0; j < dirs.n_decay; ++j)
+                if (armed[j] && c.i_d * dirs.decay[j][0] + c.i_q * dirs.decay[j][1] < 0.0) sigma = -1.0;
+        n[0] = sigma * c.i_d / r;
+        n[1] = sigma * c.i_q / r;
+    }
+
+    static int rhs(realtype, N_Vector y, N_Vector ydot, void* data) {
+        auto* w = static_cast<Workspace*>(data);
+        const double* p = N_VGetArrayPointer(y);
+        double* d = N_VGetArrayPointer(ydot);
+        const InverseFluxPoint c = w->currents(p);
+        const double r = std::hypot(c.i_d, c.i_q);
+        double n[2], sigma;
+        w->direction(c, r, n, sigma);
+        DqFluxOde o = w->ode;
+        o.u_d = -w->k * n[0];
+        o.u_q = -w->k * n[1];
+        d[0] = o.u_d - o.R * c.i_d + o.omega * p[1];
+        d[1] = o.u_q - o.R * c.i_q - o.omega * p[0];
+        w->integrands->eval(o, p[0], p[1], c.i_d, c.i_q, d + 2);
+        d[kAbsI] = r;
+        d[kAbsI2] = r * r;
+        double sum = 0.0;
+        for (int k = 0; k < kY; ++k) sum += d[k];
+        return std::isfinite(sum) ? 0 : 1;  // non-finite: CVODE retries with a smaller step
+    }
+
+    // d f / d psi = (D_u - R I) G + omega J, D_u = d u / d i = -k sigma (I - i i^T / r^2) / r.
+    static int jac(realtype, N_Vector y, N_Vector, SUNMatrix J, void* data, N_Vector, N_Vector, N_Vector) {
+        auto* w = static_cast<Workspace*>(data);
+        const double* p = N_VGetArrayPointer(y);
+        const InverseFluxPoint c = w->currents(p);
+        const double r = std::hypot(c.i_d, c.i_q);
+        double n[2], sigma;
+        w->direction(c, r, n, sigma);
+        double D[4] = {0, 0, 0, 0};
+        if (r > w->r_zero) {
+            const double a = -w->k * sigma / r, ed = c.i_d / r, eq = c.i_q / r;
+            D[0] = a * (1.0 - ed * ed);
+            D[1] = D[2] = -a * ed * eq;
+            D[3] = a * (1.0 - eq * eq);
+        }
+        const double R = w->ode.R;
+        D[0] -= R;
+        D[3] -= R;
+        const double G[4] = {c.G_dd, c.G_dq, c.G_qd, c.G_qq};
+        SUNMatZero(J);
+        SM_ELEMENT_D(J, 0, 0) = D[0] * G[0] + D[1] * G[2];
+        SM_ELEMENT_D(J, 0, 1) = D[0] * G[1] + D[1] * G[3] + w->ode.omega;
+        SM_ELEMENT_D(J, 1, 0) = D[2] * G[0] + D[3] * G[2] - w->ode.omega;
+        SM_ELEMENT_D(J, 1, 1) = D[2] * G[1] + D[3] * G[3];
+        const double s = SM_ELEMENT_D(J, 0, 0) + SM_ELEMENT_D(J, 0, 1) + SM_ELEMENT_D(J, 1, 0) + SM_ELEMENT_D(J, 1, 1);
+        return std::isfinite(s) ? 0 : 1;
+    }
+
+    static int root(realtype, N_Vector y, realtype* g, void* data) {
+        auto* w = static_cast<Workspace*>(data);
+        const InverseFluxPoint c = w->currents(N_VGetArrayPointer(y));
+        for (int j = 0; j < w->dirs.n_decay; ++j) g[j] = c.i_d * w->dirs.decay[j][0] + c.i_q * w->dirs.decay[j][1];
+        return std::isfinite(c.i_d + c.i_q) ? 0 : 1;
+    }
+
+    static void handler(int code, const char* module, const char* function, char* msg, void* data) {
+        auto* w = static_cast<Workspace*>(data);
+        if (code == CV_WARNING) return;
+        try {
+            if (!w->error.empty()) w->error += "; ";
+            w->error += std::string(module != nullptr ? module : "CVODE") + "/" +
+                        (function != nullptr ? function : "?") + ": " + (msg != nullptr ? msg : "");
+        } catch (...) {}
+    }
+};
+
+FreewheelIntegrator::FreewheelIntegrator() = default;
+FreewheelIntegrator::~FreewheelIntegrator() = default;
+FreewheelIntegrator::FreewheelIntegrator(const FreewheelIntegrator&) {}
+FreewheelIntegrator& FreewheelIntegrator::operator=(const FreewheelIntegrator&) { return *this; }
+FreewheelIntegrator::FreewheelIntegrator(FreewheelIntegrator&&) noexcept = default;
+FreewheelIntegrator& FreewheelIntegrator::operator=(FreewheelIntegrator&&) noexcept = default;
+
+FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const StepIntegrands& integrands,
+                                           const CvodeSettings& s, double h, const double* psi, bool blocked,
+                                           const double* i_seed, double h_start) {
+    if (!(h > 0) || !std::isfinite(h)) throw CvodeError("freewheeling: the step h = " + number(h) + " s is not > 0");
+    if (!(k > 0) || !std::isfinite(k))
+        throw CvodeError("freewheeling: the bridge's voltage 2 u_dc / pi = " + number(k) + " V is not > 0");
+    // psi_0, the back-EMF there and the inductance at zero current (inverter_state.hpp).
+    const FluxPoint z = ode.inverse->forward_eval(0.0, 0.0);
+    const double psi0[2] = {z.psi_d + ode.delta_psi_m, z.psi_q};
+    const double e0[2] = {ode.omega * psi0[1], -ode.omega * psi0[0]};
+    const double L0[4] = {z.L_dd, z.L_dq, z.L_qd, z.L_qq};
+    // |e_0| <= k: no onset (inverter_state.hpp); the directions only where a current flows
+    const bool onset = std::hypot(e0[0], e0[1]) > k;
+    FreewheelStep out;
+    const IronLossModel& fe = integrands.fe;
+    auto blocked_for = [&](double span) {  // i = 0, psi = psi_0: only the iron loss of the magnet's flux
+        out.integrals[StepIntegrands::P_fe] += span * fe.power(integrands.pole_pairs, integrands.w_m, psi0[0], psi0[1]);
+    };
+    double start[2] = {psi[0], psi[1]};
+    if (blocked) {
+        if (!onset) {
+            blocked_for(h);
+            out.psi[0] = psi0[0], out.psi[1] = psi0[1];
+            out.blocked = true;
+            return out;
+        }
+        start[0] = psi0[0], start[1] = psi0[1];  // conduction starts from i = 0 along n_on
+        ++out.switchings;
+    }
+
+    if (!ws_) ws_ = std::make_unique<Workspace>();
+    Workspace& w = *ws_;
+    // the directions are a function of e_0, k and L_0 alone: computed again only when they change
+    if (!w.dirs_valid || w.dirs_for[0] != e0[0] || w.dirs_for[1] != e0[1] || w.dirs_for[2] != k ||
+        !std::equal(L0, L0 + 4, w.dirs_for + 3)) {
+        w.dirs = bridge_directions(e0, k, L0);
+        w.dirs_for[0] = e0[0], w.dirs_for[1] = e0[1], w.dirs_for[2] = k;
+        std::copy(L0, L0 + 4, w.dirs_for + 3);
+        w.dirs_valid = true;
+    }
+    const BridgeDirections& dirs = w.dirs;
+    w.ode = ode;
+    w.integrands = &integrands;
+    w.k = k;
+    w.n_zero[0] = onset ? dirs.onset[0] : 0.0;
+    w.n_zero[1] = onset ? dirs.onset[1] : 0.0;
+    w.seed[0] = blocked ? 0.0 : i_seed[0];
+    w.seed[1] = blocked ? 0.0 : i_seed[1];
+    w.r_zero = kZeroCurrent * s.current_scale;
+    w.r_continue = kContinuedCurrent * s.current_scale;
+    w.error.clear();
+    void* mem = w.h.mem;
+    const double energy = 1.5 * s.atol * s.current_scale;
+    {
+        double* a = N_VGetArrayPointer(w.h.atol);
+        a[0] = a[1] = s.atol;
+        a[2 + StepIntegrands::P_elec] = a[2 + StepIntegrands::P_cu] = a[2 + StepIntegrands::P_fe] = energy;
+        a[2 + StepIntegrands::T_e] = energy * integrands.pole_pairs * h;
+        a[kAbsI] = energy / (1.5 * k);  // the DC charge's share of the energy tolerance
+        a[kAbsI2] = a[kAbsI] * s.current_scale;
+    }
+    double* y = N_VGetArrayPointer(w.h.y);
+    std::fill(y, y + kY, 0.0);
+    y[0] = start[0];
+    y[1] = start[1];
+    double t = 0.0;
+    // arm every direction the current points along (g_j > 0) at a segment's start
+    auto arm = [&]() {
+        const InverseFluxPoint c = w.currents(y);
+        for (int j = 0; j < dirs.n_decay; ++j)
+            w.armed[j] = c.i_d * dirs.decay[j][0] + c.i_q * dirs.decay[j][1] > w.r_zero;
+    };
+    arm();
+    const int n_roots = dirs.n_decay;
+    w.check(CVodeRootInit(mem, n_roots, n_roots > 0 ? &Workspace::root : nullptr), "CVodeRootInit");
+    for (int segment = 0;; ++segment) {
+        if (segment >= kMaxSegments)
+            throw CvodeError("freewheeling: more than " + std::to_string(kMaxSegments) +
+                             " roots of the bridge's switching functions in one step");
+        w.check(CVodeReInit(mem, t, w.h.y), "CVodeReInit");
+        w.check(CVodeSVtolerances(mem, s.rtol, w.h.atol), "CVodeSVtolerances");
+        w.check(CVodeSetMaxNumSteps(mem, s.max_steps), "CVodeSetMaxNumSteps");
+        w.check(CVodeSetStopTime(mem, h), "CVodeSetStopTime");
+        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h) : 0.0), "CVodeSetInitStep");
+        if (n_roots > 0) {
+            int direction[4];
+            for (int j = 0; j < n_roots; ++j) direction[j] = w.armed[j] ? -1 : 1;
+            w.check(CVodeSetRootDirection(mem, direction), "CVodeSetRootDirection");
+            w.check(CVodeSetNoInactiveRootWarn(mem), "CVodeSetNoInactiveRootWarn");
+        }
+        double t_ret = t;
+        const int flag = CVode(mem, h, w.h.y, &t_ret, CV_NORMAL);
+        long nst = 0, nfe = 0;
+        CVodeGetLastStep(mem, &out.h_last);
+        CVodeGetNumSteps(mem, &nst);
+        CVodeGetNumRhsEvals(mem, &nfe);
+        out.steps += nst;
+        out.rhs_evals += nfe;
+        if (flag < 0) {
+            std::string m = "CVODE failed while freewheeling (" + number(h) + " s step)";
+            char* name = CVodeGetReturnFlagName(flag);
+            m += std::string(" (") + (name != nullptr ? name : "?") + ")";
+            std::free(name);
+            if (!w.error.empty()) m += ": " + w.error;
+            throw CvodeError(m);
+        }
+        t = t_ret;
+        if (flag != CV_ROOT_RETURN) break;  // the end of the step
+        int found[4] = {0, 0, 0, 0};
+        w.check(CVodeGetRootInfo(mem, found), "CVodeGetRootInfo");
+        bool zero = false;
+        for (int j = 0; j < n_roots; ++j) {
+            if (found[j] == 0) continue;
+            if (!w.armed[j]) {  // g_j rose through zero: from here a zero of the current along n_j is watched
+                w.armed[j] = true;
+                continue;
+            }
+            const InverseFluxPoint c = w.currents(y);
+            const double dpsi[2] = {L0[0] * c.i_d + L0[1] * c.i_q, L0[2] * c.i_d + L0[3] * c.i_q};
+            const double tol = kZeroTolerances * (s.rtol * std::hypot(psi0[0], psi0[1]) + s.atol);
+            if (std::hypot(dpsi[0], dpsi[1]) <= tol)
+                zero = true;
+            else
+                w.armed[j] = false;  // the current crossed the line i = s n_j away from zero
+        }
+        if (!zero) continue;
+        y[0] = psi0[0];  // i = 0 exactly
+        y[1] = psi0[1];
+        w.seed[0] = w.seed[1] = 0.0;
+        if (onset) {  // the current passes zero and grows again along the onset direction
+            for (int j = 0; j < n_roots; ++j) w.armed[j] = false;
+            continue;
+        }
+        // The bridge blocks: i = 0, psi = psi_0 for the rest of the step.
+        for (int q = 0; q < StepIntegrands::count; ++q) out.integrals[q] = y[2 + q];
+        out.I_integral = y[kAbsI];
+        out.I2_integral = y[kAbsI2];
+        blocked_for(h - t);
+        out.psi[0] = psi0[0], out.psi[1] = psi0[1];
+        out.blocked = true;
+        ++out.switchings;
+        return out;
+    }
+    for (int q = 0; q < StepIntegrands::count; ++q) out.integrals[q] = y[2 + q];
+    out.I_integral = y[kAbsI];
+    out.I2_integral = y[kAbsI2];
+    out.psi[0] = y[0], out.psi[1] = y[1];
+    out.c = w.currents(y);
+    if (!std::isfinite(out.psi[0] + out.psi[1] + out.c.i_d + out.c.i_q))
+        throw CvodeError("freewheeling: non-finite flux linkages or currents at the end of the step");
+    return out;
+}
+
+}  // namespace ipmsm
