@@ -25,6 +25,11 @@ using M = PlantModel;
 
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// The most internal steps one fmi2DoStep may take (cvode_max_steps' maximum): one step cannot be
+// interrupted, so its work is bounded: 2e5 steps of a few microseconds (docs/spec/INTERFACE.md,
+// "Bounded steps"), 10 times the default. A step needing more is a stiff map for BDF
+// (cvode_method 2) or a communication step to cut, not a reason to compute for minutes.
+constexpr int kMaxCvodeSteps = 200000;
 constexpr double kVoltageMax = 1e4;  // V: far beyond any traction inverter
 constexpr double kSpeedMax = 1e4;    // rad/s mechanical (95 000 r/min)
 
@@ -155,7 +160,7 @@ const std::vector<V>& PlantModel::variables() {
                 {"cvode_max_order", &M::cvode_max_order, Causality::parameter, Variability::fixed, "", "",
                  "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
                 {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
-                 "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
+                 "Internal steps allowed per communication step before CVODE fails", 1, kMaxCvodeSteps},
                 // I_max (0.2.0) here: 0.1.0's value references above stay theirs, and 0.2.0's thermal
                 // ones below stay theirs (0.2.0 had it before i_d_start; CHANGELOG)
                 motor("I_max"),
@@ -373,6 +378,48 @@ void PlantModel::update_outputs(const DqFluxOde& o, double i_d_now, double i_q_n
     P_fe = out.P_fe;
     psi_m_T = map_->psi_m() + o.delta_psi_m;
     R_s_T = o.R;
+}
+
+// A Newton seed this many times the grid's largest current from the origin is no start the
+// inverse map's Newton needs: the table's start is nearer.
+constexpr double kSeedReach = 10.0;
+// The heat balance's closure an FMU state must show (J/J): the exact step closes it to rounding,
+// the tests check 1e-6 of a run's heat (tests/python/test_thermal_network.py).
+constexpr double kHeatBalanceTolerance = 1e-6;
+
+PlantModel::StateRanges PlantModel::state_ranges() const {
+    StateRanges r{{"a flux linkage of the plant's state (Wb)", -kInf, kInf},
+                  {"a current of the plant's state (A)", -kInf, kInf},
+                  {"the plant's next step size (s)", 0.0, kInf},
+                  {"a thermal-network node temperature (K)", kTemperatureMin_K, kTemperatureMax_K}};
+    if (map_) {  // before initialisation there is no map, and no state but the start values
+        const MapSpan span = map_span(map_->table());
+        const double psi = flux_reach(span, map_->psi_m(), motor.k_psi_T);
+        const double i = kSeedReach * std::max({std::abs(span.i_d[0]), std::abs(span.i_d[1]), std::abs(span.i_q[0]),
+                                                std::abs(span.i_q[1])});
+        r.flux.min = -psi, r.flux.max = psi;
+        r.current.min = -i, r.current.max = i;
+    }
+    return r;
+}
+
+void PlantModel::check_thermal_state() const {
+    if (!thermal_) return;
+    const double E_error = thermal_->heat_balance_error();
+    if (!(E_error <= kHeatBalanceTolerance))
+        throw fmi::Error(
+            "serialised FMU state: the thermal network's heat balance does not close (E_loss - E_stored - "
+            "E_coolant - E_ambient is " +
+            num(E_error) + " of the largest; at most " + num(kHeatBalanceTolerance) + "); not restored");
+    const bool same =
+        theta_winding == thermal_->theta(thermal::winding) && theta_magnet == thermal_->theta(thermal::magnet) &&
+        theta_stator_yoke == thermal_->theta(thermal::stator_yoke) &&
+        theta_stator_tooth == thermal_->theta(thermal::stator_tooth) && E_coolant == thermal_->E_coolant() &&
+        E_ambient == thermal_->E_ambient() && E_stored == thermal_->E_stored() && P_coolant == thermal_->P_coolant();
+    if (!same)
+        throw fmi::Error(
+            "serialised FMU state: the thermal outputs (theta_*, E_coolant, E_ambient, E_stored, P_coolant) are not "
+            "the thermal network's state; not restored");
 }
 
 void PlantModel::advance_thermal(double h, double E_cu_step, double E_fe_step) {

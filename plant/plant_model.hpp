@@ -83,17 +83,22 @@ public:
     void exit_initialization();
     void do_step(double t, double h);
     // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
+    // Each field with what it may hold (a state is input, not proof: fmi/model.hpp).
     template <class Field>
     void state_fields(Field&& field) {
+        const StateRanges r = state_ranges();
         CvodeState s = integrator_.state();
-        field(s.t), field(s.psi), field(s.h_next), field(s.i_seed);
+        field(s.t), field(s.psi, r.flux), field(s.h_next, r.step), field(s.i_seed, r.current);
         integrator_.set_state(s);  // what was read in; the same state when the fields were written
         field(outside_warned_);
         field(blocked_), field(demag_warned_);
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
         field(saved);
         check_map_content(saved, map_.get());
-        if (thermal_) thermal_->state_fields(field);  // thermal_model is a fixed parameter: same fields both ways
+        if (thermal_) {  // thermal_model is a fixed parameter: same fields both ways
+            thermal_->state_fields(field, r.temperature);
+            check_thermal_state();
+        }
     }
 
     // --- inputs
@@ -156,6 +161,16 @@ public:
     double back_emf_line_peak() const;
 
 private:
+    // What the internal state may hold: fluxes the machine on the map reaches (flux_reach), Newton
+    // seeds within kSeedReach of the grid's currents, a step size >= 0, node temperatures those
+    // both FMUs accept (machine.hpp).
+    struct StateRanges {
+        fmi::FieldRange flux, current, step, temperature;
+    };
+    StateRanges state_ranges() const;
+    // The network's outputs are its state's, and its heat balance closes (throws fmi::Error).
+    void check_thermal_state() const;
+
     DqFluxOde ode() const;  // the right-hand side for the present inputs (throws if invalid)
     void update_outputs(const DqFluxOde& ode);
     void update_outputs(const DqFluxOde& ode, double i_d, double i_q);  // at currents known exactly

@@ -40,8 +40,8 @@ const FluxPoint& CurrentRegulator::reference_flux(double i_d_ref, double i_q_ref
 VoltageCommand CurrentRegulator::step(Dq i_ref, Dq i, double omega, double u_dc, double h, const MagnetFlux& flux) {
     const double theta = omega * h;  // electrical rotation within the sample, rad
     RegulatorState& s = state;
-    const double u_lim = u_dc / std::sqrt(3.0);  // the inverter's linear range (SVPWM)
-    auto limit = [u_lim](Dq& u) {                // to u_lim, keeping the angle
+    const double u_lim = linear_range(u_dc);
+    auto limit = [u_lim](Dq& u) {  // to u_lim, keeping the angle
         const double mag = u.abs();
         if (!(mag > u_lim)) return false;
         u = (u_lim / mag) * u;

@@ -47,6 +47,7 @@
 // and the integrator is corrected by what the limit took away (anti-windup).
 #pragma once
 
+#include <cmath>
 #include <limits>
 
 #include "control/dq.hpp"
@@ -66,16 +67,21 @@ constexpr double kMaxRotationPerSample = 0.9 * 2.0 * 3.14159265358979323846;  //
 // 1.10 I_max within a sample; at pi / 2, 0.4 % and 0.97 I_max, settling as fast.
 constexpr double kMaxBandwidthTimesStep = 3.14159265358979323846 / 2.0;
 
+// The largest voltage magnitude the inverter applies linearly (SVPWM), V: u_dc / sqrt 3.
+inline double linear_range(double u_dc) { return u_dc / std::sqrt(3.0); }
+
 struct RegulatorState {
     Dq v;                 // integrator, V
     Dq u_prev;            // voltage being applied now, V
     Dq psi_ref;           // last reference flux (map at T_magnet_ref), Wb
     bool primed = false;  // psi_ref holds a previous reference
 
-    // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
-    template <class Field>
-    void fields(Field&& field) {
-        field(v.d), field(v.q), field(u_prev.d), field(u_prev.q), field(psi_ref.d), field(psi_ref.q), field(primed);
+    // field(x, what x may hold) for every member, in a fixed order (a model's state,
+    // fmi/model.hpp); the voltages only finite (the integrator is not bounded by the inverter).
+    template <class Field, class Range>
+    void fields(Field&& field, const Range& flux) {
+        field(v.d), field(v.q), field(u_prev.d), field(u_prev.q), field(psi_ref.d, flux), field(psi_ref.q, flux);
+        field(primed);
     }
 };
 

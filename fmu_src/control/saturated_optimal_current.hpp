@@ -82,10 +82,11 @@ struct SolverMemory {
     double limit_i_d = 0, limit_i_q = 0;  // last T_max point
     bool has_limit = false;
 
-    // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
-    template <class Field>
-    void fields(Field&& field) {
-        field(op_i_d), field(op_i_q), field(limit_i_d), field(limit_i_q), field(has_limit);
+    // field(x, what x may hold) for every member, in a fixed order (a model's state, fmi/model.hpp).
+    template <class Field, class Range>
+    void fields(Field&& field, const Range& current) {
+        field(op_i_d, current), field(op_i_q, current), field(limit_i_d, current), field(limit_i_q, current);
+        field(has_limit);
     }
 };
 

@@ -1,7 +1,9 @@
 #include "controller/controller_model.hpp"
 
 #include <cmath>
+#include <limits>
 #include <sstream>
+#include <stdexcept>
 
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
@@ -136,6 +138,31 @@ const std::vector<V>& ControllerModel::variables() {
 }
 
 ControllerModel::ControllerModel(const fmi::Context& context) : context_(fmi::share(context)) {}
+
+const V& ControllerModel::input(const char* name) {
+    const V* v = fmi::find_variable<ControllerModel>(name);
+    if (v == nullptr) throw std::logic_error(std::string("IpmsmController has no variable ") + name);
+    return *v;
+}
+
+ControllerModel::StateRanges ControllerModel::state_ranges() const {
+    constexpr double kCountMax = std::numeric_limits<int>::max();
+    const double i_reach = motor.I_max * (1.0 + 1e-9);  // the disk |i| <= I_max, with the circle's rounding
+    StateRanges r{
+        {"a current of the controller's state (A, within the limit I_max)", -i_reach, i_reach},
+        {"a flux linkage of the controller's state (Wb)", -kInf, kInf},
+        {"a torque of the controller's state (N.m)", -kInf, kInf},
+        {"the controller's region", static_cast<double>(Region::zero_torque), static_cast<double>(Region::mtpv)},
+        {"a count of the controller's state", 0.0, kCountMax, true}};
+    if (map_) {  // before initialisation there is no map: the state holds no command yet
+        const double psi = flux_reach(map_span(map_->table()), map_->psi_m(), motor.k_psi_T);
+        const double T =
+            torque_factor(motor.pole_pairs) * psi * motor.I_max;  // |T| = 1.5 p |psi x i| <= 1.5 p |psi| |i|
+        r.flux.min = -psi, r.flux.max = psi;
+        r.torque.min = -T, r.torque.max = T;
+    }
+    return r;
+}
 
 void ControllerModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.

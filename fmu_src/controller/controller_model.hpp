@@ -48,12 +48,13 @@ public:
     // The state a step changes beyond the variables (model.hpp), in the order it is serialised.
     template <class Field>
     void state_fields(Field&& field) {
+        const StateRanges r = state_ranges();
         SolverMemory unused;  // before initialisation there is no solver, and no memory to keep
-        (solver_ ? solver_->memory : unused).fields(field);
-        regulator_.state.fields(field);
+        (solver_ ? solver_->memory : unused).fields(field, r.current);
+        regulator_.state.fields(field, r.flux);
         field(warned_unreachable_);
-        field(check_failures), field(warned_check_);
-        cache_.fields(field);
+        field(check_failures, r.count), field(warned_check_);
+        cache_.fields(field, r);
         MapContent saved = map_content(map_.get());  // written as is; read: the map must be the same
         field(saved);
         check_map_content(saved, map_.get());
@@ -123,6 +124,15 @@ private:
     DriveLoss drive_loss(const Conditions& c) const;                   // the loss model at the present conditions
     CurrentCommand least_loss_command(double T, const Conditions& c);  // objective 1, checked
 
+    // What the internal state may hold (a state is input, not proof: fmi/model.hpp), from the
+    // parameters and the map: currents in the disk |i| <= I_max every method commands in; fluxes
+    // and torques those of the map's grid in that disk (kStateFluxReach).
+    struct StateRanges {
+        fmi::FieldRange current, flux, torque, region, count;
+    };
+    StateRanges state_ranges() const;
+    static const fmi::Variable<ControllerModel>& input(const char* name);
+
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc, T_magnet and
     // T_winding stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
     // is the same, and is not solved again.
@@ -134,10 +144,12 @@ private:
             return valid && T_ref == m.T_ref && w_m == m.w_m && u_dc == m.u_dc && T_magnet == m.T_magnet &&
                    T_winding == m.T_winding;
         }
-        template <class Field>
-        void fields(Field&& field) {
-            field(valid), field(T_ref), field(w_m), field(u_dc), field(T_magnet), field(T_winding);
-            cmd.fields(field);
+        // each input as the controller's table admits it (fmi2SetReal's check)
+        template <class Field, class Ranges>
+        void fields(Field&& field, const Ranges& r) {
+            field(valid), field(T_ref, input("T_ref")), field(w_m, input("w_m")), field(u_dc, input("u_dc"));
+            field(T_magnet, input("T_magnet")), field(T_winding, input("T_winding"));
+            cmd.fields(field, r);
         }
     };
     CommandCache cache_;

@@ -217,7 +217,7 @@ const std::vector<V>& DriveModel::variables() {
             {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms",
              "Sample time of the controller, and step of the inner coupling; a communication step must be a whole "
              "multiple of it",
-             1e-7, 1.0},
+             1e-7, kMaxSampleTime},
         });
         t.parameters(fmi::part_table<InverterParams>());
         t.parameters(ControllerModel::variables(), "method", "current_bandwidth");
@@ -310,6 +310,15 @@ DriveModel::DriveModel(const fmi::Context& context)
     T_winding = plant_.T_winding;
     T_coolant = plant_.T_coolant;
     T_ambient = plant_.T_ambient;
+}
+
+void DriveModel::check_voltage_command() const {
+    const double u = std::hypot(controller_.u_d_ref, controller_.u_q_ref);
+    const double u_lim = linear_range(controller_.u_dc);
+    if (!(u <= u_lim * (1.0 + 1e-12)))  // the limit's rounding
+        throw fmi::Error("serialised FMU state: the controller's voltage command |u_ref| = " + fmi::number_text(u) +
+                         " V is beyond the inverter's linear range u_dc / sqrt 3 = " + fmi::number_text(u_lim) +
+                         " V at its u_dc = " + fmi::number_text(controller_.u_dc) + " V; not restored");
 }
 
 coupling::CoupledModels& DriveModel::coupled() {
@@ -413,12 +422,23 @@ void DriveModel::do_step(double t, double h) {
     const int next = next_inverter_state();
     if (next != 0 && inverter_state == 0) i_peak = std::hypot(plant_.i_d, plant_.i_q);  // a fault begins
     inverter_state = plant_.inverter_state = next;
+    double plant_steps = 0;  // the work bound (max_plant_steps_per_step)
     for (long long j = 0; j < n; ++j) {
         cm.step();
         s_P_inv += plant_.P_inv;
         if (next != 0) {  // the regulator stopped: it restarts from each sample's currents
             controller_.restart_regulator();
             i_peak = std::max(i_peak, std::hypot(plant_.i_d, plant_.i_q));
+        }
+        plant_steps += plant_.cvode_steps;
+        if (plant_steps > max_plant_steps_per_step) {
+            std::ostringstream os;
+            os << "the communication step " << fmi::number_text(h) << " s needed more than "
+               << fmi::number_text(max_plant_steps_per_step) << " internal steps of the plant after "
+               << fmi::number_text(static_cast<double>(j + 1) * sample_time)
+               << " s: one fmi2DoStep computes at most that many (its wall time is bounded); step in parts, or "
+                  "loosen rtol/atol";
+            throw fmi::Error(os.str());
         }
     }
     E_inv = plant_.E_inv;

@@ -45,10 +45,12 @@ public:
     void do_step(double t, double h);
     template <class Field>
     void state_fields(Field&& field) {
-        double k = static_cast<double>(k_);  // exact below 2^53 steps; the stream has no 64-bit integers
-        field(k);
+        // exact below 2^53 steps; the stream has no 64-bit integers: a count, checked before the cast
+        double k = static_cast<double>(k_);
+        field(k, fmi::FieldRange{"the drive's inner step count", 0.0, kMaxInnerSteps, true});
         k_ = static_cast<long long>(k);
         sub_model_fields(controller_, field);
+        check_voltage_command();
         sub_model_fields(plant_, field);
         controller_.state_fields(field);
         plant_.state_fields(field);
@@ -77,26 +79,45 @@ public:
     // The most inner steps one fmi2DoStep computes (10 s at the default sample_time): a step cannot be
     // interrupted, so a larger one is refused rather than computed for minutes.
     static constexpr double max_samples_per_step = 1e5;
+    // The plant's internal steps one fmi2DoStep may take over all its inner steps (each at most
+    // cvode_max_steps): with max_samples_per_step, what bounds a step's wall time at any parameter
+    // in range (docs/spec/INTERFACE.md, "Bounded steps"). A 10 s step at the defaults takes about
+    // 1e5; a step that needs more is refused, undone, and can be taken in parts.
+    static constexpr double max_plant_steps_per_step = 5e5;
+    // The longest sample_time: the current regulator closes its loop up to 0.9 of an electrical
+    // turn per sample (control/current_regulator.hpp, kMaxRotationPerSample), which at 1 ms is
+    // 12 000 r/min with 4 pole pairs, and its bandwidth is at most pi / (2 sample_time) (ibid.):
+    // 250 Hz at 1 ms. A longer sample is no current loop (traction inverters sample at their PWM
+    // frequency, 2-20 kHz); 0.2's 1 s let one sample run the plant open-loop for a second.
+    static constexpr double kMaxSampleTime = 1e-3;
 
     // The sub-models' warnings given so far, each with the model that gave it first ("controller"
     // or "plant"): one given by both reaches the importer once (drive_model.cpp, prefixed()).
     using WarningsGiven = std::map<std::string, std::string>;
 
 private:
-    // The sub-model's variables (its coupled inputs and outputs are not the drive's variables,
-    // but are state: the next inner step reads them).
+    // 2^53: the largest count a double holds exactly
+    static constexpr double kMaxInnerSteps = 9007199254740992.0;
+    // The sub-model's inputs, outputs and locals (its coupled inputs and outputs are not the
+    // drive's variables, but are state: the next inner step reads them), each checked against the
+    // sub-model's table as its fmi2SetReal would check it. Its parameters are not: they are the
+    // drive's (forwarded by name), restored and checked with the drive's variables.
     template <class Sub, class Field>
     static void sub_model_fields(Sub& sub, Field& field) {
-        for (const auto& v : Sub::variables())
+        for (const auto& v : Sub::variables()) {
+            if (v.causality == fmi::Causality::parameter) continue;
             std::visit(
                 [&](const auto& a) {
-                    // (a variable the sub-model forwards to a part of it lives in that part, which
-                    // is fixed parameters only: the plant's thermal network's)
                     if constexpr (!std::is_same_v<decltype(a), const fmi::Access<Sub, std::string>&>)
-                        if (a.member != nullptr) field(sub.*(a.member));
+                        if (a.member != nullptr) field(sub.*(a.member), v);
                 },
                 v.member);
+        }
     }
+    // The controller's voltage command, which the next inner step applies to the plant, is one the
+    // regulator can give: within the inverter's linear range at the u_dc it was given for (throws
+    // fmi::Error; a state is input, not proof).
+    void check_voltage_command() const;
     coupling::CoupledModels& coupled();
     void hold_inputs();
     void publish_end();

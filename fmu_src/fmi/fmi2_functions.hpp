@@ -292,17 +292,9 @@ struct Fmi2 {
                     if (value[i] == nullptr) throw Error(std::string(v.name) + ": the value is a NULL string");
                 } else if (type != Type::Boolean) {
                     const double x = static_cast<double>(value[i]);
-                    if (!std::isfinite(x))
-                        throw Error(std::string(v.name) + " = " + number_text(x) + " is not a finite number; kept " +
-                                    value_text(in.model, v));
-                    if (!in_range(v, x)) {
-                        // built only for the message: this loop runs for every input of every fmi2SetReal
-                        const std::string unit =
-                            (v.unit != nullptr && v.unit[0] != '\0') ? std::string(" ") + v.unit : "";
-                        throw Error(std::string(v.name) + " = " + number_text(x) + unit +
-                                    " is out of range: it must be " + range_text(v) + "; kept " +
-                                    value_text(in.model, v));
-                    }
+                    // (the message is built only on failure: this loop runs for every input of every fmi2SetReal)
+                    if (!std::isfinite(x) || !in_range(v, x))
+                        throw Error(range_error(v, x) + "; kept " + value_text(in.model, v));
                 }
             }
             for (std::size_t i = 0; i < nvr; ++i) {

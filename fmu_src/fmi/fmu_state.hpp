@@ -23,7 +23,9 @@ namespace fmi {
 namespace glue {
 
 inline constexpr char kStateMagic[8] = {'I', 'P', 'M', 'S', 'M', 'F', 'S', 'T'};
-inline constexpr std::uint32_t kStateFormat = 3;
+// 4: IpmsmDrive's part no longer repeats its models' parameters (the drive's own variables, checked
+// here, hold them), and every field is checked as it is read (state_stream.hpp)
+inline constexpr std::uint32_t kStateFormat = 4;
 
 // The variables of a model, each as its type's index then its value.
 template <class M>
@@ -132,9 +134,8 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
         const Type t = type_of(v);
         if (t != Type::Real && t != Type::Integer) continue;
         const double x = t == Type::Real ? value_of<double>(m, v) : value_of<int>(m, v);
-        if (!in_range(v, x))
-            throw Error(std::string(what) + ": " + v.name + " = " + number_text(x) + " is out of range: it must be " +
-                        range_text(v) + "; not restored");
+        if (const std::string why = range_error(v, x); !why.empty())
+            throw Error(std::string(what) + ": " + why + "; not restored");
     }
     std::string mismatch;
     for (const auto& v : variables<M>()) {

@@ -33,6 +33,9 @@
 //   exit_initialization() loads is not state: the glue loads it again when it deserialises a
 //   state into an instance that is not initialised (it sets the saved values, calls
 //   exit_initialization(), sets them again, then the fields).
+//   A field may name what it may hold, field(x, fmi::FieldRange{...}) or field(x, variable) (the
+//   model's table entry: the range fmi2SetReal checks): a state is input, not proof, and the glue
+//   refuses a deserialised state whose field is outside it (state_stream.hpp).
 // - fmi2Reset replaces the model with a fresh MyModel(context).
 // - exit_initialization() may also run on a copy of the model in Initialization Mode, to answer a
 //   Get of an output (InitialUnknowns) before fmi2ExitInitializationMode: it must have no effect
@@ -62,6 +65,15 @@ struct Context {
     std::string resource_dir;                             // local path of the FMU's resources/ folder, "" if unknown
     std::function<void(const std::string&)> log_info;     // category logEvents
     std::function<void(const std::string&)> log_warning;  // category logStatusWarning
+};
+
+// What a field of a model's internal state may hold (state_fields(), above): [min, max], and a
+// whole number if `whole` (a count kept as a double). An int or enum field is checked as its
+// integer value: an enum lists its set here.
+struct FieldRange {
+    const char* name;
+    double min, max;
+    bool whole = false;
 };
 
 // How a model holds its Context: shared by all its copies, read-only.

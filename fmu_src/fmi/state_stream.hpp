@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "model.hpp"
+#include "variable.hpp"
 
 namespace fmi {
 
@@ -99,19 +100,54 @@ void read_field(StateReader& r, T& x) {
     }
 }
 
+// A field read back, checked against what it may hold (model.hpp): a range of the model's own
+// (FieldRange), or a variable of a model's table, checked as fmi2SetReal/Integer check it. A state
+// is input, not proof: its checksum guards against accidents, not against edits.
+template <class T>
+double field_number(const T& x) {
+    if constexpr (std::is_enum_v<T>)
+        return static_cast<double>(static_cast<std::underlying_type_t<T>>(x));
+    else
+        return static_cast<double>(x);
+}
+
+template <class T>
+void check_field(const T& x, const FieldRange& range) {
+    if constexpr (std::is_array_v<T>) {
+        for (const auto& e : x) check_field(e, range);
+    } else {
+        const double v = field_number(x);
+        if (!(v >= range.min && v <= range.max) || (range.whole && v != std::floor(v)))
+            throw Error(std::string("serialised FMU state: ") + range.name + " = " + number_text(v) +
+                        " is out of range: it must be " + (range.whole ? "a whole number in " : "in ") + "[" +
+                        number_text(range.min) + ", " + number_text(range.max) + "]; not restored");
+    }
+}
+
+template <class T, class Sub>
+void check_field(const T& x, const Variable<Sub>& v) {
+    if constexpr (std::is_same_v<T, double> || std::is_same_v<T, int>) {
+        const std::string why = range_error(v, static_cast<double>(x));
+        if (!why.empty()) throw Error("serialised FMU state: " + why + "; not restored");
+    }
+}
+
 // A model's internal state as bytes, and back (a throw leaves m partly read: read into a copy).
 template <class M>
 std::vector<char> save_state_fields(M& m) {
     std::vector<char> block;
     StateWriter w(block);
-    m.state_fields([&](auto& x) { write_field(w, x); });
+    m.state_fields([&](auto& x, const auto&...) { write_field(w, x); });
     return block;
 }
 
 template <class M>
 void load_state_fields(M& m, const char* data, std::size_t size) {
     StateReader r(data, size);
-    m.state_fields([&](auto& x) { read_field(r, x); });
+    m.state_fields([&](auto& x, const auto&... what_it_may_hold) {
+        read_field(r, x);
+        (check_field(x, what_it_may_hold), ...);
+    });
     if (!r.at_end()) throw Error("serialised FMU state: the model's state block is longer than its fields");
 }
 

@@ -141,6 +141,16 @@ std::string range_text(const Variable<M>& v) {
     return "[" + number_text(v.min) + ", " + number_text(v.max) + "]";
 }
 
+// Why x is not a value of v ("R_s = -1 Ohm is out of range: it must be > 0"), or "" if it is one:
+// the one check of a Real or Integer value, for fmi2SetReal/Integer and for an FMU state's fields.
+template <class M>
+std::string range_error(const Variable<M>& v, double x) {
+    if (!std::isfinite(x)) return std::string(v.name) + " = " + number_text(x) + " is not a finite number";
+    if (in_range(v, x)) return "";
+    const std::string unit = (v.unit != nullptr && v.unit[0] != '\0') ? std::string(" ") + v.unit : "";
+    return std::string(v.name) + " = " + number_text(x) + unit + " is out of range: it must be " + range_text(v);
+}
+
 // The value of v in m as text: 0.1, 3, true, "a string".
 template <class M>
 std::string value_text(const M& m, const Variable<M>& v) {

@@ -16,6 +16,7 @@
 #include <system_error>
 
 #include "machine/flux_map_metadata.hpp"
+#include "machine/machine.hpp"
 #include "machine/map_file.hpp"
 
 namespace ipmsm {
@@ -40,6 +41,17 @@ std::vector<std::string> split_commas(const std::string& s) {
         if (c == std::string::npos) break;
         start = c + 1;
     }
+    return out;
+}
+
+// What a header line holds, without its content: "2 fields", or the first field that is not the
+// expected column's name ("4 fields; field 1 is a word of 2 characters, not 'i_d'").
+std::string fields_found(const std::vector<std::string>& f, const char* const (&columns)[4]) {
+    std::string out = std::to_string(f.size()) + (f.size() == 1 ? " field" : " fields");
+    for (std::size_t c = 0; c < f.size() && c < 4; ++c)
+        if (f[c] != columns[c])
+            return out + "; field " + std::to_string(c + 1) + " is " + describe_token(f[c]) + ", not '" + columns[c] +
+                   "'";
     return out;
 }
 
@@ -132,8 +144,8 @@ double FluxMapTable::metadata_number(const std::string& key, double fallback) co
     if (it == metadata.end()) return fallback;
     const MetadataValue m = split_metadata_value(it->second);
     if (!m.is_number)
-        throw FluxMapError("flux-map metadata '" + key + "': '" + quoted_excerpt(it->second) +
-                           "' does not start with a finite number");
+        throw FluxMapError("flux-map metadata '" + key + "': the value (" + describe_token(it->second) +
+                           ") does not start with a finite number");
     return m.value;
 }
 
@@ -215,7 +227,7 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
         ++line;
         if (length > kMaxLineChars)
             fail_line(line, "line of " + std::to_string(length) + " characters; the limit is " +
-                                std::to_string(kMaxLineChars) + " (it starts '" + quoted_excerpt(raw, 60) + "')");
+                                std::to_string(kMaxLineChars));
         if (line == 1 && raw.size() >= 3 && raw.compare(0, 3, "\xEF\xBB\xBF") == 0)
             raw.erase(0, 3);  // UTF-8 byte-order mark (spreadsheet exports)
         if (line == 1 && raw.size() >= 2 && (raw.compare(0, 2, "\xFF\xFE") == 0 || raw.compare(0, 2, "\xFE\xFF") == 0))
@@ -240,15 +252,15 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
                 double dummy;
                 const bool numeric = !f.empty() && parse_number(f[0], dummy) == NumStatus::ok;
                 fail_line(line, std::string(numeric ? "header missing" : "wrong header") +
-                                    ": expected 'i_d,i_q,psi_d,psi_q', found '" + quoted_excerpt(s) + "'");
+                                    ": expected 'i_d,i_q,psi_d,psi_q', found " + fields_found(f, kColumns));
             }
             header_line = line;
             continue;
         }
         const auto f = split_commas(s);
         if (f.size() != 4)
-            fail_line(line, "expected 4 comma-separated values (i_d,i_q,psi_d,psi_q), found " +
-                                std::to_string(f.size()) + ": '" + quoted_excerpt(s) + "'");
+            fail_line(line,
+                      "expected 4 comma-separated values (i_d,i_q,psi_d,psi_q), found " + std::to_string(f.size()));
         if (rows.size() == kMaxGridPoints)
             fail_line(line, "more than " + std::to_string(kMaxGridPoints) + " data rows, the limit for a flux map (" +
                                 std::to_string(kMaxGridAxis) + " x " + std::to_string(kMaxGridAxis) + ")");
@@ -258,12 +270,12 @@ FluxMapTable parse_flux_map_text(const std::string& text, const std::string& sou
             switch (parse_number(f[c], r.v[c])) {
                 case NumStatus::ok: break;
                 case NumStatus::not_a_number:
-                    fail_line(line, std::string("column ") + kColumns[c] + ": '" + quoted_excerpt(f[c]) +
-                                        "' is not a number");
+                    fail_line(line,
+                              std::string("column ") + kColumns[c] + ": " + describe_token(f[c]) + " is not a number");
                     break;
                 case NumStatus::non_finite:
-                    fail_line(line, std::string("column ") + kColumns[c] + ": non-finite value '" +
-                                        quoted_excerpt(f[c]) + "'");
+                    fail_line(line, std::string("column ") + kColumns[c] +
+                                        ": a non-finite value (infinite, not a number, or beyond a double's range)");
                     break;
             }
         }
@@ -346,6 +358,26 @@ void check_map_content(MapContent saved, const FluxMap* map) {
                   "here has %016llx",
                   static_cast<unsigned long long>(saved), static_cast<unsigned long long>(here));
     throw FluxMapError(std::string(text) + " (the file changed since, or flux_map names another file): not restored");
+}
+
+MapSpan map_span(const FluxMapTable& t) {
+    auto range = [](const std::vector<double>& v, double out[2]) {
+        const auto [lo, hi] = std::minmax_element(v.begin(), v.end());
+        out[0] = v.empty() ? 0.0 : *lo;
+        out[1] = v.empty() ? 0.0 : *hi;
+    };
+    MapSpan s{};
+    range(t.i_d, s.i_d);
+    range(t.i_q, s.i_q);
+    range(t.psi_d, s.psi_d);
+    range(t.psi_q, s.psi_q);
+    for (std::size_t n = 0; n < t.psi_d.size() && n < t.psi_q.size(); ++n)
+        s.psi_abs_max = std::max(s.psi_abs_max, std::hypot(t.psi_d[n], t.psi_q[n]));
+    return s;
+}
+
+double flux_reach(const MapSpan& span, double psi_m, double k_psi_T) {
+    return kSplineReach * span.psi_abs_max + std::abs(k_psi_T * psi_m) * (kTemperatureMax_K - kTemperatureMin_K);
 }
 
 FluxMap::FluxMap(const FluxMapTable& table) : table_(table) {

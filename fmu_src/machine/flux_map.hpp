@@ -130,6 +130,21 @@ inline MapContent map_content(const FluxMap* map) { return MapContent{map != nul
 // Throws FluxMapError if a state saved on `saved` is restored where `map` is loaded.
 void check_map_content(MapContent saved, const FluxMap* map);
 
+// The box a map's grid spans: currents (A) and flux linkages (Wb), [lowest, highest] each, and the
+// largest flux magnitude |psi| on the grid. What an FMU state's currents and fluxes are checked
+// against (a state is input: its values must be ones the machine on this map can have).
+struct MapSpan {
+    double i_d[2], i_q[2], psi_d[2], psi_q[2];
+    double psi_abs_max;
+};
+MapSpan map_span(const FluxMapTable& table);
+// The largest |psi| (Wb) a machine on the map reaches with its currents within the grid: the
+// grid's largest, the spline's overshoot between grid points (kSplineReach of it: a C2 cubic
+// through monotone data stays well inside half its range again) and the magnets' temperature
+// shift |k_psi_T| psi_m over the whole accepted temperature range (machine.hpp).
+inline constexpr double kSplineReach = 1.5;
+double flux_reach(const MapSpan& span, double psi_m, double k_psi_T);
+
 inline FluxPoint FluxMap::eval(double i_d, double i_q) const {
     SplineValue s[2];
     spline_.eval<2>(i_d, i_q, s);

@@ -60,11 +60,15 @@ const char* metadata_unit(const std::string& key) {
 
 double metadata_value(const MetadataKey& k, const std::string& text) {
     const std::string unit = k.unit;
+    const MetadataValue m = split_metadata_value(text);
+    // what the value is, never the file's text (a map parameter may name any file: map_file.hpp)
+    const std::string shown = m.is_number
+                                  ? num(m.value) + (m.rest.empty() ? "" : " then " + unit_or_description(m.rest))
+                                  : describe_token(text);
     auto refuse = [&](const std::string& why) -> double {
-        throw FluxMapError(std::string("metadata ") + k.key + ": '" + quoted_excerpt(text) + "': " + why +
+        throw FluxMapError(std::string("metadata ") + k.key + ": " + shown + ": " + why +
                            " (docs/maps.md, \"Metadata\")");
     };
-    const MetadataValue m = split_metadata_value(text);
     if (!m.is_number)
         return refuse("expected a finite number" + (unit.empty() ? std::string() : " in " + unit) +
                       ", optionally followed by a comment in parentheses");
@@ -75,8 +79,8 @@ double metadata_value(const MetadataKey& k, const std::string& text) {
         rest = trim(rest.substr(unit.size()));
     if (!rest.empty() && !(rest.front() == '(' && rest.back() == ')'))
         return refuse("a number" + (unit.empty() ? std::string(" without a unit") : " in " + unit) +
-                      ", optionally followed by a comment in parentheses; '" + quoted_excerpt(rest, 40) +
-                      "' is neither" + (unit.empty() ? "" : " (another unit is not converted)"));
+                      ", optionally followed by a comment in parentheses; " + unit_or_description(rest) +
+                      " is neither" + (unit.empty() ? "" : " (another unit is not converted)"));
     if (k.whole_number && m.value != std::floor(m.value)) return refuse("expected a whole number");
     if (unit == "K" && m.value < kColdestKelvin)
         return refuse("expected a temperature in K of at least " + num(kColdestKelvin) + " K (" + num(m.value) +
@@ -105,10 +109,11 @@ std::vector<std::string> metadata_warnings(const FluxMapTable& table, const std:
         if (it == table.metadata.end()) continue;
         const std::optional<double> value = parameter(k.parameter);
         if (!value) continue;
-        const std::string said =
-            "flux map " + quoted_excerpt(map_name) + " says " + k.key + ": " + quoted_excerpt(it->second);
+        // (the value as read, never the file's text: describe_token, map_file.hpp)
         const double stated = metadata_value(k, it->second);
         const std::string unit = k.unit;
+        const std::string said = "flux map " + quoted_excerpt(map_name) + " says " + k.key + ": " + num(stated) +
+                                 (unit.empty() ? "" : " " + unit);
         if (std::abs(stated - *value) > 1e-9 * std::max(std::abs(stated), std::abs(*value)))
             out.push_back(said + ", but the parameter " + k.parameter + " is " + num(*value) +
                           (unit.empty() ? "" : " " + unit) + "; using the parameter");

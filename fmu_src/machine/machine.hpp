@@ -47,10 +47,12 @@ struct CurrentCommand {
     bool feasible = true;   // false: no current satisfies both limits (above maximum speed)
     bool converged = true;  // false: an iteration did not converge (a fallback was used)
 
-    // field(x) for every member, in a fixed order (a model's state, fmi/model.hpp).
-    template <class Field>
-    void fields(Field&& field) {
-        field(i_d), field(i_q), field(torque), field(torque_max), field(region), field(iterations), field(feasible);
+    // field(x, what x may hold) for every member, in a fixed order (a model's state,
+    // fmi/model.hpp); r names the ranges: r.current (A), r.torque (N.m), r.region, r.count.
+    template <class Field, class Ranges>
+    void fields(Field&& field, const Ranges& r) {
+        field(i_d, r.current), field(i_q, r.current), field(torque, r.torque), field(torque_max, r.torque);
+        field(region, r.region), field(iterations, r.count), field(feasible);
         field(converged);
     }
 };

@@ -1,6 +1,7 @@
 // Bounded reading of data files; see map_file.hpp.
 #include "machine/map_file.hpp"
 
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -103,6 +104,28 @@ std::string read_map_file(const std::string& utf8_path, std::size_t max_bytes) {
 
 std::string quoted_excerpt(const std::string& text, std::size_t max_chars) {
     return fmi::utf8_excerpt(text, max_chars);
+}
+
+std::string describe_token(const std::string& token) {
+    if (token.empty()) return "empty";
+    bool printable = true, blank = false, digits = true;
+    for (unsigned char c : token) {
+        printable = printable && c >= 0x20 && c < 0x7f;
+        blank = blank || c == ' ' || c == '\t';
+        digits = digits && (std::isdigit(c) || c == '.' || c == '-' || c == '+' || c == 'e' || c == 'E');
+    }
+    const std::string n = std::to_string(token.size());
+    if (!printable) return n + " bytes, not all printable ASCII";
+    if (blank) return "text of " + n + " characters";
+    if (digits) return "a malformed number of " + n + " characters";
+    return "a word of " + n + " characters";
+}
+
+std::string unit_or_description(const std::string& token) {
+    constexpr std::size_t kMaxUnitChars = 16;
+    bool unit = !token.empty() && token.size() <= kMaxUnitChars;
+    for (unsigned char c : token) unit = unit && c < 0x80 && (std::isalnum(c) || std::strchr("/^.*-", c) != nullptr);
+    return unit ? "'" + token + "'" : describe_token(token);
 }
 
 }  // namespace ipmsm

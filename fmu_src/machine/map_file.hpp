@@ -24,7 +24,17 @@ std::string read_map_file(const std::string& utf8_path, std::size_t max_bytes = 
 
 // At most max_chars characters of text, as valid UTF-8 for a log: bytes that are not valid UTF-8
 // become \xNN, control characters \n, \r, \t or \xNN; a longer text is cut with
-// "... (N bytes in all)". Used wherever an input (a line, a path) is echoed in a message.
+// "... (N bytes in all)". Used for what the user named (a path, a parameter), never for a file's
+// content: any file can be named as a map (describe_token).
 std::string quoted_excerpt(const std::string& text, std::size_t max_chars = 200);
+
+// What kind of token a piece of a file is, without its content ("a word of 6 characters", "12
+// bytes, not all printable ASCII", "empty"): a message says what was expected and where, and
+// never echoes a file into a log (a map parameter may name any file the process can read).
+std::string describe_token(const std::string& token);
+
+// token if it has the shape of a unit ("mOhm", "W/Hz^2": at most 16 ASCII letters, digits and
+// / ^ . * -), else describe_token(token).
+std::string unit_or_description(const std::string& token);
 
 }  // namespace ipmsm

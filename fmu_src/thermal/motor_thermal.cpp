@@ -1,5 +1,6 @@
 #include "thermal/motor_thermal.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -40,6 +41,14 @@ void MotorThermal::advance(double h, double E_cu_step, double E_fe_step, const S
     E_loss_ += E_cu_step + E_fe_step;
     E_boundary_ += heat.boundary;
     P_coolant_ = heat.boundary[coolant] / h;
+}
+
+double MotorThermal::heat_balance_error() const {
+    const double stored = E_stored();
+    const double scale =
+        std::max({std::abs(E_loss_), std::abs(stored), std::abs(E_boundary_[coolant]), std::abs(E_boundary_[ambient])});
+    if (scale == 0.0) return 0.0;
+    return std::abs(E_loss_ - stored - E_boundary_[coolant] - E_boundary_[ambient]) / scale;
 }
 
 double MotorThermal::E_stored() const { return capacities(p_).dot(theta_ - theta0_); }

@@ -36,13 +36,19 @@ public:
     double P_coolant() const { return P_coolant_; }            // W, mean heat into the coolant over the last step
     const MotorPropagator& propagator() const { return propagator_; }
 
-    // The state a step changes, in the order it is serialised (an FMU's state fields).
-    template <class Field>
-    void state_fields(Field&& field) {
-        for (int i = 0; i < kNodes; ++i) field(theta_[i]);
-        for (int i = 0; i < kNodes; ++i) field(theta0_[i]);
+    // The state a step changes, in the order it is serialised (an FMU's state fields), each node
+    // temperature with what it may hold (K); the energies finite, and then their balance closes
+    // (heat_balance_error).
+    template <class Field, class Range>
+    void state_fields(Field&& field, const Range& temperature) {
+        for (int i = 0; i < kNodes; ++i) field(theta_[i], temperature);
+        for (int i = 0; i < kNodes; ++i) field(theta0_[i], temperature);
         field(E_loss_), field(E_boundary_[coolant]), field(E_boundary_[ambient]), field(P_coolant_);
     }
+    // |E_loss - E_stored - E_coolant - E_ambient| relative to the largest of them (J/J; 0 if all
+    // are 0): the exact step conserves energy to rounding, so a state whose balance does not close
+    // is not one this network reached.
+    double heat_balance_error() const;
 
 private:
     LptnParams p_;

@@ -130,5 +130,8 @@ def _repair(args) -> int:
         print(f"  {v.fmu}: {v.verdict}")
         for m in v.log:
             print(f"    {m}")
-    print(f"wrote {r.out}")
+    for f in r.simulation:
+        print(f"  short simulation (IpmsmDrive): {f}")
+    print(f"wrote {r.out}" if r.out is not None
+          else f"not written: {args.out} (the repaired map failed the checks above)")
     return 0 if r.accepted else 1

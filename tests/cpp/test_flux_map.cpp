@@ -168,13 +168,45 @@ TEST(FluxMapReader, BadNumbers) {
             return true;
         };
     };
-    expect_error("text.csv", make_csv(5, 5, set(5, 2, "0.1abc")), {"line 9", "psi_d", "'0.1abc' is not a number"});
+    expect_error("text.csv", make_csv(5, 5, set(5, 2, "0.1abc")),
+                 {"line 9", "psi_d", "a word of 6 characters is not a number"});
     expect_error("comma_decimal.csv", make_csv(5, 5, set(5, 3, "0 5")), {"line 9", "psi_q", "not a number"});
     expect_error("empty_field.csv", make_csv(5, 5, set(5, 1, "")), {"line 9", "i_q", "not a number"});
-    expect_error("word.csv", make_csv(5, 5, set(0, 0, "minus")), {"line 4", "i_d", "'minus'"});
+    expect_error("word.csv", make_csv(5, 5, set(0, 0, "minus")), {"line 4", "i_d", "a word of 5 characters"});
     expect_error("nan.csv", make_csv(5, 5, set(5, 2, "nan")), {"line 9", "psi_d", "non-finite"});
     expect_error("inf.csv", make_csv(5, 5, set(6, 3, "-inf")), {"line 10", "psi_q", "non-finite"});
     expect_error("overflow.csv", make_csv(5, 5, set(7, 0, "1e999")), {"line 11", "i_d", "non-finite"});
+}
+
+// Any file can be named as a map (flux_map is a parameter; as root, /etc/shadow): the reader says
+// what it expected and where, never what the file holds.
+TEST(FluxMapReader, NeverEchoesTheFile) {
+    const std::string secret = "root:$6$SECRETHASHxyz:19000:0:99999:7:::";
+    const std::vector<std::string> files = {
+        secret + "\nbin:*:19000:0:99999:7:::\n",                            // wrong header
+        "i_d,i_q,psi_d,psi_q\n" + secret + "\n",                            // a row of 1 field
+        "i_d,i_q,psi_d,psi_q\n1,2," + secret + ",4\n",                      // not a number
+        "i_d,i_q,psi_d,psi_q\n1,2,3,4\n" + std::string(70000, 'S') + "\n",  // a line too long
+        "# R_s_ohm: SECRETHASH\n" + make_csv(5, 5),                         // metadata read as a number below
+    };
+    for (std::size_t n = 0; n < files.size(); ++n) {
+        const std::string path = write_file("echo" + std::to_string(n) + ".csv", files[n]);
+        try {
+            const FluxMapTable t = read_flux_map(path);
+            EXPECT_THROW(t.metadata_number("R_s_ohm", 0.0), FluxMapError);
+            try {
+                t.metadata_number("R_s_ohm", 0.0);
+            } catch (const FluxMapError& e) {
+                EXPECT_EQ(std::string(e.what()).find("SECRET"), std::string::npos) << e.what();
+            }
+        } catch (const FluxMapError& e) {
+            EXPECT_EQ(std::string(e.what()).find("SECRET"), std::string::npos) << e.what();
+            EXPECT_EQ(std::string(e.what()).find("SSSS"), std::string::npos) << e.what();
+            EXPECT_TRUE(std::string(e.what()).find("line") != std::string::npos ||
+                        std::string(e.what()).find("metadata R_s_ohm: a word of 10 characters") != std::string::npos)
+                << e.what();
+        }
+    }
 }
 
 TEST(FluxMapReader, WrongColumnCount) {

@@ -330,3 +330,54 @@ def test_repair_reads_within_the_limits_and_names_the_bad_line(build, tmp_path, 
     (tmp_path / "m.csv").write_text(text)
     assert cli(["--build", str(build), "map", "repair", str(tmp_path / "m.csv"), "--out", str(tmp_path / "o.csv")]) == 2
     assert "line 4" in capsys.readouterr().err
+
+
+# --- a repair that verifies what it writes (issue 35, finding 4) -----------------------------------
+
+def test_repair_refuses_a_sign_error_naming_it_and_writes_nothing(build, tmp_path, capsys):
+    """The default map with psi_q negated: a projection would change 3570 of 3621 points (L_q
+    0.57 mH -> 2.7e-10 H) and every FMU would accept the result; the repair is refused instead."""
+    fmap = read_flux_map(DEFAULT_MAP)
+    bad = tmp_path / "psi_q_negated.csv"
+    write_flux_map(bad, FluxMap(fmap.i_d, fmap.i_q, fmap.psi_d, -fmap.psi_q, fmap.metadata))
+    out = tmp_path / "repaired.csv"
+    assert cli(["--build", str(build), "map", "repair", str(bad), "--out", str(out)]) == 2
+    said = capsys.readouterr().err
+    assert str(bad) in said and "psi_q has the wrong sign?" in said, said
+    assert not out.exists() and not list(tmp_path.glob(".repaired*"))
+
+
+def test_repair_with_i_max_writes_it_and_its_output_is_accepted_everywhere(build, tmp_path, capsys):
+    """--I-max 200 crops to 200 A: the output says I_max_A: 200 (not the source's 500), so that
+    map check, run and map show accept it."""
+    fmap = read_flux_map(DEFAULT_MAP)
+    # a fold beyond 250 A (the repair crops it away) in an otherwise good map
+    psi_q = fmap.psi_q.copy()
+    far = np.hypot(*np.meshgrid(fmap.i_d, fmap.i_q, indexing="ij")) > 400.0
+    psi_q[far & (fmap.i_q[None, :] > 0)] *= 0.2
+    src = tmp_path / "folded.csv"
+    write_flux_map(src, FluxMap(fmap.i_d, fmap.i_q, fmap.psi_d, psi_q, fmap.metadata))
+    out = tmp_path / "repaired.csv"
+    code = cli(["--build", str(build), "map", "repair", str(src), "--out", str(out), "--I-max", "200"])
+    said = capsys.readouterr()
+    assert code == 0, said
+    assert read_flux_map(out).metadata["I_max_A"] == "200"
+    assert "short simulation" not in said.out  # it ran, and passed
+    assert cli(["--build", str(build), "map", "check", str(out), "--out", str(tmp_path / "check")]) == 0
+    assert cli(["--build", str(build), "map", "show", str(out), "--out", str(tmp_path / "show")]) == 0
+    drive = tmp_path / "drive.toml"
+    drive.write_text(f'name = "repaired"\n[motor]\nflux_map = "{out}"\n')
+    cycle = tmp_path / "gentle.csv"
+    cycle.write_text("time_s,speed_mps\n" + "".join(f"{t},{min(t, 4) * 0.5}\n" for t in range(0, 7)))
+    assert cli(["run", str(cycle), "--drive", str(drive), "--out", str(tmp_path / "run")]) == 0
+
+
+def test_repair_writes_nothing_when_the_short_simulation_fails(build, tmp_path, monkeypatch, capsys):
+    """The FMUs' acceptance is not enough: the repaired map is simulated before it is written."""
+    import scenarios.maps.repair as repair
+    monkeypatch.setattr(repair, "short_simulation", lambda *a: ["w_m = 0 rad/s: CVODE too much work (made up)"])
+    out = tmp_path / "repaired.csv"
+    assert cli(["--build", str(build), "map", "repair", str(DEFAULT_MAP), "--out", str(out)]) == 1
+    said = capsys.readouterr().out
+    assert "short simulation (IpmsmDrive): w_m = 0 rad/s" in said and "not written" in said
+    assert not out.exists()

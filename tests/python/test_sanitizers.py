@@ -89,6 +89,17 @@ def test_fmu_tests_under_asan_and_ubsan(tmp_path):
 
 
 @pytest.mark.slow
+def test_state_fuzz_under_asan_and_ubsan(tmp_path):
+    """Every variant of every FMU's serialised state (test_state_fuzz.py, thousands each, slow ones
+    included) on the ASan FMUs: a refused or accepted state never reads or writes out of bounds."""
+    _need(ASAN_BUILD / "fmu" / "IpmsmController.fmu", ASAN_BUILD / "fmu" / "IpmsmPlant.fmu",
+          ASAN_BUILD / "fmu" / "IpmsmDrive.fmu")
+    r, report = _pytest([str(PYTHON_TESTS / "test_state_fuzz.py")], tmp_path, timeout=3600)
+    assert r.returncode == 0, report
+    assert not _reports(tmp_path), report
+
+
+@pytest.mark.slow
 def test_whole_suite_under_asan_and_ubsan(tmp_path):
     subprocess.run(["bash", str(ROOT / "scripts" / "sanitize.sh"), "--full"], check=True, timeout=3600)
     ctest = subprocess.run(["ctest", "--test-dir", str(ASAN_BUILD), "--output-on-failure", "-j", str(os.cpu_count())],
