@@ -62,6 +62,9 @@ class DriveStep:
     E_ambient: float = math.nan
     E_stored: float = math.nan
     derating: float = 1.0
+    # the command's predicted loss P_cu + P_fe + P_inv (contract, "Least-loss control"); NaN where
+    # the FMU has no such output
+    P_loss_cmd: float = math.nan
 
 
 _REALS = tuple(f.name for f in fields(DriveStep) if f.name != "region" and f.default is MISSING)

@@ -158,6 +158,8 @@ class ReferenceDrive:
             step.P_coolant, self._E_coolant = (step.E_coolant - self._E_coolant) / duration, step.E_coolant
         if "derating" in controller.vars:
             step.derating = controller.get("derating")
+        if "P_loss_cmd" in controller.vars:  # the command's predicted loss (contract, "Least-loss control")
+            step.P_loss_cmd = controller.get("P_loss_cmd")
         return step
 
     def close(self) -> None:

@@ -40,6 +40,9 @@ DEFAULT_DRIVE = DRIVES_DIR / "default.toml"
 
 #: the controller's methods by the contract's names (the FMU's `method` parameter)
 METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
+#: what the controller minimises for the torque asked, by the drive description's names (the FMU's
+#: `objective` parameter; docs/spec/INTERFACE.md, "Least-loss control")
+OBJECTIVES = {"current": 0, "loss": 1}
 
 
 class DriveDescriptionError(InputError):
@@ -265,6 +268,10 @@ SCHEMA: tuple[Key, ...] = (
         "`ferrari` (the FMU's default)"),
     Key("controller", "recursion", Rule("int", lo=0, hi=2), "", "inductance recursion (0, 1, 2)",
         "2 (the FMU's default)"),
+    Key("controller", "objective", Rule("str", choices=tuple(OBJECTIVES)), "",
+        "what the command minimises for the torque asked: `current` (the seed's least current) or `loss` (the "
+        "least copper + iron + inverter loss; T_cmd and T_max are then shaft torques; docs/least_loss.md)",
+        "`current` (the FMU's default, objective 0)"),
     Key("controller", "command_check", Rule("int", lo=0, hi=1), "",
         "1: a command that fails its check on the flux map is replaced by a checked one; 0: sent as the "
         "method made it, counted and logged (to study a method alone; docs/controller.md)",
@@ -396,6 +403,15 @@ class MotorSpec:
 METHOD_DEFAULT = "ferrari"
 RECURSION_DEFAULT = 2
 COMMAND_CHECK_DEFAULT = 1
+OBJECTIVE_DEFAULT = "current"
+#: the controller's loss parameters (contract, "Least-loss control"): the plant's iron-loss
+#: parameters and the inverter's, by the same names
+MOTOR_LOSS_KEYS = ("fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref")
+
+
+def controller_has_objective() -> bool:
+    """The FMUs have the least-loss controller (the `objective` parameter; issue 32)."""
+    return "objective" in fmu_ranges()
 
 
 @dataclass(frozen=True)
@@ -406,6 +422,7 @@ class ControllerSpec:
     current_bandwidth: float | None   # rad/s; None: the FMU's default
     lut_u_dc: float                   # V, the 2-D tables' DC voltage
     command_check: int = COMMAND_CHECK_DEFAULT  # 1: failing commands replaced; 0: reported only
+    objective: str = OBJECTIVE_DEFAULT            # "current" or "loss" (OBJECTIVES)
 
 
 @dataclass(frozen=True)
@@ -501,8 +518,10 @@ class DriveDescription:
 
     def controller_params(self, method: str | None = None, recursion: int | None = None,
                           lut_u_dc: float | None = None, lut_T_magnet: float | None = None,
-                          command_check: int | None = None) -> dict:
-        """The controller FMU's parameters; method/recursion/lut_*/command_check None: the drive's."""
+                          command_check: int | None = None, objective: str | None = None) -> dict:
+        """The controller FMU's parameters; method/recursion/lut_*/command_check/objective None: the
+        drive's. With FMUs that have the least-loss controller, also `objective` and the loss
+        parameters (the plant's: the controller predicts P_loss_cmd with either objective)."""
         m, c = self.motor, self.controller
         method = c.method if method is None else method
         if method not in METHODS:
@@ -514,12 +533,24 @@ class DriveDescription:
                  lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet,
                  command_check=c.command_check if command_check is None else command_check)
         p.update(self.thermal.derating_params())
+        objective = c.objective if objective is None else objective
+        if objective not in OBJECTIVES:
+            raise ValueError(f"objective {objective!r}: one of {', '.join(OBJECTIVES)}")
+        if controller_has_objective():
+            p.update(objective=OBJECTIVES[objective], **self.loss_params())
+        elif objective != OBJECTIVE_DEFAULT:
+            raise ValueError(f"objective {objective!r}: the built FMUs have no `objective` parameter (rebuild them)")
         # the keys without a value of their own leave the FMU's default (its modelDescription start)
         if m.w_m_max is not None:
             p["w_m_max"] = m.w_m_max
         if c.current_bandwidth is not None:
             p["current_bandwidth"] = c.current_bandwidth
         return p
+
+    def loss_params(self) -> dict:
+        """The loss models' parameters, by the FMUs' names: the iron loss's and the inverter's
+        (the plant computes the losses with them; the least-loss controller predicts them)."""
+        return {**{k: getattr(self.motor, k) for k in MOTOR_LOSS_KEYS}, **self.inverter}
 
     def plant_params(self) -> dict:
         """The plant FMU's parameters: the motor's (I_max: where it requires the map to be legal)
@@ -704,8 +735,12 @@ def load_drive(path: str | Path | None = None, resolve_map: MapResolver | None =
     controller = ControllerSpec(
         method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
         command_check=c.get("command_check", COMMAND_CHECK_DEFAULT),
+        objective=c.get("objective", OBJECTIVE_DEFAULT),
         k_u=float(values["k_u"]), current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
         lut_u_dc=float(values["u_dc"]))
+    if controller.objective != OBJECTIVE_DEFAULT and not controller_has_objective():
+        raise DriveDescriptionError(path, "controller.objective", "a value the built FMUs have: rebuild them (their "
+                                    "model descriptions have no `objective` parameter)")
     for key in ("k_u", "lut_u_dc"):   # from the map's metadata too: the same rules as the file's
         bad = _BY_PATH[f"controller.{key}"].rule.check(getattr(controller, key))
         if bad:
@@ -791,6 +826,6 @@ def known_fields() -> dict[str, tuple[str, ...]]:
     return {s: tuple(k.name for k in SCHEMA if k.section == s) for s in ("", *SECTIONS)}
 
 
-__all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "INVERTER_KEYS", "LIMITS", "METHODS", "SCHEMA", "ChecksSpec",
+__all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "INVERTER_KEYS", "LIMITS", "METHODS", "OBJECTIVES", "SCHEMA", "ChecksSpec",
            "ControllerSpec", "DriveDescription", "DriveDescriptionError", "Key", "MotorSpec", "Rule", "ThermalSpec",
            "inverter_defaults", "load_drive", "schema_markdown"]

@@ -49,6 +49,8 @@ class RunAccounts:
     E_fe: float = 0.0         # J, iron loss
     E_inv: float = 0.0        # J, inverter loss
     E_cu_opt: float = 0.0     # J, the optimum's copper loss
+    E_loss_cmd: float = 0.0   # J, the commands' predicted loss (P_loss_cmd; NaN: an FMU without it)
+    E_loss_opt: float = 0.0   # J, the least-loss optimum's loss (NaN: no such optimum)
     T_err2: float = 0.0       # N^2 m^2, sum of (T_e - T_cmd)^2
     T_err_max: float = 0.0    # N m
     T_cmd2: float = 0.0       # N^2 m^2, sum of T_cmd^2
@@ -78,6 +80,7 @@ class RunAccounts:
         self.E_cu += m.P_cu * dt
         self.E_fe += m.P_fe * dt
         self.E_inv += s.P_inverter * dt
+        self.E_loss_cmd += m.P_loss_cmd * dt
         # Torque error: delivered (mean T_e) against the command within reach.
         T_err = m.T_e - m.T_cmd
         self.T_err2 += T_err * T_err
@@ -97,6 +100,7 @@ class RunAccounts:
             self.last = m
         if self.reference:
             self.E_cu_opt += s.P_cu_opt * dt
+            self.E_loss_opt += s.P_loss_opt * dt
             if s.I > I_EXCESS_MIN:
                 self.I_excess2 += (s.I - s.I_opt) ** 2
                 self.n_I += 1
@@ -128,7 +132,21 @@ class RunAccounts:
             backend=backend, w_m_peak_rpm=self.w_m_peak / RPM,
             w_m_max_rpm=None if self.w_m_max is None else self.w_m_max / RPM,
             time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top, **self.thermal_figures(),
+            **self.loss_split(km),
         )
+
+    def loss_split(self, km: float) -> dict:
+        """The drive's losses (E_cu, E_fe, E_inv) in Wh and per km, their sum, the commands'
+        predicted loss and the least-loss optimum's (None where the FMUs have none)."""
+        E = self.E_cu + self.E_fe + self.E_inv
+        def per_km(J):
+            return J * WH / km if km > 0.0 else None
+        def known(J):
+            return J * WH if math.isfinite(J) else None
+        return dict(copper_loss_Wh_per_km=per_km(self.E_cu), iron_loss_Wh_per_km=per_km(self.E_fe),
+                    inverter_loss_Wh_per_km=per_km(self.E_inv), drive_loss_Wh=E * WH, drive_loss_Wh_per_km=per_km(E),
+                    drive_loss_cmd_Wh=known(self.E_loss_cmd),
+                    drive_loss_optimal_Wh=known(self.E_loss_opt) if self.reference else None)
 
     def thermal_figures(self) -> dict:
         """The summary's thermal figures (none with the network off)."""

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import time
+from ctypes import c_double
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
@@ -29,7 +30,13 @@ from scenarios.cosim import BACKENDS
 from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
 from scenarios.cosim.fmu import Fmu
 from scenarios.cosim.reference import ReferenceDrive
-from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
+from scenarios.drives.description import (
+    METHODS,
+    DriveDescription,
+    ThermalSpec,
+    controller_has_objective,
+    load_drive,
+)
 from scenarios.runs.accounting import RunAccounts
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
@@ -38,6 +45,14 @@ from scenarios.vehicle.driver import BlendParams, Driver, DriverParams, blend
 from scenarios.vehicle.longitudinal import Vehicle, motor_speed, wheel_force
 
 __all__ = ["BACKENDS", "METHODS", "STUDY_CONDITIONS", "Conditions", "RunSpec", "fmu_paths", "simulate"]
+
+#: the loss coefficients `controller_loss_scale` scales: the iron loss's (hysteresis, eddy
+#: currents) and the inverter's (conduction: threshold voltages and slope resistances; switching
+#: energies); not the exponents, reference points or the switching frequency, which say how a loss
+#: scales, not how large it is
+LOSS_COEFFICIENTS = ("fe_k_h", "fe_k_e", "V_T0", "r_T", "V_D0", "r_D", "E_on", "E_off", "E_rec")
+#: the largest controller_loss_scale: a loss model off by more than a factor 10 is no estimate
+CONTROLLER_LOSS_SCALE_MAX = 10.0
 
 #: N m, the blending's torque limit before the controller has reported its reach (T_max, after
 #: the first step): no limit
@@ -83,6 +98,11 @@ class RunSpec:
     method: str | None = None
     recursion: int | None = None
     command_check: int | None = None  # the controller's command check (None: the drive's)
+    objective: str | None = None      # "current" or "loss" (None: the drive's controller.objective)
+    #: the controller's loss coefficients (iron loss and inverter) over the plant's: 1.3 tells the
+    #: controller 30 % more loss than the plant has (a drive's estimate that is off). Only the
+    #: reference loop (backend "fmpy") has two sets; IpmsmDrive declares them once for both.
+    controller_loss_scale: float = 1.0
     conditions: Conditions = field(default_factory=Conditions)
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
@@ -96,6 +116,10 @@ class RunSpec:
     @property
     def method_name(self) -> str:
         return self.drive.controller.method if self.method is None else self.method
+
+    @property
+    def objective_name(self) -> str:
+        return self.drive.controller.objective if self.objective is None else self.objective
 
     @property
     def recursion_level(self) -> int:
@@ -124,6 +148,25 @@ def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
     return build / "fmu" / "IpmsmController.fmu", build / "fmu" / "IpmsmPlant.fmu"
 
 
+def controller_loss_estimates(c_params: dict, spec: RunSpec) -> dict:
+    """The controller's parameters with its loss coefficients (iron loss, inverter) scaled by
+    spec.controller_loss_scale; only the reference loop can give the controller and the plant
+    different ones."""
+    scale = spec.controller_loss_scale
+    if scale == 1.0:
+        return c_params
+    if not (math.isfinite(scale) and 0.0 < scale <= CONTROLLER_LOSS_SCALE_MAX):
+        raise InputError("(command line)", "--controller-loss-scale", f"a number in (0, {CONTROLLER_LOSS_SCALE_MAX:g}], "
+                         f"got {scale!r}")
+    if spec.backend != "fmpy":
+        raise InputError("(command line)", "--controller-loss-scale", "the reference loop (--backend fmpy): "
+                         "IpmsmDrive declares the loss parameters once for the controller and the plant")
+    if "objective" not in c_params:
+        raise InputError("(command line)", "--controller-loss-scale", "FMUs with the least-loss controller (the "
+                         "`objective` parameter): rebuild them")
+    return {**c_params, **{k: c_params[k] * scale for k in LOSS_COEFFICIENTS}}
+
+
 def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict, **start):
     """The drive of a run by spec.backend: IpmsmDrive (built next to the controller's FMU), or the
     reference loop; the same parameters either way (the inverter's among the plant's)."""
@@ -144,13 +187,21 @@ def open_drive(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: d
 class OptimumReference:
     """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
     given torque and conditions: its current magnitude and copper loss at the winding resistance
-    R_s (Ohm, the run's: winding_resistance)."""
+    R_s (Ohm, the run's: winding_resistance); and, with FMUs that have the least-loss controller,
+    the least-loss optimum's predicted loss at a shaft torque (`least_loss`)."""
 
     def __init__(self, controller_fmu: Path, drive: DriveDescription, R_s: float, T_winding: float):
         self.R_s = R_s
         self.T_winding = T_winding  # K: the optimum's voltage ellipse at the winding's resistance too
+        self.loss_fmu = None
         self.fmu = Fmu(controller_fmu, instance_name="reference",
-                       **drive.controller_params(method="ferrari", recursion=2))
+                       **drive.controller_params(method="ferrari", recursion=2, objective="current"))
+        try:
+            if controller_has_objective():
+                self.loss_fmu = LeastLossReference(controller_fmu, drive)
+        except BaseException:
+            self.close()
+            raise
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
                 T_winding: float | None = None) -> float:
@@ -166,14 +217,51 @@ class OptimumReference:
         run's start (a run with the thermal network gives the step's)."""
         return 1.5 * (self.R_s if R_s is None else R_s) * I * I
 
+    def least_loss(self, T_shaft: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
+                   T_winding: float | None = None) -> float:
+        """W, the least-loss optimum's loss (its P_loss_cmd) at the shaft torque T_shaft; NaN
+        without the least-loss controller."""
+        if self.loss_fmu is None:
+            return math.nan
+        return self.loss_fmu.loss(T_shaft, w_m, u_dc, T_magnet, self.T_winding if T_winding is None else T_winding,
+                                  t, dt)
+
     def close(self) -> None:
         self.fmu.close()
+        if self.loss_fmu is not None:
+            self.loss_fmu.close()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
+
+
+class LeastLossReference(Fmu):
+    """The least-loss optimum (the controller FMU with Ferrari, recursion 2, objective 1, on the
+    drive's motor and loss models): its predicted loss P_loss_cmd at a shaft torque, one step per
+    call through ctypes arrays made once (every vehicle step asks it)."""
+
+    INPUTS = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")
+
+    def __init__(self, controller_fmu: Path, drive: DriveDescription):
+        super().__init__(controller_fmu, instance_name="least_loss_reference",
+                         **drive.controller_params(method="ferrari", recursion=2, objective="loss"))
+        try:
+            self._u_vr, self._u = self.vrs(*self.INPUTS), (c_double * len(self.INPUTS))()
+            self._y_vr, self._y = self.vrs("P_loss_cmd"), (c_double * 1)()
+        except BaseException:
+            self.close()
+            raise
+
+    def loss(self, T_shaft: float, w_m: float, u_dc: float, T_magnet: float, T_winding: float, t: float,
+             dt: float) -> float:
+        self._u[:] = (T_shaft, w_m, u_dc, T_magnet, T_winding)
+        self.call("fmi2SetReal", self._u_vr, len(self._u), self._u)
+        self.do_step(t, dt)
+        self.read(self._y_vr, self._y)
+        return self._y[0]
 
 
 def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], drive: DriveFmu | ReferenceDrive,
@@ -207,13 +295,14 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         P_dc = m.P_elec + m.P_inv
         battery.step(P_dc + P_aux, dt)
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
-        I_opt, P_cu_opt = math.nan, 0.0
+        I_opt, P_cu_opt, P_loss_opt = math.nan, 0.0, math.nan
         if reference is not None:
             I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
             P_cu_opt = reference.copper_loss(I_opt, R)
+            P_loss_opt = reference.least_loss(m.T_shaft, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=b.T_ref,
                           F_brake=b.F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
-                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w)
+                          P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w, P_loss_opt=P_loss_opt)
         if thermal:
             T_magnet, T_winding = m.theta_magnet, m.theta_winding
             R = winding_resistance(drive, T_winding)
@@ -233,7 +322,9 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     controller_fmu, plant_fmu = fmus or fmu_paths()
     cond, vp, dt = spec.conditions, drive.vehicle, spec.dt
     n_inner = spec.steps_per_vehicle_step()
-    c_params = drive.controller_params(method, recursion, cond.lut_u_dc, cond.lut_T_magnet, spec.command_check)
+    c_params = drive.controller_params(method, recursion, cond.lut_u_dc, cond.lut_T_magnet, spec.command_check,
+                                       spec.objective_name)
+    c_params = controller_loss_estimates(c_params, spec)
     if spec.lut_grid is not None:
         c_params.update(lut_n_torque=spec.lut_grid[0], lut_n_speed=spec.lut_grid[1])
     p_params = drive.plant_params()
@@ -270,7 +361,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     summary = accounts.summary(cycle=cycle.name, method=method, recursion=recursion, conditions=cond,
                                vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
                                wall=wall, backend=spec.backend)
-    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256)
+    summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256, objective=spec.objective_name,
+                      controller_loss_scale=spec.controller_loss_scale)
     try:
         if out is not None:
             write_results(out, summary, trace)
