@@ -46,7 +46,8 @@ def table(rows: list[dict]) -> str:
             f"| {a['drive_name']} | {cycle} | {a['distance_km']:.3f} / {b['distance_km']:.3f} | "
             f"{a['energy_battery_Wh']:.1f} | {b['energy_battery_Wh']:.1f} | {saved:.1f} | "
             f"{100 * saved / a['energy_battery_Wh']:.2f} | "
-            f"{a['copper_loss_Wh']:.1f} → {b['copper_loss_Wh']:.1f} | {a['iron_loss_Wh']:.1f} → {b['iron_loss_Wh']:.1f} | "
+            f"{a['copper_loss_Wh']:.1f} → {b['copper_loss_Wh']:.1f} | "
+            f"{a['iron_loss_Wh']:.1f} → {b['iron_loss_Wh']:.1f} | "
             f"{a['inverter_loss_Wh']:.1f} → {b['inverter_loss_Wh']:.1f} | "
             f"{a['drive_loss_Wh']:.1f} → {b['drive_loss_Wh']:.1f} | {a['Wh_per_km'] - b['Wh_per_km']:.2f} |")
     return "\n".join(lines)

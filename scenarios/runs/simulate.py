@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import math
 import time
-from ctypes import c_double
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
+from ctypes import c_double
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -156,8 +156,8 @@ def controller_loss_estimates(c_params: dict, spec: RunSpec) -> dict:
     if scale == 1.0:
         return c_params
     if not (math.isfinite(scale) and 0.0 < scale <= CONTROLLER_LOSS_SCALE_MAX):
-        raise InputError("(command line)", "--controller-loss-scale", f"a number in (0, {CONTROLLER_LOSS_SCALE_MAX:g}], "
-                         f"got {scale!r}")
+        raise InputError("(command line)", "--controller-loss-scale",
+                         f"a number in (0, {CONTROLLER_LOSS_SCALE_MAX:g}], got {scale!r}")
     if spec.backend != "fmpy":
         raise InputError("(command line)", "--controller-loss-scale", "the reference loop (--backend fmpy): "
                          "IpmsmDrive declares the loss parameters once for the controller and the plant")
