@@ -244,3 +244,22 @@ def test_map_show_says_whether_it_drew_both_objectives(controller_fmu, tmp_path,
         assert not (tmp_path / "out" / "objectives.png").exists()
         assert "no `objective` parameter" in s.least_loss_note and js["objective_maps"] == {}
 
+
+
+# -- the controller's loss model off the plant's ------------------------------------------------
+@NEEDS_OBJECTIVE
+def test_controller_loss_scale_reaches_the_controller_only(controller_fmu, plant_fmu):
+    """The reference loop with the controller's loss coefficients 1.3 x the plant's: the
+    controller predicts more loss for its commands than with the plant's own (its P_loss_cmd),
+    the commands differ, and the plant's losses stay the plant's (so least loss with the exact
+    model loses no more than with the wrong one, up to the transients: 0.5 %)."""
+    cycle = segment(load_cycle(WINDOW[0]), WINDOW[1], WINDOW[1] + 5.0)
+    runs = {scale: simulate(cycle, RunSpec(objective="loss", backend="fmpy", reference=False,
+                                           controller_loss_scale=scale), fmus=(controller_fmu, plant_fmu),
+                            progress=False) for scale in (1.0, 1.3)}
+    exact, off = runs[1.0], runs[1.3]
+    assert off.controller_loss_scale == 1.3
+    assert off.drive_loss_cmd_Wh > 1.1 * exact.drive_loss_cmd_Wh
+    assert exact.drive_loss_cmd_Wh == pytest.approx(exact.drive_loss_Wh, rel=0.05)
+    assert off.drive_loss_Wh != exact.drive_loss_Wh
+    assert exact.drive_loss_Wh <= off.drive_loss_Wh * 1.005
