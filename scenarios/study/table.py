@@ -245,9 +245,10 @@ def trace_path(out: Path, key: str) -> Path:
 
 
 def write_trace_parquet(trace_csv: Path, dest: Path) -> None:
-    """A run's trace.csv (scenarios.runs.results; floats written as repr, so exact) as Parquet."""
+    """A run's trace.csv (scenarios.runs.results; floats written as repr, so exact) as Parquet.
+    A `nan` stays a float NaN (pyarrow's default reads it as null, and a column of them as nulls)."""
     dest.parent.mkdir(parents=True, exist_ok=True)
-    table = pa_csv.read_csv(trace_csv)
+    table = pa_csv.read_csv(trace_csv, convert_options=pa_csv.ConvertOptions(null_values=[]))
     _atomic_write_table(table, dest)
 
 
