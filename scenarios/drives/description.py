@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from scenarios.core.boundary import InputError, load_toml
-from scenarios.core.fmu_ranges import PLANT_DESCRIPTION, Range, fmu_ranges, read_starts
+from scenarios.core.fmu_ranges import PLANT_DESCRIPTION, Range, controller_has_objective, fmu_ranges, read_starts
 from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
@@ -407,11 +407,6 @@ OBJECTIVE_DEFAULT = "current"
 #: the controller's loss parameters (contract, "Least-loss control"): the plant's iron-loss
 #: parameters and the inverter's, by the same names
 MOTOR_LOSS_KEYS = ("fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref")
-
-
-def controller_has_objective() -> bool:
-    """The FMUs have the least-loss controller (the `objective` parameter; issue 32)."""
-    return "objective" in fmu_ranges()
 
 
 @dataclass(frozen=True)

@@ -243,13 +243,13 @@ def both_objectives(s: MachineSummary, fmu_path: Path, csv: Path, fmap: FluxMap,
                     T_magnet: float, speeds, torques, drive, out: Path) -> None:
     """Least current's and least loss's efficiency maps and their difference (objectives.png,
     s.objective_maps), where the controller FMU has the least-loss controller."""
-    from scenarios.drives.description import controller_has_objective, inverter_defaults
+    from scenarios.core.fmu_ranges import controller_has_objective
     from scenarios.maps.objectives import IRON_LOSS_PARAMS, objective_maps, plot_objectives
     if not controller_has_objective():
         s.least_loss_note = "not drawn: the built FMUs have no `objective` parameter (rebuild them)"
         return
-    loss_params = (drive.loss_params() if drive is not None else
-                   {**{k: params[k] for k in IRON_LOSS_PARAMS}, **inverter_defaults()})
+    # a drive's loss models; else the map's iron loss and the FMU's own inverter (its defaults)
+    loss_params = drive.loss_params() if drive is not None else {k: params[k] for k in IRON_LOSS_PARAMS}
     bar = Progress(len(speeds) * len(torques), "map show: least current, least loss")
     try:
         m = objective_maps(fmu_path, csv, fmap, params, loss_params, u_dc, T_magnet, speeds, torques, bar)
