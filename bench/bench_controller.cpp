@@ -23,6 +23,7 @@
 
 #include <unsupported/Eigen/Polynomials>
 
+#include "control/least_loss.hpp"
 #include "control/linear_optimal_current.hpp"
 #include "control/map_newton.hpp"
 #include "control/saturated_optimal_current.hpp"
@@ -137,6 +138,55 @@ void corpus_rows(const CorpusMap& c) {
     }
 }
 
+// Least loss (objective 1, control/least_loss.hpp) with its check on one map: the least-current
+// solver's T_max (the seed of the shaft torque's) and the least-loss solve, each call timed alone,
+// the same operating points as corpus_rows. The loss model: the default motor's iron-loss fit and
+// the default inverter (the timing does not depend on the coefficients' values, only on alpha).
+void least_loss_rows(const CorpusMap& c) {
+    const auto map = std::make_shared<const FluxMap>(read_flux_map(c.path));
+    const double V_max = 0.95 * c.u_dc / std::sqrt(3.0);
+    SaturatedOptimalCurrent solver(map, c.pole_pairs);
+    LeastLoss least_loss(map, c.pole_pairs, solver.magnet_free());
+    const MagnetFlux flux(*map, 0.0);
+    const IronLossModel iron{1.06664735685, 2.0, 0.00581807649193, 0.0780669432093};
+    const InverterParams inverter{};
+    const double T_peak = solver.solve(1e12, {0.0, V_max, c.I_max}, c.R_s, 0.0, Recursion::optimal).torque_max;
+    const int n = 20000;
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::vector<Op> rnd(n), traj(n);
+    for (auto& o : rnd) o = {(2 * u(rng) - 1) * 1.3 * T_peak, (2 * u(rng) - 1) * c.w_m_max};
+    for (int k = 0; k < n; ++k) {
+        const double t = 1e-4 * k;
+        traj[k] = {0.9 * T_peak * std::sin(2 * M_PI * 0.7 * t),
+                   c.w_m_max * (0.5 + 0.45 * std::sin(2 * M_PI * 0.13 * t))};
+    }
+    for (const auto& [label, ops] : {std::pair{"random", &rnd}, std::pair{"trajectory", &traj}}) {
+        std::vector<double> ns(ops->size());
+        long failed = 0, searched = 0;
+        for (std::size_t k = 0; k < ops->size(); ++k) {
+            const Op& o = (*ops)[k];
+            const OperatingLimits lim{c.pole_pairs * o.w_m, V_max, c.I_max};
+            const auto t0 = Clock::now();
+            const DriveLoss loss(iron, inverter, c.pole_pairs, o.w_m, c.R_s, c.u_dc);
+            const CurrentCommand top = solver.solve(o.T < 0 ? -1e30 : 1e30, lim, c.R_s, 0.0, Recursion::optimal);
+            const CurrentCommand em = solver.solve(o.T, lim, c.R_s, 0.0, Recursion::optimal);
+            const CurrentPoint hint{em.i_d, em.i_q};
+            const LeastLossResult r = least_loss.solve(o.T, lim, flux, loss, top, &hint);
+            ns[k] = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
+            g_sink = r.cmd.i_d;
+            failed += !r.check_passed;
+            searched += r.searched;
+        }
+        std::sort(ns.begin(), ns.end());
+        char name[96], note[160];
+        std::snprintf(name, sizeof name, "least loss + check, %s, %s", c.name.c_str(), label);
+        std::snprintf(note, sizeof note, "median; p99 %.0f ns; %ld of %zu failed the check, searched %ld; target <= 2000",
+                      ns[ns.size() * 99 / 100], failed, ns.size(), searched);
+        row(name, ns[ns.size() / 2], note);
+    }
+}
+
 int main(int argc, char** argv) {
     std::vector<CorpusMap> corpus;
     std::string path = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
@@ -154,6 +204,7 @@ int main(int argc, char** argv) {
     }
     if (path.empty()) {
         for (const CorpusMap& c : corpus) corpus_rows(c);
+        for (const CorpusMap& c : corpus) least_loss_rows(c);
         return 0;
     }
     auto map = std::make_shared<const FluxMap>(read_flux_map(path));
@@ -298,5 +349,6 @@ int main(int argc, char** argv) {
     }
     if (nl_fail) std::printf("\nNewton-Lagrange did not converge in %d calls\n", nl_fail);
     for (const CorpusMap& c : corpus) corpus_rows(c);
+    for (const CorpusMap& c : corpus) least_loss_rows(c);
     return 0;
 }

@@ -45,6 +45,8 @@ const char* describe(CheckFinding f) {
         case CheckFinding::not_least_current: return "a point of less current makes the torque within the limits";
         case CheckFinding::torque_max: return "its T_max is not the map's";
         case CheckFinding::not_finite: return "it is not finite";
+        case CheckFinding::not_least_loss:
+            return "a point of the shaft-torque curve within the limits loses less (least loss)";
         case CheckFinding::branch:
             return "i_d > 0 on a magnet-free machine, whose optima tie in mirror pairs: the convention is i_d <= 0";
     }

@@ -63,6 +63,7 @@ enum class CheckFinding : int {
     torque_max,         // its T_max is not the map's (the robust search found more torque within the limits)
     branch,             // i_d > 0 on a magnet-free machine (the tie convention: i_d <= 0)
     not_finite,
+    not_least_loss,     // objective 1: a point of the shaft-torque curve within the limits loses less
 };
 const char* describe(CheckFinding f);
 

@@ -120,6 +120,45 @@ const std::vector<V>& ControllerModel::variables() {
          "Derating: the torque limit starts to fall this far below T_winding_max and T_magnet_max (default: 25 K, "
          "IEC 60085 class 155 (F) to 180 (H))",
          0.0, 1000.0, true, true},
+        // appended: least-loss control (docs/spec/INTERFACE.md, "Least-loss control"); the loss
+        // models' parameters by the plant's names, units, ranges and defaults
+        {"objective", &M::objective, Causality::parameter, Variability::fixed, "", "",
+         "0 least current (the seed's), 1 least loss P_cu + P_fe + P_inv for the shaft torque (T_cmd and T_max "
+         "are then shaft torques: T_e less the iron-loss drag)",
+         0, 1},
+        {"P_loss_cmd", &M::P_loss_cmd, Causality::output, Variability::discrete, "W", "",
+         "The command's predicted steady-state loss P_cu + P_fe + P_inv at the present speed, u_dc and "
+         "temperatures (either objective)"},
+        {"fe_k_h", &M::fe_k_h, Causality::parameter, Variability::fixed, "J", "",
+         "Iron loss: hysteresis coefficient, W/Hz (0: no hysteresis loss)", 0.0, 1e6},
+        {"fe_alpha", &M::fe_alpha, Causality::parameter, Variability::fixed, "1", "",
+         "Iron loss: exponent of b in the hysteresis term", 0.5, 4.0},
+        {"fe_k_e", &M::fe_k_e, Causality::parameter, Variability::fixed, "", "",
+         "Iron loss: eddy-current coefficient, W/Hz^2 (0: no eddy-current loss)", 0.0, 1e3},
+        {"fe_psi_ref", &M::fe_psi_ref, Causality::parameter, Variability::fixed, "Wb", "",
+         "Iron loss: flux linkage at which b = 1", 0.0, 1e3, true},
+        {"f_sw", fmi::forward(&M::inverter, &InverterParams::f_sw), Causality::parameter, Variability::fixed, "Hz", "",
+         "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
+        {"V_T0", fmi::forward(&M::inverter, &InverterParams::V_T0), Causality::parameter, Variability::fixed, "V", "",
+         "IGBT threshold voltage", 0.0, 10.0},
+        {"r_T", fmi::forward(&M::inverter, &InverterParams::r_T), Causality::parameter, Variability::fixed, "Ohm",
+         "mOhm", "IGBT slope resistance", 0.0, 1.0},
+        {"V_D0", fmi::forward(&M::inverter, &InverterParams::V_D0), Causality::parameter, Variability::fixed, "V", "",
+         "Diode threshold voltage", 0.0, 10.0},
+        {"r_D", fmi::forward(&M::inverter, &InverterParams::r_D), Causality::parameter, Variability::fixed, "Ohm",
+         "mOhm", "Diode slope resistance", 0.0, 1.0},
+        {"E_on", fmi::forward(&M::inverter, &InverterParams::E_on), Causality::parameter, Variability::fixed, "J", "",
+         "IGBT turn-on energy at I_ref, V_ref", 0.0, 100.0},
+        {"E_off", fmi::forward(&M::inverter, &InverterParams::E_off), Causality::parameter, Variability::fixed, "J", "",
+         "IGBT turn-off energy at I_ref, V_ref", 0.0, 100.0},
+        {"E_rec", fmi::forward(&M::inverter, &InverterParams::E_rec), Causality::parameter, Variability::fixed, "J", "",
+         "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
+        {"I_ref", fmi::forward(&M::inverter, &InverterParams::I_ref), Causality::parameter, Variability::fixed, "A", "",
+         "Test current of the switching energies", 0.0, kInf, true},
+        {"V_ref", fmi::forward(&M::inverter, &InverterParams::V_ref), Causality::parameter, Variability::fixed, "V", "",
+         "Test DC voltage of the switching energies", 0.0, kInf, true},
+        {"k_v", fmi::forward(&M::inverter, &InverterParams::k_v), Causality::parameter, Variability::fixed, "1", "",
+         "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
     };
     return table;
 }
@@ -161,9 +200,12 @@ void ControllerModel::exit_initialization() {
         spec.w_m_max = w_m_max;
         table = std::make_shared<const TorqueTable>(solver, spec);
     }
+    std::optional<LeastLoss> least_loss;
+    if (objective == 1) least_loss.emplace(map, pole_pairs, solver.magnet_free());
     map_ = std::move(map);
     table_ = std::move(table);
     solver_ = std::move(solver);
+    least_loss_ = std::move(least_loss);
     regulator_ = CurrentRegulator(current_bandwidth, R_s);
     table_bytes = table_ ? static_cast<int>(table_->bytes()) : 0;
     initial_outputs();
@@ -206,6 +248,7 @@ CurrentCommand ControllerModel::checked_command(double T, const Conditions& c) {
     // Every command is checked on the map before it leaves (docs/controller.md): recursion 2's
     // inside the solver, the others against it. The 2-D tables are made at R_s (T_winding_ref)
     // and lut_T_magnet; their check is at the present temperatures.
+    if (least_loss_) return least_loss_command(T, c);
     const OperatingLimits lim{c.omega, c.V_max, I_max};
     CurrentCommand cmd;
     if (method == 1 && recursion == static_cast<int>(Recursion::optimal)) {
@@ -226,6 +269,33 @@ CurrentCommand ControllerModel::checked_command(double T, const Conditions& c) {
     return cmd;
 }
 
+DriveLoss ControllerModel::drive_loss(const Conditions& c) const {
+    return DriveLoss(IronLossModel{fe_k_h, fe_alpha, fe_k_e, fe_psi_ref}, inverter, pole_pairs, w_m, c.R, u_dc);
+}
+
+CurrentCommand ControllerModel::least_loss_command(double T, const Conditions& c) {
+    // Every method and recursion: the exact least-loss solver (control/least_loss.hpp), seeded by
+    // recursion 2's checked least-current commands (its T_max point, and its command for T).
+    const OperatingLimits lim{c.omega, c.V_max, I_max};
+    const MagnetFlux flux(*map_, c.shift);
+    const CurrentCommand top = solver_->solve(T < 0 ? -1e30 : 1e30, lim, c.R, c.shift, Recursion::optimal);
+    const CurrentCommand em = solver_->solve(T, lim, c.R, c.shift, Recursion::optimal);
+    const CurrentPoint hint{em.i_d, em.i_q};
+    const LeastLossResult r = least_loss_->solve(T, lim, flux, drive_loss(c), top, &hint);
+    CurrentCommand cmd = r.cmd;
+    cmd.iterations += top.iterations + em.iterations;
+    if (!r.check_passed) {
+        CheckRecord record;
+        record.finding = CheckFinding::not_least_loss;
+        record.rejected = cmd;
+        record.T_target = std::copysign(std::min(std::abs(T), cmd.torque_max), T);
+        record.T_made = cmd.torque;
+        record.replaced = r.searched;
+        report_check(record);
+    }
+    return cmd;
+}
+
 void ControllerModel::report_check(const CheckRecord& r) {
     ++check_failures;
     if (warned_check_ || !context_->log_warning) return;
@@ -238,6 +308,7 @@ void ControllerModel::report_check(const CheckRecord& r) {
        << " (T_cmd = " << r.T_target << " N.m, it makes " << r.T_made << " N.m on the map); "
        << (!r.replaced          ? "no better command found: sent as is"
            : command_check == 0 ? "sent as is (command_check = 0)"
+           : objective == 1 ? "replaced by the least-loss search's command (exact in shaft torque)"
            : method == 1 && recursion == static_cast<int>(Recursion::optimal)
                ? "replaced by the robust search's command"
                : "replaced by recursion 2's checked command");
@@ -253,6 +324,10 @@ void ControllerModel::publish(const CurrentCommand& cmd, const MagnetFlux& flux,
     if (observe_each_step) observe(flux);
     region = static_cast<int>(cmd.region);
     iterations = cmd.iterations;
+    // (u_dc > 0 holds for every value the FMU accepts; the guard keeps a NaN out where it does not)
+    P_loss_cmd = u_dc > 0.0 && std::isfinite(cmd.i_d) && std::isfinite(cmd.i_q)
+                     ? LeastLoss::loss_at(flux, drive_loss(conditions()), pole_pairs, cmd.i_d, cmd.i_q).total()
+                     : 0.0;
     derating = derating_now;
     cache_ = {true, T_ref, w_m, u_dc, T_magnet, T_winding, cmd};
 }

@@ -9,8 +9,10 @@
 
 #include "control/current_regulator.hpp"
 #include "control/derating.hpp"
+#include "control/least_loss.hpp"
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
+#include "losses/drive_loss.hpp"
 #include "machine/winding_resistance.hpp"
 #include "model.hpp"
 #include "variable.hpp"
@@ -70,6 +72,7 @@ public:
     int table_bytes = 0;
     int check_failures = 0;  // commands that failed the check on the map (docs/controller.md)
     double derating = 1.0;   // the torque limit's thermal factor (1: none)
+    double P_loss_cmd = 0.0;  // W, the command's predicted steady-state loss P_cu + P_fe + P_inv
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
     int method = 1;        // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
     int recursion = 2;     // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
@@ -95,6 +98,15 @@ public:
     double T_winding_max = 453.15;  // K
     double T_magnet_max = 423.15;   // K
     double derating_margin = 25.0;  // K
+    // Least-loss control (docs/spec/MATH.md, "Least-loss control"): 0 least current (the seed's),
+    // 1 least loss (T_cmd, T_max are then shaft torques); the loss models' parameters, the plant's
+    // names and defaults (the default motor's iron-loss fit, the default inverter).
+    int objective = 0;
+    double fe_k_h = 1.06664735685;        // W/Hz
+    double fe_alpha = 2.0;
+    double fe_k_e = 0.00581807649193;     // W/Hz^2
+    double fe_psi_ref = 0.0780669432093;  // Wb
+    InverterParams inverter;
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
@@ -112,6 +124,8 @@ private:
     void observe(const MagnetFlux& flux);
     void initial_outputs();
     void report_check(const CheckRecord& r);  // counts; logs the first
+    DriveLoss drive_loss(const Conditions& c) const;  // the loss model at the present conditions
+    CurrentCommand least_loss_command(double T, const Conditions& c);  // objective 1, checked
 
     // The last command and the inputs it was solved for: while T_ref, w_m, u_dc, T_magnet and
     // T_winding stay bit-identical (a master holding its slow inputs), the problem, and so its solution,
@@ -136,6 +150,7 @@ private:
     std::shared_ptr<const FluxMap> map_;
     std::shared_ptr<const TorqueTable> table_;
     std::optional<SaturatedOptimalCurrent> solver_;  // its warm-start memory is state
+    std::optional<LeastLoss> least_loss_;            // objective 1 (no state: a function of the inputs)
     CurrentRegulator regulator_{0.0, 0.0};
     bool warned_unreachable_ = false;
     bool warned_check_ = false;

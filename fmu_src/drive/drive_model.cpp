@@ -272,6 +272,12 @@ const std::vector<V>& DriveModel::variables() {
         parameter("T_winding_max", &M::controller_, &M::plant_),
         parameter("T_magnet_max", &M::controller_, &M::plant_),
         parameter("derating_margin", &M::controller_, &M::plant_),
+        // least-loss control (docs/spec/INTERFACE.md); appended. The loss models' parameters
+        // (fe_*, the inverter's) are declared above, once, for the plant and the controller.
+        parameter("objective", &M::controller_, &M::plant_),
+        {"P_loss_cmd", fmi::forward(&M::controller_, &ControllerModel::P_loss_cmd), Causality::output,
+         Variability::discrete, "W", "",
+         "The controller's command's predicted steady-state loss P_cu + P_fe + P_inv, at the end of the step"},
     };
     return table;
 }

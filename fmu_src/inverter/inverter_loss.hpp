@@ -77,6 +77,12 @@ public:
         return l;
     }
 
+    // The loss as k_linear |i| + k_square |i|^2 + k_ac P_ac: its coefficients at this u_dc (W/A,
+    // W/A^2, 1), for a caller minimising it (control/least_loss.hpp).
+    double k_linear() const { return k_I_ + k_sw_; }
+    double k_square() const { return k_I2_; }
+    double k_ac() const { return (p_.V_T0 - p_.V_D0) / u_dc_; }
+
 private:
     InverterParams p_;
     double u_dc_;

@@ -1,0 +1,225 @@
+// Least-loss commands (control/least_loss.hpp, control/least_loss_linear.hpp) against brute force
+// written here: on a linear machine with alpha = 2 the quartic's point against a dense search along
+// the shaft-torque curve (exact on each ray: the curve is a conic); on the linear and a saturating
+// map the solver on the map against the same search (rays bisected, each ray's first crossing),
+// in four quadrants, with and without the limits binding.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <random>
+
+#include "control/least_loss.hpp"
+#include "control/least_loss_linear.hpp"
+#include "control/saturated_optimal_current.hpp"
+#include "flux_map_generators.hpp"
+#include "machine/magnet_flux.hpp"
+
+using namespace ipmsm;
+
+namespace {
+
+constexpr int kP = 4;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kIMax = 500.0, kRs = 0.012, kPsiM = 0.078, kLd = 2.0e-4, kLq = 6.0e-4;
+const IronLossModel kIron{1.06664735685, 2.0, 0.00581807649193, 0.0780669432093};
+const InverterParams kInverter{};
+
+struct Brute {
+    double i_d = NAN, i_q = NAN, P = INFINITY;  // the least loss found
+};
+
+// Dense search along the curve T_shaft(i) = T: rays at n angles, on each the first crossing by
+// bisection of the shaft torque from the origin outwards (sampled at n_r radii), the full loss
+// (P_cu + P_fe + P_inv) there, within the limits; then golden section in the angle around the best.
+Brute brute_force(const MagnetFlux& flux, const DriveLoss& loss, const OperatingLimits& lim, double T, int n = 3000,
+                  int n_r = 400) {
+    const double kT = 1.5 * kP;
+    auto shaft = [&](double i_d, double i_q) {
+        const FluxPoint f = flux.eval(i_d, i_q);
+        const double T_e = kT * (f.psi_d * i_q - f.psi_q * i_d);
+        return T_e - loss.drag(loss.iron().power(kP, loss.w_m(), f.psi_d, f.psi_q));
+    };
+    auto full = [&](double i_d, double i_q, bool& ok) {
+        const FluxPoint f = flux.eval(i_d, i_q);
+        const double vd = loss.R() * i_d - lim.omega * f.psi_q, vq = loss.R() * i_q + lim.omega * f.psi_d;
+        ok = vd * vd + vq * vq <= lim.V_max * lim.V_max && i_d * i_d + i_q * i_q <= lim.I_max * lim.I_max;
+        const double T_e = kT * (f.psi_d * i_q - f.psi_q * i_d);
+        return loss.at(i_d, i_q, f.psi_d, f.psi_q, T_e).total();
+    };
+    auto at_angle = [&](double a, double& i_d, double& i_q, bool& ok) {
+        const double c = std::cos(a), s = std::sin(a);
+        double r0 = 0.0, h0 = shaft(0, 0) - T;
+        for (int k = 1; k <= n_r; ++k) {
+            double r1 = lim.I_max * k / n_r, h1 = shaft(r1 * c, r1 * s) - T;
+            if ((h0 <= 0) != (h1 <= 0)) {
+                for (int it = 0; it < 80; ++it) {
+                    const double m = 0.5 * (r0 + r1), hm = shaft(m * c, m * s) - T;
+                    ((hm <= 0) == (h0 <= 0) ? r0 : r1) = m;
+                }
+                i_d = 0.5 * (r0 + r1) * c, i_q = 0.5 * (r0 + r1) * s;
+                return full(i_d, i_q, ok);
+            }
+            r0 = r1, h0 = h1;
+        }
+        ok = false;
+        return kInf;
+    };
+    Brute b;
+    double a_best = 0;
+    for (int j = 0; j < n; ++j) {
+        const double a = 2.0 * M_PI * j / n;
+        double i_d, i_q;
+        bool ok;
+        const double P = at_angle(a, i_d, i_q, ok);
+        if (ok && P < b.P) b = {i_d, i_q, P}, a_best = a;
+    }
+    double lo = a_best - 2.0 * M_PI / n, hi = a_best + 2.0 * M_PI / n;
+    for (int it = 0; it < 100; ++it) {
+        const double m1 = lo + 0.382 * (hi - lo), m2 = lo + 0.618 * (hi - lo);
+        double d1, q1, d2, q2;
+        bool ok1, ok2;
+        const double P1 = at_angle(m1, d1, q1, ok1), P2 = at_angle(m2, d2, q2, ok2);
+        if (ok1 && P1 < b.P) b = {d1, q1, P1};
+        if (ok2 && P2 < b.P) b = {d2, q2, P2};
+        ((ok1 ? P1 : INFINITY) < (ok2 ? P2 : INFINITY) ? hi : lo) = (ok1 ? P1 : INFINITY) < (ok2 ? P2 : INFINITY) ? m2 : m1;
+    }
+    return b;
+}
+
+TEST(LeastLossLinear, QuarticEqualsBruteForceOnALinearMachine) {
+    // alpha = 2: the quartic of each majorise-minimise step, iterated, against the search along
+    // the curve (the curve is a conic: each ray's crossing in closed form).
+    const least_loss_linear::Machine m{kPsiM, kLd, kLq, 1.5 * kP};
+    for (double rpm : {1000.0, 4000.0, 6000.0, 9000.0}) {
+        for (double T : {-150.0, -40.0, -5.0, 3.0, 20.0, 80.0, 200.0}) {
+            const double w = rpm * M_PI / 30.0, f = kP * w / (2 * M_PI);
+            const InverterLossModel inv(kInverter, 355.0);
+            const double K = (kIron.k_h * f + kIron.k_e * f * f) / (kIron.psi_ref * kIron.psi_ref);
+            const double e = 1.0 + inv.k_ac();
+            const least_loss_linear::Loss l{1.5 * kRs * e + inv.k_square(), inv.k_linear(), e, K, K / w};
+            const least_loss_linear::Result r = least_loss_linear::solve(m, l, T, 50.0);
+            ASSERT_TRUE(r.found);
+            // brute force: J along the curve, each ray's crossing the conic's smallest positive root
+            auto J_at = [&](double a, double& i_d, double& i_q) {
+                const double c = std::cos(a), s = std::sin(a);
+                // h(r) = kT (psi_m r s + dL r^2 c s) - kappa ((psi_m + L_d r c)^2 + L_q^2 r^2 s^2) = T
+                const double A2 = m.kT * (kLd - kLq) * c * s - l.kappa * (kLd * kLd * c * c + kLq * kLq * s * s);
+                const double A1 = m.kT * kPsiM * s - l.kappa * 2.0 * kPsiM * kLd * c;
+                const double A0 = -l.kappa * kPsiM * kPsiM - T;
+                double rr = INFINITY;
+                if (A2 == 0.0) {
+                    if (A1 != 0.0 && -A0 / A1 > 0) rr = -A0 / A1;
+                } else {
+                    const double disc = A1 * A1 - 4 * A2 * A0;
+                    if (disc >= 0) {
+                        const double sq = std::sqrt(disc);
+                        const double q = -0.5 * (A1 + std::copysign(sq, A1));
+                        for (double x : {q / A2, A0 / q})
+                            if (x > 0 && x < rr) rr = x;
+                    }
+                }
+                if (!(rr < 1e5)) return kInf;
+                i_d = rr * c, i_q = rr * s;
+                const double pd = kPsiM + kLd * i_d, pq = kLq * i_q;
+                return l.a * rr * rr + l.b * rr + l.e * K * (pd * pd + pq * pq);
+            };
+            double best = INFINITY, a_best = 0, bd = 0, bq = 0;
+            const int n = 20000;
+            for (int j = 0; j < n; ++j) {
+                double i_d, i_q;
+                const double a = 2 * M_PI * j / n, J = J_at(a, i_d, i_q);
+                if (J < best) best = J, a_best = a, bd = i_d, bq = i_q;
+            }
+            double lo = a_best - 2 * M_PI / n, hi = a_best + 2 * M_PI / n;
+            for (int it = 0; it < 200; ++it) {
+                const double m1 = lo + 0.381966 * (hi - lo), m2 = hi - 0.381966 * (hi - lo);
+                double d1, q1, d2, q2;
+                const double J1 = J_at(m1, d1, q1), J2 = J_at(m2, d2, q2);
+                if (J1 < best) best = J1, bd = d1, bq = q1;
+                if (J2 < best) best = J2, bd = d2, bq = q2;
+                (J1 < J2 ? hi : lo) = J1 < J2 ? m2 : m1;
+            }
+            EXPECT_NEAR(r.J, best, 1e-9 * best) << rpm << " r/min, " << T << " N.m";
+            EXPECT_NEAR(r.i_d, bd, 1e-4) << rpm << " r/min, " << T << " N.m";
+            EXPECT_NEAR(r.i_q, bq, 1e-4) << rpm << " r/min, " << T << " N.m";
+            EXPECT_GE(r.J, best * (1 - 1e-12)) << "below the brute force: not on the curve?";
+        }
+    }
+}
+
+struct Case {
+    double rpm, T_frac, u_dc;
+};
+
+void check_against_brute_force(const std::shared_ptr<const FluxMap>& map, double shift, std::mt19937& rng, int n) {
+    SaturatedOptimalCurrent em(map, kP);
+    LeastLoss ll(map, kP, false);
+    const MagnetFlux flux(*map, shift);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    for (int k = 0; k < n; ++k) {
+        const double rpm = (U(rng) < 0.5 ? -1 : 1) * 12000.0 * U(rng);
+        const double w = rpm * M_PI / 30.0;
+        const double u_dc = 300.0 + 100.0 * U(rng);
+        const OperatingLimits lim{kP * w, 0.95 * u_dc / std::sqrt(3.0), kIMax};
+        const DriveLoss loss(kIron, kInverter, kP, w, kRs, u_dc);
+        const double side = U(rng) < 0.5 ? -1.0 : 1.0;
+        const CurrentCommand top = em.solve(side * 1e30, lim, kRs, shift, Recursion::optimal);
+        if (!top.feasible) continue;
+        const double T = side * top.torque_max * 1.1 * U(rng);
+        const CurrentCommand least_current = em.solve(T, lim, kRs, shift, Recursion::optimal);
+        const CurrentPoint hint{least_current.i_d, least_current.i_q};
+        const LeastLossResult r = ll.solve(T, lim, flux, loss, top, k % 2 ? &hint : nullptr);
+        SCOPED_TRACE(::testing::Message() << rpm << " r/min, T = " << T << " N.m, u_dc = " << u_dc);
+        ASSERT_TRUE(r.cmd.feasible);
+        EXPECT_LE(std::hypot(r.cmd.i_d, r.cmd.i_q), kIMax * (1 + 1e-9));
+        const double T_cmd = side * std::min(std::abs(T), r.cmd.torque_max);
+        EXPECT_NEAR(r.cmd.torque, T_cmd, 1e-6 * std::max(1.0, r.cmd.torque_max));
+        if (std::abs(T) >= r.cmd.torque_max) continue;
+        const Brute b = brute_force(flux, loss, lim, T);
+        EXPECT_LE(r.loss.total(), b.P * (1 + 1e-4)) << "brute force at (" << b.i_d << ", " << b.i_q << ") A, command ("
+                                                    << r.cmd.i_d << ", " << r.cmd.i_q << ") A";
+        EXPECT_GE(r.loss.total(), b.P * (1 - 1e-4)) << "less than the brute force";
+    }
+}
+
+TEST(LeastLoss, LinearMapAgainstBruteForce) {
+    auto map = std::make_shared<const FluxMap>(linear_flux_map(kLd, kLq, kPsiM, 1.3 * kIMax, 41));
+    std::mt19937 rng(1);
+    check_against_brute_force(map, 0.0, rng, 20);
+}
+
+TEST(LeastLoss, SaturatingMapAgainstBruteForce) {
+    auto map = std::make_shared<const FluxMap>(
+        saturating_flux_map(kLd, kLq, kPsiM, 200.0, 0.15, kIMax, 1.3 * kIMax, 53));
+    std::mt19937 rng(2);
+    check_against_brute_force(map, -0.005, rng, 20);
+}
+
+TEST(LeastLoss, MapSolverEqualsTheQuarticOnALinearMap) {
+    auto map = std::make_shared<const FluxMap>(linear_flux_map(kLd, kLq, kPsiM, 1.3 * kIMax, 41));
+    SaturatedOptimalCurrent em(map, kP);
+    LeastLoss ll(map, kP, false);
+    const MagnetFlux flux(*map, 0.0);
+    const least_loss_linear::Machine m{kPsiM, kLd, kLq, 1.5 * kP};
+    for (double rpm : {2000.0, 4000.0, -3000.0}) {
+        for (double T : {-60.0, -10.0, 5.0, 30.0, 90.0}) {
+            const double w = rpm * M_PI / 30.0;
+            const OperatingLimits lim{kP * w, 1e4, kIMax};  // no voltage limit
+            const DriveLoss loss(kIron, kInverter, kP, w, kRs, 355.0);
+            const CurrentCommand top = em.solve(T < 0 ? -1e30 : 1e30, lim, kRs, 0.0, Recursion::optimal);
+            const LeastLossResult r = ll.solve(T, lim, flux, loss, top);
+            const double f = kP * std::abs(w) / (2 * M_PI);
+            const double K = (kIron.k_h * f + kIron.k_e * f * f) / (kIron.psi_ref * kIron.psi_ref);
+            const InverterLossModel inv(kInverter, 355.0);
+            const double e = 1.0 + inv.k_ac();
+            const least_loss_linear::Loss l{1.5 * kRs * e + inv.k_square(), inv.k_linear(), e, K, K / w};
+            const least_loss_linear::Result q = least_loss_linear::solve(m, l, T, 50.0);
+            EXPECT_NEAR(r.cmd.i_d, q.i_d, 1e-6) << rpm << " r/min " << T << " N.m";
+            EXPECT_NEAR(r.cmd.i_q, q.i_q, 1e-6) << rpm << " r/min " << T << " N.m";
+        }
+    }
+}
+
+}  // namespace
