@@ -41,6 +41,9 @@ class RunAccounts:
     k_u: float
     reference: bool
     w_m_max: float | None = None  # rad/s, the motor's top speed (None: not known, nothing flagged)
+    #: the command's torque is the shaft's (least loss: contract, "Least-loss control"), else the
+    #: air gap's: the torque error compares the delivered torque of the same kind
+    shaft_torque_command: bool = False
     w_m_peak: float = 0.0     # rad/s, the highest rotor speed
     t_above_top: float = 0.0  # s above w_m_max
     E_elec: float = 0.0       # J, motor electric input
@@ -81,8 +84,9 @@ class RunAccounts:
         self.E_fe += m.P_fe * dt
         self.E_inv += s.P_inverter * dt
         self.E_loss_cmd += m.P_loss_cmd * dt
-        # Torque error: delivered (mean T_e) against the command within reach.
-        T_err = m.T_e - m.T_cmd
+        # Torque error: delivered (mean T_e, or T_shaft for a shaft-torque command) against the
+        # command within reach.
+        T_err = (m.T_shaft if self.shaft_torque_command else m.T_e) - m.T_cmd
         self.T_err2 += T_err * T_err
         self.T_cmd2 += m.T_cmd * m.T_cmd
         self.T_err_max = max(self.T_err_max, abs(T_err))

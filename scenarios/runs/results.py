@@ -143,7 +143,7 @@ class RunSummary:
     energy_battery_Wh: float          # at the battery's terminals
     Wh_per_km: float | None  # None when the run covered no distance
     speed_rmse_mps: float             # vehicle against the cycle, at the vehicle steps
-    torque_rmse_Nm: float             # delivered (step mean of T_e) against the command T_cmd
+    torque_rmse_Nm: float             # delivered (step mean of T_e; of T_shaft with least loss) against T_cmd
     torque_error_max_Nm: float
     torque_cmd_rms_Nm: float
     copper_loss_Wh: float

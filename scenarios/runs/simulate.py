@@ -334,7 +334,7 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     vehicle, driver = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver)
     battery = Battery(drive.battery)
     accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max,
-                           thermal=spec.thermal().on)
+                           thermal=spec.thermal().on, shaft_torque_command=spec.objective_name == "loss")
     trace = Trace(every=max(1, int(round(spec.trace_dt / dt))), keep=out is not None)
     bar = Progress(n, f"{cycle.name} {method} [{cond.name}]") if progress else None
     wall0 = time.perf_counter()

@@ -182,7 +182,8 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
              f"{T_REFERENCE_K - ZERO_CELSIUS_K:.0f} °C with the exact solver.",
              "*Copper loss vs optimum*: the run's copper loss over that of the exact optimum (Ferrari,",
              "recursion 2, the same delivered torque and conditions, evaluated every 10 ms). *Torque error*:",
-             "delivered T_e against the controller's own clamped command T_cmd, 10-ms means. *Time above",
+             "delivered T_e (least loss: the shaft torque) against the controller's own clamped command T_cmd,",
+             "10-ms means. *Time above",
              "V_max / voltage-limited*: share of the cycle (sampled every 10 ms) in which the current regulator's",
              "voltage exceeded the planned V_max = k_u u_dc/√3, and in which it hit the inverter's linear range "
              "u_dc/√3. The optimum keeps 5 % of it in reserve (k_u = 0.95); a method",

@@ -160,7 +160,7 @@ def test_least_loss_loses_less_than_least_current(controller_fmu, plant_fmu):
     assert (a.objective, b.objective) == ("current", "loss")
     assert b.drive_loss_Wh < a.drive_loss_Wh
     assert b.energy_battery_Wh < a.energy_battery_Wh
-    assert b.distance_km == pytest.approx(a.distance_km, rel=1e-3)
+    assert b.distance_km == pytest.approx(a.distance_km, rel=3e-3)  # the driver follows the same cycle
     # the least-loss optimum at the delivered shaft torque: least loss within 2 % of it (the
     # current loop's transients), least current above it
     assert b.drive_loss_Wh == pytest.approx(b.drive_loss_optimal_Wh, rel=0.02)
