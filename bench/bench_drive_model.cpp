@@ -112,7 +112,8 @@ int main(int argc, char** argv) {
         if (!glue)
             std::printf(
                 "       E_dc %.17g J, E_mech %.17g J, E_cu %.17g J, E_fe %.17g J, E_inv %.17g J; winding %.3f K\n",
-                e.E_dc, e.E_mech, e.E_cu, e.E_fe, e.E_inv, e.theta_winding);
+                e.E_dc, e.E_mech, e.E_cu, e.E_fe, e.E_inv,
+                fmi::value_of<double>(e, *fmi::find_variable<ipmsm::DriveModel>("theta_winding")));
     }
     return 0;
 }

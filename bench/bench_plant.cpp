@@ -135,7 +135,7 @@ Trace record(const std::string& flux_map, const char* name, const std::function<
         ControllerModel controller(ctx);
         PlantModel plant(ctx);
         // Both models on the same map (their default map when flux_map is empty).
-        controller.flux_map = plant.flux_map = flux_map;
+        controller.motor.flux_map = plant.motor.flux_map = flux_map;
         const coupling::Coupling description = coupling::parse(coupling::kDriveCouplingText);
         std::vector<coupling::ModelUnit> units;
         for (const coupling::Unit& u : description.units) {

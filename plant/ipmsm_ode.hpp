@@ -21,6 +21,7 @@
 
 #include "machine/iron_loss.hpp"
 #include "machine/inverse_flux_map.hpp"
+#include "machine/iron_loss.hpp"
 
 namespace ipmsm {
 

@@ -9,12 +9,12 @@
 #include <sstream>
 #include <utility>
 
-#include "machine/flux_map_cache.hpp"
-#include "machine/flux_map_metadata.hpp"
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
 #include "machine/map_file.hpp"
 #include "machine/operating_region.hpp"
+#include "parts/motor_map.hpp"
+#include "parts/part_variables.hpp"
 
 namespace ipmsm {
 
@@ -67,235 +67,148 @@ std::shared_ptr<const InverseFluxMap> shared_inverse(const std::shared_ptr<const
 }  // namespace
 
 const std::vector<V>& PlantModel::variables() {
-    static const std::vector<V> table = {
-        // inputs
-        {"u_d", &M::u_d, Causality::input, Variability::continuous, "V", "",
-         "d-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step",
-         -kVoltageMax, kVoltageMax},
-        {"u_q", &M::u_q, Causality::input, Variability::continuous, "V", "",
-         "q-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step",
-         -kVoltageMax, kVoltageMax},
-        {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm",
-         "Mechanical rotor speed, set by the vehicle side (either sign)", -kSpeedMax, kSpeedMax},
-        {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC",
-         "Magnet temperature: the PM flux is psi_m (1 + k_psi_T (T_magnet - T_magnet_ref))", kTemperatureMin_K,
-         kTemperatureMax_K},
-        {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC",
-         "Winding temperature: R = R_s (1 + alpha_cu (T_winding - T_winding_ref))", kTemperatureMin_K,
-         kTemperatureMax_K},
-        // outputs
-        {"i_d", &M::i_d, Causality::output, Variability::continuous, "A", "",
-         "d-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
-        {"i_q", &M::i_q, Causality::output, Variability::continuous, "A", "",
-         "q-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
-        {"psi_d", &M::psi_d, Causality::output, Variability::continuous, "Wb", "",
-         "d-axis flux linkage (integrated state)"},
-        {"psi_q", &M::psi_q, Causality::output, Variability::continuous, "Wb", "",
-         "q-axis flux linkage (integrated state)"},
-        {"T_e", &M::T_e, Causality::output, Variability::continuous, "N.m", "",
-         "Electromagnetic torque 1.5 p (psi_d i_q - psi_q i_d)"},
-        {"T_shaft", &M::T_shaft, Causality::output, Variability::continuous, "N.m", "",
-         "Shaft torque: T_e less the iron-loss drag P_fe / w_m"},
-        {"P_elec", &M::P_elec, Causality::output, Variability::continuous, "W", "",
-         "Electrical input power 1.5 (u_d i_d + u_q i_q)"},
-        {"P_mech", &M::P_mech, Causality::output, Variability::continuous, "W", "",
-         "Shaft power T_shaft w_m (= T_e w_m - P_fe)"},
-        {"P_cu", &M::P_cu, Causality::output, Variability::continuous, "W", "",
-         "Copper loss 1.5 R (i_d^2 + i_q^2) at the winding temperature"},
-        {"P_fe", &M::P_fe, Causality::output, Variability::continuous, "W", "",
-         "Iron loss fe_k_h f b^fe_alpha + fe_k_e f^2 b^2, f = p |w_m| / (2 pi), b = |psi| / fe_psi_ref"},
-        {"psi_m_T", &M::psi_m_T, Causality::output, Variability::continuous, "Wb", "",
-         "PM flux linkage at the magnet temperature (the map's psi_d(0, 0) shifted)"},
-        {"R_s_T", &M::R_s_T, Causality::output, Variability::continuous, "Ohm", "",
-         "Stator resistance at the winding temperature"},
-        {"E_elec", &M::E_elec, Causality::output, Variability::continuous, "J", "Wh",
-         "Electrical input energy since the start, int P_elec dt (exact over each step: a CVODE quadrature under "
-         "error control)"},
-        {"E_mech", &M::E_mech, Causality::output, Variability::continuous, "J", "Wh",
-         "Shaft energy since the start, int P_mech dt = w_m int T_e dt - int P_fe dt over each step (w_m held)"},
-        {"E_cu", &M::E_cu, Causality::output, Variability::continuous, "J", "Wh",
-         "Copper-loss energy since the start, int P_cu dt"},
-        {"E_fe", &M::E_fe, Causality::output, Variability::continuous, "J", "Wh",
-         "Iron-loss energy since the start, int P_fe dt"},
-        {"T_e_impulse", &M::T_e_impulse, Causality::output, Variability::continuous, "N.m.s", "",
-         "Angular impulse of the electromagnetic torque since the start, int T_e dt (its mean over a step is the "
-         "increase over the step divided by the step)"},
-        {"cvode_steps", &M::cvode_steps, Causality::output, Variability::discrete, "", "",
-         "Internal steps of the integrator in the last communication step (CVODE's, or the explicit Runge-Kutta "
-         "steps that met the tolerances)"},
-        {"cvode_rhs_evals", &M::cvode_rhs_evals, Causality::output, Variability::discrete, "", "",
-         "Right-hand-side evaluations in the last communication step"},
-        // parameters
-        {"flux_map", &M::flux_map, Causality::parameter, Variability::fixed, "", "",
-         "Path of a flux-map CSV (the contract's format); empty: the default map in resources/"},
-        {"pole_pairs", &M::pole_pairs, Causality::parameter, Variability::fixed, "", "", "Pole pairs p (omega = p w_m)",
-         1, 100},
-        {"R_s", &M::R_s, Causality::parameter, Variability::fixed, "Ohm", "mOhm", "Stator resistance at T_winding_ref",
-         0.0, 1e3},
-        {"T_winding_ref", &M::T_winding_ref, Causality::parameter, Variability::fixed, "K", "degC",
-         "Winding temperature at which R_s holds", kTemperatureMin_K, kTemperatureMax_K},
-        {"alpha_cu", &M::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "",
-         "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
-        {"k_psi_T", &M::k_psi_T, Causality::parameter, Variability::fixed, "1/K", "",
-         "Relative change of the magnet flux per kelvin (NdFeB about -0.0012)", -0.01, 0.01},
-        {"T_magnet_ref", &M::T_magnet_ref, Causality::parameter, Variability::fixed, "K", "degC",
-         "Magnet temperature at which the flux map holds", kTemperatureMin_K, kTemperatureMax_K},
-        {"fe_k_h", &M::fe_k_h, Causality::parameter, Variability::fixed, "J", "",
-         "Iron loss: hysteresis coefficient, W/Hz (0: no hysteresis loss)", 0.0, 1e6},
-        {"fe_alpha", &M::fe_alpha, Causality::parameter, Variability::fixed, "1", "",
-         "Iron loss: exponent of b in the hysteresis term", 0.5, 4.0},
-        {"fe_k_e", &M::fe_k_e, Causality::parameter, Variability::fixed, "", "",
-         "Iron loss: eddy-current coefficient, W/Hz^2 (0: no eddy-current loss)", 0.0, 1e3},
-        {"fe_psi_ref", &M::fe_psi_ref, Causality::parameter, Variability::fixed, "Wb", "",
-         "Iron loss: flux linkage at which b = 1", 0.0, 1e3, true},
-        {"i_d_start", &M::i_d_start, Causality::parameter, Variability::fixed, "A", "",
-         "Initial d-axis current (the initial fluxes are the map's at the initial currents)", -1e5, 1e5},
-        {"i_q_start", &M::i_q_start, Causality::parameter, Variability::fixed, "A", "", "Initial q-axis current", -1e5,
-         1e5},
-        {"rtol", &M::rtol, Causality::parameter, Variability::tunable, "1", "", "CVODE relative tolerance", 1e-14, 0.1},
-        {"atol", &M::atol, Causality::parameter, Variability::tunable, "Wb", "",
-         "CVODE absolute tolerance on the flux linkages (the local error per internal step, Wb)", 1e-15, 1.0},
-        {"cvode_method", &M::cvode_method, Causality::parameter, Variability::fixed, "", "",
-         "1 Adams-Moulton with functional iteration (non-stiff; default), 2 BDF with Newton and the analytic Jacobian "
-         "(stiff maps)",
-         1, 2},
-        {"cvode_max_order", &M::cvode_max_order, Causality::parameter, Variability::fixed, "", "",
-         "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
-        {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
-         "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
-        // I_max (0.2.0) here: 0.1.0's value references above stay theirs, and 0.2.0's thermal
-        // ones below stay theirs (0.2.0 had it before i_d_start; CHANGELOG)
-        {"I_max", &M::I_max, Causality::parameter, Variability::fixed, "A", "",
-         "Peak current limit of the drive (the controller's): the flux map must be legal in its operating region "
-         "(docs/maps.md)",
-         0.0, kInf, true},
-        // the thermal network (docs/thermal.md), added in 0.2.0: after the variables of 0.1.0
-        {"T_coolant", &M::T_coolant, Causality::input, Variability::continuous, "K", "degC",
-         "Coolant temperature the thermal network rejects heat to (thermal_model; held over each step)",
-         kTemperatureMin_K, kTemperatureMax_K},
-        {"T_ambient", &M::T_ambient, Causality::input, Variability::continuous, "K", "degC",
-         "Ambient-air temperature the thermal network's rotor also rejects heat to (thermal_model)", kTemperatureMin_K,
-         kTemperatureMax_K},
-        {"theta_winding", &M::theta_winding, Causality::output, Variability::continuous, "K", "degC",
-         "Winding temperature: the thermal network's winding node (thermal_model), else the T_winding input"},
-        {"theta_magnet", &M::theta_magnet, Causality::output, Variability::continuous, "K", "degC",
-         "Magnet temperature: the thermal network's magnet (rotor) node (thermal_model), else the T_magnet input"},
-        {"theta_stator_yoke", &M::theta_stator_yoke, Causality::output, Variability::continuous, "K", "degC",
-         "Stator-yoke temperature: the thermal network's node (thermal_model), else the T_winding input"},
-        {"theta_stator_tooth", &M::theta_stator_tooth, Causality::output, Variability::continuous, "K", "degC",
-         "Stator-tooth temperature: the thermal network's node (thermal_model), else the T_winding input"},
-        {"P_coolant", &M::P_coolant, Causality::output, Variability::continuous, "W", "",
-         "Heat into the coolant, mean over the last step (thermal_model; else 0)"},
-        {"E_coolant", &M::E_coolant, Causality::output, Variability::continuous, "J", "Wh",
-         "Heat into the coolant since the start (thermal_model; else 0)"},
-        {"E_ambient", &M::E_ambient, Causality::output, Variability::continuous, "J", "Wh",
-         "Heat into the ambient air since the start (thermal_model; else 0)"},
-        {"E_stored", &M::E_stored, Causality::output, Variability::continuous, "J", "Wh",
-         "Heat stored in the thermal network since the start, sum C_i (theta_i - theta_i(0)): E_cu + E_fe = "
-         "E_stored + E_coolant + E_ambient (thermal_model; else 0)"},
-        {"thermal_model", &M::thermal_model, Causality::parameter, Variability::fixed, "", "",
-         "true: a thermal network of the machine (docs/thermal.md) sets the winding and magnet temperatures from "
-         "the losses, T_coolant and T_ambient, and the T_winding, T_magnet inputs only start it; false: they are the "
-         "inputs"},
-        {"C_stator_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::C_stator_yoke), Causality::parameter,
-         Variability::fixed, "J/K", "", "Thermal network: heat capacity of the stator yoke", 0.0, 1e9, true},
-        {"C_stator_tooth", fmi::forward(&M::lptn, &thermal::LptnParams::C_stator_tooth), Causality::parameter,
-         Variability::fixed, "J/K", "", "Thermal network: heat capacity of the stator teeth", 0.0, 1e9, true},
-        {"C_winding", fmi::forward(&M::lptn, &thermal::LptnParams::C_winding), Causality::parameter, Variability::fixed,
-         "J/K", "", "Thermal network: heat capacity of the winding", 0.0, 1e9, true},
-        {"C_magnet", fmi::forward(&M::lptn, &thermal::LptnParams::C_magnet), Causality::parameter, Variability::fixed,
-         "J/K", "", "Thermal network: heat capacity of the magnets and rotor", 0.0, 1e9, true},
-        {"R_yoke_winding", fmi::forward(&M::lptn, &thermal::LptnParams::R_yoke_winding), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: resistance stator yoke - winding", 0.0, 1e6, true},
-        {"R_yoke_tooth", fmi::forward(&M::lptn, &thermal::LptnParams::R_yoke_tooth), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: resistance stator yoke - teeth", 0.0, 1e6, true},
-        {"R_tooth_winding", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_winding), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: resistance teeth - winding", 0.0, 1e6, true},
-        {"R_coolant_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::R_coolant_yoke), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: resistance coolant - yoke at 20 degC coolant", 0.0, 1e6,
-         true},
-        {"k_coolant_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::k_coolant_yoke), Causality::parameter,
-         Variability::fixed, "1/K", "", "Thermal network: R_coolant_yoke's relative change per kelvin of coolant", -1.0,
-         1.0},
-        {"R_tooth_magnet_a", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_magnet_a), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: teeth - magnet resistance a exp(-n / b) + c: a", 0.0, 1e6},
-        {"R_tooth_magnet_b", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_magnet_b), Causality::parameter,
-         Variability::fixed, "1", "", "Thermal network: teeth - magnet resistance: b (normalised speed)", 0.0, 1e6,
-         true},
-        {"R_tooth_magnet_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_tooth_magnet_c), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: teeth - magnet resistance: c", 0.0, 1e6, true},
-        {"R_winding_magnet_a", fmi::forward(&M::lptn, &thermal::LptnParams::R_winding_magnet_a), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: winding - magnet resistance a exp(-n / b) + c: a", 0.0, 1e6},
-        {"R_winding_magnet_b", fmi::forward(&M::lptn, &thermal::LptnParams::R_winding_magnet_b), Causality::parameter,
-         Variability::fixed, "1", "", "Thermal network: winding - magnet resistance: b (normalised speed)", 0.0, 1e6,
-         true},
-        {"R_winding_magnet_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_winding_magnet_c), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: winding - magnet resistance: c", 0.0, 1e6, true},
-        {"R_magnet_ambient_a", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_ambient_a), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: magnet - ambient resistance a exp(-n / b) + c: a", 0.0, 1e6},
-        {"R_magnet_ambient_b", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_ambient_b), Causality::parameter,
-         Variability::fixed, "1", "", "Thermal network: magnet - ambient resistance: b (normalised speed)", 0.0, 1e6,
-         true},
-        {"R_magnet_ambient_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_ambient_c), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: magnet - ambient resistance: c", 0.0, 1e6, true},
-        {"R_magnet_coolant_0", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_0), Causality::parameter,
-         Variability::fixed, "K/W", "",
-         "Thermal network: magnet - coolant resistance r0 + r_n n + r_c c + r_nc n c: r0", -1e6, 1e6},
-        {"R_magnet_coolant_n", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_n), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: magnet - coolant resistance: r_n", -1e6, 1e6},
-        {"R_magnet_coolant_c", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_c), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: magnet - coolant resistance: r_c (c = coolant / 100 degC)",
-         -1e6, 1e6},
-        {"R_magnet_coolant_nc", fmi::forward(&M::lptn, &thermal::LptnParams::R_magnet_coolant_nc), Causality::parameter,
-         Variability::fixed, "K/W", "", "Thermal network: magnet - coolant resistance: r_nc", -1e6, 1e6},
-        {"k_fe_stator_0", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_0), Causality::parameter,
-         Variability::fixed, "1", "",
-         "Thermal network: stator share of the iron loss k0 + k_n n + k_i i + k_ni n i: k0", -10.0, 10.0},
-        {"k_fe_stator_n", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_n), Causality::parameter,
-         Variability::fixed, "1", "", "Thermal network: stator share of the iron loss: k_n", -10.0, 10.0},
-        {"k_fe_stator_i", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_i), Causality::parameter,
-         Variability::fixed, "1", "", "Thermal network: stator share of the iron loss: k_i (i = I_rms / I_rms_ref)",
-         -10.0, 10.0},
-        {"k_fe_stator_ni", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_stator_ni), Causality::parameter,
-         Variability::fixed, "1", "", "Thermal network: stator share of the iron loss: k_ni", -10.0, 10.0},
-        {"k_fe_yoke", fmi::forward(&M::lptn, &thermal::LptnParams::k_fe_yoke), Causality::parameter, Variability::fixed,
-         "1", "", "Thermal network: the yoke's share of the stator's iron loss (the rest: teeth)", 0.0, 1.0},
-        {"w_m_ref", fmi::forward(&M::lptn, &thermal::LptnParams::w_m_ref), Causality::parameter, Variability::fixed,
-         "rad/s", "", "Thermal network: speed of n = 1 in its fits", 0.0, 1e5, true},
-        {"I_rms_ref", fmi::forward(&M::lptn, &thermal::LptnParams::I_rms_ref), Causality::parameter, Variability::fixed,
-         "A", "", "Thermal network: RMS current of i = 1 in its fits", 0.0, 1e6, true},
-        // the inverter feeding the machine (inverter/inverter_loss.hpp), new after 0.2.0: last, so
-        // that every earlier value reference stays
-        {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "",
-         "DC-link voltage the inverter switches (its loss P_inv), held over each step", 0.0, kInf, true},
-        {"P_inv", &M::P_inv, Causality::output, Variability::continuous, "W", "",
-         "Inverter conduction and switching loss over the last step: the current sampled at its end, the step's mean "
-         "AC power (E_elec's increase over the step), u_dc held"},
-        {"E_inv", &M::E_inv, Causality::output, Variability::continuous, "J", "Wh",
-         "Inverter-loss energy since the start, P_inv h summed over the steps"},
-        {"f_sw", fmi::forward(&M::inverter, &InverterParams::f_sw), Causality::parameter, Variability::fixed, "Hz", "",
-         "Inverter switching frequency (continuous PWM)", 0.0, 1e6},
-        {"V_T0", fmi::forward(&M::inverter, &InverterParams::V_T0), Causality::parameter, Variability::fixed, "V", "",
-         "IGBT threshold voltage", 0.0, 10.0},
-        {"r_T", fmi::forward(&M::inverter, &InverterParams::r_T), Causality::parameter, Variability::fixed, "Ohm",
-         "mOhm", "IGBT slope resistance", 0.0, 1.0},
-        {"V_D0", fmi::forward(&M::inverter, &InverterParams::V_D0), Causality::parameter, Variability::fixed, "V", "",
-         "Diode threshold voltage", 0.0, 10.0},
-        {"r_D", fmi::forward(&M::inverter, &InverterParams::r_D), Causality::parameter, Variability::fixed, "Ohm",
-         "mOhm", "Diode slope resistance", 0.0, 1.0},
-        {"E_on", fmi::forward(&M::inverter, &InverterParams::E_on), Causality::parameter, Variability::fixed, "J", "",
-         "IGBT turn-on energy at I_ref, V_ref", 0.0, 100.0},
-        {"E_off", fmi::forward(&M::inverter, &InverterParams::E_off), Causality::parameter, Variability::fixed, "J", "",
-         "IGBT turn-off energy at I_ref, V_ref", 0.0, 100.0},
-        {"E_rec", fmi::forward(&M::inverter, &InverterParams::E_rec), Causality::parameter, Variability::fixed, "J", "",
-         "Diode reverse-recovery energy at I_ref, V_ref", 0.0, 100.0},
-        {"I_ref", fmi::forward(&M::inverter, &InverterParams::I_ref), Causality::parameter, Variability::fixed, "A", "",
-         "Test current of the switching energies", 0.0, kInf, true},
-        {"V_ref", fmi::forward(&M::inverter, &InverterParams::V_ref), Causality::parameter, Variability::fixed, "V", "",
-         "Test DC voltage of the switching energies", 0.0, kInf, true},
-        {"k_v", fmi::forward(&M::inverter, &InverterParams::k_v), Causality::parameter, Variability::fixed, "1", "",
-         "Exponent of the switching energies' DC-voltage scaling", 0.0, 3.0},
-    };
+    const auto motor = [](const char* name) { return fmi::part_variable(&M::motor, name); };
+    static const std::vector<V> table = [&] {
+        std::vector<V> t = fmi::join<M>({
+            {
+                // inputs
+                {"u_d", &M::u_d, Causality::input, Variability::continuous, "V", "",
+                 "d-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step",
+                 -kVoltageMax, kVoltageMax},
+                {"u_q", &M::u_q, Causality::input, Variability::continuous, "V", "",
+                 "q-axis stator voltage (average inverter output, peak, amplitude-invariant), held over each step",
+                 -kVoltageMax, kVoltageMax},
+                {"w_m", &M::w_m, Causality::input, Variability::continuous, "rad/s", "rpm",
+                 "Mechanical rotor speed, set by the vehicle side (either sign)", -kSpeedMax, kSpeedMax},
+                {"T_magnet", &M::T_magnet, Causality::input, Variability::continuous, "K", "degC",
+                 "Magnet temperature: the PM flux is psi_m (1 + k_psi_T (T_magnet - T_magnet_ref))", kTemperatureMin_K,
+                 kTemperatureMax_K},
+                {"T_winding", &M::T_winding, Causality::input, Variability::continuous, "K", "degC",
+                 "Winding temperature: R = R_s (1 + alpha_cu (T_winding - T_winding_ref))", kTemperatureMin_K,
+                 kTemperatureMax_K},
+                // outputs
+                {"i_d", &M::i_d, Causality::output, Variability::continuous, "A", "",
+                 "d-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
+                {"i_q", &M::i_q, Causality::output, Variability::continuous, "A", "",
+                 "q-axis stator current (peak, amplitude-invariant), from the inverse flux map"},
+                {"psi_d", &M::psi_d, Causality::output, Variability::continuous, "Wb", "",
+                 "d-axis flux linkage (integrated state)"},
+                {"psi_q", &M::psi_q, Causality::output, Variability::continuous, "Wb", "",
+                 "q-axis flux linkage (integrated state)"},
+                {"T_e", &M::T_e, Causality::output, Variability::continuous, "N.m", "",
+                 "Electromagnetic torque 1.5 p (psi_d i_q - psi_q i_d)"},
+                {"T_shaft", &M::T_shaft, Causality::output, Variability::continuous, "N.m", "",
+                 "Shaft torque: T_e less the iron-loss drag P_fe / w_m"},
+                {"P_elec", &M::P_elec, Causality::output, Variability::continuous, "W", "",
+                 "Electrical input power 1.5 (u_d i_d + u_q i_q)"},
+                {"P_mech", &M::P_mech, Causality::output, Variability::continuous, "W", "",
+                 "Shaft power T_shaft w_m (= T_e w_m - P_fe)"},
+                {"P_cu", &M::P_cu, Causality::output, Variability::continuous, "W", "",
+                 "Copper loss 1.5 R (i_d^2 + i_q^2) at the winding temperature"},
+                {"P_fe", &M::P_fe, Causality::output, Variability::continuous, "W", "",
+                 "Iron loss fe_k_h f b^fe_alpha + fe_k_e f^2 b^2, f = p |w_m| / (2 pi), b = |psi| / fe_psi_ref"},
+                {"psi_m_T", &M::psi_m_T, Causality::output, Variability::continuous, "Wb", "",
+                 "PM flux linkage at the magnet temperature (the map's psi_d(0, 0) shifted)"},
+                {"R_s_T", &M::R_s_T, Causality::output, Variability::continuous, "Ohm", "",
+                 "Stator resistance at the winding temperature"},
+                {"E_elec", &M::E_elec, Causality::output, Variability::continuous, "J", "Wh",
+                 "Electrical input energy since the start, int P_elec dt (exact over each step: a CVODE quadrature "
+                 "under error control)"},
+                {"E_mech", &M::E_mech, Causality::output, Variability::continuous, "J", "Wh",
+                 "Shaft energy since the start, int P_mech dt = w_m int T_e dt - int P_fe dt over each step (w_m "
+                 "held)"},
+                {"E_cu", &M::E_cu, Causality::output, Variability::continuous, "J", "Wh",
+                 "Copper-loss energy since the start, int P_cu dt"},
+                {"E_fe", &M::E_fe, Causality::output, Variability::continuous, "J", "Wh",
+                 "Iron-loss energy since the start, int P_fe dt"},
+                {"T_e_impulse", &M::T_e_impulse, Causality::output, Variability::continuous, "N.m.s", "",
+                 "Angular impulse of the electromagnetic torque since the start, int T_e dt (its mean over a step is "
+                 "the increase over the step divided by the step)"},
+                {"cvode_steps", &M::cvode_steps, Causality::output, Variability::discrete, "", "",
+                 "Internal steps of the integrator in the last communication step (CVODE's, or the explicit "
+                 "Runge-Kutta steps that met the tolerances)"},
+                {"cvode_rhs_evals", &M::cvode_rhs_evals, Causality::output, Variability::discrete, "", "",
+                 "Right-hand-side evaluations in the last communication step"},
+                // parameters
+                motor("flux_map"),
+                motor("pole_pairs"),
+                motor("R_s"),
+                motor("T_winding_ref"),
+                motor("alpha_cu"),
+                motor("k_psi_T"),
+                motor("T_magnet_ref"),
+            },
+            fmi::part_variables(&M::iron_loss),
+            {
+                {"i_d_start", &M::i_d_start, Causality::parameter, Variability::fixed, "A", "",
+                 "Initial d-axis current (the initial fluxes are the map's at the initial currents)", -1e5, 1e5},
+                {"i_q_start", &M::i_q_start, Causality::parameter, Variability::fixed, "A", "",
+                 "Initial q-axis current", -1e5, 1e5},
+                {"rtol", &M::rtol, Causality::parameter, Variability::tunable, "1", "", "CVODE relative tolerance",
+                 1e-14, 0.1},
+                {"atol", &M::atol, Causality::parameter, Variability::tunable, "Wb", "",
+                 "CVODE absolute tolerance on the flux linkages (the local error per internal step, Wb)", 1e-15, 1.0},
+                {"cvode_method", &M::cvode_method, Causality::parameter, Variability::fixed, "", "",
+                 "1 Adams-Moulton with functional iteration (non-stiff; default), 2 BDF with Newton and the analytic "
+                 "Jacobian (stiff maps)",
+                 1, 2},
+                {"cvode_max_order", &M::cvode_max_order, Causality::parameter, Variability::fixed, "", "",
+                 "Largest order CVODE may use; 0: the method's maximum (Adams 12, BDF 5)", 0, 12},
+                {"cvode_max_steps", &M::cvode_max_steps, Causality::parameter, Variability::tunable, "", "",
+                 "Internal steps allowed per communication step before CVODE fails", 1, 100000000},
+                // I_max (0.2.0) here: 0.1.0's value references above stay theirs, and 0.2.0's thermal
+                // ones below stay theirs (0.2.0 had it before i_d_start; CHANGELOG)
+                motor("I_max"),
+                // the thermal network (docs/thermal.md), added in 0.2.0: after the variables of 0.1.0
+                {"T_coolant", &M::T_coolant, Causality::input, Variability::continuous, "K", "degC",
+                 "Coolant temperature the thermal network rejects heat to (thermal_model; held over each step)",
+                 kTemperatureMin_K, kTemperatureMax_K},
+                {"T_ambient", &M::T_ambient, Causality::input, Variability::continuous, "K", "degC",
+                 "Ambient-air temperature the thermal network's rotor also rejects heat to (thermal_model)",
+                 kTemperatureMin_K, kTemperatureMax_K},
+                {"theta_winding", &M::theta_winding, Causality::output, Variability::continuous, "K", "degC",
+                 "Winding temperature: the thermal network's winding node (thermal_model), else the T_winding input"},
+                {"theta_magnet", &M::theta_magnet, Causality::output, Variability::continuous, "K", "degC",
+                 "Magnet temperature: the thermal network's magnet (rotor) node (thermal_model), else the T_magnet "
+                 "input"},
+                {"theta_stator_yoke", &M::theta_stator_yoke, Causality::output, Variability::continuous, "K", "degC",
+                 "Stator-yoke temperature: the thermal network's node (thermal_model), else the T_winding input"},
+                {"theta_stator_tooth", &M::theta_stator_tooth, Causality::output, Variability::continuous, "K", "degC",
+                 "Stator-tooth temperature: the thermal network's node (thermal_model), else the T_winding input"},
+                {"P_coolant", &M::P_coolant, Causality::output, Variability::continuous, "W", "",
+                 "Heat into the coolant, mean over the last step (thermal_model; else 0)"},
+                {"E_coolant", &M::E_coolant, Causality::output, Variability::continuous, "J", "Wh",
+                 "Heat into the coolant since the start (thermal_model; else 0)"},
+                {"E_ambient", &M::E_ambient, Causality::output, Variability::continuous, "J", "Wh",
+                 "Heat into the ambient air since the start (thermal_model; else 0)"},
+                {"E_stored", &M::E_stored, Causality::output, Variability::continuous, "J", "Wh",
+                 "Heat stored in the thermal network since the start, sum C_i (theta_i - theta_i(0)): E_cu + E_fe = "
+                 "E_stored + E_coolant + E_ambient (thermal_model; else 0)"},
+                {"thermal_model", &M::thermal_model, Causality::parameter, Variability::fixed, "", "",
+                 "true: a thermal network of the machine (docs/thermal.md) sets the winding and magnet temperatures "
+                 "from the losses, T_coolant and T_ambient, and the T_winding, T_magnet inputs only start it; false: "
+                 "they are the inputs"},
+            },
+            fmi::part_variables(&M::lptn),
+            {
+                // the inverter feeding the machine (inverter/inverter_loss.hpp), new after 0.2.0: last, so
+                // that every earlier value reference stays
+                {"u_dc", &M::u_dc, Causality::input, Variability::continuous, "V", "",
+                 "DC-link voltage the inverter switches (its loss P_inv), held over each step", 0.0, kInf, true},
+                {"P_inv", &M::P_inv, Causality::output, Variability::continuous, "W", "",
+                 "Inverter conduction and switching loss over the last step: the current sampled at its end, the "
+                 "step's mean AC power (E_elec's increase over the step), u_dc held"},
+                {"E_inv", &M::E_inv, Causality::output, Variability::continuous, "J", "Wh",
+                 "Inverter-loss energy since the start, P_inv h summed over the steps"},
+            },
+            fmi::part_variables(&M::inverter),
+        });
+        fmi::append_rest(t, &M::motor);
+        fmi::append_rest(t, &M::iron_loss);
+        fmi::append_rest(t, &M::lptn);
+        fmi::append_rest(t, &M::inverter);
+        return t;
+    }();
     return table;
 }
 
@@ -319,49 +232,29 @@ CvodeSettings PlantModel::settings() const {
     return s;
 }
 
-StepIntegrands PlantModel::integrands() const {
-    return StepIntegrands{pole_pairs, w_m, IronLossModel{fe_k_h, fe_alpha, fe_k_e, fe_psi_ref}};
-}
+StepIntegrands PlantModel::integrands() const { return StepIntegrands{motor.pole_pairs, w_m, iron_loss}; }
 
 void PlantModel::exit_initialization() {
     // Everything into locals first: a throw leaves the model as it was.
     const fmi::Context& ctx = *context_;
-    if (flux_map.empty() && ctx.resource_dir.empty())
-        throw fmi::Error(
-            "flux_map is empty and the FMU's resources/ folder is unknown (fmuResourceLocation): "
-            "set flux_map to a flux-map CSV");
-    const std::string path = flux_map.empty() ? ctx.resource_dir + "/" + default_flux_map : flux_map;
+    const std::string path = flux_map_path(motor, ctx);
     if (cvode_method == 2 && cvode_max_order > 5)
         throw fmi::Error("cvode_max_order = " + std::to_string(cvode_max_order) +
                          ": BDF (cvode_method 2) has orders 1 to 5");
-    if (const std::string e = winding_law_error(alpha_cu, T_winding_ref); !e.empty()) throw fmi::Error(e);
+    if (const std::string e = winding_law_error(motor.alpha_cu, motor.T_winding_ref); !e.empty()) throw fmi::Error(e);
 
     const auto t0 = std::chrono::steady_clock::now();
-    std::shared_ptr<const FluxMap> map;
+    const MotorMap loaded =
+        load_motor_map(motor, path, ctx, [this](const std::string& p) { return fmi::parameter_number(*this, p); });
+    std::shared_ptr<const FluxMap> map = loaded.map;
     std::shared_ptr<const InverseFluxMap> inverse;
     try {
-        map = shared_flux_map(path);  // parsed once per content
-    } catch (const FluxMapError& e) {
-        throw fmi::Error(e.what());  // says file and line, in the controller's words
-    }
-    MapAcceptance acceptance;
-    try {
-        acceptance = accept_flux_map(*map, I_max, path);  // the map must be legal where the drive operates
-        inverse = shared_inverse(map, acceptance.legal);  // ... and is inverted there, continued beyond
-    } catch (const FluxMapError& e) {
-        throw fmi::Error(e.what());
+        inverse = shared_inverse(map, loaded.acceptance.legal);  // inverted where legal, continued beyond
     } catch (const std::exception& e) {
         throw fmi::Error(std::string("flux map: ") + e.what());
     }
     const double build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-
-    // The map's metadata describes its motor; the parameters rule, but say so when they differ.
     const FluxMapTable& t = map->table();
-    if (ctx.log_warning)
-        for (const std::string& w :
-             metadata_warnings(t, path, [this](const std::string& p) { return fmi::parameter_number(*this, p); }))
-            ctx.log_warning(w);
-    if (ctx.log_warning && !acceptance.warning.empty()) ctx.log_warning(acceptance.warning);
 
     // Initial state: the fluxes at the initial currents and the present magnet temperature.
     // Currents outside the grid would start the machine on the map's extrapolation: refused.
@@ -370,7 +263,7 @@ void PlantModel::exit_initialization() {
         throw fmi::Error("the start currents i_d_start = " + num(i_d_start) + " A, i_q_start = " + num(i_q_start) +
                          " A are outside the flux map's grid [" + num(map->i_d_min()) + ", " + num(map->i_d_max()) +
                          "] x [" + num(map->i_q_min()) + ", " + num(map->i_q_max()) + "] A (" + path + ")");
-    const double shift = magnet_flux_shift(*map, k_psi_T, T_magnet, T_magnet_ref);
+    const double shift = magnet_flux_shift(*map, motor.k_psi_T, T_magnet, motor.T_magnet_ref);
     const FluxPoint p0 = inverse->forward_eval(i_d_start, i_q_start);  // the map the plant inverts
     std::optional<thermal::MotorThermal> network;
     if (thermal_model) {  // the stator nodes start at the winding's temperature, the rotor at the magnets'
@@ -423,13 +316,13 @@ DqFluxOde PlantModel::ode() const {
     o.inverse = inverse_.get();
     o.u_d = u_d;
     o.u_q = u_q;
-    o.omega = pole_pairs * w_m;
+    o.omega = motor.pole_pairs * w_m;
     const double T_w = winding_temperature(), T_m = magnet_temperature();
-    o.R = winding_resistance(R_s, alpha_cu, T_w, T_winding_ref);
-    o.delta_psi_m = magnet_flux_shift(*map_, k_psi_T, T_m, T_magnet_ref);
+    o.R = motor.resistance(T_w);
+    o.delta_psi_m = magnet_flux_shift(*map_, motor.k_psi_T, T_m, motor.T_magnet_ref);
     if (!(o.R >= 0.0))
         throw fmi::Error("the stator resistance at T_winding = " + num(T_w) + " K is " + num(o.R) +
-                         " Ohm (R_s = " + num(R_s) + " Ohm, alpha_cu = " + num(alpha_cu) + " 1/K)");
+                         " Ohm (R_s = " + num(motor.R_s) + " Ohm, alpha_cu = " + num(motor.alpha_cu) + " 1/K)");
     return o;
 }
 
@@ -441,7 +334,8 @@ void PlantModel::update_outputs(const DqFluxOde& o) {
 
 void PlantModel::update_outputs(const DqFluxOde& o, double i_d_now, double i_q_now) {
     const CvodeState& s = integrator_.state();
-    const PlantOutputs out = plant_outputs(o, pole_pairs, w_m, integrands().fe, s.psi[0], s.psi[1], i_d_now, i_q_now);
+    const PlantOutputs out =
+        plant_outputs(o, motor.pole_pairs, w_m, integrands().fe, s.psi[0], s.psi[1], i_d_now, i_q_now);
     psi_d = s.psi[0];
     psi_q = s.psi[1];
     i_d = out.i_d;

@@ -21,7 +21,8 @@
 #include "ipmsm_ode.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
-#include "machine/winding_resistance.hpp"
+#include "machine/iron_loss.hpp"
+#include "machine/motor_params.hpp"
 #include "model.hpp"
 #include "thermal/motor_thermal.hpp"
 #include "variable.hpp"
@@ -122,19 +123,9 @@ public:
     int cvode_steps = 0;      // internal steps in the last step
     int cvode_rhs_evals = 0;  // right-hand-side evaluations in the last step
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
-    std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
-    int pole_pairs = 4;
-    double R_s = 0.012;                               // Ohm at T_winding_ref
-    double T_winding_ref = 293.15;                    // K
-    double alpha_cu = kCopperTemperatureCoefficient;  // 1/K
-    double k_psi_T = -0.0012;                         // 1/K
-    double T_magnet_ref = 293.15;                     // K
-    double fe_k_h = 1.06664735685;                    // W/Hz
-    double fe_alpha = 2.0;
-    double fe_k_e = 0.00581807649193;         // W/Hz^2
-    double fe_psi_ref = 0.0780669432093;      // Wb
-    double I_max = 500.0;                     // A, the drive's current limit (the controller's default)
-    double i_d_start = 0.0, i_q_start = 0.0;  // A
+    MotorParams motor;                                // the motor (machine/motor_params.hpp), as the controller's
+    IronLossModel iron_loss = kDefaultMotorIronLoss;  // its iron loss (machine/iron_loss.hpp)
+    double i_d_start = 0.0, i_q_start = 0.0;          // A
     double rtol = 1e-6;
     double atol = 1e-8;           // Wb (what CVODE's error control sees: cvode_integrator.hpp)
     int cvode_method = 1;         // 1 Adams (functional iteration), 2 BDF (Newton, analytic Jacobian)
@@ -151,8 +142,6 @@ public:
     // Heats the network over h (s) with the loss integrals E_cu_step, E_fe_step (J), at the present
     // speed, currents and boundary temperatures; updates the thermal outputs.
     void advance_thermal(double h, double E_cu_step, double E_fe_step);
-
-    static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:
     DqFluxOde ode() const;  // the right-hand side for the present inputs (throws if invalid)

@@ -34,6 +34,11 @@ void locate(const std::vector<double>& axis, double x, int& i, double& w) {
 }  // namespace
 
 TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec)
+    : TorqueTable(solver, spec, [&solver, &spec](double T, const OperatingLimits& lim) {
+          return solver.solve(T, lim, spec.R_s, spec.psi_d_shift, Recursion::optimal);
+      }) {}
+
+TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec, const Entry& entry)
     : spec_(spec), pole_pairs_(solver.pole_pairs()) {
     if (spec.n_torque < 3 || spec.n_second < 3) throw std::invalid_argument("2-D table needs at least 3 x 3 points");
     if (!(spec.u_dc > 0) || !(spec.I_max > 0) || !(spec.w_m_max > 0))
@@ -58,7 +63,7 @@ TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec)
         for (int j = 0; j < spec.n_second; ++j) x_[j] = psi_lo + (psi_hi - psi_lo) * j / (spec.n_second - 1);
     }
 
-    // Entries: recursion 2 at every node (its answer depends on the node only).
+    // Entries: recursion 2 (or `entry`) at every node (its answer depends on the node only).
     const std::size_t n = static_cast<std::size_t>(spec.n_torque) * spec.n_second;
     i_d_.assign(n, 0.0);
     i_q_.assign(n, 0.0);
@@ -70,7 +75,7 @@ TorqueTable::TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec)
         const OperatingLimits lim{omega, V_max, spec.I_max};
         for (int k = 0; k < spec.n_torque; ++k) {
             const double T = T_peak_ * (2.0 * k / (spec.n_torque - 1) - 1.0);
-            const CurrentCommand c = solver.solve(T, lim, spec.R_s, spec.psi_d_shift, Recursion::optimal);
+            const CurrentCommand c = entry(T, lim);
             const std::size_t at = static_cast<std::size_t>(j) * spec.n_torque + k;
             i_d_[at] = c.i_d;
             i_q_[at] = c.i_q;

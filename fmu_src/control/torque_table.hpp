@@ -7,6 +7,8 @@
 // symmetry (T, omega, i_q) -> (-T, -omega, -i_q).
 #pragma once
 
+#include <functional>
+
 #include <cstddef>
 #include <vector>
 
@@ -33,6 +35,11 @@ class TorqueTable {
 public:
     // Builds the table with the exact solver (a copy; its warm starts walk the grid).
     TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec);
+    // ... with the entries from `entry` (the command for a torque at a node's limits, its
+    // torque_max included): the least-loss tables (objective 1), made from the least-loss solver
+    // at the table's u_dc and magnet temperature, as SyR-e makes its maximum-efficiency maps.
+    using Entry = std::function<CurrentCommand(double T, const OperatingLimits& lim)>;
+    TorqueTable(SaturatedOptimalCurrent solver, const TableSpec& spec, const Entry& entry);
 
     // The command for T_ref at mechanical speed w_m and the present V_max (method 3 uses it).
     CurrentCommand lookup(double T_ref, double w_m, double V_max) const;

@@ -13,7 +13,7 @@
 #include "control/saturated_optimal_current.hpp"
 #include "control/torque_table.hpp"
 #include "losses/drive_loss.hpp"
-#include "machine/winding_resistance.hpp"
+#include "machine/motor_params.hpp"
 #include "model.hpp"
 #include "variable.hpp"
 
@@ -74,24 +74,17 @@ public:
     double derating = 1.0;   // the torque limit's thermal factor (1: none)
     double P_loss_cmd = 0.0;  // W, the command's predicted steady-state loss P_cu + P_fe + P_inv
     // --- parameters (defaults: the default motor, fmu_src/resources/ev_ipmsm_default.csv)
-    int method = 1;        // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
-    int recursion = 2;     // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
-    std::string flux_map;  // "" = resources/ev_ipmsm_default.csv
-    int pole_pairs = 4;
-    double R_s = 0.012;    // Ohm at T_winding_ref
-    double I_max = 500.0;  // A
+    int method = 1;     // 1 Ferrari, 2 table over torque x speed, 3 table over torque x V_max/omega
+    int recursion = 2;  // 0 nominal inductances, 1 the paper's recursion, 2 optimal on the map
+    MotorParams motor;  // the motor (machine/motor_params.hpp), shared with the plant's declaration
     double k_u = 0.95;
-    double T_magnet_ref = 293.15;  // K
-    double k_psi_T = -0.0012;      // 1/K
     double lut_u_dc = 355.0;       // V
     double lut_T_magnet = 293.15;  // K
     int lut_n_torque = 41;
     int lut_n_speed = 41;
     double w_m_max = 1256.6370614359173;            // rad/s (12 000 r/min): top of the tables' speed axis
     double current_bandwidth = 3141.5926535897932;  // rad/s (500 Hz)
-    int command_check = 1;          // 1: failing commands replaced; 0: reported only (docs/controller.md)
-    double T_winding_ref = 293.15;  // K
-    double alpha_cu = kCopperTemperatureCoefficient;  // 1/K
+    int command_check = 1;  // 1: failing commands replaced; 0: reported only (docs/controller.md)
     // Derating (docs/thermal.md, "Controller"): the winding's limit is IEC 60085's thermal class
     // 180 (H), the magnets' the maximum operating temperature of sintered NdFeB of the SH grades
     // (150 degC), and each derates over the 25 K from class 155 (F) to class 180 (H).
@@ -99,16 +92,11 @@ public:
     double T_magnet_max = 423.15;   // K
     double derating_margin = 25.0;  // K
     // Least-loss control (docs/spec/MATH.md, "Least-loss control"): 0 least current (the seed's),
-    // 1 least loss (T_cmd, T_max are then shaft torques); the loss models' parameters, the plant's
-    // names and defaults (the default motor's iron-loss fit, the default inverter).
+    // 1 least loss (T_cmd, T_max are then shaft torques); the loss models' parameters, the
+    // plant's parts (parts/part_variables.cpp: the same names, ranges and defaults).
     int objective = 0;
-    double fe_k_h = 1.06664735685;        // W/Hz
-    double fe_alpha = 2.0;
-    double fe_k_e = 0.00581807649193;     // W/Hz^2
-    double fe_psi_ref = 0.0780669432093;  // Wb
+    IronLossModel iron_loss = kDefaultMotorIronLoss;
     InverterParams inverter;
-
-    static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 
 private:
     // omega (electrical), V_max, the magnet's psi_d shift, the winding's resistance and the

@@ -4,11 +4,13 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <utility>
 
 #include "coupling/drive_coupling_text.hpp"
 #include "fmi2_support.hpp"
+#include "parts/part_variables.hpp"
 
 namespace ipmsm {
 
@@ -86,6 +88,55 @@ V parameter(const char* name, ControllerModel M::*controller, PlantModel M::*pla
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// The drive's table as it is built (value reference = row): its own variables, the models'
+// outputs it reads at the end of a step, and the models' parameters, forwarded; each name once.
+class Table {
+public:
+    Table(ControllerModel M::*controller, PlantModel M::*plant) : controller_(controller), plant_(plant) {}
+
+    void add(V v) {
+        if (!names_.insert(v.name).second) throw std::logic_error(std::string("IpmsmDrive: ") + v.name + " twice");
+        rows.push_back(std::move(v));
+    }
+    void add_all(std::vector<V> vs) {
+        for (V& v : vs) add(std::move(v));
+    }
+    // The output `name` of a sub-model, read when the step ends: the model's unit and type, the
+    // drive's description and display unit.
+    template <class Sub>
+    void at_end(Sub M::*sub, const char* name, const char* display_unit, const char* description) {
+        const fmi::Variable<Sub>* v = fmi::find_variable<Sub>(name);
+        if (v == nullptr || v->causality != Causality::output)
+            throw std::logic_error(std::string("IpmsmDrive: no model output ") + name);
+        V f = fmi::forward_variable(sub, *v);
+        f.variability = Variability::discrete;
+        f.display_unit = display_unit;
+        f.description = description;
+        add(std::move(f));
+    }
+    // The parameters of a table (a model's or a part's) from `first` to `last` (all by default)
+    // that the drive does not have yet, each forwarded to every model that has it.
+    template <class X>
+    void parameters(const std::vector<fmi::Variable<X>>& vars, const char* first = nullptr,
+                    const char* last = nullptr) {
+        bool in = first == nullptr;
+        for (const auto& v : vars) {
+            in = in || std::string(v.name) == first;
+            if (in && v.causality == Causality::parameter && names_.count(v.name) == 0)
+                add(parameter(v.name, controller_, plant_));
+            if (in && last != nullptr && std::string(v.name) == last) return;
+        }
+        if (!in || last != nullptr) throw std::logic_error(std::string("IpmsmDrive: no parameters ") + first);
+    }
+
+    std::vector<V> rows;
+
+private:
+    ControllerModel M::*controller_;
+    PlantModel M::*plant_;
+    std::set<std::string> names_;
+};
+
 // A sub-model's log lines say which model wrote them. Both models read the same map and
 // parameters, so both warn about the same things (a map not legal outside the operating region,
 // metadata that differ from a parameter): a warning identical to one the other model gave reaches
@@ -105,181 +156,125 @@ fmi::Context prefixed(const fmi::Context& c, const std::string& who,
 }  // namespace
 
 const std::vector<V>& DriveModel::variables() {
-    static const std::vector<V> table = {
+    static const std::vector<V> table = [] {
+        Table t(&M::controller_, &M::plant_);
         // inputs: those of the coupling description's external inputs
-        of_models("T_ref", &M::T_ref),
-        of_models("w_m", &M::w_m),
-        of_models("u_dc", &M::u_dc),
-        of_models("T_magnet", &M::T_magnet),
-        of_models("T_winding", &M::T_winding),
-        // outputs: means over the last communication step
-        {"T_shaft", &M::T_shaft, Causality::output, Variability::discrete, "N.m", "",
-         "Shaft torque (T_e less the iron-loss drag), mean over the last communication step (exact integral)"},
-        {"T_e", &M::T_e, Causality::output, Variability::discrete, "N.m", "",
-         "Electromagnetic torque, mean over the last communication step (exact integral)"},
-        {"i_dc", &M::i_dc, Causality::output, Variability::discrete, "A", "",
-         "DC-link current drawn by the inverter, losses included (+ motoring), mean over the last communication step"},
-        {"P_dc", &M::P_dc, Causality::output, Variability::discrete, "W", "kW",
-         "DC power drawn by the inverter (machine input + inverter loss), mean over the last communication step"},
-        {"P_mech", &M::P_mech, Causality::output, Variability::discrete, "W", "kW",
-         "Shaft power, mean over the last communication step (exact integral)"},
-        {"P_cu", &M::P_cu, Causality::output, Variability::discrete, "W", "kW",
-         "Copper loss, mean over the last communication step (exact integral)"},
-        {"P_fe", &M::P_fe, Causality::output, Variability::discrete, "W", "kW",
-         "Iron loss, mean over the last communication step (exact integral)"},
-        {"P_elec", &M::P_elec, Causality::output, Variability::discrete, "W", "kW",
-         "Electrical input power of the machine 1.5 (u_d i_d + u_q i_q) = P_dc - P_inv, mean over the last "
-         "communication step"},
-        {"P_inv", &M::P_inv, Causality::output, Variability::discrete, "W", "kW",
-         "Inverter conduction and switching loss, mean over the last communication step (per inner step: the current "
-         "sampled at its end, the inner step's mean AC power)"},
-        // outputs: integrals since the start
-        {"E_dc", &M::E_dc, Causality::output, Variability::discrete, "J", "Wh",
-         "DC energy drawn since the start: the machine's electrical input energy (exact integral) plus the inverter's "
-         "loss "
-         "(P_inv sample_time per inner step)"},
-        {"E_mech", &M::E_mech, Causality::output, Variability::discrete, "J", "Wh", "Shaft energy since the start"},
-        {"E_cu", &M::E_cu, Causality::output, Variability::discrete, "J", "Wh", "Copper-loss energy since the start"},
-        {"E_fe", &M::E_fe, Causality::output, Variability::discrete, "J", "Wh", "Iron-loss energy since the start"},
-        {"E_inv", &M::E_inv, Causality::output, Variability::discrete, "J", "Wh",
-         "Inverter-loss energy since the start"},
-        // outputs: at the end of the step
-        {"T_cmd", &M::T_cmd, Causality::output, Variability::discrete, "N.m", "",
-         "Torque commanded by the controller (T_ref clamped to the limits), at the end of the step"},
-        {"T_max", &M::T_max, Causality::output, Variability::discrete, "N.m", "",
-         "Largest torque magnitude reachable, with the sign of T_ref, at the end of the step"},
-        {"i_d", &M::i_d, Causality::output, Variability::discrete, "A", "",
-         "d-axis stator current, at the end of the step"},
-        {"i_q", &M::i_q, Causality::output, Variability::discrete, "A", "",
-         "q-axis stator current, at the end of the step"},
-        {"i_d_ref", &M::i_d_ref, Causality::output, Variability::discrete, "A", "",
-         "d-axis current command, at the end of the step"},
-        {"i_q_ref", &M::i_q_ref, Causality::output, Variability::discrete, "A", "",
-         "q-axis current command, at the end of the step"},
-        {"region", &M::region, Causality::output, Variability::discrete, "", "",
-         "The controller's operating region at the end of the step (as IpmsmController.region)"},
-        {"u_ratio", &M::u_ratio, Causality::output, Variability::discrete, "1", "",
-         "The controller's voltage command relative to the inverter's linear range u_dc/sqrt(3), at the end of the "
-         "step (1: voltage-limited)"},
-        // the drive's parameters
-        {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms",
-         "Sample time of the controller, and step of the inner coupling; a communication step must be a whole multiple "
-         "of it",
-         1e-7, 1.0},
-        parameter("f_sw", &M::controller_, &M::plant_),
-        parameter("V_T0", &M::controller_, &M::plant_),
-        parameter("r_T", &M::controller_, &M::plant_),
-        parameter("V_D0", &M::controller_, &M::plant_),
-        parameter("r_D", &M::controller_, &M::plant_),
-        parameter("E_on", &M::controller_, &M::plant_),
-        parameter("E_off", &M::controller_, &M::plant_),
-        parameter("E_rec", &M::controller_, &M::plant_),
-        parameter("I_ref", &M::controller_, &M::plant_),
-        parameter("V_ref", &M::controller_, &M::plant_),
-        parameter("k_v", &M::controller_, &M::plant_),
-        // the controller's and the plant's parameters, once each
-        parameter("method", &M::controller_, &M::plant_),
-        parameter("recursion", &M::controller_, &M::plant_),
-        parameter("flux_map", &M::controller_, &M::plant_),
-        parameter("pole_pairs", &M::controller_, &M::plant_),
-        parameter("R_s", &M::controller_, &M::plant_),
-        parameter("I_max", &M::controller_, &M::plant_),
-        parameter("k_u", &M::controller_, &M::plant_),
-        parameter("T_magnet_ref", &M::controller_, &M::plant_),
-        parameter("k_psi_T", &M::controller_, &M::plant_),
-        parameter("lut_u_dc", &M::controller_, &M::plant_),
-        parameter("lut_T_magnet", &M::controller_, &M::plant_),
-        parameter("lut_n_torque", &M::controller_, &M::plant_),
-        parameter("lut_n_speed", &M::controller_, &M::plant_),
-        parameter("w_m_max", &M::controller_, &M::plant_),
-        parameter("current_bandwidth", &M::controller_, &M::plant_),
-        parameter("T_winding_ref", &M::controller_, &M::plant_),
-        parameter("alpha_cu", &M::controller_, &M::plant_),
-        parameter("fe_k_h", &M::controller_, &M::plant_),
-        parameter("fe_alpha", &M::controller_, &M::plant_),
-        parameter("fe_k_e", &M::controller_, &M::plant_),
-        parameter("fe_psi_ref", &M::controller_, &M::plant_),
-        parameter("i_d_start", &M::controller_, &M::plant_),
-        parameter("i_q_start", &M::controller_, &M::plant_),
-        parameter("rtol", &M::controller_, &M::plant_),
-        parameter("atol", &M::controller_, &M::plant_),
-        parameter("cvode_method", &M::controller_, &M::plant_),
-        parameter("cvode_max_order", &M::controller_, &M::plant_),
-        parameter("cvode_max_steps", &M::controller_, &M::plant_),
-        // appended (value references of the above unchanged): the controller's command check
-        parameter("command_check", &M::controller_, &M::plant_),
-        {"check_failures", fmi::forward(&M::controller_, &ControllerModel::check_failures), Causality::output,
-         Variability::discrete, "", "",
-         "Commands that failed the controller's check on the map since the start (docs/controller.md)"},
-        // the thermal network (docs/thermal.md): after the variables above, whose value references stay
-        of_models("T_coolant", &M::T_coolant),
-        of_models("T_ambient", &M::T_ambient),
-        {"theta_winding", &M::theta_winding, Causality::output, Variability::discrete, "K", "degC",
-         "Winding temperature at the end of the step: the thermal network's (thermal_model), else the T_winding input"},
-        {"theta_magnet", &M::theta_magnet, Causality::output, Variability::discrete, "K", "degC",
-         "Magnet temperature at the end of the step: the thermal network's (thermal_model), else the T_magnet input"},
-        {"theta_stator_yoke", &M::theta_stator_yoke, Causality::output, Variability::discrete, "K", "degC",
-         "Stator-yoke temperature at the end of the step (thermal_model; else the T_winding input)"},
-        {"theta_stator_tooth", &M::theta_stator_tooth, Causality::output, Variability::discrete, "K", "degC",
-         "Stator-tooth temperature at the end of the step (thermal_model; else the T_winding input)"},
-        {"P_coolant", &M::P_coolant, Causality::output, Variability::discrete, "W", "kW",
-         "Heat into the coolant, mean over the last communication step (thermal_model; else 0)"},
-        {"E_coolant", &M::E_coolant, Causality::output, Variability::discrete, "J", "Wh",
-         "Heat into the coolant since the start (thermal_model; else 0)"},
-        {"E_ambient", &M::E_ambient, Causality::output, Variability::discrete, "J", "Wh",
-         "Heat into the ambient air since the start (thermal_model; else 0)"},
-        {"E_stored", &M::E_stored, Causality::output, Variability::discrete, "J", "Wh",
-         "Heat stored in the thermal network since the start: E_cu + E_fe = E_stored + E_coolant + E_ambient "
-         "(thermal_model; else 0)"},
-        parameter("thermal_model", &M::controller_, &M::plant_),
-        parameter("C_stator_yoke", &M::controller_, &M::plant_),
-        parameter("C_stator_tooth", &M::controller_, &M::plant_),
-        parameter("C_winding", &M::controller_, &M::plant_),
-        parameter("C_magnet", &M::controller_, &M::plant_),
-        parameter("R_yoke_winding", &M::controller_, &M::plant_),
-        parameter("R_yoke_tooth", &M::controller_, &M::plant_),
-        parameter("R_tooth_winding", &M::controller_, &M::plant_),
-        parameter("R_coolant_yoke", &M::controller_, &M::plant_),
-        parameter("k_coolant_yoke", &M::controller_, &M::plant_),
-        parameter("R_tooth_magnet_a", &M::controller_, &M::plant_),
-        parameter("R_tooth_magnet_b", &M::controller_, &M::plant_),
-        parameter("R_tooth_magnet_c", &M::controller_, &M::plant_),
-        parameter("R_winding_magnet_a", &M::controller_, &M::plant_),
-        parameter("R_winding_magnet_b", &M::controller_, &M::plant_),
-        parameter("R_winding_magnet_c", &M::controller_, &M::plant_),
-        parameter("R_magnet_ambient_a", &M::controller_, &M::plant_),
-        parameter("R_magnet_ambient_b", &M::controller_, &M::plant_),
-        parameter("R_magnet_ambient_c", &M::controller_, &M::plant_),
-        parameter("R_magnet_coolant_0", &M::controller_, &M::plant_),
-        parameter("R_magnet_coolant_n", &M::controller_, &M::plant_),
-        parameter("R_magnet_coolant_c", &M::controller_, &M::plant_),
-        parameter("R_magnet_coolant_nc", &M::controller_, &M::plant_),
-        parameter("k_fe_stator_0", &M::controller_, &M::plant_),
-        parameter("k_fe_stator_n", &M::controller_, &M::plant_),
-        parameter("k_fe_stator_i", &M::controller_, &M::plant_),
-        parameter("k_fe_stator_ni", &M::controller_, &M::plant_),
-        parameter("k_fe_yoke", &M::controller_, &M::plant_),
-        parameter("w_m_ref", &M::controller_, &M::plant_),
-        parameter("I_rms_ref", &M::controller_, &M::plant_),
-        // the controller's temperatures and derating (docs/thermal.md, "Controller"); appended
-        {"derating", &M::derating, Causality::output, Variability::discrete, "1", "",
-         "The controller's thermal factor of the torque limit at the end of the step (1: none; T_max and T_cmd "
-         "include it)"},
-        {"T_magnet_estimate_error", &M::T_magnet_estimate_error, Causality::parameter, Variability::fixed, "K", "degC",
-         "The controller's magnet temperature is the machine's (the thermal network's, or the T_magnet input) plus "
-         "this: the error of a drive's estimate",
-         -200.0, 200.0, false, true},
-        parameter("T_winding_max", &M::controller_, &M::plant_),
-        parameter("T_magnet_max", &M::controller_, &M::plant_),
-        parameter("derating_margin", &M::controller_, &M::plant_),
-        // least-loss control (docs/spec/INTERFACE.md); appended. The loss models' parameters
-        // (fe_*, the inverter's) are declared above, once, for the plant and the controller.
-        parameter("objective", &M::controller_, &M::plant_),
-        {"P_loss_cmd", fmi::forward(&M::controller_, &ControllerModel::P_loss_cmd), Causality::output,
-         Variability::discrete, "W", "",
-         "The controller's command's predicted steady-state loss P_cu + P_fe + P_inv, at the end of the step"},
-    };
+        t.add(of_models("T_ref", &M::T_ref));
+        t.add(of_models("w_m", &M::w_m));
+        t.add(of_models("u_dc", &M::u_dc));
+        t.add(of_models("T_magnet", &M::T_magnet));
+        t.add(of_models("T_winding", &M::T_winding));
+        t.add_all({
+            // outputs: means over the last communication step
+            {"T_shaft", &M::T_shaft, Causality::output, Variability::discrete, "N.m", "",
+             "Shaft torque (T_e less the iron-loss drag), mean over the last communication step (exact integral)"},
+            {"T_e", &M::T_e, Causality::output, Variability::discrete, "N.m", "",
+             "Electromagnetic torque, mean over the last communication step (exact integral)"},
+            {"i_dc", &M::i_dc, Causality::output, Variability::discrete, "A", "",
+             "DC-link current drawn by the inverter, losses included (+ motoring), mean over the last communication "
+             "step"},
+            {"P_dc", &M::P_dc, Causality::output, Variability::discrete, "W", "kW",
+             "DC power drawn by the inverter (machine input + inverter loss), mean over the last communication step"},
+            {"P_mech", &M::P_mech, Causality::output, Variability::discrete, "W", "kW",
+             "Shaft power, mean over the last communication step (exact integral)"},
+            {"P_cu", &M::P_cu, Causality::output, Variability::discrete, "W", "kW",
+             "Copper loss, mean over the last communication step (exact integral)"},
+            {"P_fe", &M::P_fe, Causality::output, Variability::discrete, "W", "kW",
+             "Iron loss, mean over the last communication step (exact integral)"},
+            {"P_elec", &M::P_elec, Causality::output, Variability::discrete, "W", "kW",
+             "Electrical input power of the machine 1.5 (u_d i_d + u_q i_q) = P_dc - P_inv, mean over the last "
+             "communication step"},
+            {"P_inv", &M::P_inv, Causality::output, Variability::discrete, "W", "kW",
+             "Inverter conduction and switching loss, mean over the last communication step (per inner step: the "
+             "current sampled at its end, the inner step's mean AC power)"},
+            // outputs: integrals since the start
+            {"E_dc", &M::E_dc, Causality::output, Variability::discrete, "J", "Wh",
+             "DC energy drawn since the start: the machine's electrical input energy (exact integral) plus the "
+             "inverter's loss (P_inv sample_time per inner step)"},
+            {"E_mech", &M::E_mech, Causality::output, Variability::discrete, "J", "Wh", "Shaft energy since the start"},
+            {"E_cu", &M::E_cu, Causality::output, Variability::discrete, "J", "Wh",
+             "Copper-loss energy since the start"},
+            {"E_fe", &M::E_fe, Causality::output, Variability::discrete, "J", "Wh", "Iron-loss energy since the start"},
+            {"E_inv", &M::E_inv, Causality::output, Variability::discrete, "J", "Wh",
+             "Inverter-loss energy since the start"},
+        });
+        // outputs: the models' at the end of the step (publish_end)
+        t.at_end(&M::controller_, "T_cmd", "",
+                 "Torque commanded by the controller (T_ref clamped to the limits), at the end of the step");
+        t.at_end(&M::controller_, "T_max", "",
+                 "Largest torque magnitude reachable, with the sign of T_ref, at the end of the step");
+        t.at_end(&M::plant_, "i_d", "", "d-axis stator current, at the end of the step");
+        t.at_end(&M::plant_, "i_q", "", "q-axis stator current, at the end of the step");
+        t.at_end(&M::controller_, "i_d_ref", "", "d-axis current command, at the end of the step");
+        t.at_end(&M::controller_, "i_q_ref", "", "q-axis current command, at the end of the step");
+        t.at_end(&M::controller_, "region", "",
+                 "The controller's operating region at the end of the step (as IpmsmController.region)");
+        t.at_end(&M::controller_, "u_ratio", "",
+                 "The controller's voltage command relative to the inverter's linear range u_dc/sqrt(3), at the end of "
+                 "the step (1: voltage-limited)");
+        // the drive's parameters, then the models' (forwarded, value references in the order they came)
+        t.add_all({
+            {"sample_time", &M::sample_time, Causality::parameter, Variability::fixed, "s", "ms",
+             "Sample time of the controller, and step of the inner coupling; a communication step must be a whole "
+             "multiple of it",
+             1e-7, 1.0},
+        });
+        t.parameters(fmi::part_table<InverterParams>());
+        t.parameters(ControllerModel::variables(), "method", "current_bandwidth");
+        t.parameters(PlantModel::variables(), "flux_map", "cvode_max_steps");
+        t.parameters(ControllerModel::variables(), "command_check", "command_check");
+        t.at_end(&M::controller_, "check_failures", "",
+                 "Commands that failed the controller's check on the map since the start (docs/controller.md)");
+        // the thermal network (docs/thermal.md)
+        t.add(of_models("T_coolant", &M::T_coolant));
+        t.add(of_models("T_ambient", &M::T_ambient));
+        t.at_end(&M::plant_, "theta_winding", "degC",
+                 "Winding temperature at the end of the step: the thermal network's (thermal_model), else the "
+                 "T_winding input");
+        t.at_end(&M::plant_, "theta_magnet", "degC",
+                 "Magnet temperature at the end of the step: the thermal network's (thermal_model), else the T_magnet "
+                 "input");
+        t.at_end(&M::plant_, "theta_stator_yoke", "degC",
+                 "Stator-yoke temperature at the end of the step (thermal_model; else the T_winding input)");
+        t.at_end(&M::plant_, "theta_stator_tooth", "degC",
+                 "Stator-tooth temperature at the end of the step (thermal_model; else the T_winding input)");
+        t.at_end(&M::plant_, "P_coolant", "kW",
+                 "Heat into the coolant, mean over the last communication step (thermal_model; else 0)");
+        t.at_end(&M::plant_, "E_coolant", "Wh", "Heat into the coolant since the start (thermal_model; else 0)");
+        t.at_end(&M::plant_, "E_ambient", "Wh", "Heat into the ambient air since the start (thermal_model; else 0)");
+        t.at_end(&M::plant_, "E_stored", "Wh",
+                 "Heat stored in the thermal network since the start: E_cu + E_fe = E_stored + E_coolant + E_ambient "
+                 "(thermal_model; else 0)");
+        t.parameters(PlantModel::variables(), "thermal_model", "I_rms_ref");
+        // the controller's temperatures and derating (docs/thermal.md, "Controller")
+        t.at_end(&M::controller_, "derating", "",
+                 "The controller's thermal factor of the torque limit at the end of the step (1: none; T_max and T_cmd "
+                 "include it)");
+        t.add_all({
+            {"T_magnet_estimate_error", &M::T_magnet_estimate_error, Causality::parameter, Variability::fixed, "K",
+             "degC",
+             "The controller's magnet temperature is the machine's (the thermal network's, or the T_magnet input) plus "
+             "this: the error of a drive's estimate",
+             -200.0, 200.0, false, true},
+        });
+        t.parameters(ControllerModel::variables(), "T_winding_max", "derating_margin");
+        // least-loss control (docs/spec/INTERFACE.md): the objective (added below with the
+        // controller's other new parameters) and the command's predicted loss
+        t.at_end(&M::controller_, "P_loss_cmd", "kW",
+                 "The controller's command's predicted steady-state loss P_cu + P_fe + P_inv, at the end of the step");
+        // Every other parameter of the models, as they add them (a new motor parameter lands here by
+        // itself). The drive's own new variables go before this line while it adds nothing; once a
+        // release has recorded what it added (tests/data/value_references_*.json), place those above
+        // by name first, so that no value reference moves.
+        t.parameters(ControllerModel::variables());
+        t.parameters(PlantModel::variables());
+        return t.rows;
+    }();
     return table;
+}
+
+void DriveModel::publish_end() {
+    controller_.observe();  // of the step's last sample only: the drive reads it here
 }
 
 DriveModel::DriveModel(const fmi::Context& context)
@@ -334,27 +329,6 @@ void DriveModel::hold_inputs() {
     const bool network = plant_.thermal_on();
     controller_.T_winding = network ? plant_.theta_winding : T_winding;
     controller_.T_magnet = (network ? plant_.theta_magnet : T_magnet) + T_magnet_estimate_error;
-}
-
-void DriveModel::publish_end() {
-    controller_.observe();  // of the step's last sample only: the drive reads it here
-    T_cmd = controller_.T_cmd;
-    T_max = controller_.T_max;
-    i_d = plant_.i_d;
-    i_q = plant_.i_q;
-    i_d_ref = controller_.i_d_ref;
-    i_q_ref = controller_.i_q_ref;
-    region = controller_.region;
-    u_ratio = controller_.u_ratio;
-    derating = controller_.derating;
-    theta_winding = plant_.theta_winding;
-    theta_magnet = plant_.theta_magnet;
-    theta_stator_yoke = plant_.theta_stator_yoke;
-    theta_stator_tooth = plant_.theta_stator_tooth;
-    P_coolant = plant_.P_coolant;
-    E_coolant = plant_.E_coolant;
-    E_ambient = plant_.E_ambient;
-    E_stored = plant_.E_stored;
 }
 
 void DriveModel::exit_initialization() {

@@ -63,17 +63,7 @@ public:
     double P_elec = 0.0;  // W, the machine's electrical input (P_dc - P_inv)
     // --- outputs: integrals since the start
     double E_dc = 0.0, E_mech = 0.0, E_cu = 0.0, E_fe = 0.0, E_inv = 0.0;  // J
-    // --- outputs: at the end of the step
-    double T_cmd = 0.0, T_max = 0.0;      // N.m
-    double i_d = 0.0, i_q = 0.0;          // A, the plant's
-    double i_d_ref = 0.0, i_q_ref = 0.0;  // A, the controller's
-    int region = 0;
-    double u_ratio = 0.0;   // the controller's voltage use, at the end of the step
-    double derating = 1.0;  // the controller's thermal factor of the torque limit, at the end of the step
-    // --- outputs: the plant's thermal network (thermal_model; off: the temperature inputs, no heat)
-    double theta_winding = 0.0, theta_magnet = 0.0, theta_stator_yoke = 0.0, theta_stator_tooth = 0.0;  // K
-    double P_coolant = 0.0;                                   // W, mean over the step
-    double E_coolant = 0.0, E_ambient = 0.0, E_stored = 0.0;  // J since the start
+    // --- outputs at the end of the step: the models' own, forwarded (drive_model.cpp, variables())
     // --- parameters: the drive's own (the others live in controller_ and plant_)
     double sample_time = 1e-4;  // s
     // K: the controller's magnet temperature is the machine's (the network's, or the T_magnet

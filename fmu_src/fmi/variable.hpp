@@ -5,8 +5,10 @@
 
 #include <cmath>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -55,6 +57,13 @@ template <class Model, class Part, class T>
 Access<Model, T> forward(Part Model::*part, T Part::*field) {
     return {[part, field](const Model& m) { return m.*part.*field; },
             [part, field](Model& m, const T& x) { m.*part.*field = x; }};
+}
+
+// ... or to a part's variable reached through the part's own Access.
+template <class Model, class Part, class T>
+Access<Model, T> forward(Part Model::*part, const Access<Part, T>& field) {
+    return {[part, field](const Model& m) { return field.read(m.*part); },
+            [part, field](Model& m, const T& x) { field.write(m.*part, x); }};
 }
 
 template <class Model>
@@ -179,6 +188,65 @@ std::optional<double> parameter_number(const M& m, const std::string& name) {
     if (type_of(*v) == Type::Real) return value_of<double>(m, *v);
     if (type_of(*v) == Type::Integer) return value_of<int>(m, *v);
     return std::nullopt;
+}
+
+// --- Parts: parameter structs a model holds (the motor, its iron loss, the inverter), each with
+// its variables declared once, in a table of its own: `variables_of(const Part*)`, found by
+// argument-dependent lookup in the part's namespace. A model places them in its table by name
+// (part_variable), where their value references are to be; a model made of models (IpmsmDrive)
+// forwards them by name (its table is generated from the models').
+
+template <class Part>
+const std::vector<Variable<Part>>& part_table() {
+    return variables_of(static_cast<const Part*>(nullptr));
+}
+
+// A variable of a part (a parameter struct, a sub-model) as a variable of the model that holds
+// the part as its member `part`: the part's declaration (unit, range, description), the value
+// forwarded to the part.
+template <class Model, class Part>
+Variable<Model> forward_variable(Part Model::*part, const Variable<Part>& v) {
+    Member<Model> member = std::visit([&](const auto& a) -> Member<Model> { return forward(part, a); }, v.member);
+    return {v.name, std::move(member), v.causality,        v.variability, v.unit, v.display_unit, v.description, v.min,
+            v.max,  v.min_exclusive,   v.relative_quantity};
+}
+
+// The part's variable `name` as a variable of the model that holds the part (forward_variable).
+template <class Model, class Part>
+Variable<Model> part_variable(Part Model::*part, const char* name) {
+    for (const auto& v : part_table<Part>())
+        if (std::string(v.name) == name) return forward_variable(part, v);
+    throw std::logic_error(std::string("no part variable ") + name);
+}
+
+// Every variable of the part, in the part's order: for a model that places the whole part at once.
+template <class Model, class Part>
+std::vector<Variable<Model>> part_variables(Part Model::*part) {
+    std::vector<Variable<Model>> out;
+    for (const auto& v : part_table<Part>()) out.push_back(part_variable(part, v.name));
+    return out;
+}
+
+// The part's variables the table does not have yet, appended: a model's table ends with this for
+// each part it holds, so that a parameter added to a part reaches every holder by itself, at a new
+// value reference. (A model's own new variables go before these lines while they append nothing;
+// after a release has recorded what they appended, those are placed by name first:
+// tests/python/test_value_references.py fails while a released value reference moves.)
+template <class Model, class Part>
+void append_rest(std::vector<Variable<Model>>& table, Part Model::*part) {
+    for (const auto& v : part_table<Part>()) {
+        bool has = false;
+        for (const auto& t : table) has = has || std::string(t.name) == v.name;
+        if (!has) table.push_back(forward_variable(part, v));
+    }
+}
+
+// The variables of a model's table: entries and whole parts, in order (value reference = index).
+template <class Model>
+std::vector<Variable<Model>> join(std::initializer_list<std::vector<Variable<Model>>> pieces) {
+    std::vector<Variable<Model>> out;
+    for (const auto& p : pieces) out.insert(out.end(), p.begin(), p.end());
+    return out;
 }
 
 // Copies the value of v from one model to another.

@@ -3,6 +3,10 @@
 // (control/least_loss.hpp), so that what the controller minimises is what the plant dissipates:
 //
 //     P_fe = k_h f b^alpha + k_e f^2 b^2,   f = p |w_m| / (2 pi),   b = |psi| / psi_ref
+//
+// Its parameters are a part a model holds (the plant: its loss and shaft drag; the controller: its
+// least-loss commands); their FMI variables (fe_k_h, fe_alpha, fe_k_e, fe_psi_ref) are declared
+// once (parts/part_variables.cpp).
 #pragma once
 
 #include <cmath>
@@ -58,5 +62,8 @@ struct IronLossModel {
         return r;
     }
 };
+
+// The default motor's (docs/motor/README.md; the default map's metadata state the same).
+inline constexpr IronLossModel kDefaultMotorIronLoss{1.06664735685, 2.0, 0.00581807649193, 0.0780669432093};
 
 }  // namespace ipmsm

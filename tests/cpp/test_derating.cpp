@@ -36,7 +36,7 @@ TEST(Derating, WindingResistanceIsThePlantsLaw) {
     EXPECT_NEAR(ipmsm::winding_resistance(0.012, 0.00393, 393.15, 293.15), 0.012 * 1.393, 1e-15);
     EXPECT_TRUE(ipmsm::winding_law_error(0.00393, 293.15).empty());
     EXPECT_NE(ipmsm::winding_law_error(0.009, 573.15).find("negative"), std::string::npos);
-    EXPECT_EQ(ipmsm::PlantModel{fmi::Context{}}.alpha_cu, ipmsm::ControllerModel{fmi::Context{}}.alpha_cu);
+    EXPECT_EQ(ipmsm::PlantModel{fmi::Context{}}.motor.alpha_cu, ipmsm::ControllerModel{fmi::Context{}}.motor.alpha_cu);
 }
 
 fmi::Context resources() {

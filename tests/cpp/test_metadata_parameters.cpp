@@ -27,11 +27,12 @@ TEST(MetadataParameters, ModelsReportTheirParametersByName) {
     const fmi::Context context;
     const PlantModel plant(context);
     const ControllerModel controller(context);
-    EXPECT_EQ(fmi::parameter_number(plant, "alpha_cu"), plant.alpha_cu);
-    EXPECT_EQ(fmi::parameter_number(controller, "pole_pairs"), controller.pole_pairs);
-    EXPECT_EQ(fmi::parameter_number(controller, "alpha_cu"), plant.alpha_cu);  // both models' copper law
-    EXPECT_FALSE(fmi::parameter_number(controller, "fe_k_h"));                 // the plant's only
-    EXPECT_FALSE(fmi::parameter_number(plant, "u_d"));                         // an input, not a parameter
+    EXPECT_EQ(fmi::parameter_number(plant, "alpha_cu"), plant.motor.alpha_cu);
+    EXPECT_EQ(fmi::parameter_number(controller, "pole_pairs"), controller.motor.pole_pairs);
+    EXPECT_EQ(fmi::parameter_number(controller, "alpha_cu"), plant.motor.alpha_cu);  // both models' copper law
+    EXPECT_EQ(fmi::parameter_number(controller, "fe_k_h"), plant.iron_loss.k_h);     // least loss: the plant's part
+    EXPECT_FALSE(fmi::parameter_number(controller, "rtol"));                         // the plant's only
+    EXPECT_FALSE(fmi::parameter_number(plant, "u_d"));                               // an input, not a parameter
 }
 
 }  // namespace

@@ -316,7 +316,7 @@ TEST_F(IntegratorFixture, TinyIntervalsAndMethodsAgree) {
 TEST_F(IntegratorFixture, ExplicitStepsFinishCallsOneStepMissesAndAgreeWithATightIntegration) {
     const fmi::Context context = context_with();
     const PlantModel plant(context);  // its default iron loss
-    const StepIntegrands q{4, 1256.6, IronLossModel{plant.fe_k_h, plant.fe_alpha, plant.fe_k_e, plant.fe_psi_ref}};
+    const StepIntegrands q{4, 1256.6, plant.iron_loss};
     CvodeSettings fast;  // the plant's choice (PlantModel::settings)
     fast.init_step = CvodeInitStep::curvature;
     fast.nonlin_conv_coef = 0.3;
@@ -378,16 +378,16 @@ TEST_F(IntegratorFixture, ExplicitStepsFinishCallsOneStepMissesAndAgreeWithATigh
 TEST(PlantModel, DefaultsAreTheDefaultMotor) {
     const FluxMapTable t = read_flux_map(kDefaultMap);
     const PlantModel m(context_with());
-    EXPECT_EQ(m.pole_pairs, t.metadata_number("pole_pairs", 0));
-    EXPECT_DOUBLE_EQ(m.R_s, t.metadata_number("R_s_ohm", 0));
-    EXPECT_DOUBLE_EQ(m.T_winding_ref, t.metadata_number("T_winding_ref_K", 0));
-    EXPECT_DOUBLE_EQ(m.alpha_cu, t.metadata_number("alpha_cu_per_K", 0));
-    EXPECT_DOUBLE_EQ(m.T_magnet_ref, t.metadata_number("T_magnet_ref_K", 0));
-    EXPECT_DOUBLE_EQ(m.k_psi_T, t.metadata_number("k_psi_T_per_K", 0));
-    EXPECT_DOUBLE_EQ(m.fe_k_h, t.metadata_number("fe_k_h_W_per_Hz", 0));
-    EXPECT_DOUBLE_EQ(m.fe_alpha, t.metadata_number("fe_alpha", 0));
-    EXPECT_DOUBLE_EQ(m.fe_k_e, t.metadata_number("fe_k_e_W_per_Hz2", 0));
-    EXPECT_DOUBLE_EQ(m.fe_psi_ref, t.metadata_number("fe_psi_ref_Wb", 0));
+    EXPECT_EQ(m.motor.pole_pairs, t.metadata_number("pole_pairs", 0));
+    EXPECT_DOUBLE_EQ(m.motor.R_s, t.metadata_number("R_s_ohm", 0));
+    EXPECT_DOUBLE_EQ(m.motor.T_winding_ref, t.metadata_number("T_winding_ref_K", 0));
+    EXPECT_DOUBLE_EQ(m.motor.alpha_cu, t.metadata_number("alpha_cu_per_K", 0));
+    EXPECT_DOUBLE_EQ(m.motor.T_magnet_ref, t.metadata_number("T_magnet_ref_K", 0));
+    EXPECT_DOUBLE_EQ(m.motor.k_psi_T, t.metadata_number("k_psi_T_per_K", 0));
+    EXPECT_DOUBLE_EQ(m.iron_loss.k_h, t.metadata_number("fe_k_h_W_per_Hz", 0));
+    EXPECT_DOUBLE_EQ(m.iron_loss.alpha, t.metadata_number("fe_alpha", 0));
+    EXPECT_DOUBLE_EQ(m.iron_loss.k_e, t.metadata_number("fe_k_e_W_per_Hz2", 0));
+    EXPECT_DOUBLE_EQ(m.iron_loss.psi_ref, t.metadata_number("fe_psi_ref_Wb", 0));
 }
 
 TEST(PlantModel, InitialOutputsAreConsistent) {
@@ -425,18 +425,18 @@ TEST(PlantModel, BadMapsAndParametersAreRefusedAndChangeNothing) {
     fold.psi_d[40] = fold.psi_d[39] - 0.01;  // psi_d falls with i_d: not invertible
     const std::string not_monotone = temp_file("not_monotone.csv", csv_of(fold));
     const std::vector<std::pair<std::function<void(PlantModel&)>, std::string>> cases = {
-        {[](PlantModel& m) { m.flux_map = "/nonexistent/map.csv"; }, "/nonexistent/map.csv"},
-        {[&](PlantModel& m) { m.flux_map = malformed; }, "malformed.csv"},
-        {[&](PlantModel& m) { m.flux_map = missing_row; }, "missing_row.csv"},
-        {[&](PlantModel& m) { m.flux_map = not_monotone; }, "not_monotone.csv"},
+        {[](PlantModel& m) { m.motor.flux_map = "/nonexistent/map.csv"; }, "/nonexistent/map.csv"},
+        {[&](PlantModel& m) { m.motor.flux_map = malformed; }, "malformed.csv"},
+        {[&](PlantModel& m) { m.motor.flux_map = missing_row; }, "missing_row.csv"},
+        {[&](PlantModel& m) { m.motor.flux_map = not_monotone; }, "not_monotone.csv"},
         {[](PlantModel& m) {
              m.cvode_method = 2;
              m.cvode_max_order = 7;
          },
          "cvode_max_order"},
         {[](PlantModel& m) {
-             m.alpha_cu = 0.009;
-             m.T_winding_ref = 573.15;
+             m.motor.alpha_cu = 0.009;
+             m.motor.T_winding_ref = 573.15;
          },
          "negative"},
     };

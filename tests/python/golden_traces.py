@@ -4,12 +4,13 @@ refactoring that must not change behaviour is checked bit for bit (test_golden_t
 
 The sequence (inputs(k), k = 0..1999) steps the torque command through both signs and beyond
 what the drive reaches at speed, ramps the speed up into field weakening and down through zero
-to reverse, changes the DC-link voltage three times and heats magnet and winding (into the torque limit's derating). Each
-configuration (CONFIGS) runs it on one FMU, or on the controller and the plant coupled by the
-drive's coupling description (Jacobi at h: the controller sees the plant's currents at t_k, the
-plant applies the voltage the controller computed over the previous step), so that the plant
-is fed the voltages a drive makes; every controller method (1-3) and recursion (0-2), both
-CVODE methods and the thermal network are covered.
+to reverse, changes the DC-link voltage three times and heats magnet and winding (the winding
+into the torque limit's derating). Each configuration (CONFIGS) runs it on one FMU, or on the
+controller and the plant coupled by the drive's coupling description (Jacobi at h: the
+controller sees the plant's currents at t_k, the plant applies the voltage the controller
+computed over the previous step), so that the plant is fed the voltages a drive makes; every
+controller method (1-3) and recursion (0-2), both CVODE methods and the thermal network are
+covered.
 
 The digests were recorded from the build of main at c0b1b5a (before issue 34's refactoring):
     python tests/python/golden_traces.py --write        # tests/data/golden_traces.json
@@ -105,8 +106,7 @@ class _Unit:
         self.record()
 
     def record(self):
-        self.rows.append(tuple(self.inst.get(*self.outputs)) if len(self.outputs) > 1 else (self.inst.get(
-            *self.outputs),))
+        self.rows.append(tuple(self.inst.get(name) for name in self.outputs))
 
     def step(self, k: int, h: float):
         status = self.inst.fmu.fmi2DoStep(self.inst.c, k * h, h, 1)

@@ -7,9 +7,9 @@ from __future__ import annotations
 import json
 import os
 
+import golden_traces
 import pytest
 
-import golden_traces
 from conftest import BUILD_FMU
 
 RECORDED = json.loads(golden_traces.RECORD.read_text())
