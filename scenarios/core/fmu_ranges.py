@@ -102,6 +102,11 @@ def _each_description(reader):
             yield {}
 
 
+def controller_has_objective() -> bool:
+    """The FMUs have the least-loss controller (the `objective` parameter; docs/least_loss.md)."""
+    return "objective" in fmu_ranges()
+
+
 @functools.lru_cache(maxsize=1)
 def fmu_starts() -> dict[str, float | bool]:
     """Every FMU parameter's and input's start value: the FMUs' defaults (the first description

@@ -70,6 +70,9 @@ class DriveStep:
     # fault began (0 before any), and the state the inverter is in (0 switching, 1 freewheeling, 2 ASC)
     i_peak: float = 0.0
     inverter_state: int = 0
+    # the command's predicted loss P_cu + P_fe + P_inv (contract, "Least-loss control"); NaN where
+    # the FMU has no such output
+    P_loss_cmd: float = math.nan
 
 
 #: DriveStep's fields, in order; those every drive FMU must have

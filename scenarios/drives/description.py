@@ -26,7 +26,7 @@ from typing import Any
 
 from scenarios.core.boundary import InputError, load_toml
 from scenarios.core.constants import ZERO_CELSIUS_K
-from scenarios.core.fmu_ranges import PLANT_DESCRIPTION, Range, fmu_ranges, read_starts
+from scenarios.core.fmu_ranges import PLANT_DESCRIPTION, Range, controller_has_objective, fmu_ranges, read_starts
 from scenarios.core.paths import PACKAGE_DIR, ROOT, located
 from scenarios.maps.error import MapImportError
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, MotorData, read_flux_map
@@ -42,6 +42,9 @@ DEFAULT_DRIVE = DRIVES_DIR / "default.toml"
 
 #: the controller's methods by the contract's names (the FMU's `method` parameter)
 METHODS = {"ferrari": 1, "lut_speed": 2, "lut_flux": 3}
+#: what the controller minimises for the torque asked, by the drive description's names (the FMU's
+#: `objective` parameter; docs/spec/INTERFACE.md, "Least-loss control")
+OBJECTIVES = {"current": 0, "loss": 1}
 
 #: the [fault] table's safe states by IpmsmDrive's `safe_state` values (contract, "Faults")
 SAFE_STATES = {"by_speed": 0, "freewheel": 1, "asc": 2}
@@ -276,6 +279,10 @@ SCHEMA: tuple[Key, ...] = (
         "`ferrari` (the FMU's default)"),
     Key("controller", "recursion", Rule("int", lo=0, hi=2), "", "inductance recursion (0, 1, 2)",
         "2 (the FMU's default)"),
+    Key("controller", "objective", Rule("str", choices=tuple(OBJECTIVES)), "",
+        "what the command minimises for the torque asked: `current` (the seed's least current) or `loss` (the "
+        "least copper + iron + inverter loss; T_cmd and T_max are then shaft torques; docs/least_loss.md)",
+        "`current` (the FMU's default, objective 0)"),
     Key("controller", "command_check", Rule("int", lo=0, hi=1), "",
         "1: a command that fails its check on the flux map is replaced by a checked one; 0: sent as the "
         "method made it, counted and logged (to study a method alone; docs/controller.md)",
@@ -445,6 +452,10 @@ class MotorSpec:
 METHOD_DEFAULT = "ferrari"
 RECURSION_DEFAULT = 2
 COMMAND_CHECK_DEFAULT = 1
+OBJECTIVE_DEFAULT = "current"
+#: the controller's loss parameters (contract, "Least-loss control"): the plant's iron-loss
+#: parameters and the inverter's, by the same names
+MOTOR_LOSS_KEYS = ("fe_k_h", "fe_alpha", "fe_k_e", "fe_psi_ref")
 
 
 @dataclass(frozen=True)
@@ -455,6 +466,7 @@ class ControllerSpec:
     current_bandwidth: float | None   # rad/s; None: the FMU's default
     lut_u_dc: float                   # V, the 2-D tables' DC voltage
     command_check: int = COMMAND_CHECK_DEFAULT  # 1: failing commands replaced; 0: reported only
+    objective: str = OBJECTIVE_DEFAULT            # "current" or "loss" (OBJECTIVES)
 
 
 @dataclass(frozen=True)
@@ -578,8 +590,10 @@ class DriveDescription:
 
     def controller_params(self, method: str | None = None, recursion: int | None = None,
                           lut_u_dc: float | None = None, lut_T_magnet: float | None = None,
-                          command_check: int | None = None) -> dict:
-        """The controller FMU's parameters; method/recursion/lut_*/command_check None: the drive's."""
+                          command_check: int | None = None, objective: str | None = None) -> dict:
+        """The controller FMU's parameters; method/recursion/lut_*/command_check/objective None: the
+        drive's. With FMUs that have the least-loss controller, also `objective` and the loss
+        parameters (the plant's: the controller predicts P_loss_cmd with either objective)."""
         m, c = self.motor, self.controller
         method = c.method if method is None else method
         if method not in METHODS:
@@ -591,12 +605,24 @@ class DriveDescription:
                  lut_T_magnet=m.T_magnet_ref if lut_T_magnet is None else lut_T_magnet,
                  command_check=c.command_check if command_check is None else command_check)
         p.update(self.thermal.derating_params())
+        objective = c.objective if objective is None else objective
+        if objective not in OBJECTIVES:
+            raise ValueError(f"objective {objective!r}: one of {', '.join(OBJECTIVES)}")
+        if controller_has_objective():
+            p.update(objective=OBJECTIVES[objective], **self.loss_params())
+        elif objective != OBJECTIVE_DEFAULT:
+            raise ValueError(f"objective {objective!r}: the built FMUs have no `objective` parameter (rebuild them)")
         # the keys without a value of their own leave the FMU's default (its modelDescription start)
         if m.w_m_max is not None:
             p["w_m_max"] = m.w_m_max
         if c.current_bandwidth is not None:
             p["current_bandwidth"] = c.current_bandwidth
         return p
+
+    def loss_params(self) -> dict:
+        """The loss models' parameters, by the FMUs' names: the iron loss's and the inverter's
+        (the plant computes the losses with them; the least-loss controller predicts them)."""
+        return {**{k: getattr(self.motor, k) for k in MOTOR_LOSS_KEYS}, **self.inverter}
 
     def plant_params(self) -> dict:
         """The plant FMU's parameters: the motor's (I_max: where it requires the map to be legal)
@@ -767,9 +793,12 @@ def _load_machine(path: Path, given: dict, c: dict, resolve: MapResolver) -> tup
                                                         if f.name not in ("flux_map", "J")})
     controller = ControllerSpec(
         method=c.get("method", METHOD_DEFAULT), recursion=c.get("recursion", RECURSION_DEFAULT),
-        command_check=c.get("command_check", COMMAND_CHECK_DEFAULT), k_u=real["k_u"],
-        current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
+        command_check=c.get("command_check", COMMAND_CHECK_DEFAULT), objective=c.get("objective", OBJECTIVE_DEFAULT),
+        k_u=real["k_u"], current_bandwidth=float(c["current_bandwidth"]) if "current_bandwidth" in c else None,
         lut_u_dc=real["lut_u_dc"])
+    if controller.objective != OBJECTIVE_DEFAULT and not controller_has_objective():
+        raise DriveDescriptionError(path, "controller.objective", "a value the built FMUs have: rebuild them (their "
+                                    "model descriptions have no `objective` parameter)")
     spec = {"motor": motor, "controller": controller}
     for key in METADATA_RULE.values():   # values from the map obey the same rules as the file's
         section, name = key.split(".")
@@ -937,6 +966,6 @@ def known_fields() -> dict[str, tuple[str, ...]]:
 
 
 __all__ = ["DEFAULT_DRIVE", "DRIVES_DIR", "FAULT_LIMITS", "FAULT_TRIGGERS", "INVERTER_KEYS", "LIMITS", "METHODS",
-           "SAFE_STATES", "SCHEMA", "ChecksSpec", "ControllerSpec", "DriveDescription", "DriveDescriptionError",
-           "FaultSpec", "Key", "MotorSpec", "Rule", "ThermalSpec",
+           "OBJECTIVES", "SAFE_STATES", "SCHEMA", "ChecksSpec", "ControllerSpec", "DriveDescription",
+           "DriveDescriptionError", "FaultSpec", "Key", "MotorSpec", "Rule", "ThermalSpec",
            "inverter_defaults", "load_drive", "schema_markdown"]

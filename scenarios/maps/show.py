@@ -75,6 +75,9 @@ class MachineSummary:
     loss_source: str
     envelope: dict = field(default_factory=dict)  # speed_rad_s, T_max_Nm, P_W, region
     wall_s: float = 0.0
+    # least current against least loss (scenarios.maps.objectives; empty: FMUs without `objective`)
+    objective_maps: dict = field(default_factory=dict)
+    least_loss_note: str = ""
 
 
 def machine_parameters(fmap: FluxMap, u_dc: float | None, I_max: float | None = None,
@@ -228,10 +231,43 @@ def show_map(path: str | Path, out: str | Path, u_dc: float | None = None, I_max
                       region=env[:, 3].astype(int).tolist()))
     out.mkdir(parents=True, exist_ok=True)
     plot_machine(out / "map.png", fmap, s, env, speeds, mtpa, mismatch, eff_speeds, eff_torques, eta)
+    both_objectives(s, build / "fmu" / "IpmsmController.fmu", csv, fmap, params, u_dc, T_magnet, eff_speeds,
+                    eff_torques, drive, out)
     s.wall_s = time.perf_counter() - t0
     write_atomically(out / "map.json", strict_json(asdict(s), indent=1))  # an undefined figure: null
     write_atomically(out / "map.md", markdown(s, P_cu, P_fe, P_inv))
     return s
+
+
+def both_objectives(s: MachineSummary, fmu_path: Path, csv: Path, fmap: FluxMap, params: dict, u_dc: float,
+                    T_magnet: float, speeds, torques, drive, out: Path) -> None:
+    """Least current's and least loss's efficiency maps and their difference (objectives.png,
+    s.objective_maps), where the controller FMU has the least-loss controller."""
+    from scenarios.core.fmu_ranges import controller_has_objective
+    from scenarios.maps.objectives import IRON_LOSS_PARAMS, objective_maps, plot_objectives
+    if not controller_has_objective():
+        s.least_loss_note = "not drawn: the built FMUs have no `objective` parameter (rebuild them)"
+        return
+    # a drive's loss models; else the map's iron loss and the FMU's own inverter (its defaults)
+    loss_params = drive.loss_params() if drive is not None else {k: params[k] for k in IRON_LOSS_PARAMS}
+    bar = Progress(len(speeds) * len(torques), "map show: least current, least loss")
+    try:
+        m = objective_maps(fmu_path, csv, fmap, params, loss_params, u_dc, T_magnet, speeds, torques, bar)
+    except CosimError as e:
+        s.least_loss_note = f"not drawn: {e}"
+        return
+    finally:
+        bar.close()
+    plot_objectives(out / "objectives.png", m, Path(s.map_file).name)
+    s.objective_maps = asdict(m)
+    d = m.difference_pct()
+    if np.isfinite(d).any():
+        k = np.unravel_index(np.nanargmax(d), d.shape)
+        both = np.isfinite(d)
+        s.least_loss_note = (f"least loss gains up to {d[k]:.2f} efficiency points (at {speeds[k[0]] / RPM:.0f} r/min, "
+                             f"{torques[k[1]]:.1f} N m), {np.nanmean(d):.3f} points on average over the "
+                             f"{int(both.sum())} points both reach; least current is never better by more than "
+                             f"{max(0.0, -float(np.nanmin(d))):.2g} points")
 
 
 def markdown(s: MachineSummary, P_cu, P_fe, P_inv) -> str:
@@ -269,5 +305,9 @@ def markdown(s: MachineSummary, P_cu, P_fe, P_inv) -> str:
               f"iron {np.nanmax(P_fe) / 1e3:.2f} kW, inverter {np.nanmax(P_inv) / 1e3:.2f} kW"
               if np.isfinite(P_cu).any() else f"- efficiency: {s.loss_source}"]
     lines += [f"- assumed: {a}" for a in s.assumed] or ["- every parameter from the map's metadata"]
+    lines += ["", "## Least current against least loss", "",
+              f"Efficiency `P_mech / (P_mech + P_loss_cmd)` of both objectives over shaft torque x speed, from the "
+              f"IpmsmController FMU's predicted loss of each command (`objectives.png`; scenarios/maps/objectives.py): "
+              f"{s.least_loss_note or 'not drawn'}."]
     lines += ["", f"Wall time {s.wall_s:.1f} s.", ""]
     return "\n".join(lines)

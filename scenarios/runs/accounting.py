@@ -50,6 +50,9 @@ class RunAccounts:
     k_u: float
     reference: bool
     w_m_max: float | None = None  # rad/s, the motor's top speed (None: not known, nothing flagged)
+    #: the command's torque is the shaft's (least loss: contract, "Least-loss control"), else the
+    #: air gap's: the torque error compares the delivered torque of the same kind
+    shaft_torque_command: bool = False
     w_m_peak: float = 0.0     # rad/s, the highest rotor speed
     t_above_top: float = 0.0  # s above w_m_max
     E_elec: float = 0.0       # J, motor electric input
@@ -58,6 +61,8 @@ class RunAccounts:
     E_fe: float = 0.0         # J, iron loss
     E_inv: float = 0.0        # J, inverter loss
     E_cu_opt: float = 0.0     # J, the optimum's copper loss
+    E_loss_cmd: float = 0.0   # J, the commands' predicted loss (P_loss_cmd; NaN: an FMU without it)
+    E_loss_opt: float = 0.0   # J, the least-loss optimum's loss (NaN: no such optimum)
     T_err2: float = 0.0       # N^2 m^2, sum of (T_e - T_cmd)^2
     T_err_max: float = 0.0    # N m
     T_cmd2: float = 0.0       # N^2 m^2, sum of T_cmd^2
@@ -95,10 +100,12 @@ class RunAccounts:
         self.E_dc_abs += abs(s.P_dc) * dt
         if s.battery_limited:
             self.t_battery_limited += dt
-        # Torque error: delivered (mean T_e) against the command within reach (none in a fault:
-        # the inverter does not switch, nothing is controlled; scenarios.runs.fault)
+        self.E_loss_cmd += m.P_loss_cmd * dt
+        # Torque error: delivered (mean T_e, or T_shaft for a shaft-torque command) against the
+        # command within reach (none in a fault: the inverter does not switch, nothing is
+        # controlled; scenarios.runs.fault)
         if not s.fault:
-            T_err = m.T_e - m.T_cmd
+            T_err = (m.T_shaft if self.shaft_torque_command else m.T_e) - m.T_cmd
             self.T_err2 += T_err * T_err
             self.T_cmd2 += m.T_cmd * m.T_cmd
             self.T_err_max = max(self.T_err_max, abs(T_err))
@@ -119,6 +126,7 @@ class RunAccounts:
             if math.isnan(s.I_opt):  # the optimum could not be evaluated: its figures are unknown
                 self.reference_lost = True
             self.E_cu_opt += s.P_cu_opt * dt
+            self.E_loss_opt += s.P_loss_opt * dt
             if s.I > I_EXCESS_MIN and not s.fault:
                 self.I_excess2 += (s.I - s.I_opt) ** 2
                 self.n_I += 1
@@ -161,8 +169,21 @@ class RunAccounts:
             w_m_max_rpm=None if self.w_m_max is None else self.w_m_max / RPM,
             time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top,
             time_derated_s=self.t_derated, derating_min=self.derating_min, dc_link_residual_Wh=dc_residual * WH,
-            time_battery_limited_s=self.t_battery_limited, **self.thermal_figures(),
+            time_battery_limited_s=self.t_battery_limited, **self.thermal_figures(), **self.loss_split(km),
         )
+
+    def loss_split(self, km: float) -> dict:
+        """The drive's losses (E_cu, E_fe, E_inv) in Wh and per km, their sum, the commands'
+        predicted loss and the least-loss optimum's (None where the FMUs have none)."""
+        E = self.E_cu + self.E_fe + self.E_inv
+        def per_km(J):
+            return J * WH / km if km > 0.0 else None
+        def known(J):
+            return J * WH if math.isfinite(J) else None
+        return dict(copper_loss_Wh_per_km=per_km(self.E_cu), iron_loss_Wh_per_km=per_km(self.E_fe),
+                    inverter_loss_Wh_per_km=per_km(self.E_inv), drive_loss_Wh=E * WH, drive_loss_Wh_per_km=per_km(E),
+                    drive_loss_cmd_Wh=known(self.E_loss_cmd),
+                    drive_loss_optimal_Wh=known(self.E_loss_opt) if self.reference else None)
 
     def thermal_figures(self) -> dict:
         """The summary's thermal figures (none with the network off)."""

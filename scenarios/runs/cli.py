@@ -11,16 +11,16 @@ from pathlib import Path
 from scenarios.core.boundary import InputError, check_writable, finite, inside
 from scenarios.core.constants import T_REFERENCE_K, U_DC_SCALE_MAX, ZERO_CELSIUS_K
 from scenarios.core.paths import OUT_DIR
-from scenarios.cosim import BACKEND_ALIASES, BACKENDS
+from scenarios.cosim import BACKEND_ALIASES, BACKENDS, backend_name
 
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
 #: run --repeat: at most this many copies of a cycle (100 WLTCs are 50 h of driving: no thermal
 #: run needs more, and the vehicle side's memory and time stay bounded)
 REPEAT_MAX = 100
 #: the contract's summary keys (docs/spec/INTERFACE.md) and the real-time factor: what `run` prints
-RUN_PRINTED = ("cycle", "method", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps", "torque_rmse_Nm",
-               "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s",
-               "steps", "wall_s", "real_time_factor")
+RUN_PRINTED = ("cycle", "method", "objective", "distance_km", "energy_battery_Wh", "Wh_per_km", "speed_rmse_mps",
+               "torque_rmse_Nm", "torque_error_max_Nm", "copper_loss_Wh", "iron_loss_Wh", "inverter_loss_Wh",
+               "drive_loss_Wh", "w_m_peak_rpm", "time_above_top_speed_s", "steps", "wall_s", "real_time_factor")
 #: ... and with the thermal network on
 THERMAL_PRINTED = ("theta_winding_max_K", "theta_magnet_max_K", "theta_winding_end_K", "theta_magnet_end_K",
                    "heat_coolant_Wh", "heat_balance_residual_Wh", "time_derated_s", "derating_min")
@@ -48,6 +48,11 @@ def add_parsers(sub) -> None:
                      help="default: the drive's controller.method")
     run.add_argument("--recursion", type=int, default=None, choices=(0, 1, 2),
                      help="default: the drive's controller.recursion")
+    run.add_argument("--objective", default=None, choices=("current", "loss"),
+                     help="least current or least loss (docs/least_loss.md); default: the drive's controller.objective")
+    run.add_argument("--controller-loss-scale", type=float, default=1.0,
+                     help="the controller's loss coefficients (iron, inverter) over the plant's, e.g. 1.3: a loss "
+                          "model 30 %% off (needs --backend reference, where the two can differ); default 1")
     run.add_argument("--backend", default="drive", choices=BACKENDS + tuple(BACKEND_ALIASES),
                      help="drive: the IpmsmDrive FMU stepped at the vehicle's 10 ms (the fast path); reference "
                           "(or fmpy, its former name): the reference loop, IpmsmController and IpmsmPlant coupled "
@@ -93,8 +98,24 @@ def _run_args(args) -> None:
     finite(args.u_dc_scale, "(command line)", "--u-dc-scale", 0.0, U_DC_SCALE_MAX, lo_open=True)
     r = fmu_ranges()["T_magnet_ref"]  # the FMUs' temperature range
     finite(args.magnet_degC, "(command line)", "--magnet-degC", r.lo - ZERO_CELSIUS_K, r.hi - ZERO_CELSIUS_K)
+    from scenarios.runs.simulate import CONTROLLER_LOSS_SCALE_MAX
+    finite(args.controller_loss_scale, "(command line)", "--controller-loss-scale", 0.0, CONTROLLER_LOSS_SCALE_MAX,
+           lo_open=True)
+    if args.controller_loss_scale != 1.0 and backend_name(args.backend) != "reference":
+        raise InputError("(command line)", "--controller-loss-scale", "--backend reference (IpmsmDrive declares the "
+                         "loss parameters once for the controller and the plant)")
     if not 1 <= args.repeat <= REPEAT_MAX:
         raise InputError("(command line)", "--repeat", f"an integer in [1, {REPEAT_MAX}], got {args.repeat}")
+
+
+def objective_arg(objective: str | None, drive) -> str:
+    """--objective (None: the drive's); least loss only with FMUs that have it (else exit 2)."""
+    from scenarios.drives.description import OBJECTIVE_DEFAULT, controller_has_objective
+    objective = objective or drive.controller.objective
+    if objective != OBJECTIVE_DEFAULT and not controller_has_objective():
+        raise InputError("(command line)", "--objective", "a value the built FMUs have: rebuild them (their model "
+                         "descriptions have no `objective` parameter)")
+    return objective
 
 
 def main(args) -> int:
@@ -152,6 +173,7 @@ def run(args) -> int:
     _run_args(args)
     drive = load_accepted(args.drive, args.build)
     method = args.method or drive.controller.method
+    objective = objective_arg(args.objective, drive)
     T = args.magnet_degC + ZERO_CELSIUS_K
     _below_derating_zero(T, drive)
     custom = (args.u_dc_scale, T) != (1.0, T_REFERENCE_K)
@@ -163,11 +185,15 @@ def run(args) -> int:
         raise InputError("(command line)", "--repeat", str(e)) from None
     stem = Path(args.cycle).stem + ("" if args.repeat == 1 else f"_x{args.repeat}") + (
         "" if args.drive is None else f"_{drive.name}")
+    stem += "" if objective == "current" else f"_least_{objective}"
     out = args.out or inside(OUT_DIR, slug(f"{stem}_{method}"), "run's output folder")
     with run_folder(out) as folder:  # one run at a time, holding one run (scenarios.runs.out_folder)
         s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
-                                    backend=args.backend), fmus=fmu_paths(args.build), out=out)
-        title = f"{s.cycle}, {method}" + ("" if args.drive is None else f", {drive.name}")
+                                    backend=args.backend, objective=objective,
+                                    controller_loss_scale=args.controller_loss_scale),
+                     fmus=fmu_paths(args.build), out=out)
+        title = f"{s.cycle}, {method}" + ("" if objective == "current" else f", least {objective}") + (
+            "" if args.drive is None else f", {drive.name}")
         plot_run(out, title, drive)
         written = ["summary.json", "trace.csv", "run.png"]
         if s.thermal_network:

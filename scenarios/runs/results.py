@@ -40,6 +40,7 @@ class VehicleStep:
     F_wheel: float = math.nan   # N, the tractive force the drive delivered at the wheels
     fault: bool = False         # the drive's fault input over the step (a [fault] table; docs/faults.md)
     battery_limited: bool = False  # the battery's power limit took torque away (scenarios.runs.power_limit)
+    P_loss_opt: float = math.nan  # W, the least-loss optimum's loss at the delivered shaft torque (NaN: none)
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,10 @@ class TracePoint:
     theta_stator_tooth_K: float
     P_coolant_W: float       # heat into the coolant (off: 0)
     derating: float          # the torque limit's thermal factor (1: none)
+    P_cu_W: float            # the drive's losses, step means: copper, iron (plant), inverter
+    P_fe_W: float
+    P_inv_W: float
+    P_loss_cmd_W: float      # the command's predicted loss P_cu + P_fe + P_inv (controller; NaN: an FMU without it)
 
     @classmethod
     def of(cls, s: VehicleStep) -> TracePoint:
@@ -80,7 +85,7 @@ class TracePoint:
         return cls(s.t, s.v_ref, s.v, s.w_m, s.T_ref, d.T_cmd, d.T_max, d.T_e, d.T_shaft, d.i_d, d.i_q, s.I, s.I_opt,
                    s.u_dc, d.P_elec, s.P_dc, s.F_brake, s.soc, int(d.region), s.F_demand * s.v, s.F_wheel * s.v,
                    d.theta_winding, d.theta_magnet, d.theta_stator_yoke, d.theta_stator_tooth, d.P_coolant,
-                   d.derating)
+                   d.derating, d.P_cu, d.P_fe, s.P_inverter, d.P_loss_cmd)
 
 
 TRACE_COLUMNS = tuple(f.name for f in fields(TracePoint))
@@ -129,7 +134,8 @@ class Trace:
 class RunSummary:
     """summary.json: the contract's keys (cycle, method, distance_km, energy_battery_Wh, Wh_per_km,
     speed_rmse_mps, torque_rmse_Nm, torque_error_max_Nm, copper_loss_Wh, iron_loss_Wh, steps,
-    wall_s) and the energy balance and accuracy figures around them, in this order."""
+    wall_s) and the energy balance and accuracy figures around them, in this order; the loss
+    split (E_cu, E_fe, E_inv: copper_loss_Wh, iron_loss_Wh, inverter_loss_Wh and their *_per_km)."""
 
     cycle: str
     method: str
@@ -139,7 +145,7 @@ class RunSummary:
     energy_battery_Wh: float          # at the battery's terminals
     Wh_per_km: float | None  # None when the run covered no distance
     speed_rmse_mps: float             # vehicle against the cycle, at the vehicle steps
-    torque_rmse_Nm: float             # delivered (step mean of T_e) against the command T_cmd
+    torque_rmse_Nm: float             # delivered (step mean of T_e; of T_shaft with least loss) against T_cmd
     torque_error_max_Nm: float
     torque_cmd_rms_Nm: float
     copper_loss_Wh: float
@@ -212,6 +218,16 @@ class RunSummary:
     # the cycle as driven should have been (check's cycle-following limits, scenarios.runs.check)
     cycle_distance_km: float | None = None     # the trace's distance (trapezoidal, as Cycle.distance_m)
     cycle_moving_s: float | None = None        # the time the trace is not standing
+    # least-loss control (docs/least_loss.md): what the controller minimised and the loss split
+    objective: str = "current"                 # "current" (least current) or "loss" (least loss)
+    controller_loss_scale: float = 1.0         # the controller's loss coefficients over the plant's
+    copper_loss_Wh_per_km: float | None = None     # the loss split per km (None: no distance)
+    iron_loss_Wh_per_km: float | None = None
+    inverter_loss_Wh_per_km: float | None = None
+    drive_loss_Wh: float = 0.0                 # copper + iron + inverter
+    drive_loss_Wh_per_km: float | None = None
+    drive_loss_cmd_Wh: float | None = None     # the commands' predicted loss (P_loss_cmd; None: an FMU without it)
+    drive_loss_optimal_Wh: float | None = None  # the least-loss optimum's at the delivered shaft torque
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -18,6 +18,7 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
+from ctypes import c_double
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -29,7 +30,7 @@ from scenarios.cosim import BACKENDS, backend_name
 from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
 from scenarios.cosim.fmu import CosimError, Fmu
 from scenarios.cosim.reference import ReferenceDrive
-from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, load_drive
+from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, controller_has_objective, load_drive
 from scenarios.runs.accounting import DcLinkError, RunAccounts
 from scenarios.runs.fault import FaultAccounts, FaultTrigger, demagnetisation_limit
 from scenarios.runs.power_limit import advance_within
@@ -40,6 +41,14 @@ from scenarios.vehicle.driver import BlendParams, Driver, DriverParams, blend
 from scenarios.vehicle.longitudinal import Vehicle, motor_speed, wheel_force
 
 __all__ = ["BACKENDS", "METHODS", "STUDY_CONDITIONS", "Conditions", "RunSpec", "fmu_paths", "simulate"]
+
+#: the loss coefficients `controller_loss_scale` scales: the iron loss's (hysteresis, eddy
+#: currents) and the inverter's (conduction: threshold voltages and slope resistances; switching
+#: energies); not the exponents, reference points or the switching frequency, which say how a loss
+#: scales, not how large it is
+LOSS_COEFFICIENTS = ("fe_k_h", "fe_k_e", "V_T0", "r_T", "V_D0", "r_D", "E_on", "E_off", "E_rec")
+#: the largest controller_loss_scale: a loss model off by more than a factor 10 is no estimate
+CONTROLLER_LOSS_SCALE_MAX = 10.0
 
 #: N m, the blending's torque limit before the controller has reported its reach (T_max, after
 #: the first step): no limit
@@ -85,6 +94,11 @@ class RunSpec:
     method: str | None = None
     recursion: int | None = None
     command_check: int | None = None  # the controller's command check (None: the drive's)
+    objective: str | None = None      # "current" or "loss" (None: the drive's controller.objective)
+    #: the controller's loss coefficients (iron loss and inverter) over the plant's: 1.3 tells the
+    #: controller 30 % more loss than the plant has (a drive's estimate that is off). Only the
+    #: reference loop (backend "reference") has two sets; IpmsmDrive declares them once for both.
+    controller_loss_scale: float = 1.0
     conditions: Conditions = field(default_factory=Conditions)
     dt: float = 0.01          # s, vehicle step
     h: float = 1e-4           # s, controller sample time = communication step
@@ -101,6 +115,10 @@ class RunSpec:
     @property
     def method_name(self) -> str:
         return self.drive.controller.method if self.method is None else self.method
+
+    @property
+    def objective_name(self) -> str:
+        return self.drive.controller.objective if self.objective is None else self.objective
 
     @property
     def recursion_level(self) -> int:
@@ -127,6 +145,25 @@ class RunSpec:
 
 def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
     return build / "fmu" / "IpmsmController.fmu", build / "fmu" / "IpmsmPlant.fmu"
+
+
+def controller_loss_estimates(c_params: dict, spec: RunSpec) -> dict:
+    """The controller's parameters with its loss coefficients (iron loss, inverter) scaled by
+    spec.controller_loss_scale; only the reference loop can give the controller and the plant
+    different ones."""
+    scale = spec.controller_loss_scale
+    if scale == 1.0:
+        return c_params
+    if not (math.isfinite(scale) and 0.0 < scale <= CONTROLLER_LOSS_SCALE_MAX):
+        raise InputError("(command line)", "--controller-loss-scale",
+                         f"a number in (0, {CONTROLLER_LOSS_SCALE_MAX:g}], got {scale!r}")
+    if spec.backend != "reference":
+        raise InputError("(command line)", "--controller-loss-scale", "the reference loop (--backend reference): "
+                         "IpmsmDrive declares the loss parameters once for the controller and the plant")
+    if "objective" not in c_params:
+        raise InputError("(command line)", "--controller-loss-scale", "FMUs with the least-loss controller (the "
+                         "`objective` parameter): rebuild them")
+    return {**c_params, **{k: c_params[k] * scale for k in LOSS_COEFFICIENTS}}
 
 
 def _open_drive_fmu(spec: RunSpec, controller_fmu: Path, plant_fmu: Path, c_params: dict, p_params: dict,
@@ -169,13 +206,15 @@ REFERENCE_CURRENT_BANDWIDTH = 1.0
 class OptimumReference:
     """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
     given torque and conditions: its current magnitude and copper loss at the winding resistance
-    R_s (Ohm, the run's: winding_resistance)."""
+    R_s (Ohm, the run's: winding_resistance); and, with FMUs that have the least-loss controller,
+    the least-loss optimum's predicted loss at a shaft torque (`least_loss`)."""
 
     def __init__(self, controller_fmu: Path, drive: DriveDescription, R_s: float, T_winding: float):
         self.R_s = R_s
         self.T_winding = T_winding  # K: the optimum's voltage ellipse at the winding's resistance too
+        self.loss_fmu = None
         self.fmu = Fmu(controller_fmu, instance_name="reference",
-                       **{**drive.controller_params(method="ferrari", recursion=2),
+                       **{**drive.controller_params(method="ferrari", recursion=2, objective="current"),
                           "current_bandwidth": REFERENCE_CURRENT_BANDWIDTH})
         self.i_ref = (0.0, 0.0)  # A, the last command (d, q): the regulator's measured currents
         self.failed = ""         # why the optimum could not be evaluated (its figures then null)
@@ -183,6 +222,12 @@ class OptimumReference:
         # step to step (the regulator's) is no part of it. A step that fails on that carried state
         # is taken again from the instance as it was made (its clock restarted there).
         self._made, self._t0 = self.fmu.save_state(), 0.0
+        try:
+            if controller_has_objective():
+                self.loss_fmu = LeastLossReference(controller_fmu, drive)
+        except BaseException:
+            self.close()
+            raise
 
     def current(self, T_e: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
                 T_winding: float | None = None) -> float:
@@ -209,16 +254,53 @@ class OptimumReference:
         run's start (a run with the thermal network gives the step's)."""
         return 1.5 * (self.R_s if R_s is None else R_s) * I * I
 
+    def least_loss(self, T_shaft: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
+                   T_winding: float | None = None) -> float:
+        """W, the least-loss optimum's loss (its P_loss_cmd) at the shaft torque T_shaft; NaN
+        without the least-loss controller."""
+        if self.loss_fmu is None:
+            return math.nan
+        return self.loss_fmu.loss(T_shaft, w_m, u_dc, T_magnet, self.T_winding if T_winding is None else T_winding,
+                                  t, dt)
+
     def close(self) -> None:
         if self.fmu.fmu is not None:
             self.fmu.free_state(self._made)
         self.fmu.close()
+        if self.loss_fmu is not None:
+            self.loss_fmu.close()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
+
+
+class LeastLossReference(Fmu):
+    """The least-loss optimum (the controller FMU with Ferrari, recursion 2, objective 1, on the
+    drive's motor and loss models): its predicted loss P_loss_cmd at a shaft torque, one step per
+    call through ctypes arrays made once (every vehicle step asks it)."""
+
+    INPUTS = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")
+
+    def __init__(self, controller_fmu: Path, drive: DriveDescription):
+        super().__init__(controller_fmu, instance_name="least_loss_reference",
+                         **drive.controller_params(method="ferrari", recursion=2, objective="loss"))
+        try:
+            self._u_vr, self._u = self.vrs(*self.INPUTS), (c_double * len(self.INPUTS))()
+            self._y_vr, self._y = self.vrs("P_loss_cmd"), (c_double * 1)()
+        except BaseException:
+            self.close()
+            raise
+
+    def loss(self, T_shaft: float, w_m: float, u_dc: float, T_magnet: float, T_winding: float, t: float,
+             dt: float) -> float:
+        self._u[:] = (T_shaft, w_m, u_dc, T_magnet, T_winding)
+        self.call("fmi2SetReal", self._u_vr, len(self._u), self._u)
+        self.do_step(t, dt)
+        self.read(self._y_vr, self._y)
+        return self._y[0]
 
 
 def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], drive: DriveFmu | ReferenceDrive,
@@ -267,18 +349,19 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
                               f"the auxiliaries' {P_aux:.6g} W (short by {bs.P_unmet:.6g} W): the DC link's energy "
                               "balance would not close")
         I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
-        I_opt, P_cu_opt = math.nan, 0.0
+        I_opt, P_cu_opt, P_loss_opt = math.nan, 0.0, math.nan
         if reference is not None and not on and not reference.failed:
             try:
                 I_opt = reference.current(m.T_e, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
                 P_cu_opt = reference.copper_loss(I_opt, R)
+                P_loss_opt = reference.least_loss(m.T_shaft, w_m, u_dc, T_magnet, k * dt, dt, T_winding)
             except CosimError as e:  # a side computation: the run goes on, its optimum figures are null
                 reference.failed = f"t = {k * dt:.6g} s: {e}"
-                I_opt, P_cu_opt = math.nan, 0.0
+                I_opt, P_cu_opt, P_loss_opt = math.nan, 0.0, math.nan
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=T_ref,
                           F_brake=F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
                           P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w, fault=on,
-                          battery_limited=lim.limited)
+                          battery_limited=lim.limited, P_loss_opt=P_loss_opt)
         if thermal:
             T_magnet, T_winding = m.theta_magnet, m.theta_winding
             R = winding_resistance(drive, T_winding)
@@ -296,7 +379,8 @@ def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, 
     cycle = load_cycle(cycle) if isinstance(cycle, (str, Path)) else cycle
     controller_fmu, plant_fmu = fmus or fmu_paths()
     c_params = spec.drive.controller_params(spec.method_name, spec.recursion_level, spec.conditions.lut_u_dc,
-                                            spec.conditions.lut_T_magnet, spec.command_check)
+                                            spec.conditions.lut_T_magnet, spec.command_check, spec.objective_name)
+    c_params = controller_loss_estimates(c_params, spec)
     if spec.lut_grid is not None:
         c_params.update(lut_n_torque=spec.lut_grid[0], lut_n_speed=spec.lut_grid[1])
     # A segment may start at speed: so does the vehicle (and the motor, with a flying start).
@@ -320,7 +404,7 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
     vehicle, driver = Vehicle(vp, v_ref[0]), Driver(vp, spec.driver)
     battery = Battery(drive.battery)
     accounts = RunAccounts(dt=dt, k_u=drive.controller.k_u, reference=spec.reference, w_m_max=drive.motor.w_m_max,
-                           thermal=spec.thermal().on)
+                           thermal=spec.thermal().on, shaft_torque_command=spec.objective_name == "loss")
     trace = Trace(every=max(1, int(round(spec.trace_dt / dt))), keep=out is not None)
     trigger = FaultTrigger(drive.fault) if drive.fault is not None else None
     faults = None
@@ -352,7 +436,9 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
                                vehicle=vehicle, battery=battery, P_aux=drive.P_aux, n=n, n_inner=n_inner, h=spec.h,
                                wall=wall, backend=spec.backend)
     summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256, cycle_distance_km=cycle.distance_m / 1000.0,
-                      cycle_moving_s=cycle.moving_s, **(faults.figures() if faults is not None else {}))
+                      cycle_moving_s=cycle.moving_s, objective=spec.objective_name,
+                      controller_loss_scale=spec.controller_loss_scale,
+                      **(faults.figures() if faults is not None else {}))
     try:
         if out is not None:
             write_results(out, summary, trace)

@@ -30,6 +30,7 @@ class Variant:
     label: str
     method: str
     recursion: int
+    objective: str = "current"   # what the command minimises (scenarios.drives.description.OBJECTIVES)
 
 
 VARIANTS = (
@@ -38,6 +39,19 @@ VARIANTS = (
     Variant("2-D table, torque x speed", "lut_speed", 2),
     Variant("2-D table, torque x V_max/w", "lut_flux", 2),
 )
+#: least loss (docs/least_loss.md): Ferrari's online least loss, and the 2-D tables made for least
+#: loss at the tables' u_dc and magnet temperature (as SyR-e's maximum-efficiency maps are made)
+LEAST_LOSS_VARIANTS = (
+    Variant("Ferrari, least loss", "ferrari", 2, "loss"),
+    Variant("2-D table least loss, torque x speed", "lut_speed", 2, "loss"),
+    Variant("2-D table least loss, torque x V_max/w", "lut_flux", 2, "loss"),
+)
+
+
+def default_variants() -> tuple[Variant, ...]:
+    """The study's variants: the least-loss ones too where the FMUs have the least-loss controller."""
+    from scenarios.drives.description import controller_has_objective
+    return VARIANTS + (LEAST_LOSS_VARIANTS if controller_has_objective() else ())
 
 
 def _slug(s: str) -> str:
@@ -78,17 +92,20 @@ def controller_costs(build: Path) -> dict:
     }
 
 
-def study_runs(cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS,
+def study_runs(cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=None,
                drive: Path | None = None) -> list[tuple[Run, Variant]]:
-    """The compare study as study runs: every variant at every condition on every cycle."""
+    """The compare study as study runs: every variant (None: default_variants()) at every
+    condition on every cycle."""
+    variants = default_variants() if variants is None else variants
     d = str(Path(drive).resolve()) if drive else ""
     # each method's own commands (command_check 0: a failing command is counted, not replaced), so
     # that the study compares the methods, not the controller's safety net (docs/controller.md)
-    return [(Run.of_conditions(k, drive=d, cycle=c, method=v.method, recursion=v.recursion, command_check=0), v)
+    return [(Run.of_conditions(k, drive=d, cycle=c, method=v.method, recursion=v.recursion, command_check=0,
+                               objective=v.objective), v)
             for c in cycles for k in conditions for v in variants]
 
 
-def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=VARIANTS,
+def run_study(out: Path, cycles=("WLTC3b",), conditions=STUDY_CONDITIONS, variants=None,
               build: Path = BUILD_DIR, workers: int | None = None, scheduler: str | None = None,
               drive: Path | None = None) -> list[StudyRun]:
     """The compare study, run as a study (scenarios.study: out/runs.parquet, traces/, resumable),
@@ -130,10 +147,23 @@ def _copper_excess(s: RunSummary) -> float:
     return s.copper_loss_Wh / s.copper_loss_optimal_Wh - 1
 
 
+def loss_excess(s: RunSummary) -> float:
+    """The run's drive loss (copper + iron + inverter) over the least-loss optimum's at the same
+    delivered shaft torque and conditions, less 1 (NaN without that optimum)."""
+    if not s.drive_loss_optimal_Wh:
+        return float("nan")
+    return s.drive_loss_Wh / s.drive_loss_optimal_Wh - 1
+
+
+def _pct(x: float) -> str:
+    return "–" if x != x else f"{x:+.2%}"
+
+
 def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) -> None:
     keys = ("cycle", "conditions", "variant", "Wh_per_km", "energy_battery_Wh", "distance_km", "speed_rmse_mps",
             "torque_rmse_Nm", "torque_error_max_Nm", "copper_loss_Wh", "copper_loss_optimal_Wh",
-            "current_excess_rms_A", "iron_loss_Wh", "inverter_loss_Wh", "wall_s", "run_dir")
+            "current_excess_rms_A", "iron_loss_Wh", "inverter_loss_Wh", "drive_loss_Wh", "drive_loss_optimal_Wh",
+            "objective", "wall_s", "run_dir")
     def write_csv(tmp: Path) -> None:
         with open(tmp, "w", newline="") as f:
             w = csv.writer(f)
@@ -154,18 +184,26 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
              f"{T_REFERENCE_K - ZERO_CELSIUS_K:.0f} °C with the exact solver.",
              "*Copper loss vs optimum*: the run's copper loss over that of the exact optimum (Ferrari,",
              "recursion 2, the same delivered torque and conditions, evaluated every 10 ms). *Torque error*:",
-             "delivered T_e against the controller's own clamped command T_cmd, 10-ms means. *Time above",
+             "delivered T_e (least loss: the shaft torque) against the controller's own clamped command T_cmd,",
+             "10-ms means. *Time above",
              "V_max / voltage-limited*: share of the cycle (sampled every 10 ms) in which the current regulator's",
              "voltage exceeded the planned V_max = k_u u_dc/√3, and in which it hit the inverter's linear range "
              "u_dc/√3. The optimum keeps 5 % of it in reserve (k_u = 0.95); a method",
              "whose commands fall outside the voltage ellipse spends that reserve (and shows copper loss *below*",
-             "the optimum's) or, past it, loses torque.", ""]
+             "the optimum's) or, past it, loses torque.",
+             "*Drive loss*: copper + iron + inverter (E_cu + E_fe + E_inv). *Loss vs least-loss optimum*: the",
+             "run's drive loss over that of the least-loss optimum (Ferrari, objective 1, recursion 2, at the",
+             "same delivered shaft torque and conditions, evaluated every 10 ms; docs/least_loss.md). The",
+             "least-loss rows (objective 1: `least loss`) are Ferrari's online least loss and the 2-D tables",
+             f"made for least loss at {U_DC_NOMINAL_V:.0f} V and {T_REFERENCE_K - ZERO_CELSIUS_K:.0f} °C; "
+             "their torques are shaft torques.", ""]
     for cycle in dict.fromkeys(r.summary.cycle for r in results):
         for cond in dict.fromkeys(r.condition for r in results if r.summary.cycle == cycle):
             lines += [f"## {cycle}, {cond}", "",
                       "| method | Wh/km | speed RMSE (km/h) | torque error RMS / max (N·m) | copper loss vs optimum "
-                      "| current excess RMS (A) | time above V_max / voltage-limited | controller ns/call | memory |",
-                      "|---|---|---|---|---|---|---|---|---|"]
+                      "| current excess RMS (A) | time above V_max / voltage-limited | drive loss (Wh) | "
+                      "loss vs least-loss optimum | controller ns/call | memory |",
+                      "|---|---|---|---|---|---|---|---|---|---|---|"]
             for r in results:
                 s = r.summary
                 if s.cycle != cycle or r.condition != cond:
@@ -174,7 +212,8 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
                 lines.append(f"| {r.variant} | {s.Wh_per_km:.2f} | {s.speed_rmse_mps * 3.6:.2f} | "
                              f"{s.torque_rmse_Nm:.3f} / {s.torque_error_max_Nm:.2f} | {_copper_excess(s):+.2%} | "
                              f"{s.current_excess_rms_A:.2f} | {s.time_above_V_max_pct:.1f} % / "
-                             f"{s.time_voltage_limited_pct:.1f} % | {f'{ns:.0f}' if ns else '–'} | {_memory(s)} |")
+                             f"{s.time_voltage_limited_pct:.1f} % | {s.drive_loss_Wh:.1f} | {_pct(loss_excess(s))} | "
+                             f"{f'{ns:.0f}' if ns else '–'} | {_memory(s)} |")
             lines.append("")
             lines += _thermal_lines([r for r in results if r.summary.cycle == cycle and r.condition == cond])
     lines += ["![Study](study.png)", "",
@@ -216,7 +255,7 @@ def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
     conds = list(dict.fromkeys(r.condition for r in results))
     variants = list(dict.fromkeys(r.variant for r in results))
     cycle = results[0].summary.cycle
-    fig, ax = plt.subplots(1, 3, figsize=(16, 4.8))
+    fig, ax = plt.subplots(1, 4, figsize=(21, 4.8))
     x = np.arange(len(conds))
     wdt = 0.8 / len(variants)
     for j, v in enumerate(variants):
@@ -224,16 +263,19 @@ def plot_study(out: Path, results: list[StudyRun], drive=None) -> None:
         torque = [sel[c].torque_rmse_Nm if c in sel else np.nan for c in conds]
         copper = [100 * _copper_excess(sel[c]) if c in sel else np.nan for c in conds]
         energy = [sel[c].Wh_per_km if c in sel else np.nan for c in conds]
+        loss = [100 * loss_excess(sel[c]) if c in sel else np.nan for c in conds]
         ax[0].bar(x + j * wdt, torque, wdt, label=v)
         ax[1].bar(x + j * wdt, copper, wdt)
         ax[2].bar(x + j * wdt, energy, wdt)
-    for a, t in zip(ax, ("torque error RMS (N·m)", "copper loss above the optimum (%)", "battery energy (Wh/km)")):
+        ax[3].bar(x + j * wdt, loss, wdt)
+    for a, t in zip(ax, ("torque error RMS (N·m)", "copper loss above the optimum (%)", "battery energy (Wh/km)",
+                         "drive loss above the least-loss optimum (%)")):
         a.set_xticks(x + 0.4 - wdt / 2, [textwrap.fill(c, 12) for c in conds], fontsize=8)
         a.set_title(t)
         a.grid(alpha=0.3, axis="y")
     ax[2].set_ylim(bottom=min(r.summary.Wh_per_km for r in results) * 0.97)
     ax[0].legend(fontsize=7)
-    fig.suptitle(f"{cycle}: Ferrari versus 2-D tables")
+    fig.suptitle(f"{cycle}: Ferrari versus 2-D tables, least current and least loss")
     fig.tight_layout()
     write_atomically(out / "study.png", lambda p: fig.savefig(p, format="png", dpi=100))
     plt.close(fig)

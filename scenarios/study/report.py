@@ -15,22 +15,31 @@ from scenarios.study import table
 PLOT_GROUPS_MAX = 60
 
 
-def variant_label(method: str, recursion: int) -> str:
-    """The compare study's name of a variant (method, recursion), else one made of them."""
-    from scenarios.study.compare import VARIANTS
-    return next((v.label for v in VARIANTS if (v.method, v.recursion) == (method, recursion)),
-                f"{method}, recursion {recursion}")
+def variant_label(method: str, recursion: int, objective: str | None = "current") -> str:
+    """The compare study's name of a variant (method, recursion, objective), else one made of them."""
+    from scenarios.study.compare import LEAST_LOSS_VARIANTS, VARIANTS
+    objective = objective or "current"
+    return next((v.label for v in VARIANTS + LEAST_LOSS_VARIANTS
+                 if (v.method, v.recursion, v.objective) == (method, recursion, objective)),
+                f"{method}, recursion {recursion}" + ("" if objective == "current" else f", least {objective}"))
 
 
 def _label(r: dict) -> str:
     grid = f", {r['lut_n_torque']} x {r['lut_n_speed']} points" if r["lut_n_torque"] is not None else ""
-    return variant_label(r["method"], r["recursion"]) + grid
+    return variant_label(r["method"], r["recursion"], r.get("objective")) + grid
 
 
 def _copper_excess(r: dict) -> float:
     """The run's copper loss over the optimum's, less 1 (NaN without the optimum)."""
     opt, cu = r["copper_loss_optimal_Wh"], r["copper_loss_Wh"]
     return cu / opt - 1 if opt and not table.is_nan(opt) and not table.is_nan(cu) else math.nan
+
+
+def _loss_excess(r: dict) -> float:
+    """The run's drive loss (copper + iron + inverter) over the least-loss optimum's, less 1 (NaN
+    without that optimum: FMUs without the least-loss controller, or rows of older studies)."""
+    opt, loss = r.get("drive_loss_optimal_Wh"), r.get("drive_loss_Wh")
+    return loss / opt - 1 if opt and not table.is_nan(opt) and not table.is_nan(loss) else math.nan
 
 
 def _num(x, fmt: str, scale: float = 1.0) -> str:
@@ -47,7 +56,8 @@ def _where(r: dict) -> str:
 
 def _order(r: dict) -> tuple:
     return (r["drive"], r["cycle"], r["window_start_s"] if not table.is_nan(r["window_start_s"]) else -1.0,
-            -r["u_dc_scale"], r["T_magnet_degC"], r["T_winding_degC"], r["method"], r["recursion"])
+            -r["u_dc_scale"], r["T_magnet_degC"], r["T_winding_degC"], r.get("objective") or "current", r["method"],
+            r["recursion"])
 
 
 def write_report(out: Path, runs: pa.Table | None = None) -> Path:
@@ -66,15 +76,18 @@ def write_report(out: Path, runs: pa.Table | None = None) -> Path:
              "Made from runs.parquet alone (`python -m scenarios study --report-only DIR`). Traces:",
              "`traces/<key>.parquet`. Copper loss vs optimum: the run's copper loss over that of the exact",
              "optimum (Ferrari, recursion 2) at the same delivered torque and conditions. Torque error: the",
-             "delivered T_e against the controller's clamped command T_cmd, 10-ms means.", ""]
+             "delivered T_e against the controller's clamped command T_cmd, 10-ms means. Loss vs least-loss",
+             "optimum: the run's copper + iron + inverter loss over the least-loss optimum's (objective 1) at the",
+             "same delivered shaft torque and conditions.", ""]
     groups: dict[str, list[dict]] = {}
     for r in ok:
         groups.setdefault(_where(r), []).append(r)
     for where, rs in groups.items():
         lines += [f"## {where}", "",
                   "| method | Wh/km | speed RMSE (km/h) | torque error RMS / max (N·m) | copper loss vs optimum "
-                  "| current excess RMS (A) | time above V_max / voltage-limited | run wall (s) | key |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "| current excess RMS (A) | time above V_max / voltage-limited | loss copper / iron / inverter (Wh) "
+                  "| loss vs least-loss optimum | run wall (s) | key |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rs:
             lines.append(f"| {_label(r)} | {_num(r['Wh_per_km'], '.2f')} | "
                          f"{_num(r['speed_rmse_mps'], '.2f', 3.6)} | "
@@ -82,6 +95,8 @@ def write_report(out: Path, runs: pa.Table | None = None) -> Path:
                          f"{_num(_copper_excess(r), '+.2%')} | {_num(r['current_excess_rms_A'], '.2f')} | "
                          f"{_num(r['time_above_V_max_pct'], '.1f')} % / "
                          f"{_num(r['time_voltage_limited_pct'], '.1f')} % | "
+                         f"{_num(r['copper_loss_Wh'], '.1f')} / {_num(r['iron_loss_Wh'], '.1f')} / "
+                         f"{_num(r['inverter_loss_Wh'], '.1f')} | {_num(_loss_excess(r), '+.2%')} | "
                          f"{_num(r['run_wall_s'], '.1f')} | `{r['key']}` |")
         lines.append("")
     if failed:

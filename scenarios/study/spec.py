@@ -10,6 +10,7 @@ singular: drive, cycle, method, ...), each missing key taking the default. `wind
     window_s = [0.0, 120.0]
     methods = ["ferrari", "lut_speed", "lut_flux"]
     recursions = [1, 2]
+    objectives = ["current", "loss"]   # least current, least loss (default: the drive's controller.objective)
     u_dc_scale = [1.0, 0.85]
     T_magnet_degC = [20.0, 120.0]
     T_winding_degC = [20.0]
@@ -28,7 +29,7 @@ from pathlib import Path
 
 from scenarios.core.constants import T_REFERENCE_K, U_DC_SCALE_MAX, ZERO_CELSIUS_K
 from scenarios.core.fmu_ranges import fmu_ranges
-from scenarios.drives.description import DriveDescription, load_drive
+from scenarios.drives.description import OBJECTIVES, DriveDescription, controller_has_objective, load_drive
 from scenarios.runs.simulate import METHODS, STUDY_CONDITIONS, Conditions, RunSpec
 from scenarios.vehicle.cycles import STANDARD_CYCLES
 
@@ -62,6 +63,7 @@ class Run:
     lut_n_speed: int | None = None
     command_check: int = 1           # the controller's: 1 replaces failing commands, 0 studies a method alone
     thermal_model: int | None = None  # 1: the thermal network on, 0: off; None: the drive's [thermal]
+    objective: str | None = None     # what the controller minimises: "current" or "loss"; None: the drive's
 
     @property
     def lut_grid(self) -> tuple[int, int] | None:
@@ -106,7 +108,8 @@ class Run:
 #: [study] key (a list) -> Run field; the [[run]] tables use the field names
 AXES = {"drives": "drive", "cycles": "cycle", "methods": "method", "recursions": "recursion",
         "u_dc_scale": "u_dc_scale", "T_magnet_degC": "T_magnet_degC", "T_winding_degC": "T_winding_degC",
-        "lut_grids": "lut_grid", "command_checks": "command_check", "thermal_models": "thermal_model"}
+        "lut_grids": "lut_grid", "command_checks": "command_check", "thermal_models": "thermal_model",
+        "objectives": "objective"}
 RUN_KEYS = tuple(AXES.values()) + ("window_s",)
 
 #: the controller's bounds of lut_n_torque and lut_n_speed (its modelDescription)
@@ -164,6 +167,12 @@ def _value(field: str, v, path: Path | None, key: str):
     if field == "method":
         if v not in METHODS:
             raise SpecError(f"{_where(path, key)}: expected one of {', '.join(METHODS)}, got {v!r}")
+        return v
+    if field == "objective":
+        if v not in OBJECTIVES:
+            raise SpecError(f"{_where(path, key)}: expected one of {', '.join(OBJECTIVES)}, got {v!r}")
+        if v != "current" and not controller_has_objective():
+            raise SpecError(f"{_where(path, key)}: {v!r} needs FMUs with the `objective` parameter: rebuild them")
         return v
     if field == "lut_grid":
         if not isinstance(v, list) or len(v) != 2:
@@ -309,4 +318,4 @@ def run_spec(run: Run, drive: DriveDescription | None = None) -> RunSpec:
     """The simulation's specification of a run (its drive loaded already, or loaded here)."""
     drive = drive if drive is not None else load_drive(run.drive or None)
     return RunSpec(drive=drive, method=run.method, recursion=run.recursion, conditions=run.conditions(),
-                   lut_grid=run.lut_grid, command_check=run.command_check)
+                   lut_grid=run.lut_grid, command_check=run.command_check, objective=run.objective)

@@ -41,12 +41,12 @@ def _arrow_type(t) -> pa.DataType:
     return _ARROW.get(t) or _ARROW[{"str": str, "int": int, "float": float, "bool": bool}.get(t, t)]
 
 
-#: the summary's fields that are columns of their own; `method`, `recursion` and `conditions`
-#: are the spec's columns already, `cycle` (the name with the window) and `drive` (the drive's
+#: the summary's fields that are columns of their own; `method`, `recursion`, `objective` and
+#: `conditions` are the spec's columns already, `cycle` (the name with the window) and `drive` (the drive's
 #: name) are cycle_name and drive_name (the spec's `cycle` and `drive` are what the spec says)
 RENAMED = {"cycle": "cycle_name", "drive": "drive_name"}
 SUMMARY_COLUMNS = tuple(f.name for f in fields(RunSummary)
-                        if f.name not in ("method", "recursion", "conditions", *RENAMED))
+                        if f.name not in ("method", "recursion", "objective", "conditions", *RENAMED))
 
 #: where and how the run ran
 META = (("key", pa.string()), ("status", pa.string()), ("error", pa.string()), ("fmu_hash", pa.string()),
@@ -69,8 +69,9 @@ def row_of(run: Run, meta: dict, summary: RunSummary | None) -> dict:
         row[name] = d.get(name)
     for name, column in RENAMED.items():
         row[column] = d.get(name)
-    if summary is not None:  # the tables' conditions, as the run resolved them from its drive
+    if summary is not None:  # the tables' conditions and the objective, as the run resolved them from its drive
         row["lut_u_dc"], row["lut_T_magnet"] = summary.conditions["lut_u_dc"], summary.conditions["lut_T_magnet"]
+        row["objective"] = summary.objective
     else:  # a failed run too says which release it failed in
         row["version"] = VERSION
     return row
@@ -85,7 +86,8 @@ def row_conditions(row: dict) -> Conditions:
 def summary_of(row: dict) -> RunSummary:
     """The RunSummary of an "ok" row (inverse of row_of)."""
     run = Run.of_row(row)
-    return RunSummary(method=run.method, recursion=run.recursion, conditions=asdict(row_conditions(row)),
+    return RunSummary(method=run.method, recursion=run.recursion, objective=run.objective or "current",
+                      conditions=asdict(row_conditions(row)),
                       **{name: row[column] for name, column in RENAMED.items()},
                       **{k: row[k] for k in SUMMARY_COLUMNS})
 
@@ -239,9 +241,10 @@ def trace_path(out: Path, key: str) -> Path:
 
 
 def write_trace_parquet(trace_csv: Path, dest: Path) -> None:
-    """A run's trace.csv (scenarios.runs.results; floats written as repr, so exact) as Parquet."""
+    """A run's trace.csv (scenarios.runs.results; floats written as repr, so exact) as Parquet.
+    A `nan` stays a float NaN (pyarrow's default reads it as null, and a column of them as nulls)."""
     dest.parent.mkdir(parents=True, exist_ok=True)
-    table = pa_csv.read_csv(trace_csv)
+    table = pa_csv.read_csv(trace_csv, convert_options=pa_csv.ConvertOptions(null_values=[]))
     _atomic_write_table(table, dest)
 
 

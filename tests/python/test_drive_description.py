@@ -21,6 +21,7 @@ from scenarios.drives.description import (
     SCHEMA,
     DriveDescriptionError,
     Key,
+    controller_has_objective,
     load_drive,
     schema_markdown,
 )
@@ -81,6 +82,7 @@ PERTURBED = {
     "controller.k_u": 0.8,
     "controller.current_bandwidth": 1000.0,
     "controller.command_check": 0,
+    "controller.objective": "loss",
     "vehicle.grade": 0.05,
     "thermal.thermal_model": True,
     "thermal.k_fe_yoke": 0.5,
@@ -121,6 +123,8 @@ def default_drive():
 def perturbed_value(key: Key):
     if key.section == "thermal" and default_drive().value(key.path) is None:
         return None  # a key of FMUs newer than the build's (derating, before it was built)
+    if key.path == "controller.objective" and not controller_has_objective():
+        return None  # least loss, before its FMUs are built
     if key.path in PERTURBED:
         return PERTURBED[key.path]
     d = default_drive()

@@ -5,7 +5,7 @@ import json
 
 import scenarios.study.compare
 from scenarios.runs.simulate import STUDY_CONDITIONS, RunSpec, simulate
-from scenarios.study.compare import VARIANTS, run_study
+from scenarios.study.compare import default_variants, run_study
 from scenarios.vehicle.cycles import load_cycle
 
 TIMINGS = ("wall_s", "real_time_factor")
@@ -18,6 +18,7 @@ def test_compare_preset_writes_what_simulate_writes(tmp_path, monkeypatch):
     cycle.write_text("time_s,speed_mps\n0,2\n1,4\n2,5\n")
     conditions = STUDY_CONDITIONS[1:2]  # u_dc -15 %
     out = tmp_path / "compare"
+    VARIANTS = default_variants()  # with least loss's where the FMUs have it: the last run is one of them
     results = run_study(out, cycles=(str(cycle),), conditions=conditions, variants=VARIANTS, workers=2)
     assert len(results) == len(conditions) * len(VARIANTS)
     assert (out / "report.md").exists() and (out / "study.png").exists() and (out / "runs.parquet").exists()
@@ -26,7 +27,8 @@ def test_compare_preset_writes_what_simulate_writes(tmp_path, monkeypatch):
         v = next(v for v in VARIANTS if v.label == r.variant)
         cond = next(c for c in conditions if c.name == r.condition)
         direct = tmp_path / "direct" / r.run_dir
-        simulate(load_cycle(cycle), RunSpec(method=v.method, recursion=v.recursion, conditions=cond, command_check=0),
+        simulate(load_cycle(cycle), RunSpec(method=v.method, recursion=v.recursion, conditions=cond, command_check=0,
+                                                 objective=v.objective),
                  out=direct, progress=False)
         assert (out / r.run_dir / "trace.csv").read_text() == (direct / "trace.csv").read_text()
         got, want = (json.loads((d / "summary.json").read_text()) for d in (out / r.run_dir, direct))
