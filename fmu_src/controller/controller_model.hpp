@@ -119,7 +119,6 @@ private:
     // The voltage that holds the measured currents (R i + j omega psi(i)) within the inverter's
     // linear range, as the regulator's voltage being applied and the command (a flying start).
     void flying_start_voltage(const Conditions& c, const MagnetFlux& flux);
-    void report_check(const CheckRecord& r);  // counts; logs the first
     void report_check(const CheckRecord& r);                           // counts; logs the first
     DriveLoss drive_loss(const Conditions& c) const;                   // the loss model at the present conditions
     CurrentCommand least_loss_command(double T, const Conditions& c);  // objective 1, checked
