@@ -40,6 +40,7 @@ class VehicleStep:
     F_wheel: float = math.nan   # N, the tractive force the drive delivered at the wheels
     fault: bool = False         # the drive's fault input over the step (a [fault] table; docs/faults.md)
     battery_limited: bool = False  # the battery's power limit took torque away (scenarios.runs.power_limit)
+    distance: float = math.nan     # m, driven from the run's start to t
 
 
 @dataclass(frozen=True)
@@ -212,6 +213,12 @@ class RunSummary:
     # the cycle as driven should have been (check's cycle-following limits, scenarios.runs.check)
     cycle_distance_km: float | None = None     # the trace's distance (trapezoidal, as Cycle.distance_m)
     cycle_moving_s: float | None = None        # the time the trace is not standing
+    # ... and the same four figures up to the trip of a run whose fault came ([fault]; after the
+    # trip the car has no traction by design, so check judges the cycle before it; None: no trip)
+    speed_rmse_before_fault_mps: float | None = None     # over the vehicle steps before the trip (NaN: none)
+    distance_before_fault_km: float | None = None        # driven until the trip
+    cycle_distance_before_fault_km: float | None = None  # the trace's until the trip
+    cycle_moving_before_fault_s: float | None = None     # the time the trace moves until the trip
 
     def to_dict(self) -> dict:
         return asdict(self)
