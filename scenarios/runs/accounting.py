@@ -81,10 +81,17 @@ class RunAccounts:
     E_dc_abs: float = 0.0     # J, the energy through the DC link (|drive| + auxiliaries)
     t_battery_limited: float = 0.0  # s with the battery's power limit holding the torque back
     reference_lost: bool = False    # a step without the optimum: its figures are null
+    n_steps: int = 0          # vehicle steps observed
+    distance: float = 0.0     # m, driven by the end of the last one
+    before_fault: tuple | None = None  # (speed_err2, n_steps, distance) at the fault's trip (None: no trip)
 
     def observe(self, s: VehicleStep) -> None:
         """One vehicle step has ended."""
         dt, m = self.dt, s.drive  # means over the step; T_cmd, u_ratio at its end
+        if s.fault and self.before_fault is None:  # the trip: the run so far is the part check judges
+            self.before_fault = (self.speed_err2, self.n_steps, self.distance)
+        self.n_steps += 1
+        self.distance = s.distance
         # Voltage use, sampled at the vehicle step: above the planned V_max = k_u u_dc / sqrt 3
         # (the optimum's reserve for the regulator), and at the inverter's limit u_dc / sqrt 3.
         if m.u_ratio > self.k_u * (1.0 + V_MAX_MARGIN):
@@ -170,6 +177,7 @@ class RunAccounts:
             time_above_top_speed_s=None if self.w_m_max is None else self.t_above_top,
             time_derated_s=self.t_derated, derating_min=self.derating_min, dc_link_residual_Wh=dc_residual * WH,
             time_battery_limited_s=self.t_battery_limited, **self.thermal_figures(), **self.loss_split(km),
+            **self.before_fault_figures(),
         )
 
     def loss_split(self, km: float) -> dict:
@@ -184,6 +192,15 @@ class RunAccounts:
                     inverter_loss_Wh_per_km=per_km(self.E_inv), drive_loss_Wh=E * WH, drive_loss_Wh_per_km=per_km(E),
                     drive_loss_cmd_Wh=known(self.E_loss_cmd),
                     drive_loss_optimal_Wh=known(self.E_loss_opt) if self.reference else None)
+
+    def before_fault_figures(self) -> dict:
+        """The summary's speed error and distance up to the fault's trip (none: no trip; no step
+        before it, a trip at the start: the speed error is undefined, NaN)."""
+        if self.before_fault is None:
+            return {}
+        err2, n, x = self.before_fault
+        return dict(speed_rmse_before_fault_mps=math.sqrt(err2 / n) if n else math.nan,
+                    distance_before_fault_km=x / 1000.0)
 
     def thermal_figures(self) -> dict:
         """The summary's thermal figures (none with the network off)."""

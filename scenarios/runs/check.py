@@ -48,6 +48,10 @@ CYCLE_SPEED_TOLERANCE = 2.0 * KMH
 #: the verdicts every check adds to the drive's limits: name -> (summary key, direction)
 CYCLE_FOLLOWING = {"cycle_speed_rmse_mps_max": ("speed_rmse_mps", "max"),
                    "cycle_distance_km_min": ("distance_km", "min")}
+#: ... and the keys they judge in a run whose fault came (a [fault] table, docs/faults.md): after
+#: the trip the car has no traction by design, so the cycle is judged up to the trip
+CYCLE_FOLLOWING_BEFORE_FAULT = {"cycle_speed_rmse_mps_max": ("speed_rmse_before_fault_mps", "max"),
+                                "cycle_distance_km_min": ("distance_before_fault_km", "min")}
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,7 @@ class Verdict:
     wall_s: float   # the cycle's run time (each of its verdicts reports it)
     error: str | None = None
     note: str | None = None  # why a figure is undefined (a failure, never a pass)
+    scope: str | None = None  # the part of the run judged, when not all of it ("until the trip at t = 1.5 s")
 
     @property
     def rel(self) -> str:
@@ -74,15 +79,24 @@ class Verdict:
         if self.error is not None:
             return f"{self.key}: the cycle could not run: {self.error}"
         state = "holds" if self.passed else "FAILED"
-        return (f"{self.key} = {self.figure:.6g}, limit {self.rel} {self.bound:.6g}: {state}" +
-                ("" if self.note is None else f" ({self.note})"))
+        return (f"{self.key} = {self.figure:.6g}" + ("" if self.scope is None else f" {self.scope}") +
+                f", limit {self.rel} {self.bound:.6g}: {state}" + ("" if self.note is None else f" ({self.note})"))
+
+
+def trip_time(summary: dict) -> float | None:
+    """s, the communication point of the run's fault (None: no [fault] table, or it never came)."""
+    t = summary.get("fault_time_s")
+    return None if t is None else float(t)
 
 
 def cycle_following(summary: dict) -> dict:
-    """The cycle-following limits of a run (CYCLE_FOLLOWING name -> bound): NaN bounds, which
-    fail, when the summary lacks the cycle's figures."""
+    """The cycle-following limits of a run (CYCLE_FOLLOWING name -> bound), over the cycle up to
+    the trip in a run whose fault came: NaN bounds, which fail, when the summary lacks the
+    cycle's figures."""
+    before = "_before_fault" if trip_time(summary) is not None else ""
     try:
-        km = float(summary["cycle_distance_km"]) - CYCLE_SPEED_TOLERANCE * float(summary["cycle_moving_s"]) / 1000.0
+        km = (float(summary[f"cycle_distance{before}_km"]) -
+              CYCLE_SPEED_TOLERANCE * float(summary[f"cycle_moving{before}_s"]) / 1000.0)
     except (KeyError, TypeError, ValueError):
         km = math.nan
     return {"cycle_speed_rmse_mps_max": CYCLE_SPEED_RMSE_MAX, "cycle_distance_km_min": max(km, 0.0)}
@@ -91,10 +105,13 @@ def cycle_following(summary: dict) -> dict:
 def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[Verdict]:
     """The verdicts of one cycle's summary on every limit and on the cycle-following limits every
     check applies (a NaN or missing figure, e.g. Wh_per_km of a run that covered no distance,
-    fails)."""
+    fails). A run whose fault came is judged on the cycle up to the trip (the verdict says so)."""
+    t_trip = trip_time(summary)
+    following = CYCLE_FOLLOWING if t_trip is None else CYCLE_FOLLOWING_BEFORE_FAULT
+    scope = None if t_trip is None else f"until the trip at t = {t_trip:.6g} s"
     out = []
     for name, bound in {**limits, **cycle_following(summary)}.items():
-        key, direction = LIMITS[name] if name in LIMITS else CYCLE_FOLLOWING[name]
+        key, direction = LIMITS[name] if name in LIMITS else following[name]
         value = summary.get(key)
         try:
             x = math.nan if value is None else float(value)
@@ -102,12 +119,14 @@ def judge(cycle: str, summary: dict, limits: dict, wall_s: float = 0.0) -> list[
             x = math.nan
         ok = math.isfinite(x) and (x <= bound if direction == "max" else x >= bound)
         out.append(Verdict(cycle, name, key, x, bound, ok, wall_s, note=None if math.isfinite(x) else
-                           undefined_because(key, summary)))
+                           undefined_because(key, summary), scope=None if name in LIMITS else scope))
     return out
 
 
 def undefined_because(key: str, summary: dict) -> str:
     """Why a summary's figure is undefined, in words (the verdict fails: nothing was measured)."""
+    if key == "speed_rmse_before_fault_mps" and summary.get("distance_before_fault_km") is not None:
+        return "the fault came at the cycle's start: no part of it before the trip to judge"
     if key.startswith("fault_"):
         if summary.get("fault_trigger") is None:
             return "the run had no fault: the drive has no [fault] table"
@@ -212,8 +231,10 @@ def markdown(drive: DriveDescription, verdicts: list[Verdict], notes: list[str] 
     for v in verdicts:
         result = "pass" if v.passed else ("**ERROR**: " + _md_cell(v.error) if v.error is not None else
                                           "**FAIL**" + ("" if v.note is None else ": " + _md_cell(v.note)))
+        result += "" if v.scope is None else f" ({_md_cell(v.scope)})"
         lines.append(f"| {_md_cell(v.cycle)} | `{v.limit}` | {v.figure:.6g} | {v.rel} {v.bound:.6g} | {result} |")
-    lines += ["", "`cycle_*` limits: every check's (the car followed the cycle: scenarios.runs.check.CYCLE_FOLLOWING)."]
+    lines += ["", "`cycle_*` limits: every check's (the car followed the cycle: scenarios.runs.check.CYCLE_FOLLOWING; "
+              "in a run whose fault came, up to the trip)."]
     if notes:
         lines += ["", "## Derating", ""] + [f"- {_md_cell(n)}" for n in notes]
     return "\n".join(lines) + "\n"

@@ -41,6 +41,7 @@ class VehicleStep:
     fault: bool = False         # the drive's fault input over the step (a [fault] table; docs/faults.md)
     battery_limited: bool = False  # the battery's power limit took torque away (scenarios.runs.power_limit)
     P_loss_opt: float = math.nan  # W, the least-loss optimum's loss at the delivered shaft torque (NaN: none)
+    distance: float = math.nan     # m, driven from the run's start to t
 
 
 @dataclass(frozen=True)
@@ -228,6 +229,12 @@ class RunSummary:
     drive_loss_Wh_per_km: float | None = None
     drive_loss_cmd_Wh: float | None = None     # the commands' predicted loss (P_loss_cmd; None: an FMU without it)
     drive_loss_optimal_Wh: float | None = None  # the least-loss optimum's at the delivered shaft torque
+    # ... and the same four figures up to the trip of a run whose fault came ([fault]; after the
+    # trip the car has no traction by design, so check judges the cycle before it; None: no trip)
+    speed_rmse_before_fault_mps: float | None = None     # over the vehicle steps before the trip (NaN: none)
+    distance_before_fault_km: float | None = None        # driven until the trip
+    cycle_distance_before_fault_km: float | None = None  # the trace's until the trip
+    cycle_moving_before_fault_s: float | None = None     # the time the trace moves until the trip
 
     def to_dict(self) -> dict:
         return asdict(self)

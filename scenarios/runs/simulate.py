@@ -36,7 +36,7 @@ from scenarios.runs.fault import FaultAccounts, FaultTrigger, demagnetisation_li
 from scenarios.runs.power_limit import advance_within
 from scenarios.runs.results import RunSummary, Trace, VehicleStep, write_results
 from scenarios.vehicle.battery import Battery
-from scenarios.vehicle.cycles import Cycle, load_cycle, sampled
+from scenarios.vehicle.cycles import Cycle, load_cycle, sampled, segment
 from scenarios.vehicle.driver import BlendParams, Driver, DriverParams, blend
 from scenarios.vehicle.longitudinal import Vehicle, motor_speed, wheel_force
 
@@ -361,10 +361,19 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
         yield VehicleStep(t=t_ref[k + 1], v_ref=v_ref[k + 1], v=vehicle.v, w_m=w_m, u_dc=u_dc, T_ref=T_ref,
                           F_brake=F_brake, drive=m, P_inverter=m.P_inv, P_dc=P_dc, I=I, I_opt=I_opt,
                           P_cu_opt=P_cu_opt, soc=battery.soc, F_demand=F_dem, F_wheel=F_w, fault=on,
-                          battery_limited=lim.limited, P_loss_opt=P_loss_opt)
+                          battery_limited=lim.limited, P_loss_opt=P_loss_opt, distance=vehicle.distance)
         if thermal:
             T_magnet, T_winding = m.theta_magnet, m.theta_winding
             R = winding_resistance(drive, T_winding)
+
+
+def cycle_before(cycle: Cycle, t: float) -> dict:
+    """The summary's cycle_distance_before_fault_km and cycle_moving_before_fault_s: the trace
+    from its start to the trip at t (s, the cycle's time), as cycle_distance_km and cycle_moving_s."""
+    t0, t1 = float(cycle.time_s[0]), float(cycle.time_s[-1])
+    part = segment(cycle, t0, min(t, t1), rebase=False) if t > t0 else None  # a trip at the start: none
+    return dict(cycle_distance_before_fault_km=0.0 if part is None else part.distance_m / 1000.0,
+                cycle_moving_before_fault_s=0.0 if part is None else part.moving_s)
 
 
 def simulate(cycle: Cycle | str, spec: RunSpec | None = None, fmus: tuple[Path, Path] | None = None,
@@ -438,7 +447,9 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
     summary = replace(summary, drive=drive.name, drive_sha256=drive.sha256, cycle_distance_km=cycle.distance_m / 1000.0,
                       cycle_moving_s=cycle.moving_s, objective=spec.objective_name,
                       controller_loss_scale=spec.controller_loss_scale,
-                      **(faults.figures() if faults is not None else {}))
+                      **(faults.figures() if faults is not None else {}),
+                      **(cycle_before(cycle, trigger.t_start) if trigger is not None and trigger.t_start is not None
+                         else {}))
     try:
         if out is not None:
             write_results(out, summary, trace)

@@ -26,7 +26,7 @@ from scenarios.drives.description import (
     load_drive,
 )
 from scenarios.maps.flux_map import DEFAULT_MAP, read_flux_map
-from scenarios.runs.check import judge
+from scenarios.runs.check import CYCLE_FOLLOWING, CYCLE_SPEED_RMSE_MAX, judge
 from scenarios.runs.fault import FaultTrigger
 from scenarios.vehicle.cycles import load_cycle, segment
 
@@ -204,6 +204,47 @@ def test_judge_passes_and_fails_fault_limits_and_says_why_a_figure_is_missing():
     assert not no_trip.passed and "never reached" in no_trip.message and "130 km/h" in no_trip.message
 
 
+#: a run that followed its cycle until a trip at 20 s and fell 2.3 km behind after it
+FOLLOWED = dict(fault_trigger="fault.t_s = 20 s", fault_time_s=20.0, speed_rmse_mps=12.0, distance_km=0.5,
+                cycle_distance_km=2.8, cycle_moving_s=100.0, speed_rmse_before_fault_mps=0.1,
+                distance_before_fault_km=0.6, cycle_distance_before_fault_km=0.605, cycle_moving_before_fault_s=20.0)
+
+
+@pytest.mark.parametrize("change, passed", [
+    ({}, {"cycle_speed_rmse_mps_max": True, "cycle_distance_km_min": True}),
+    # behind before the trip: 0.5 m/s RMS; 593.8 m, short of 605 m less 2 km/h over 20 s (593.9 m)
+    ({"speed_rmse_before_fault_mps": 0.5}, {"cycle_speed_rmse_mps_max": False, "cycle_distance_km_min": True}),
+    ({"distance_before_fault_km": 0.5938}, {"cycle_speed_rmse_mps_max": True, "cycle_distance_km_min": False}),
+    # a trip at the cycle's start: nothing before it, the speed error undefined (fails)
+    ({"fault_time_s": 0.0, "speed_rmse_before_fault_mps": math.nan, "distance_before_fault_km": 0.0,
+      "cycle_distance_before_fault_km": 0.0, "cycle_moving_before_fault_s": 0.0},
+     {"cycle_speed_rmse_mps_max": False, "cycle_distance_km_min": True}),
+    # the before-fault figures missing from a tripped run's summary: never a pass
+    ({"distance_before_fault_km": None, "cycle_distance_before_fault_km": None},
+     {"cycle_speed_rmse_mps_max": True, "cycle_distance_km_min": False}),
+])
+def test_a_tripped_run_is_judged_on_the_cycle_before_the_trip(change, passed):
+    s = {**FOLLOWED, **change}
+    v = {x.limit: x for x in judge("c", s, {})}
+    assert set(v) == set(CYCLE_FOLLOWING)
+    assert {k: x.passed for k, x in v.items()} == passed
+    for x in v.values():
+        assert x.key.endswith("_before_fault_mps") or x.key.endswith("_before_fault_km"), x.key
+        assert f"until the trip at t = {s['fault_time_s']:g} s" in x.message, x.message
+    if s["cycle_distance_before_fault_km"] is not None:   # the cycle's until the trip less 2 km/h over its moving time
+        km = s["cycle_distance_before_fault_km"] - 2.0 / 3.6 * s["cycle_moving_before_fault_s"] / 1000.0
+        assert v["cycle_distance_km_min"].bound == pytest.approx(max(km, 0.0))
+    if math.isnan(v["cycle_speed_rmse_mps_max"].figure):
+        assert "no part of it before the trip" in v["cycle_speed_rmse_mps_max"].message
+
+
+def test_a_run_whose_fault_never_came_is_judged_whole():
+    s = {k: v for k, v in FOLLOWED.items() if "before_fault" not in k and k != "fault_time_s"}
+    v = {x.limit: x for x in judge("c", s, {})}
+    assert [v[k].key for k in CYCLE_FOLLOWING] == [key for key, _ in CYCLE_FOLLOWING.values()]
+    assert not any(x.passed for x in v.values()) and not any("until the trip" in x.message for x in v.values())
+
+
 # -- with IpmsmDrive's fault input ----------------------------------------------------------------
 @pytest.fixture(scope="module")
 def fault_fmus():
@@ -252,6 +293,35 @@ def test_the_trip_run_has_the_fault_keys(trip_run):
     assert d["fault_time_to_zero_current_s"] is not None
     assert d["fault_time_s"] + d["fault_time_to_zero_current_s"] <= WINDOW[1] - WINDOW[0]
     assert d["undefined"] == [k for k, v in d.items() if v is None]
+
+
+def test_the_trip_run_has_the_cycle_figures_up_to_the_trip(trip_run):
+    """The before-fault figures against the steps before the trip, summed here, and the cycle's
+    trace integrated by scipy; the run followed the cycle until 130 km/h: check's cycle-following
+    verdicts hold there, and fail on the whole run."""
+    from scipy.integrate import quad
+    s, steps, _ = trip_run
+    k = next(i for i, x in enumerate(steps) if x.fault)
+    before = steps[:k]
+    assert before and before[-1].t == pytest.approx(s.fault_time_s)
+    rmse = math.sqrt(sum((x.v - x.v_ref) ** 2 for x in before) / len(before))
+    assert s.speed_rmse_before_fault_mps == pytest.approx(rmse, rel=1e-12)
+    v0 = segment(load_cycle("WLTC3b"), *WINDOW).speed_mps[0]
+    vs = [v0] + [x.v for x in before]
+    assert s.distance_before_fault_km == pytest.approx(sum(0.5 * (a + b) * 0.01 for a, b in zip(vs, vs[1:])) / 1000,
+                                                       rel=1e-9)
+    cycle = segment(load_cycle("WLTC3b"), *WINDOW)
+    t = cycle.time_s
+    km, _ = quad(lambda x: float(np.interp(x, t, cycle.speed_mps)), 0.0, s.fault_time_s,
+                 points=t[t < s.fault_time_s][1:], epsabs=1e-9, limit=200)
+    assert s.cycle_distance_before_fault_km == pytest.approx(km / 1000, rel=1e-9)
+    assert s.cycle_moving_before_fault_s == pytest.approx(s.fault_time_s)   # at motorway speed throughout
+    assert s.distance_before_fault_km < s.distance_km and s.speed_rmse_before_fault_mps < s.speed_rmse_mps
+    v = {x.limit: x for x in judge("WLTC3b", s.to_dict(), {})}
+    assert all(x.passed for x in v.values()), [x.message for x in v.values()]
+    assert s.speed_rmse_before_fault_mps < CYCLE_SPEED_RMSE_MAX < s.speed_rmse_mps
+    whole = {k: x for k, x in s.to_dict().items() if k != "fault_time_s"}   # as if judged whole
+    assert not all(x.passed for x in judge("WLTC3b", whole, {}))
 
 
 def test_after_the_trip_the_driver_gets_no_traction(trip_run):
@@ -332,13 +402,45 @@ def test_check_gates_on_the_fault_figures(fault_fmus, tmp_path, capsys):
     status, text = _check(tmp_path, capsys, build=build, limits={
         "fault_i_peak_A_max": 5000.0, "fault_braking_torque_Nm_max": 1000.0, "fault_charge_Ah_max": 1.0,
         "fault_energy_Wh_max": 100.0})
-    assert status == 0, text
+    assert status == 0, text   # the car followed the cycle until the trip: the cycle-following verdicts hold
+    for key in ("speed_rmse_before_fault_mps", "distance_before_fault_km"):
+        assert f"ok   f/road.csv {key} = " in text, text
+    assert text.count("until the trip at t = ") == 2 * 2   # stdout and check.md, each verdict
+
+
+TRIP_AT = '[fault]\nt_s = {t_s}\n[checks]\ncycles = ["road.csv"]\nfault_i_peak_A_max = 5000.0\n{battery}'
+
+
+@pytest.mark.parametrize("case, t_s, battery, failed", [
+    # a pack that cannot deliver (R0 = 5 Ohm: some 6 kW at most, the road load at 100 km/h more): the car falls behind
+    # the cycle's 94 -> 108 km/h before the trip at 5 s
+    ("weak pack", 5.0, "[battery]\nR0 = 5.0\n", ("speed_rmse_before_fault_mps", "distance_before_fault_km")),
+    # a trip at the cycle's start: nothing followed, nothing to judge
+    ("trip at the start", 0.0, "", ("speed_rmse_before_fault_mps",)),
+    ("normal pack", 5.0, "", ()),
+])
+def test_a_car_that_did_not_follow_the_cycle_before_the_trip_fails(fault_fmus, tmp_path, capsys, case, t_s, battery,
+                                                                   failed):
+    (tmp_path / "road.csv").write_text("time_s,speed_mps\n0,26.0\n3,30.0\n8,30.0\n")
+    p = write(tmp_path, TRIP_AT.format(t_s=t_s, battery=battery))
+    status = cli.main(["--build", str(fault_fmus[0].parent.parent), "check", str(p), "--out", str(tmp_path / "out")])
+    text = capsys.readouterr().out
+    assert status == (1 if failed else 0), text
+    for key in ("speed_rmse_before_fault_mps", "distance_before_fault_km"):
+        state = "FAIL" if key in failed else "ok  "
+        assert f"{state} f/road.csv {key} = " in text, text
+    assert f"until the trip at t = {t_s:g} s" in text
+    if case == "trip at the start":
+        assert "no part of it before the trip to judge" in text
 
 
 def test_a_cycle_that_never_trips_fails_a_fault_limit_clearly(fault_fmus, tmp_path, capsys):
     status, text = _check(tmp_path, capsys, {"fault_i_peak_A_max": 5000.0}, cycle="town.csv",
                           build=fault_fmus[0].parent.parent)
     assert status == 1 and "no fault in this cycle: fault.v_kmh = 100 km/h was never reached" in text
+    # judged whole, as a run without a [fault] table
+    assert "ok   f/town.csv speed_rmse_mps = " in text and "ok   f/town.csv distance_km = " in text
+    assert "before_fault" not in text and "until the trip" not in text
 
 
 def test_the_backend_without_the_drive_fmu_refuses_a_fault(fault_fmus):
