@@ -205,7 +205,14 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
         out.integrals[StepIntegrands::P_fe] += span * fe.power(integrands.pole_pairs, integrands.w_m, psi0[0], psi0[1]);
     };
     double start[2] = {psi[0], psi[1]};
-    if (blocked) {
+    // A current whose flux is within the zero tolerance of psi_0 (the one a root's zero is accepted
+    // with, below) is i = 0, as exactly zero currents are: its direction is rounding, and the
+    // bridge's resistance k/|i| would make it a stiffness no step resolves. It starts as the bridge
+    // does from i = 0: blocked below the onset, conducting along n_on above it (MATH.md, "Onset and
+    // blocking, exactly").
+    const double zero_tol = kZeroTolerances * (s.rtol * std::hypot(psi0[0], psi0[1]) + s.atol);
+    const bool at_zero = blocked || std::hypot(psi[0] - psi0[0], psi[1] - psi0[1]) <= zero_tol;
+    if (at_zero) {
         if (!onset) {
             blocked_for(h);
             out.psi[0] = psi0[0], out.psi[1] = psi0[1];
@@ -213,7 +220,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
             return out;
         }
         start[0] = psi0[0], start[1] = psi0[1];  // conduction starts from i = 0 along n_on
-        ++out.switchings;
+        if (blocked) ++out.switchings;
     }
 
     if (!ws_) ws_ = std::make_unique<Workspace>();
@@ -232,8 +239,8 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
     w.k = k;
     w.n_zero[0] = onset ? dirs.onset[0] : 0.0;
     w.n_zero[1] = onset ? dirs.onset[1] : 0.0;
-    w.seed[0] = blocked ? 0.0 : i_seed[0];
-    w.seed[1] = blocked ? 0.0 : i_seed[1];
+    w.seed[0] = at_zero ? 0.0 : i_seed[0];
+    w.seed[1] = at_zero ? 0.0 : i_seed[1];
     w.r_zero = kZeroCurrent * s.current_scale;
     w.r_continue = kContinuedCurrent * s.current_scale;
     w.error.clear();
@@ -305,8 +312,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
             }
             const InverseFluxPoint c = w.currents(y);
             const double dpsi[2] = {L0[0] * c.i_d + L0[1] * c.i_q, L0[2] * c.i_d + L0[3] * c.i_q};
-            const double tol = kZeroTolerances * (s.rtol * std::hypot(psi0[0], psi0[1]) + s.atol);
-            if (std::hypot(dpsi[0], dpsi[1]) <= tol)
+            if (std::hypot(dpsi[0], dpsi[1]) <= zero_tol)
                 zero = true;
             else
                 w.armed[j] = false;  // the current crossed the line i = s n_j away from zero

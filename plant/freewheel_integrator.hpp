@@ -23,6 +23,8 @@
 //
 // Conduction starts only at a communication point (the inputs are held over a step, and so is
 // |e_0| = |omega| |psi_0|), from psi_0 along the onset direction.
+// A call starting within the zero tolerance of psi_0 (a current of rounding size) starts as from
+// i = 0: blocked below the onset, along the onset direction above it.
 //
 // The integrator's state is the plant's (psi, blocked, the currents' Newton seed); CVODE is
 // re-initialised at every call, so a call's result depends only on that state, the inputs and h.

@@ -175,3 +175,26 @@ def test_no_fault_bit_for_bit_as_the_baseline(drive_fmu):
     names_base, base = trace(BASELINE / "IpmsmDrive.fmu")
     names_now, now = trace(drive_fmu)
     assert base.tobytes() == now[:, [names_now.index(n) for n in names_base]].tobytes()
+
+
+W_FUNDAMENTAL = 2 * U_DC / (math.pi * P * PSI_0)  # rad/s: the fundamental onset (MATH.md, "Onset and blocking")
+
+
+@pytest.mark.parametrize("rpm", [50, 300, 1000, 2500, 3000, 4500, 5000, 6000, 6500, 6800, 7100, 8000, 9000, 12000])
+def test_freewheeling_starts_from_no_load_at_any_speed(drive_fmu, rpm):
+    """A trip from no load (T_ref = 0: the current zero up to rounding, or field weakening's)
+    freewheels from the first step:
+    blocked with i = 0 exactly below the fundamental onset, conducting above it. Every step fmi2OK
+    (Fmu raises on any other status)."""
+    w_m = rpm * math.pi / 30
+    with Fmu(drive_fmu, safe_state=1) as f:
+        f.set(T_ref=0.0, w_m=w_m)
+        steps(f, 5, h=10e-3)
+        f.set(fault=True)
+        fault = steps(f, 10, h=10e-3)
+        assert {r[3] for r in fault} == {1}
+        I = [math.hypot(r[1], r[2]) for r in fault]
+        if w_m < W_FUNDAMENTAL:
+            assert I[-1] == 0.0 and fault[-1][6] == 0.0
+        else:
+            assert I[-1] > 1.0 and fault[-1][6] < 0.0  # the bridge charges the DC link
