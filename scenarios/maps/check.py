@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenarios.core.boundary import printable, strict_json, write_atomically
+from scenarios.core.boundary import check_writable, printable, strict_json, write_atomically
 from scenarios.maps import legal
 from scenarios.maps.flux_map import FluxMap, read_flux_map
 from scenarios.maps.fmu_verdict import verdicts
@@ -126,6 +126,7 @@ def check_map(path: Path, out: Path, build: Path, I_max: float | None = None, dr
     path = Path(path)
     csv, fmap = readable(path)
     params, assumed, _ = machine_of(path, fmap, I_max, drive)
+    check_writable(out, "--out")  # after the map's refusals (no folder left for them), before the work
     I_lim = float(params["I_max"])
     no_magnet, box, _, summaries, rect = analyse(fmap, I_lim)
     _, rec_max, rec_rel, rec_at = reciprocity(fmap, I_lim)

@@ -46,8 +46,9 @@ def add_parser(sub) -> None:
 
 
 def _outputs_writable(args) -> None:
-    """The output folder (check, show) or file (import, repair) refused (exit 2, --out) before any
-    work when it cannot be written: a read-only folder, a FIFO or a device in the file's place."""
+    """The output folder (show; check's in check_map, once the map is read) or file (import,
+    repair) refused (exit 2, --out) before any work when it cannot be written: a read-only folder,
+    a FIFO or a device in the file's place."""
     from scenarios.core.boundary import check_writable, output_target
     from scenarios.core.paths import OUT_DIR
     if args.map_cmd in ("import", "repair"):
@@ -56,7 +57,8 @@ def _outputs_writable(args) -> None:
         return
     if args.out is None:
         args.out = OUT_DIR / (f"map_check_{args.file.stem}" if args.map_cmd == "check" else f"map_{args.file.stem}")
-    check_writable(args.out, "--out")
+    if args.map_cmd == "show":  # (check's folder is checked once the map is read: a refused map leaves none)
+        check_writable(args.out, "--out")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -287,9 +287,13 @@ class LeastLossReference(Fmu):
     def __init__(self, controller_fmu: Path, drive: DriveDescription):
         super().__init__(controller_fmu, instance_name="least_loss_reference",
                          **drive.controller_params(method="ferrari", recursion=2, objective="loss"))
+        self._made = None
         try:
             self._u_vr, self._u = self.vrs(*self.INPUTS), (c_double * len(self.INPUTS))()
             self._y_vr, self._y = self.vrs("P_loss_cmd"), (c_double * 1)()
+            # as OptimumReference's: a step that fails on the state carried from step to step (the
+            # regulator's) is taken again from the instance as it was made, its clock restarted there
+            self._made, self._t0 = self.save_state(), 0.0
         except BaseException:
             self.close()
             raise
@@ -298,9 +302,21 @@ class LeastLossReference(Fmu):
              dt: float) -> float:
         self._u[:] = (T_shaft, w_m, u_dc, T_magnet, T_winding)
         self.call("fmi2SetReal", self._u_vr, len(self._u), self._u)
-        self.do_step(t, dt)
+        try:
+            self.do_step(t - self._t0, dt)
+        except CosimError:  # the carried state's failure: once more from the instance as made
+            self.restore_state(self._made)
+            self._t0 = t
+            self.call("fmi2SetReal", self._u_vr, len(self._u), self._u)
+            self.do_step(0.0, dt)
         self.read(self._y_vr, self._y)
         return self._y[0]
+
+    def close(self) -> None:
+        if self.fmu is not None and getattr(self, "_made", None) is not None:
+            self.free_state(self._made)
+            self._made = None
+        super().close()
 
 
 def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float], drive: DriveFmu | ReferenceDrive,
