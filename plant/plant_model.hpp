@@ -168,7 +168,7 @@ private:
         fmi::FieldRange flux, current, step, temperature;
     };
     StateRanges state_ranges() const;
-    // The network's outputs are its state's, and its heat balance closes (throws fmi::Error).
+    // The network's outputs are its state's (throws fmi::Error).
     void check_thermal_state() const;
 
     DqFluxOde ode() const;  // the right-hand side for the present inputs (throws if invalid)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -45,8 +46,13 @@ void MotorThermal::advance(double h, double E_cu_step, double E_fe_step, const S
 
 double MotorThermal::heat_balance_error() const {
     const double stored = E_stored();
-    const double scale =
-        std::max({std::abs(E_loss_), std::abs(stored), std::abs(E_boundary_[coolant]), std::abs(E_boundary_[ambient])});
+    // E_stored is a difference of temperatures near 300 K: its rounding is relative to the heat
+    // the nodes hold, sum C_i (|theta_i| + |theta0_i|), not to E_stored itself (a network at its
+    // boundaries' temperature with no loss has every energy ~0 and E_stored a few ulps of that)
+    const NodeVector C = capacities(p_);
+    const double held = C.dot(theta_.cwiseAbs() + theta0_.cwiseAbs());
+    const double scale = std::max({std::abs(E_loss_), std::abs(stored), std::abs(E_boundary_[coolant]),
+                                   std::abs(E_boundary_[ambient]), held * std::numeric_limits<double>::epsilon()});
     if (scale == 0.0) return 0.0;
     return std::abs(E_loss_ - stored - E_boundary_[coolant] - E_boundary_[ambient]) / scale;
 }
