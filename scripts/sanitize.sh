@@ -17,6 +17,7 @@ set -euo pipefail
 _root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 _build=${IPMSM_ASAN_BUILD:-$_root/build-asan}
 _python=$(command -v python || command -v python3)
+source "$_root/scripts/compiler_cache.sh" ""
 
 if [ ! -f "$_build/CMakeCache.txt" ]; then
   echo "[sanitize] configuring $_build (AddressSanitizer + UBSan, -O1)"

@@ -11,7 +11,8 @@ say() { printf '\033[1m[setup]\033[0m %s\n' "$*"; }
 
 # --- system packages (Debian names) ---
 APT_PACKAGES=(build-essential cmake ninja-build libeigen3-dev libsundials-dev libgtest-dev valgrind maven
-              clang-format)  # clang-format: the lint step of test.sh
+              clang-format  # the lint step of test.sh
+              ccache)       # compiler cache: a fresh clone rebuilds from it (scripts/compiler_cache.sh)
 missing=()
 for p in "${APT_PACKAGES[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
 if [ ${#missing[@]} -gt 0 ]; then
@@ -45,6 +46,9 @@ export PATH="$ROOT/.venv/bin:$PATH"
 # --- VDMCheck2 (FMI 2.0 model-description checker, Maven Central) -> build-tools/, for the tests ---
 # (an explicit empty argument: the default destination, whatever the caller's arguments are)
 source scripts/install_vdmcheck2.sh ""
+
+# --- compiler cache (ccache) for every build below and scripts/sanitize.sh's ---
+source scripts/compiler_cache.sh ""
 
 # --- win64: mingw-w64, wine, the Windows SUNDIALS (scripts/setup_win64.sh); IPMSM_WIN64=OFF skips ---
 case "${IPMSM_WIN64:-ON}" in OFF|off|0|NO|no|FALSE|false) IPMSM_WIN64=OFF ;; *) IPMSM_WIN64=ON ;; esac
