@@ -6,6 +6,10 @@
 #      libsundials-dev (so both platforms integrate with the same CVODE): static libraries, CVODE
 #      with its serial vector, dense matrix/solver and Newton/fixed-point solvers only, installed
 #      to build-win64-deps/sundials-<version>/ (outside build/, it survives `rm -rf build`).
+#      A third-party build, kept once per machine as pip keeps its wheels: the first clone puts it
+#      in ${XDG_CACHE_HOME:-~/.cache}/ipmsm-fmu/win64-sundials-<version>-<key>, later clones copy
+#      it. The key hashes what determines the build (the cross compiler's version, the toolchain
+#      file, this script); the cache is written whole, then renamed into place.
 # Exports IPMSM_WIN64_SUNDIALS_DIR for the CMake configure (cmake/add_fmu.cmake builds the DLLs).
 # Idempotent; about a minute the first time (plus the packages' download), nothing afterwards.
 set -euo pipefail
@@ -35,6 +39,16 @@ _version=$(dpkg-query -W -f='${Version}' libsundials-dev)
 _upstream=${_version%%+*}; _upstream=${_upstream%%-*}
 _deps=$_root/build-win64-deps
 export IPMSM_WIN64_SUNDIALS_DIR=$_deps/sundials-$_version
+_key=$({ dpkg-query -W gcc-mingw-w64-x86-64-posix g++-mingw-w64-x86-64-posix; x86_64-w64-mingw32-gcc-posix --version
+         cat "$_root/cmake/mingw-w64-x86_64.cmake" "${BASH_SOURCE[0]}"; } | sha256sum | cut -c1-16)
+_cached=${XDG_CACHE_HOME:-$HOME/.cache}/ipmsm-fmu/win64-sundials-$_version-$_key
+if [ ! -f "$IPMSM_WIN64_SUNDIALS_DIR/.complete" ] && [ -f "$_cached/.complete" ]; then
+  _say "SUNDIALS $_version for Windows from this machine's cache ($_cached)"
+  rm -rf "$IPMSM_WIN64_SUNDIALS_DIR" "$IPMSM_WIN64_SUNDIALS_DIR.partial"
+  mkdir -p "$_deps"
+  cp -a "$_cached" "$IPMSM_WIN64_SUNDIALS_DIR.partial"
+  mv -T "$IPMSM_WIN64_SUNDIALS_DIR.partial" "$IPMSM_WIN64_SUNDIALS_DIR"
+fi
 if [ ! -f "$IPMSM_WIN64_SUNDIALS_DIR/.complete" ]; then
   _src=$_deps/src
   if [ ! -d "$_src/sundials-$_upstream" ]; then
@@ -66,4 +80,9 @@ if [ ! -f "$IPMSM_WIN64_SUNDIALS_DIR/.complete" ]; then
   cmake --install "$_deps/sundials-build" >>"$_log" 2>&1
   trap - ERR
   touch "$IPMSM_WIN64_SUNDIALS_DIR/.complete"
+  # into the machine's cache: a whole copy renamed into place (a concurrent set-up's copy may win)
+  if mkdir -p "$(dirname "$_cached")" 2>/dev/null \
+     && _tmp=$(mktemp -d "$(dirname "$_cached")/.win64-sundials.XXXXXX" 2>/dev/null); then
+    { cp -a "$IPMSM_WIN64_SUNDIALS_DIR/." "$_tmp/" && mv -T "$_tmp" "$_cached"; } 2>/dev/null || rm -rf "$_tmp"
+  fi
 fi
