@@ -41,3 +41,17 @@ def test_compare_preset_writes_what_simulate_writes(tmp_path, monkeypatch):
     again = run_study(out, cycles=(str(cycle),), conditions=conditions, variants=VARIANTS, workers=2)
     assert [a.summary for a in again] == [r.summary for r in results]
     assert (out / "report.md").read_text() == report
+    # the controller's cost per call: a column only where bench_controller measured it (where it is
+    # built), otherwise one line saying where the figures come from; every table row as wide as its header
+    assert "ns/call" not in report and "-DIPMSM_BUILD_BENCH=ON" in report
+    scenarios.study.compare.write_report(out, results, {results[0].variant: 123.0})
+    measured = (out / "report.md").read_text()
+    assert "controller ns/call" in measured and "-DIPMSM_BUILD_BENCH=ON" not in measured
+    assert f"| {results[0].variant} |" in measured and "| 123 |" in measured
+    for text in (report, measured):
+        lines = text.splitlines()
+        heads = [k for k, ln in enumerate(lines) if ln.startswith("| method | Wh/km")]
+        assert heads
+        for k in heads:
+            table = lines[k:lines.index("", k)]
+            assert len(table) > 2 and len({ln.count("|") for ln in table}) == 1, table
