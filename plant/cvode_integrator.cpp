@@ -23,9 +23,6 @@ namespace ipmsm {
 
 namespace {
 
-// Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
-constexpr double kStiffLimit = 2.0;
-
 // The absolute tolerances of y's components: atol on the flux components, its equivalents on the
 // step integrals (cvode_integrator.hpp).
 std::array<double, kStates> tolerances(const CvodeSettings& s, const StepIntegrands* integrands, double span) {
@@ -306,7 +303,7 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
         double y_end[kStates], psi_end[2];
         InverseFluxPoint c_end;
         CvodeStats est;
-        if (explicit_steps(w, h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
+        if (explicit_steps(static_cast<const LinearisedProblem&>(w), h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
             commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
             return;
         }

@@ -7,7 +7,9 @@
 #include <string>
 
 #include "cvode_handles.hpp"
+#include "explicit_steps.hpp"
 #include "inverter_state.hpp"
+#include "linearised_step.hpp"
 
 namespace ipmsm {
 
@@ -30,6 +32,104 @@ constexpr double kZeroCurrent = 1e-9;
 // where |i| is below this fraction of the current scale: a current crossing that line at amperes
 // (a false root) keeps the bridge's own voltage.
 constexpr double kContinuedCurrent = 1e-3;
+
+// The explicit steps of a conducting call give up where the current falls below this fraction of
+// its value at the call's start (or below the continued-current bound above): a current heading
+// for zero is left to CVODE's root finding.
+constexpr double kConductingFraction = 0.5;
+
+// The conducting bridge's linearised step (a Problem of explicit_steps.hpp; MATH.md, "The
+// inverter's safe states"): the dq equations with the bridge's voltage u(i) = -k i/|i|,
+// linearised at the call's start psi0, i0 = i(psi0):
+//     f(psi) = f0 + A (psi - psi0) + N(psi),   A = (D0 - R I) G0 + omega J,
+//     D0 = du/di(i0) = -(k/|i0|) (I - e e^T), e = i0/|i0|,
+//     N = u(i) - u0 - D0 (i_lin - i0) - R (i - i_lin),   i_lin = i0 + G0 (psi - psi0),
+// the linear part's flow exact (linear_flow.hpp): the bridge's resistance k/|i| across the
+// current, the stiff part, is in A. Valid while the current stays away from zero and from the
+// lines i = s n_j where the root functions change sign (within()); elsewhere CVODE integrates
+// the call with its root finding.
+struct ConductingStep {
+    static constexpr int kY = 2 + StepIntegrands::count + 2;  // kY above
+    DqFluxOde ode;
+    double k = 0;
+    Linearisation lin;
+    double u0[2] = {0, 0}, D0[4] = {0, 0, 0, 0};
+    const StepIntegrands* integrands = nullptr;
+    const BridgeDirections* dirs = nullptr;
+    bool positive[4] = {};  // g_j = i . n_j > 0 at the start
+    double r_min = 0;       // A: the current's smallest magnitude within()
+
+    // False where the start has no finite currents, is too close to zero, or the linearisation is
+    // too stiff for the step (linearised_step.hpp: kStiffLimit).
+    bool linearise(const double* psi, const InverseFluxPoint& c, double r_continue, double h) {
+        const double r = std::hypot(c.i_d, c.i_q);
+        if (!(r > r_continue) || !std::isfinite(r)) return false;
+        const double ed = c.i_d / r, eq = c.i_q / r, a = -k / r;
+        u0[0] = -k * ed;
+        u0[1] = -k * eq;
+        D0[0] = a * (1.0 - ed * ed);
+        D0[1] = D0[2] = -a * ed * eq;
+        D0[3] = a * (1.0 - eq * eq);
+        const double R = ode.R, w = ode.omega;
+        const double M[4] = {D0[0] - R, D0[1], D0[2], D0[3] - R};
+        const double A[4] = {M[0] * c.G_dd + M[1] * c.G_qd, M[0] * c.G_dq + M[1] * c.G_qq + w,
+                             M[2] * c.G_dd + M[3] * c.G_qd - w, M[2] * c.G_dq + M[3] * c.G_qq};
+        lin.psi0[0] = psi[0];
+        lin.psi0[1] = psi[1];
+        lin.i0[0] = c.i_d;
+        lin.i0[1] = c.i_q;
+        lin.G0[0] = c.G_dd;
+        lin.G0[1] = c.G_dq;
+        lin.G0[2] = c.G_qd;
+        lin.G0[3] = c.G_qq;
+        lin.f0[0] = u0[0] - R * c.i_d + w * psi[1];
+        lin.f0[1] = u0[1] - R * c.i_q - w * psi[0];
+        if (!std::isfinite(lin.f0[0] + lin.f0[1] + A[0] + A[1] + A[2] + A[3])) return false;
+        lin.flow = LinearFlow(A);
+        for (int j = 0; j < dirs->n_decay; ++j) positive[j] = c.i_d * dirs->decay[j][0] + c.i_q * dirs->decay[j][1] > 0.0;
+        r_min = std::max(r_continue, kConductingFraction * r);
+        return lin.flow.max_decay() * h <= kStiffLimit;
+    }
+
+    void start_derivative(double* d) const {
+        d[0] = d[1] = 0.0;
+        const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
+        integrands_at(lin.psi0, c0, d);
+    }
+
+    void linearised_rhs(const FlowAt& F, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
+        lin.psi_at(F, y, psi);
+        double i_lin[2];
+        lin.predicted_currents(psi, i_lin);
+        c = ode.currents_near(psi[0], psi[1], i_lin[0], i_lin[1]);
+        const double r = std::hypot(c.i_d, c.i_q);
+        const double di[2] = {i_lin[0] - lin.i0[0], i_lin[1] - lin.i0[1]};
+        const double n0 = (-k * c.i_d / r - u0[0]) - (D0[0] * di[0] + D0[1] * di[1]) - ode.R * (c.i_d - i_lin[0]);
+        const double n1 = (-k * c.i_q / r - u0[1]) - (D0[2] * di[0] + D0[3] * di[1]) - ode.R * (c.i_q - i_lin[1]);
+        d[0] = F.E_inv[0] * n0 + F.E_inv[1] * n1;
+        d[1] = F.E_inv[2] * n0 + F.E_inv[3] * n1;
+        integrands_at(psi, c, d);
+    }
+
+    // The step integrals' integrands (y's components from 2) at psi with its currents c, as
+    // Workspace::rhs.
+    void integrands_at(const double* psi, const InverseFluxPoint& c, double* d) const {
+        const double r = std::hypot(c.i_d, c.i_q);
+        DqFluxOde o = ode;
+        o.u_d = -k * c.i_d / r;
+        o.u_q = -k * c.i_q / r;
+        integrands->eval(o, psi[0], psi[1], c.i_d, c.i_q, d + 2);
+        d[kAbsI] = r;
+        d[kAbsI2] = r * r;
+    }
+
+    bool within(const InverseFluxPoint& c) const {
+        if (!(std::hypot(c.i_d, c.i_q) >= r_min)) return false;
+        for (int j = 0; j < dirs->n_decay; ++j)
+            if ((c.i_d * dirs->decay[j][0] + c.i_q * dirs->decay[j][1] > 0.0) != positive[j]) return false;
+        return true;
+    }
+};
 
 std::string number(double x) {
     char b[32];
@@ -246,13 +346,37 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
     w.error.clear();
     void* mem = w.h.mem;
     const double energy = 1.5 * s.atol * s.current_scale;
-    {
-        double* a = N_VGetArrayPointer(w.h.atol);
-        a[0] = a[1] = s.atol;
-        a[2 + StepIntegrands::P_elec] = a[2 + StepIntegrands::P_cu] = a[2 + StepIntegrands::P_fe] = energy;
-        a[2 + StepIntegrands::T_e] = energy * integrands.pole_pairs * h;
-        a[kAbsI] = energy / (1.5 * k);  // the DC charge's share of the energy tolerance
-        a[kAbsI2] = a[kAbsI] * s.current_scale;
+    double atol[kY];
+    atol[0] = atol[1] = s.atol;
+    atol[2 + StepIntegrands::P_elec] = atol[2 + StepIntegrands::P_cu] = atol[2 + StepIntegrands::P_fe] = energy;
+    atol[2 + StepIntegrands::T_e] = energy * integrands.pole_pairs * h;
+    atol[kAbsI] = energy / (1.5 * k);  // the DC charge's share of the energy tolerance
+    atol[kAbsI2] = atol[kAbsI] * s.current_scale;
+    std::copy(atol, atol + kY, N_VGetArrayPointer(w.h.atol));
+    // Conducting from a current away from zero: the linearised step's explicit steps first
+    // (ConductingStep above), as the switching path's; CVODE where they give up.
+    if (!at_zero) {
+        ConductingStep p;
+        p.ode = ode;
+        p.k = k;
+        p.integrands = &integrands;
+        p.dirs = &dirs;
+        const InverseFluxPoint c0 = ode.currents_near(start[0], start[1], i_seed[0], i_seed[1]);
+        double y_end[kY], psi_end[2];
+        InverseFluxPoint c_end;
+        CvodeStats st;
+        if (p.linearise(start, c0, w.r_continue, h) &&
+            explicit_steps(p, h, s.rtol, atol, y_end, psi_end, c_end, st)) {
+            for (int q = 0; q < StepIntegrands::count; ++q) out.integrals[q] = y_end[2 + q];
+            out.I_integral = y_end[kAbsI];
+            out.I2_integral = y_end[kAbsI2];
+            out.psi[0] = psi_end[0], out.psi[1] = psi_end[1];
+            out.c = c_end;
+            out.steps = st.steps;
+            out.rhs_evals = st.rhs_evals;
+            out.h_last = st.last_step;
+            return out;
+        }
     }
     double* y = N_VGetArrayPointer(w.h.y);
     std::fill(y, y + kY, 0.0);
