@@ -355,7 +355,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
     std::copy(atol, atol + kY, N_VGetArrayPointer(w.h.atol));
     // Conducting from a current away from zero: the linearised step's explicit steps first
     // (ConductingStep above), as the switching path's; CVODE where they give up.
-    if (!at_zero) {
+    if (!at_zero && s.linearised && s.explicit_first) {
         ConductingStep p;
         p.ode = ode;
         p.k = k;
