@@ -37,6 +37,8 @@ constexpr double kContinuedCurrent = 1e-3;
 // its value at the call's start (or below the continued-current bound above): a current heading
 // for zero is left to CVODE's root finding.
 constexpr double kConductingFraction = 0.5;
+// The shortest linearised step, as a fraction of the call (ConductingStep: CVODE below it).
+constexpr double kMinSpan = 1.0 / 16.0;
 
 // The conducting bridge's linearised step (a Problem of explicit_steps.hpp; MATH.md, "The
 // inverter's safe states"): the dq equations with the bridge's voltage u(i) = -k i/|i|,
@@ -353,36 +355,56 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
     atol[kAbsI] = energy / (1.5 * k);  // the DC charge's share of the energy tolerance
     atol[kAbsI2] = atol[kAbsI] * s.current_scale;
     std::copy(atol, atol + kY, N_VGetArrayPointer(w.h.atol));
-    // Conducting from a current away from zero: the linearised step's explicit steps first
-    // (ConductingStep above), as the switching path's; CVODE where they give up.
+    // y: the flux linkages and the step integrals so far, at t.
+    double* y = N_VGetArrayPointer(w.h.y);
+    std::fill(y, y + kY, 0.0);
+    y[0] = start[0];
+    y[1] = start[1];
+    double t = 0.0;
+    // Conducting from a current away from zero: linearised steps (ConductingStep above) with their
+    // explicit steps, as the switching path's, each over the rest of the call, or where one gives
+    // up over half its span (linearised afresh at its start), down to kMinSpan of the call; CVODE
+    // integrates the rest of the call from where they stopped.
     if (!at_zero && s.linearised && s.explicit_first) {
         ConductingStep p;
         p.ode = ode;
         p.k = k;
         p.integrands = &integrands;
         p.dirs = &dirs;
-        const InverseFluxPoint c0 = ode.currents_near(start[0], start[1], i_seed[0], i_seed[1]);
-        double y_end[kY], psi_end[2];
-        InverseFluxPoint c_end;
-        CvodeStats st;
-        if (p.linearise(start, c0, w.r_continue, h) &&
-            explicit_steps(p, h, s.rtol, atol, y_end, psi_end, c_end, st)) {
-            for (int q = 0; q < StepIntegrands::count; ++q) out.integrals[q] = y_end[2 + q];
-            out.I_integral = y_end[kAbsI];
-            out.I2_integral = y_end[kAbsI2];
-            out.psi[0] = psi_end[0], out.psi[1] = psi_end[1];
-            out.c = c_end;
-            out.steps = st.steps;
-            out.rhs_evals = st.rhs_evals;
+        InverseFluxPoint c = ode.currents_near(start[0], start[1], i_seed[0], i_seed[1]);
+        double span = h;
+        while (true) {
+            const bool last = span >= h - t;
+            if (last) span = h - t;
+            double y_end[kY], psi_end[2];
+            InverseFluxPoint c_end;
+            CvodeStats st;
+            const bool ok = p.linearise(y, c, w.r_continue, span) &&
+                            explicit_steps(p, span, s.rtol, atol, y_end, psi_end, c_end, st);
+            out.steps += st.steps;
+            out.rhs_evals += st.rhs_evals;
+            if (!ok) {
+                if (span <= kMinSpan * h) break;
+                span *= 0.5;
+                continue;
+            }
+            y[0] = psi_end[0], y[1] = psi_end[1];
+            for (int q = 2; q < kY; ++q) y[q] += y_end[q];
+            c = c_end;
             out.h_last = st.last_step;
-            return out;
+            if (last) {
+                for (int q = 0; q < StepIntegrands::count; ++q) out.integrals[q] = y[2 + q];
+                out.I_integral = y[kAbsI];
+                out.I2_integral = y[kAbsI2];
+                out.psi[0] = y[0], out.psi[1] = y[1];
+                out.c = c;
+                return out;
+            }
+            t += span;
+            span *= 2.0;
         }
+        if (std::isfinite(c.i_d + c.i_q)) w.seed[0] = c.i_d, w.seed[1] = c.i_q;
     }
-    double* y = N_VGetArrayPointer(w.h.y);
-    std::fill(y, y + kY, 0.0);
-    y[0] = start[0];
-    y[1] = start[1];
-    double t = 0.0;
     // arm every direction the current points along (g_j > 0) at a segment's start
     auto arm = [&]() {
         const InverseFluxPoint c = w.currents(y);
@@ -400,7 +422,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
         w.check(CVodeSVtolerances(mem, s.rtol, w.h.atol), "CVodeSVtolerances");
         w.check(CVodeSetMaxNumSteps(mem, s.max_steps), "CVodeSetMaxNumSteps");
         w.check(CVodeSetStopTime(mem, h), "CVodeSetStopTime");
-        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h) : 0.0), "CVodeSetInitStep");
+        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h - t) : 0.0), "CVodeSetInitStep");
         if (n_roots > 0) {
             int direction[4];
             for (int j = 0; j < n_roots; ++j) direction[j] = w.armed[j] ? -1 : 1;
