@@ -88,7 +88,8 @@ struct ConductingStep {
         lin.f0[1] = u0[1] - R * c.i_q - w * psi[0];
         if (!std::isfinite(lin.f0[0] + lin.f0[1] + A[0] + A[1] + A[2] + A[3])) return false;
         lin.flow = LinearFlow(A);
-        for (int j = 0; j < dirs->n_decay; ++j) positive[j] = c.i_d * dirs->decay[j][0] + c.i_q * dirs->decay[j][1] > 0.0;
+        for (int j = 0; j < dirs->n_decay; ++j)
+            positive[j] = c.i_d * dirs->decay[j][0] + c.i_q * dirs->decay[j][1] > 0.0;
         r_min = std::max(r_continue, kConductingFraction * r);
         return lin.flow.max_decay() * h <= kStiffLimit;
     }
@@ -422,7 +423,8 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
         w.check(CVodeSVtolerances(mem, s.rtol, w.h.atol), "CVodeSVtolerances");
         w.check(CVodeSetMaxNumSteps(mem, s.max_steps), "CVodeSetMaxNumSteps");
         w.check(CVodeSetStopTime(mem, h), "CVodeSetStopTime");
-        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h - t) : 0.0), "CVodeSetInitStep");
+        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h - t) : 0.0),
+                "CVodeSetInitStep");
         if (n_roots > 0) {
             int direction[4];
             for (int j = 0; j < n_roots; ++j) direction[j] = w.armed[j] ? -1 : 1;
