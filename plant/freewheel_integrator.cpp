@@ -76,18 +76,9 @@ struct ConductingStep {
         const double M[4] = {D0[0] - R, D0[1], D0[2], D0[3] - R};
         const double A[4] = {M[0] * c.G_dd + M[1] * c.G_qd, M[0] * c.G_dq + M[1] * c.G_qq + w,
                              M[2] * c.G_dd + M[3] * c.G_qd - w, M[2] * c.G_dq + M[3] * c.G_qq};
-        lin.psi0[0] = psi[0];
-        lin.psi0[1] = psi[1];
-        lin.i0[0] = c.i_d;
-        lin.i0[1] = c.i_q;
-        lin.G0[0] = c.G_dd;
-        lin.G0[1] = c.G_dq;
-        lin.G0[2] = c.G_qd;
-        lin.G0[3] = c.G_qq;
-        lin.f0[0] = u0[0] - R * c.i_d + w * psi[1];
-        lin.f0[1] = u0[1] - R * c.i_q - w * psi[0];
-        if (!std::isfinite(lin.f0[0] + lin.f0[1] + A[0] + A[1] + A[2] + A[3])) return false;
-        lin.flow = LinearFlow(A);
+        const double f0[2] = {u0[0] - R * c.i_d + w * psi[1], u0[1] - R * c.i_q - w * psi[0]};
+        if (!std::isfinite(f0[0] + f0[1] + A[0] + A[1] + A[2] + A[3])) return false;
+        lin.set(psi, c, f0, A);
         for (int j = 0; j < dirs->n_decay; ++j)
             positive[j] = c.i_d * dirs->decay[j][0] + c.i_q * dirs->decay[j][1] > 0.0;
         r_min = std::max(r_continue, kConductingFraction * r);

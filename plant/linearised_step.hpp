@@ -45,6 +45,20 @@ struct FlowAt {
 struct Linearisation {
     double psi0[2], i0[2], G0[4], f0[2];
     LinearFlow flow;
+    // At psi0 with its currents c (and dI/dpsi), f(psi0) = f and A = df/dpsi(psi0), row-major.
+    void set(const double* psi, const InverseFluxPoint& c, const double* f, const double* A) {
+        psi0[0] = psi[0];
+        psi0[1] = psi[1];
+        i0[0] = c.i_d;
+        i0[1] = c.i_q;
+        G0[0] = c.G_dd;
+        G0[1] = c.G_dq;
+        G0[2] = c.G_qd;
+        G0[3] = c.G_qq;
+        f0[0] = f[0];
+        f0[1] = f[1];
+        flow = LinearFlow(A);
+    }
     FlowAt at(double tau) const {
         FlowAt F;
         flow.exp(tau, F.E, F.E_inv);
