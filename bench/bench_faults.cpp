@@ -6,6 +6,8 @@
 //   freewheeling  from that current, the bridge's conduction (above its onset) or its blocking
 //   switching u=0 the inputs u_d = u_q = 0 through the switching path: ASC's trajectory, whose
 //                 cost is the transient's (the same integrator), not the state's
+//   freewheel+0.1s freewheeling after the trip's first 0.1 s (1000 steps untimed): the
+//                 conducting bridge's steady state without the trip's transient
 // Reports microseconds per step (best of `rounds`) and CVODE steps per step; and IpmsmDrive's
 // do_step per inner step (100 us) with and without a fault.
 //
@@ -35,8 +37,8 @@ struct Cost {
     double us = 1e300, cvode_steps = 0;
 };
 
-// n plant steps of 100 us in `state` from a motoring current at w_m.
-Cost plant_cost(int state, double w_m, int n, int rounds) {
+// n plant steps of 100 us in `state` from a motoring current at w_m, after `settle` steps untimed.
+Cost plant_cost(int state, double w_m, int n, int rounds, int settle = 0) {
     Cost best;
     for (int r = 0; r < rounds; ++r) {
         ipmsm::PlantModel p(context());
@@ -51,6 +53,7 @@ Cost plant_cost(int state, double w_m, int n, int rounds) {
         if (state == kSwitchingAtZero) p.u_d = p.u_q = 0.0;  // the ASC's equations, switching
         p.inverter_state = state == kSwitchingAtZero ? 0 : state;
         double t = 0, steps = 0;
+        for (int k = 0; k < settle; ++k, t += 1e-4) p.do_step(t, 1e-4);
         const auto t0 = std::chrono::steady_clock::now();
         for (int k = 0; k < n; ++k) {
             p.do_step(t, 1e-4);
@@ -96,9 +99,10 @@ int main(int argc, char** argv) {
     for (double rpm : {3000.0, 6000.0, 8000.0, 12000.0}) {
         const double w_m = rpm * 3.14159265358979323846 / 30.0;
         const Cost sw = plant_cost(0, w_m, n, rounds);
-        const char* names[] = {"switching", "freewheeling", "ASC", "switching u=0"};
-        for (int s = 0; s < 4; ++s) {
-            const Cost c = s == 0 ? sw : plant_cost(s, w_m, n, rounds);
+        const char* names[] = {"switching", "freewheeling", "ASC", "switching u=0", "freewheel+0.1s"};
+        for (int s = 0; s < 5; ++s) {
+            // the last row: freewheeling after the trip's first 0.1 s (the bridge's steady state)
+            const Cost c = s == 0 ? sw : s == 4 ? plant_cost(1, w_m, n, rounds, 1000) : plant_cost(s, w_m, n, rounds);
             std::printf("%-10.0f %-14s %10.3f %12.2f %10.2f\n", rpm, names[s], c.us, c.cvode_steps, c.us / sw.us);
         }
     }

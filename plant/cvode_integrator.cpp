@@ -23,9 +23,6 @@ namespace ipmsm {
 
 namespace {
 
-// Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used.
-constexpr double kStiffLimit = 2.0;
-
 // The absolute tolerances of y's components: atol on the flux components, its equivalents on the
 // step integrals (cvode_integrator.hpp).
 std::array<double, kStates> tolerances(const CvodeSettings& s, const StepIntegrands* integrands, double span) {
@@ -52,21 +49,13 @@ std::string flag_name(int flag) {
 // like a decaying mode decays, would be badly scaled, and CVODE integrates psi itself
 // (cvode_method 2, BDF, is meant for those).
 bool linearise(Linearisation& L, const CvodeState& start, const DqFluxOde& ode, double h) {
-    double A[4];
+    double f0[2], A[4];
     const InverseFluxPoint c = ode.currents_near(start.psi[0], start.psi[1], start.i_seed[0], start.i_seed[1]);
-    ode.rhs_and_jacobian(start.psi, c, L.f0, A);
-    if (!std::isfinite(L.f0[0] + L.f0[1] + A[0] + A[1] + A[2] + A[3]))
+    ode.rhs_and_jacobian(start.psi, c, f0, A);
+    if (!std::isfinite(f0[0] + f0[1] + A[0] + A[1] + A[2] + A[3]))
         throw CvodeError("no finite currents at the step's start, psi_d = " + number(start.psi[0]) +
                          " Wb, psi_q = " + number(start.psi[1]) + " Wb");
-    L.psi0[0] = start.psi[0];
-    L.psi0[1] = start.psi[1];
-    L.i0[0] = c.i_d;
-    L.i0[1] = c.i_q;
-    L.G0[0] = c.G_dd;
-    L.G0[1] = c.G_dq;
-    L.G0[2] = c.G_qd;
-    L.G0[3] = c.G_qq;
-    L.flow = LinearFlow(A);
+    L.set(start.psi, c, f0, A);
     return L.flow.max_decay() * h <= kStiffLimit;
 }
 
@@ -306,7 +295,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
         double y_end[kStates], psi_end[2];
         InverseFluxPoint c_end;
         CvodeStats est;
-        if (explicit_steps(w, h, settings_.rtol, atol.data(), y_end, psi_end, c_end, est)) {
+        if (explicit_steps(static_cast<const LinearisedProblem&>(w), h, settings_.rtol, atol.data(), y_end, psi_end,
+                           c_end, est)) {
             commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
             return;
         }

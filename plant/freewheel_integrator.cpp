@@ -7,7 +7,9 @@
 #include <string>
 
 #include "cvode_handles.hpp"
+#include "explicit_steps.hpp"
 #include "inverter_state.hpp"
+#include "linearised_step.hpp"
 
 namespace ipmsm {
 
@@ -30,6 +32,98 @@ constexpr double kZeroCurrent = 1e-9;
 // where |i| is below this fraction of the current scale: a current crossing that line at amperes
 // (a false root) keeps the bridge's own voltage.
 constexpr double kContinuedCurrent = 1e-3;
+
+// The explicit steps of a conducting call give up where the current falls below this fraction of
+// its value at the call's start (or below the continued-current bound above): a current heading
+// for zero is left to CVODE's root finding.
+constexpr double kConductingFraction = 0.5;
+// The shortest linearised step, as a fraction of the call (ConductingStep: CVODE below it).
+constexpr double kMinSpan = 1.0 / 16.0;
+
+// The conducting bridge's linearised step (a Problem of explicit_steps.hpp; MATH.md, "The
+// inverter's safe states"): the dq equations with the bridge's voltage u(i) = -k i/|i|,
+// linearised at the call's start psi0, i0 = i(psi0):
+//     f(psi) = f0 + A (psi - psi0) + N(psi),   A = (D0 - R I) G0 + omega J,
+//     D0 = du/di(i0) = -(k/|i0|) (I - e e^T), e = i0/|i0|,
+//     N = u(i) - u0 - D0 (i_lin - i0) - R (i - i_lin),   i_lin = i0 + G0 (psi - psi0),
+// the linear part's flow exact (linear_flow.hpp): the bridge's resistance k/|i| across the
+// current, the stiff part, is in A. Valid while the current stays away from zero and from the
+// lines i = s n_j where the root functions change sign (within()); elsewhere CVODE integrates
+// the call with its root finding.
+struct ConductingStep {
+    static constexpr int kY = 2 + StepIntegrands::count + 2;  // kY above
+    DqFluxOde ode;
+    double k = 0;
+    Linearisation lin;
+    double u0[2] = {0, 0}, D0[4] = {0, 0, 0, 0};
+    const StepIntegrands* integrands = nullptr;
+    const BridgeDirections* dirs = nullptr;
+    bool positive[4] = {};  // g_j = i . n_j > 0 at the start
+    double r_min = 0;       // A: the current's smallest magnitude within()
+
+    // False where the start has no finite currents, is too close to zero, or the linearisation is
+    // too stiff for the step (linearised_step.hpp: kStiffLimit).
+    bool linearise(const double* psi, const InverseFluxPoint& c, double r_continue, double h) {
+        const double r = std::hypot(c.i_d, c.i_q);
+        if (!(r > r_continue) || !std::isfinite(r)) return false;
+        const double ed = c.i_d / r, eq = c.i_q / r, a = -k / r;
+        u0[0] = -k * ed;
+        u0[1] = -k * eq;
+        D0[0] = a * (1.0 - ed * ed);
+        D0[1] = D0[2] = -a * ed * eq;
+        D0[3] = a * (1.0 - eq * eq);
+        const double R = ode.R, w = ode.omega;
+        const double M[4] = {D0[0] - R, D0[1], D0[2], D0[3] - R};
+        const double A[4] = {M[0] * c.G_dd + M[1] * c.G_qd, M[0] * c.G_dq + M[1] * c.G_qq + w,
+                             M[2] * c.G_dd + M[3] * c.G_qd - w, M[2] * c.G_dq + M[3] * c.G_qq};
+        const double f0[2] = {u0[0] - R * c.i_d + w * psi[1], u0[1] - R * c.i_q - w * psi[0]};
+        if (!std::isfinite(f0[0] + f0[1] + A[0] + A[1] + A[2] + A[3])) return false;
+        lin.set(psi, c, f0, A);
+        for (int j = 0; j < dirs->n_decay; ++j)
+            positive[j] = c.i_d * dirs->decay[j][0] + c.i_q * dirs->decay[j][1] > 0.0;
+        r_min = std::max(r_continue, kConductingFraction * r);
+        return lin.flow.max_decay() * h <= kStiffLimit;
+    }
+
+    void start_derivative(double* d) const {
+        d[0] = d[1] = 0.0;
+        const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
+        integrands_at(lin.psi0, c0, d);
+    }
+
+    void linearised_rhs(const FlowAt& F, const double* y, double* d, double* psi, InverseFluxPoint& c) const {
+        lin.psi_at(F, y, psi);
+        double i_lin[2];
+        lin.predicted_currents(psi, i_lin);
+        c = ode.currents_near(psi[0], psi[1], i_lin[0], i_lin[1]);
+        const double r = std::hypot(c.i_d, c.i_q);
+        const double di[2] = {i_lin[0] - lin.i0[0], i_lin[1] - lin.i0[1]};
+        const double n0 = (-k * c.i_d / r - u0[0]) - (D0[0] * di[0] + D0[1] * di[1]) - ode.R * (c.i_d - i_lin[0]);
+        const double n1 = (-k * c.i_q / r - u0[1]) - (D0[2] * di[0] + D0[3] * di[1]) - ode.R * (c.i_q - i_lin[1]);
+        d[0] = F.E_inv[0] * n0 + F.E_inv[1] * n1;
+        d[1] = F.E_inv[2] * n0 + F.E_inv[3] * n1;
+        integrands_at(psi, c, d);
+    }
+
+    // The step integrals' integrands (y's components from 2) at psi with its currents c, as
+    // Workspace::rhs.
+    void integrands_at(const double* psi, const InverseFluxPoint& c, double* d) const {
+        const double r = std::hypot(c.i_d, c.i_q);
+        DqFluxOde o = ode;
+        o.u_d = -k * c.i_d / r;
+        o.u_q = -k * c.i_q / r;
+        integrands->eval(o, psi[0], psi[1], c.i_d, c.i_q, d + 2);
+        d[kAbsI] = r;
+        d[kAbsI2] = r * r;
+    }
+
+    bool within(const InverseFluxPoint& c) const {
+        if (!(std::hypot(c.i_d, c.i_q) >= r_min)) return false;
+        for (int j = 0; j < dirs->n_decay; ++j)
+            if ((c.i_d * dirs->decay[j][0] + c.i_q * dirs->decay[j][1] > 0.0) != positive[j]) return false;
+        return true;
+    }
+};
 
 std::string number(double x) {
     char b[32];
@@ -246,19 +340,63 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
     w.error.clear();
     void* mem = w.h.mem;
     const double energy = 1.5 * s.atol * s.current_scale;
-    {
-        double* a = N_VGetArrayPointer(w.h.atol);
-        a[0] = a[1] = s.atol;
-        a[2 + StepIntegrands::P_elec] = a[2 + StepIntegrands::P_cu] = a[2 + StepIntegrands::P_fe] = energy;
-        a[2 + StepIntegrands::T_e] = energy * integrands.pole_pairs * h;
-        a[kAbsI] = energy / (1.5 * k);  // the DC charge's share of the energy tolerance
-        a[kAbsI2] = a[kAbsI] * s.current_scale;
-    }
+    double atol[kY];
+    atol[0] = atol[1] = s.atol;
+    atol[2 + StepIntegrands::P_elec] = atol[2 + StepIntegrands::P_cu] = atol[2 + StepIntegrands::P_fe] = energy;
+    atol[2 + StepIntegrands::T_e] = energy * integrands.pole_pairs * h;
+    atol[kAbsI] = energy / (1.5 * k);  // the DC charge's share of the energy tolerance
+    atol[kAbsI2] = atol[kAbsI] * s.current_scale;
+    std::copy(atol, atol + kY, N_VGetArrayPointer(w.h.atol));
+    // y: the flux linkages and the step integrals so far, at t.
     double* y = N_VGetArrayPointer(w.h.y);
     std::fill(y, y + kY, 0.0);
     y[0] = start[0];
     y[1] = start[1];
     double t = 0.0;
+    // Conducting from a current away from zero: linearised steps (ConductingStep above) with their
+    // explicit steps, as the switching path's, each over the rest of the call, or where one gives
+    // up over half its span (linearised afresh at its start), down to kMinSpan of the call; CVODE
+    // integrates the rest of the call from where they stopped.
+    if (!at_zero && s.linearised && s.explicit_first) {
+        ConductingStep p;
+        p.ode = ode;
+        p.k = k;
+        p.integrands = &integrands;
+        p.dirs = &dirs;
+        InverseFluxPoint c = ode.currents_near(start[0], start[1], i_seed[0], i_seed[1]);
+        double span = h;
+        while (true) {
+            const bool last = span >= h - t;
+            if (last) span = h - t;
+            double y_end[kY], psi_end[2];
+            InverseFluxPoint c_end;
+            CvodeStats st;
+            const bool ok = p.linearise(y, c, w.r_continue, span) &&
+                            explicit_steps(p, span, s.rtol, atol, y_end, psi_end, c_end, st);
+            out.steps += st.steps;
+            out.rhs_evals += st.rhs_evals;
+            if (!ok) {
+                if (span <= kMinSpan * h) break;
+                span *= 0.5;
+                continue;
+            }
+            y[0] = psi_end[0], y[1] = psi_end[1];
+            for (int q = 2; q < kY; ++q) y[q] += y_end[q];
+            c = c_end;
+            out.h_last = st.last_step;
+            if (last) {
+                for (int q = 0; q < StepIntegrands::count; ++q) out.integrals[q] = y[2 + q];
+                out.I_integral = y[kAbsI];
+                out.I2_integral = y[kAbsI2];
+                out.psi[0] = y[0], out.psi[1] = y[1];
+                out.c = c;
+                return out;
+            }
+            t += span;
+            span *= 2.0;
+        }
+        if (std::isfinite(c.i_d + c.i_q)) w.seed[0] = c.i_d, w.seed[1] = c.i_q;
+    }
     // arm every direction the current points along (g_j > 0) at a segment's start
     auto arm = [&]() {
         const InverseFluxPoint c = w.currents(y);
@@ -276,7 +414,8 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
         w.check(CVodeSVtolerances(mem, s.rtol, w.h.atol), "CVodeSVtolerances");
         w.check(CVodeSetMaxNumSteps(mem, s.max_steps), "CVodeSetMaxNumSteps");
         w.check(CVodeSetStopTime(mem, h), "CVodeSetStopTime");
-        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h) : 0.0), "CVodeSetInitStep");
+        w.check(CVodeSetInitStep(mem, segment == 0 && h_start > 0.0 ? std::min(h_start, h - t) : 0.0),
+                "CVodeSetInitStep");
         if (n_roots > 0) {
             int direction[4];
             for (int j = 0; j < n_roots; ++j) direction[j] = w.armed[j] ? -1 : 1;

@@ -5,9 +5,14 @@
 //
 // Conducting, the bridge's voltage acts like a resistance k/|i| (several ohms at tens of amperes,
 // against the winding's milliohms): the electrical time constant is tens of microseconds, shorter
-// than a communication step, and it shortens without bound as |i| -> 0. CVODE's BDF with Newton
-// (the 2 x 2 Jacobian analytic, dI/dpsi from the inverse map) carries it with steps the solution's
-// smoothness allows, not the stiffness.
+// than a communication step, and it shortens without bound as |i| -> 0. Away from zero, the step
+// is linearised at its start with the bridge's voltage's Jacobian in the linear part, whose flow is
+// exact, and explicit steps integrate the remainder (as the switching path's, cvode_integrator.hpp;
+// freewheel_integrator.cpp, ConductingStep; MATH.md, "The conducting bridge's linearised step"),
+// halved down to 1/16 of the call where they miss the tolerances. Where they give up, or the
+// current nears zero or crosses a root function's line, CVODE's BDF with Newton (the 2 x 2
+// Jacobian analytic, dI/dpsi from the inverse map) integrates the rest of the call with the root
+// finding below, with steps the solution's smoothness allows, not the stiffness.
 //
 // A current reaches zero in finite time along one of the decaying directions n_j
 // (inverter_state.hpp: bridge_directions); each has a root function g_j = i . n_j. At the zero the
@@ -45,9 +50,9 @@ struct FreewheelStep {
     // The step integrals (StepIntegrands::Index) and int |i| dt (A.s), int |i|^2 dt (A^2.s).
     double integrals[StepIntegrands::count] = {0, 0, 0, 0};
     double I_integral = 0, I2_integral = 0;
-    int switchings = 0;  // conduct -> block and block -> conduct in this call
-    long steps = 0, rhs_evals = 0;
-    double h_last = 0;  // s, CVODE's last step size (the next call's first; 0: none)
+    int switchings = 0;             // conduct -> block and block -> conduct in this call
+    long steps = 0, rhs_evals = 0;  // CVODE's and the linearised step's explicit steps
+    double h_last = 0;              // s, the last step size (CVODE's first in the next call; 0: none)
 };
 
 class FreewheelIntegrator {

@@ -15,6 +15,11 @@ namespace ipmsm {
 // The integrator's y: the two flux components (z or psi) and the step integrals (cvode_integrator.hpp).
 constexpr int kStates = 2 + StepIntegrands::count;
 
+// Largest decay over one step, exp(-kStiffLimit), for which the linearised formulation is used:
+// beyond it z = exp(-tau A) (...) grows like the decaying mode decays, and its error weights
+// (relative to |z|) would no longer bound psi's error.
+constexpr double kStiffLimit = 2.0;
+
 // The step's linearisation at psi0 (cvode_integrator.hpp).
 // The linear flow at one tau: exp(tau A), exp(-tau A), P(tau) (linear_flow.hpp).
 struct FlowAt {
@@ -40,6 +45,20 @@ struct FlowAt {
 struct Linearisation {
     double psi0[2], i0[2], G0[4], f0[2];
     LinearFlow flow;
+    // At psi0 with its currents c (and dI/dpsi), f(psi0) = f and A = df/dpsi(psi0), row-major.
+    void set(const double* psi, const InverseFluxPoint& c, const double* f, const double* A) {
+        psi0[0] = psi[0];
+        psi0[1] = psi[1];
+        i0[0] = c.i_d;
+        i0[1] = c.i_q;
+        G0[0] = c.G_dd;
+        G0[1] = c.G_dq;
+        G0[2] = c.G_qd;
+        G0[3] = c.G_qq;
+        f0[0] = f[0];
+        f0[1] = f[1];
+        flow = LinearFlow(A);
+    }
     FlowAt at(double tau) const {
         FlowAt F;
         flow.exp(tau, F.E, F.E_inv);
@@ -61,8 +80,10 @@ struct Linearisation {
     }
 };
 
-// One call's problem: the ODE's inputs, the step's linearisation and the integrands.
+// One call's problem: the ODE's inputs, the step's linearisation and the integrands (a Problem of
+// explicit_steps.hpp).
 struct LinearisedProblem {
+    static constexpr int kY = kStates;
     DqFluxOde ode;  // the RHS's data during advance()
     Linearisation lin;
     const StepIntegrands* integrands = nullptr;  // this call's, or none (their components' y' = 0)
@@ -80,6 +101,16 @@ struct LinearisedProblem {
         d[1] = F.E_inv[2] * n0 + F.E_inv[3] * n1;
         integrands_at(psi, c, d + 2);
     }
+
+    // y' at tau = 0: z' = 0 (N(psi0) = 0), the integrands at the start's currents.
+    void start_derivative(double* d) const {
+        d[0] = d[1] = 0.0;
+        const InverseFluxPoint c0{lin.i0[0], lin.i0[1], lin.G0[0], lin.G0[1], lin.G0[2], lin.G0[3]};
+        integrands_at(lin.psi0, c0, d + 2);
+    }
+
+    // The right-hand side is smooth wherever the currents are found: no events.
+    bool within(const InverseFluxPoint&) const { return true; }
 
     // The step integrals' integrands at psi with its currents c (zeros without integrands).
     void integrands_at(const double* psi, const InverseFluxPoint& c, double* q) const {

@@ -275,10 +275,15 @@ const std::vector<V>& DriveModel::variables() {
              "The largest current magnitude |i| at the inner steps' ends since the last fault began (0 before any)"},
         });
         t.parameters(PlantModel::variables(), "i_d_demag", "i_d_demag");
-        // least-loss control (docs/spec/INTERFACE.md): the objective (added below with the
-        // controller's other new parameters) and the command's predicted loss
+        // least-loss control (docs/spec/INTERFACE.md): the command's predicted loss and the objective
         t.at_end(&M::controller_, "P_loss_cmd", "kW",
                  "The controller's command's predicted steady-state loss P_cu + P_fe + P_inv, at the end of the step");
+        t.parameters(ControllerModel::variables(), "objective", "objective");
+        // the plant's resistance (its copper loss's): what a master needs to turn P_cu into |i|
+        t.at_end(
+            &M::plant_, "R_s_T", "",
+            "The stator phase resistance at the winding temperature: the plant's over the last inner step, that of "
+            "its copper loss");
         // Every other parameter of the models, as they add them (a new motor parameter lands here by
         // itself). The drive's own new variables go before this line while it adds nothing; once a
         // release has recorded what it added (tests/data/value_references_*.json), place those above

@@ -73,6 +73,9 @@ class DriveStep:
     # the command's predicted loss P_cu + P_fe + P_inv (contract, "Least-loss control"); NaN where
     # the FMU has no such output
     P_loss_cmd: float = math.nan
+    # Ohm, the stator phase resistance at the winding temperature over the step (the plant's, that of
+    # its copper loss: |i|^2 = P_cu / (1.5 R_s_T)); NaN where the FMU has no such output
+    R_s_T: float = math.nan
 
 
 #: DriveStep's fields, in order; those every drive FMU must have
@@ -96,13 +99,6 @@ def recorded_outputs(unit: Fmu) -> dict[str, tuple[str, ...]]:
 
 #: IpmsmDrive's fault input (contract, "Faults"; its outputs inverter_state and i_peak are DriveStep's)
 FAULT_INPUT = "fault"
-
-
-def winding_resistance(unit, T_winding: float) -> float:
-    """Ohm, the stator's phase resistance at T_winding (K), from the unit's (a drive's or a
-    plant's) R_s, alpha_cu, T_winding_ref: the plant's copper-loss law."""
-    R_s, alpha_cu, T_winding_ref = unit.get("R_s", "alpha_cu", "T_winding_ref")
-    return R_s * (1.0 + alpha_cu * (T_winding - T_winding_ref))
 
 
 class DriveFmu(Fmu):

@@ -27,7 +27,7 @@ from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
 from scenarios.core.paths import BUILD_DIR
 from scenarios.core.progress import Progress
 from scenarios.cosim import BACKENDS, backend_name
-from scenarios.cosim.drive_fmu import DriveFmu, winding_resistance
+from scenarios.cosim.drive_fmu import DriveFmu
 from scenarios.cosim.fmu import CosimError, Fmu
 from scenarios.cosim.reference import ReferenceDrive
 from scenarios.drives.description import METHODS, DriveDescription, ThermalSpec, controller_has_objective, load_drive
@@ -205,12 +205,11 @@ REFERENCE_CURRENT_BANDWIDTH = 1.0
 
 class OptimumReference:
     """The exact optimum (the controller FMU with Ferrari, recursion 2, on the drive's motor) at a
-    given torque and conditions: its current magnitude and copper loss at the winding resistance
-    R_s (Ohm, the run's: winding_resistance); and, with FMUs that have the least-loss controller,
+    given torque and conditions: its current magnitude and copper loss at a winding resistance
+    (the drive's R_s_T); and, with FMUs that have the least-loss controller,
     the least-loss optimum's predicted loss at a shaft torque (`least_loss`)."""
 
-    def __init__(self, controller_fmu: Path, drive: DriveDescription, R_s: float, T_winding: float):
-        self.R_s = R_s
+    def __init__(self, controller_fmu: Path, drive: DriveDescription, T_winding: float):
         self.T_winding = T_winding  # K: the optimum's voltage ellipse at the winding's resistance too
         self.loss_fmu = None
         self.fmu = Fmu(controller_fmu, instance_name="reference",
@@ -249,10 +248,11 @@ class OptimumReference:
         self.i_ref = self.fmu.get("i_d_ref", "i_q_ref")
         return math.hypot(*self.i_ref)
 
-    def copper_loss(self, I: float, R_s: float | None = None) -> float:
-        """W at the current magnitude I (A, peak, amplitude-invariant dq); R_s (Ohm) None: the
-        run's start (a run with the thermal network gives the step's)."""
-        return 1.5 * (self.R_s if R_s is None else R_s) * I * I
+    @staticmethod
+    def copper_loss(I: float, R_s: float) -> float:
+        """W at the current magnitude I (A, peak, amplitude-invariant dq) and the winding's
+        resistance R_s (Ohm, the step's: the drive's R_s_T)."""
+        return 1.5 * R_s * I * I
 
     def least_loss(self, T_shaft: float, w_m: float, u_dc: float, T_magnet: float, t: float, dt: float,
                    T_winding: float | None = None) -> float:
@@ -328,11 +328,10 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
     cond, vp, dt = spec.conditions, spec.drive.vehicle, spec.dt
     P_aux, I_max = spec.drive.P_aux, spec.drive.motor.I_max
     drive_dt = spec.steps_per_vehicle_step() * drive.sample_time
-    R = winding_resistance(drive, cond.T_winding)  # the copper loss's resistance: |i|^2 = P_cu / (1.5 R)
     # With the thermal network on, a step's copper loss is at the winding temperature the step
-    # started at (the network advances at its end); the reference optimum and the inputs follow
-    # the network's temperatures of the step before (inside IpmsmDrive the controller takes the
-    # network's own; the inputs serve a drive without that feed).
+    # started at (the network advances at its end: the drive's R_s_T is the resistance there); the
+    # reference optimum and the inputs follow the network's temperatures of the step before (inside
+    # IpmsmDrive the controller takes the network's own; the inputs serve a drive without that feed).
     thermal = spec.thermal().on
     T_magnet, T_winding = cond.T_magnet, cond.T_winding
     T_max_known = T_MAX_UNKNOWN
@@ -364,7 +363,11 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
             raise DcLinkError(f"at t = {t_ref[k]:.6g} s the battery could not deliver the drive's {P_dc:.6g} W and "
                               f"the auxiliaries' {P_aux:.6g} W (short by {bs.P_unmet:.6g} W): the DC link's energy "
                               "balance would not close")
-        I = math.sqrt(max(m.P_cu / (1.5 * R) if R > 0.0 else math.nan, 0.0))
+        R = m.R_s_T  # Ohm, the plant's over the step, its copper loss's: |i|^2 = P_cu / (1.5 R)
+        if not R > 0.0:  # the plant's law keeps it positive at every temperature it accepts
+            raise CosimError(f"the drive reports no stator resistance R_s_T > 0 (R_s_T = {R}): an FMU built "
+                             "before that output; rebuild the FMUs")
+        I = math.sqrt(max(m.P_cu / (1.5 * R), 0.0))
         I_opt, P_cu_opt, P_loss_opt = math.nan, 0.0, math.nan
         if reference is not None and not on and not reference.failed:
             try:
@@ -380,7 +383,6 @@ def vehicle_steps(spec: RunSpec, t_ref: Sequence[float], v_ref: Sequence[float],
                           battery_limited=lim.limited, P_loss_opt=P_loss_opt, distance=vehicle.distance)
         if thermal:
             T_magnet, T_winding = m.theta_magnet, m.theta_winding
-            R = winding_resistance(drive, T_winding)
 
 
 def cycle_before(cycle: Cycle, t: float) -> dict:
@@ -437,9 +439,7 @@ def drive_cycle(cycle: Cycle, spec: RunSpec, sim: DriveFmu | ReferenceDrive, con
     wall0 = time.perf_counter()
     try:
         with ExitStack() as stack:
-            reference = (stack.enter_context(OptimumReference(controller_fmu, drive,
-                                                              winding_resistance(sim, cond.T_winding),
-                                                              cond.T_winding))
+            reference = (stack.enter_context(OptimumReference(controller_fmu, drive, cond.T_winding))
                          if spec.reference else None)
             if trigger is not None:
                 faults = FaultAccounts(trigger, dt, drive.motor.I_max, demagnetisation_limit(sim))

@@ -197,13 +197,17 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
              "least-loss rows (objective 1: `least loss`) are Ferrari's online least loss and the 2-D tables",
              f"made for least loss at {U_DC_NOMINAL_V:.0f} V and {T_REFERENCE_K - ZERO_CELSIUS_K:.0f} °C; "
              "their torques are shaft torques.", ""]
+    measured = any(ns is not None for ns in costs.values())  # bench_controller's figures, where it is built
+    if not measured:
+        lines += ["*Controller cost per call*: not measured here; `build/bin/bench_controller` gives it, built with",
+                  "`cmake -S . -B build -DIPMSM_BUILD_BENCH=ON` (docs/performance.md).", ""]
     for cycle in dict.fromkeys(r.summary.cycle for r in results):
         for cond in dict.fromkeys(r.condition for r in results if r.summary.cycle == cycle):
             lines += [f"## {cycle}, {cond}", "",
                       "| method | Wh/km | speed RMSE (km/h) | torque error RMS / max (N·m) | copper loss vs optimum "
                       "| current excess RMS (A) | time above V_max / voltage-limited | drive loss (Wh) | "
-                      "loss vs least-loss optimum | controller ns/call | memory |",
-                      "|---|---|---|---|---|---|---|---|---|---|---|"]
+                      "loss vs least-loss optimum | " + ("controller ns/call | " if measured else "") + "memory |",
+                      "|---|---|---|---|---|---|---|---|---|" + ("---|" if measured else "") + "---|"]
             for r in results:
                 s = r.summary
                 if s.cycle != cycle or r.condition != cond:
@@ -213,7 +217,7 @@ def write_report(out: Path, results: list[StudyRun], costs: dict, drive=None) ->
                              f"{s.torque_rmse_Nm:.3f} / {s.torque_error_max_Nm:.2f} | {_copper_excess(s):+.2%} | "
                              f"{s.current_excess_rms_A:.2f} | {s.time_above_V_max_pct:.1f} % / "
                              f"{s.time_voltage_limited_pct:.1f} % | {s.drive_loss_Wh:.1f} | {_pct(loss_excess(s))} | "
-                             f"{f'{ns:.0f}' if ns else '–'} | {_memory(s)} |")
+                             + (f"{f'{ns:.0f}' if ns else '–'} | " if measured else "") + f"{_memory(s)} |")
             lines.append("")
             lines += _thermal_lines([r for r in results if r.summary.cycle == cycle and r.condition == cond])
     lines += ["![Study](study.png)", "",

@@ -84,7 +84,8 @@ TEST(FluxMapBounds, NonRegularFilesAreRefusedAtOnce) {
     ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
     const auto t0 = std::chrono::steady_clock::now();
     EXPECT_NE(error_of(fifo).find("not a regular file (a named pipe)"), std::string::npos);
-    EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(2));  // no wait for a writer
+    // no wait for a writer: open() would block for ever; the bound is loose (a loaded machine)
+    EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
 #endif
 }
 

@@ -83,3 +83,14 @@ def fmu_instances(unzipped):
     yield new
     for inst in made:
         inst.free()
+
+
+@pytest.fixture
+def make(fmu_instances):
+    """make(name, instance_name=..., **Instance options): a fresh instance, freed after the test."""
+    count = iter(range(1 << 30))
+
+    def new(name, **kw):
+        return fmu_instances(name, kw.pop("instance_name", f"{name}{next(count)}"), **kw)
+
+    return new

@@ -267,6 +267,19 @@ class Instance:
         status = self.fmu.fmi2DeSerializeFMUstate(self.c, data, len(data) if data is not None else 0, C.byref(s))
         return status, s.value
 
+    def restore(self, data: bytes, t: float) -> None:
+        """Back to the serialised state `data`, saved at time t."""
+        status, state = self.deserialize_status(data)
+        assert status == OK and self.set_state(state) == OK, self.log.text()
+        self.t = t
+
+    def replays(self, data: bytes, t: float, trace) -> bool:
+        """trace() (a function stepping the instance, returning numbers) now, and again after
+        restore(data, t): the same numbers bit for bit."""
+        first = repr([float(x) for row in trace() for x in row])
+        self.restore(data, t)
+        return first == repr([float(x) for row in trace() for x in row])
+
     def __enter__(self):
         return self
 

@@ -152,11 +152,7 @@ def test_fmu_state_in_a_fault(fmu_instances):
                 out.append(inst.get(*names))
         return out
 
-    a = trace()
-    status, restored = inst.deserialize_status(saved)
-    assert status == raw.OK and inst.set_state(restored) == raw.OK
-    inst.t = t_saved
-    assert np.array(a).tobytes() == np.array(trace()).tobytes()
+    assert inst.replays(saved, t_saved, trace)
 
 
 @pytest.mark.skipif(not (BASELINE / "IpmsmDrive.fmu").exists(), reason="no baseline FMU")

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.linalg
+from scipy.integrate import solve_ivp
 from scipy.interpolate import RectBivariateSpline
 from scipy.optimize import fsolve
 
@@ -223,6 +224,51 @@ def test_freewheel_above_onset_default_map(plant_fmu, default_map_path, ratio):
     assert err < 1e-6
 
 
+def freewheel_current_trajectory(spline, R, om, k, i0, ts):
+    """The fundamental model's conducting bridge in the currents, L(i) di/dt = -k i/|i| - R i + om J psi(i),
+    L = dpsi/di of the map's spline: scipy's DOP853 at rtol 1e-11 (independent of the plant's flux states,
+    its linearised steps and CVODE)."""
+
+    def f(_, i):
+        ps = spline.psi(i)
+        r = math.hypot(i[0], i[1])
+        rhs = [-k * i[0] / r - R * i[0] + om * ps[1], -k * i[1] / r - R * i[1] - om * ps[0]]
+        L = [[spline.sd.ev(i[0], i[1], dx=1), spline.sd.ev(i[0], i[1], dy=1)],
+             [spline.sq.ev(i[0], i[1], dx=1), spline.sq.ev(i[0], i[1], dy=1)]]
+        return np.linalg.solve(L, rhs)
+
+    sol = solve_ivp(f, (0.0, ts[-1]), list(i0), method="DOP853", rtol=1e-11, atol=1e-8, t_eval=ts)
+    assert sol.success
+    return sol.y.T
+
+
+@pytest.mark.parametrize("tolerances,bound", [({}, 1e-4), (TIGHT, 1e-7)], ids=["default", "tight"])
+@pytest.mark.parametrize("ratio", [1.3, 1.9])
+def test_freewheel_conducting_trajectory_default_map(plant_fmu, default_map_path, ratio, tolerances, bound):
+    """A trip from motoring above the onset, every 0.1 ms step's currents against an independent tight
+    integration; at the default tolerances the steady conduction takes one explicit step per call (the
+    linearised step with the bridge's voltage, freewheel_integrator.cpp), not CVODE's restarts."""
+    spline = MapSpline(default_map_path)
+    w_m = ratio * onset_speed(float(spline.sd.ev(0.0, 0.0)))
+    i0, h, n = (-120.0, 150.0), 1e-4, 200
+    with Fmu(plant_fmu, w_m=w_m, i_d_start=i0[0], i_q_start=i0[1], **NO_FE, **tolerances) as f:
+        f.set(inverter_state=1)
+        got, steps = [], []
+        for _ in range(n):
+            f.step(f.t, h)
+            got.append(f.get("i_d", "i_q"))
+            steps.append(f.get("cvode_steps"))
+        assert f.get("bridge_switchings") == 0  # conducting throughout
+    exact = freewheel_current_trajectory(spline, 0.012, P * w_m, K_BRIDGE, i0, h * np.arange(1, n + 1))
+    peak = np.abs(exact).max()
+    err = np.abs(np.array(got) - exact).max() / peak
+    print(f"{ratio} x the onset, {tolerances or 'default tolerances'}: max current error {err:.1e} of the peak "
+          f"{peak:.0f} A; steps per call {np.mean(steps):.2f}, last 50 {np.mean(steps[-50:]):.2f}")
+    assert err < bound
+    if not tolerances:
+        assert max(steps[-50:]) == 1
+
+
 def test_freewheel_speed_sweeps_through_onset_without_chattering(plant_fmu, linear_map):
     """Speed falling from 1.3 to 0.7 of the onset and back, 1 ms steps: one block, one onset."""
     w_on = onset_speed(LIN["psi_m"])
@@ -314,12 +360,7 @@ def test_fmu_state_carries_the_bridge(fmu_instances, default_map_path):
                 out.append(inst.get(*names))
         return out
 
-    a = trace()
-    status, restored = inst.deserialize_status(saved)
-    assert status == raw.OK and inst.set_state(restored) == raw.OK
-    inst.t = t_saved
-    b = trace()
-    assert np.array(a).tobytes() == np.array(b).tobytes()
+    assert inst.replays(saved, t_saved, trace)
 
 
 @pytest.mark.skipif(not (BASELINE / "IpmsmPlant.fmu").exists(), reason="no baseline FMU")

@@ -37,17 +37,6 @@ FUZZ_BIN = BUILD_FMU.parent / "bin" / "fmu_fuzz"
 FUZZ_SKIP = ["--skip", "lut_n_torque", "--skip", "lut_n_speed"]  # a 1001 x 1001 table takes minutes to build
 
 
-@pytest.fixture
-def make(fmu_instances):
-    """make(name, instance_name=..., **Instance options): a fresh instance, freed after the test."""
-    count = iter(range(1 << 30))
-
-    def new(name, **kw):
-        return fmu_instances(name, kw.pop("instance_name", f"{name}{next(count)}"), **kw)
-
-    return new
-
-
 def run(inst, n, inputs, k0=0):
     """n steps with `inputs` (dict, or callable k -> dict); the outputs after each."""
     rows = []

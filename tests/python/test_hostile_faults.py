@@ -21,16 +21,6 @@ STATES = {"IpmsmPlant": [("inverter_state", 1), ("inverter_state", 2)], "IpmsmDr
 BAD_INTEGERS = [-1, 3, 7, 2**31 - 1, -2**31]
 
 
-@pytest.fixture
-def make(fmu_instances):
-    count = iter(range(1 << 30))
-
-    def new(name, **kw):
-        return fmu_instances(name, kw.pop("instance_name", f"{name}{next(count)}"), **kw)
-
-    return new
-
-
 def step(inst, n=1):
     h = 1e-3 if "fault" in inst.fmu.vars else 1e-4  # IpmsmDrive: whole multiples of its sample time
     return [inst.step(h) for _ in range(n)]

@@ -153,6 +153,6 @@ def test_ipmsm_drive_refuses_a_step_beyond_its_bound_and_stays_usable(tmp_path):
     out = json.loads(r.stdout.splitlines()[-1])
     for h in ("1000000.0", "1000000000000.0", "1e+300", "inf"):
         status, wall = out[h]
-        assert status == 3 and wall < 1.0, (h, status, wall)   # fmi2Error at once
+        assert status == 3 and wall < 5.0, (h, status, wall)   # fmi2Error at once (a step taken: hours)
     assert "sample times" in out["log"] or "communication step" in out["log"]
     assert out["after"] == 0 and out["at_limit"] == 0 and math.isfinite(out["T_e"])

@@ -103,6 +103,16 @@ def test_magnet_free_quarter_csv_completed_by_symmetry(tmp_path):
 
 # --- check -------------------------------------------------------------------------------------
 
+def _same_box_as_the_fmus(fmap, I_max: float, fmu_log: list) -> None:
+    """legal.refused_box (the Python side's statement of operating_region.hpp's rule) is the box
+    the FMUs name in their own refusal or warning, to the 6 digits they print it with."""
+    import re
+    said = [re.search(r"widened by [0-9.]+ % of I_max: i_d in \[(\S+), (\S+)\] A, i_q in \[(\S+), (\S+)\] A", m)
+            for m in fmu_log]
+    boxes = {m.groups() for m in said if m}
+    assert boxes == {tuple(f"{x:.6g}" for x in legal.refused_box(fmap, I_max))}, (boxes, fmu_log)
+
+
 def test_check_reports_the_prius_defects_and_the_fmus_own_verdict(build, tmp_path):
     out = tmp_path / "chk"
     status = cli(["--build", str(build), "map", "check", str(PRIUS_CSV), "--out", str(out)])
@@ -118,6 +128,7 @@ def test_check_reports_the_prius_defects_and_the_fmus_own_verdict(build, tmp_pat
         warned = [m for m in f["log"] if m.startswith("warning:") and "not legal at" in m]
         assert len(warned) == 1 and "i_d = 130 A" in warned[0], f["log"]  # where, in the FMU's words
         assert "widened by 10 % of I_max" in warned[0]  # the FMI logger's printf escape undone
+        _same_box_as_the_fmus(read_flux_map(PRIUS_CSV), c["I_max_A"], f["log"])
     assert all(d["within_drive_currents"] == 0 for d in c["defects"])  # all at i_d > 0
     assert all(d["within_refused_box"] == 0 for d in c["defects"])  # the FMUs' own count: they accept
     falls = next(d for d in c["defects"] if d["kind"].startswith("psi_d"))
@@ -138,6 +149,8 @@ def test_a_map_folding_inside_the_operating_region_is_refused_naming_where(build
     c = json.loads((out / "check.json").read_text())
     assert not any(x["accepted"] for x in c["fmus"])
     assert sum(d["within_refused_box"] for d in c["defects"]) > 0  # the FMUs' own rule, counted
+    for x in c["fmus"]:
+        _same_box_as_the_fmus(read_flux_map(tmp_path / "bad.csv"), c["I_max_A"], x["log"])
     assert all(f"i_d = {f.i_d[j + 1]:g} A" in " ".join(x["log"]) or f"i_q = {f.i_q[k]:g} A" in " ".join(x["log"])
                for x in c["fmus"])
     assert c["legal_rectangle_A"] is None  # no crop holds the drive's currents

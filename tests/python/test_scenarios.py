@@ -97,3 +97,17 @@ def test_results_carry_the_contracts_keys(controller_fmu, plant_fmu, tmp_path):
         assert column in rows[0], column
     assert len(rows) == 1 + 100  # 10 s at trace_dt = 0.1 s
     assert float(rows[-1][0]) == pytest.approx(10.0)
+
+
+def test_a_drive_without_its_resistance_stops_the_run_naming_it(controller_fmu, plant_fmu, monkeypatch):
+    """A run turns P_cu into |i| with the drive's own R_s_T (no copy of the plant's law in Python):
+    a drive FMU that does not report it (one built before the output) is a clear error, never a
+    NaN current in the summary."""
+    from scenarios.cosim.drive_fmu import DriveFmu
+    from scenarios.cosim.fmu import CosimError
+    advance = DriveFmu.advance
+    monkeypatch.setattr(DriveFmu, "advance", lambda self, *a, **k: dataclasses.replace(advance(self, *a, **k),
+                                                                                         R_s_T=math.nan))
+    seg = segment(load_cycle("UDDS"), *SEGMENTS["UDDS"])
+    with pytest.raises(CosimError, match="R_s_T"):
+        simulate(seg, RunSpec(), fmus=(controller_fmu, plant_fmu), progress=False)

@@ -21,7 +21,8 @@ def test_compare_preset_writes_what_simulate_writes(tmp_path, monkeypatch):
     VARIANTS = default_variants()  # with least loss's where the FMUs have it: the last run is one of them
     results = run_study(out, cycles=(str(cycle),), conditions=conditions, variants=VARIANTS, workers=2)
     assert len(results) == len(conditions) * len(VARIANTS)
-    assert (out / "report.md").exists() and (out / "study.png").exists() and (out / "runs.parquet").exists()
+    written = sorted(p.name for p in out.iterdir())  # all of it in the message: a missing file once seen in CI
+    assert {"report.md", "study.png", "runs.parquet"} <= set(written), written
     assert len((out / "summary.csv").read_text().splitlines()) == 1 + len(results)
     for r in (results[0], results[-1]):
         v = next(v for v in VARIANTS if v.label == r.variant)
@@ -41,3 +42,17 @@ def test_compare_preset_writes_what_simulate_writes(tmp_path, monkeypatch):
     again = run_study(out, cycles=(str(cycle),), conditions=conditions, variants=VARIANTS, workers=2)
     assert [a.summary for a in again] == [r.summary for r in results]
     assert (out / "report.md").read_text() == report
+    # the controller's cost per call: a column only where bench_controller measured it (where it is
+    # built), otherwise one line saying where the figures come from; every table row as wide as its header
+    assert "ns/call" not in report and "-DIPMSM_BUILD_BENCH=ON" in report
+    scenarios.study.compare.write_report(out, results, {results[0].variant: 123.0})
+    measured = (out / "report.md").read_text()
+    assert "controller ns/call" in measured and "-DIPMSM_BUILD_BENCH=ON" not in measured
+    assert f"| {results[0].variant} |" in measured and "| 123 |" in measured
+    for text in (report, measured):
+        lines = text.splitlines()
+        heads = [k for k, ln in enumerate(lines) if ln.startswith("| method | Wh/km")]
+        assert heads
+        for k in heads:
+            table = lines[k:lines.index("", k)]
+            assert len(table) > 2 and len({ln.count("|") for ln in table}) == 1, table
