@@ -256,13 +256,19 @@ def test_metadata_warnings_are_the_same_in_both_fmus(make, tmp_path, good_map):
 
 # --- 5. Initialization Mode ---
 
+#: nodes per axis of the previews' map: parsing and splining it (what a preview must not do again)
+#: dwarfs what every preview still does (read the file's bytes, hash them: an edited file is a new map)
+PREVIEW_MAP_NODES = 201
+
+
 @pytest.mark.parametrize("name", FMUS)
-def test_previews_do_not_parse_the_map_again(make, tmp_path, default_map_path, name):
-    """The default map, made unique (a comment) so that no earlier test has it parsed: the first
-    preview parses it (and the plant inverts it); Set-then-Get pairs after it must cost a small
-    fraction of that (before: every pair parsed it again, 1.4 to 21 ms)."""
+def test_previews_do_not_parse_the_map_again(make, tmp_path, name):
+    """A map made unique (a comment) so that no earlier test has it parsed: the first preview
+    parses it (and the plant inverts it); Set-then-Get pairs after it must cost well under that
+    (measured 0.08 to 0.16 of it; before, every pair parsed the map again: about 1)."""
     path = tmp_path / "unique.csv"
-    path.write_text(f"# {uuid.uuid4()}\n" + default_map_path.read_text())
+    write_flux_map(path, linear_flux_map(2e-4, 5e-4, 0.08, 600.0, PREVIEW_MAP_NODES))
+    path.write_text(f"# {uuid.uuid4()}\n" + path.read_text())
     a = make(name)
     assert a.setup() == OK and a.enter() == OK
     a.set(flux_map=str(path))
@@ -277,7 +283,7 @@ def test_previews_do_not_parse_the_map_again(make, tmp_path, default_map_path, n
         assert a.get_status(output)[0] == OK
         pairs.append(time.perf_counter() - t0)
     pairs.sort()
-    assert pairs[len(pairs) // 2] < 0.3 * first, (first, pairs)
+    assert pairs[len(pairs) // 2] < 0.5 * first, (first, pairs)
 
 
 # --- 2. states that tell the truth ---

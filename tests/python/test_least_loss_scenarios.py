@@ -170,7 +170,7 @@ def test_least_loss_loses_less_than_least_current(controller_fmu, plant_fmu):
 
 
 # -- the compare study --------------------------------------------------------------------------
-def test_compare_has_least_loss_columns(tmp_path):
+def test_compare_has_least_loss_columns(tmp_path, monkeypatch):
     from dataclasses import replace
 
     from scenarios.study.compare import LEAST_LOSS_VARIANTS, VARIANTS, StudyRun, study_runs, write_report
@@ -198,7 +198,8 @@ def test_compare_has_least_loss_columns(tmp_path):
                StudyRun("Ferrari, least loss", "b", replace(base, objective="loss", drive_loss_Wh=101.0,
                                                            drive_loss_optimal_Wh=100.0))]
     import scenarios.study.compare as compare
-    compare.plot_study = lambda *a, **k: None  # the figure needs run folders; the table is the point here
+    # the figure needs run folders; the table is the point here (monkeypatch: undone after the test)
+    monkeypatch.setattr(compare, "plot_study", lambda *a, **k: None)
     write_report(tmp_path, results, {})
     md = (tmp_path / "report.md").read_text()
     assert "loss vs least-loss optimum" in md and "drive loss (Wh)" in md
