@@ -229,6 +229,21 @@ struct Sample {
     bool feasible;
 };
 
+// A sample of the current circles at the problem's magnet shift: its shaft torque, its loss on
+// the curve (lin: the circle's a r^2 + b r) and whether it holds the voltage limit (V2_ok).
+Sample sampled(const CurrentCircles::Sample& x, const Problem& P, double lin, double V2_ok) {
+    const double psi_d = x.psi_d + P.shift;
+    const double Pfe = P.P_fe(psi_d * psi_d + x.psi_q * x.psi_q);
+    const double vd = P.R * x.i_d - P.omega * x.psi_q, vq = P.R * x.i_q + P.omega * psi_d;
+    return {x.i_d, x.i_q, P.kT * (psi_d * x.i_q - x.psi_q * x.i_d) - P.drag(Pfe), lin + P.e * Pfe,
+            vd * vd + vq * vq <= V2_ok};
+}
+
+// T_max's candidates on the current circle |i| = I_max polished while their sampled estimate is
+// within this of the best polished shaft torque (as least current's, saturated_optimal_current.cpp:
+// an estimate is off by the torque's curvature over a sample).
+constexpr double kTopCandidateMargin = 0.01;
+
 }  // namespace
 
 LeastLoss::LeastLoss(std::shared_ptr<const FluxMap> map, int pole_pairs, bool magnet_free)
@@ -337,6 +352,36 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
     Eval e_top{};
     const bool em_feasible = em_top.feasible && feasible(em_top.i_d, em_top.i_q, e_top);
     if (em_feasible) try_top(em_top.i_d, em_top.i_q, true);
+    // The shaft torque along the current circle within the voltage limit, from its samples: on a
+    // map whose torque along the circle has two maxima of nearly equal height (a measured map's
+    // ripple), the drag can make another one than the electromagnetic torque's the largest. Each
+    // local maximum between samples and each crossing of the voltage limit whose estimate comes
+    // within kTopCandidateMargin of the best polished point is polished (a local maximum, KKT).
+    {
+        constexpr int K = CurrentCircles::kRadii, N = CurrentCircles::kAngles;
+        Sample x[N];
+        for (int j = 0; j < N; ++j) x[j] = sampled(C.at(K, j), P, 0.0, V2_ok), x[j].h *= s;
+        evaluations += N;
+        struct Candidate {
+            double i_d, i_q, T;  // T: the sampled estimate of s h
+        } cand[2 * N];
+        int n = 0;
+        for (int j = 0; j < N; ++j) {
+            if (!x[j].feasible || (magnet_free_ && x[j].i_d > 0.0)) continue;
+            const Sample &a = x[(j + N - 1) % N], &b = x[(j + 1) % N];
+            if (a.feasible && b.feasible && x[j].h >= a.h && x[j].h >= b.h)
+                cand[n++] = {x[j].i_d, x[j].i_q, x[j].h};
+            for (const Sample* o : {&a, &b})
+                if (!o->feasible) cand[n++] = {0.5 * (x[j].i_d + o->i_d), 0.5 * (x[j].i_q + o->i_q), x[j].h};
+        }
+        std::sort(cand, cand + n, [](const Candidate& u, const Candidate& v) { return u.T > v.T; });
+        // (two maxima can lie within two samples of each other: no candidate is taken for the
+        // maximum polished already by its distance)
+        for (int i = 0; i < n; ++i) {
+            if (top.H > -INFINITY && cand[i].T < top.H - kTopCandidateMargin * std::abs(top.H)) break;
+            try_top(cand[i].i_d, cand[i].i_q, true);
+        }
+    }
     // The robust search where no local maximum came from the seed, or it is below the seed itself.
     if (!(top.H >= (em_feasible ? s * e_top.h : -INFINITY) - kTorqueTolerance * std::abs(e_top.h))) {
         out.searched = true;
@@ -417,7 +462,6 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         if (magnet_free_ && c.i_d > 0.0) return;
         seeds.offer(c);
     };
-    const double shift = P.shift;
     for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
         const double r_in = C.radius(k - 1);
         // no point beyond r_in loses less than its copper and inverter loss alone; on circle k (and
@@ -429,15 +473,8 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
             for (int j = 0; j < CurrentCircles::kAngles; ++j) prev[j].feasible = false, prev[j].h = NAN;
             continue;
         }
-        const double r = C.radius(k), c = r * r, lin = P.a * c + P.b * r;
-        for (int j = 0; j < CurrentCircles::kAngles; ++j) {
-            const CurrentCircles::Sample& x = C.at(k, j);
-            const double psi_d = x.psi_d + shift;
-            const double Pfe = P.P_fe(psi_d * psi_d + x.psi_q * x.psi_q);
-            const double vd = P.R * x.i_d - P.omega * x.psi_q, vq = P.R * x.i_q + P.omega * psi_d;
-            cur[j] = {x.i_d, x.i_q, P.kT * (psi_d * x.i_q - x.psi_q * x.i_d) - P.drag(Pfe), lin + P.e * Pfe,
-                      vd * vd + vq * vq <= V2_ok};
-        }
+        const double r = C.radius(k), lin = P.a * r * r + P.b * r;
+        for (int j = 0; j < CurrentCircles::kAngles; ++j) cur[j] = sampled(C.at(k, j), P, lin, V2_ok);
         evaluations += CurrentCircles::kAngles;
         for (int j = 0; j < CurrentCircles::kAngles; ++j) {
             offer(prev[j], cur[j]);
