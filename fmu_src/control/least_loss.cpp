@@ -331,55 +331,51 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         double H = -INFINITY;
         Region region = Region::mtpa;
     } top;
-    auto try_top = [&](double i_d, double i_q, bool need_kkt) {
-        const System order[3] = {System::top_current, System::top_voltage, System::top_corner};
-        for (System sys : order) {
-            const Point p = newton(flux, P, sys, 0.0, i_d, i_q, lim.I_max);
-            evaluations += p.iterations;
-            Eval e{};
-            if (!p.converged || !feasible(p.i_d, p.i_q, e)) continue;
-            if (magnet_free_ && p.i_d > 1e-9 * lim.I_max) continue;
-            if (need_kkt && !top_kkt(sys, p)) continue;
-            if (s * e.h > top.H) {
-                top.p = p;
-                top.H = s * e.h;
-                top.region = sys == System::top_current   ? Region::mtpa
-                             : sys == System::top_voltage ? Region::mtpv
-                                                          : Region::current_and_voltage_limit;
-            }
+    auto try_system = [&](System sys, double i_d, double i_q, bool need_kkt) {
+        const Point p = newton(flux, P, sys, 0.0, i_d, i_q, lim.I_max);
+        evaluations += p.iterations;
+        Eval e{};
+        if (!p.converged || !feasible(p.i_d, p.i_q, e)) return;
+        if (magnet_free_ && p.i_d > 1e-9 * lim.I_max) return;
+        if (need_kkt && !top_kkt(sys, p)) return;
+        if (s * e.h > top.H) {
+            top.p = p;
+            top.H = s * e.h;
+            top.region = sys == System::top_current   ? Region::mtpa
+                         : sys == System::top_voltage ? Region::mtpv
+                                                      : Region::current_and_voltage_limit;
         }
+    };
+    auto try_top = [&](double i_d, double i_q, bool need_kkt) {
+        for (System sys : {System::top_current, System::top_voltage, System::top_corner})
+            try_system(sys, i_d, i_q, need_kkt);
     };
     Eval e_top{};
     const bool em_feasible = em_top.feasible && feasible(em_top.i_d, em_top.i_q, e_top);
     if (em_feasible) try_top(em_top.i_d, em_top.i_q, true);
     // The shaft torque along the current circle within the voltage limit, from its samples: on a
     // map whose torque along the circle has two maxima of nearly equal height (a measured map's
-    // ripple), the drag can make another one than the electromagnetic torque's the largest. Each
-    // local maximum between samples and each crossing of the voltage limit whose estimate comes
-    // within kTopCandidateMargin of the best polished point is polished (a local maximum, KKT).
+    // ripple), the drag can make another one than the electromagnetic torque's the largest, and
+    // two maxima can lie between the same samples' neighbours (the Prius map's, 1.5 samples
+    // apart). Newton on the circle from every sample within the limit whose shaft torque comes
+    // within kTopCandidateMargin of the best found, and on the corner from where the circle
+    // crosses the voltage limit; each result a local maximum (KKT), the most torque wins.
     {
         constexpr int K = CurrentCircles::kRadii, N = CurrentCircles::kAngles;
         Sample x[N];
-        for (int j = 0; j < N; ++j) x[j] = sampled(C.at(K, j), P, 0.0, V2_ok), x[j].h *= s;
-        evaluations += N;
-        struct Candidate {
-            double i_d, i_q, T;  // T: the sampled estimate of s h
-        } cand[2 * N];
-        int n = 0;
+        double best_sample = -INFINITY;
         for (int j = 0; j < N; ++j) {
-            if (!x[j].feasible || (magnet_free_ && x[j].i_d > 0.0)) continue;
-            const Sample &a = x[(j + N - 1) % N], &b = x[(j + 1) % N];
-            if (a.feasible && b.feasible && x[j].h >= a.h && x[j].h >= b.h)
-                cand[n++] = {x[j].i_d, x[j].i_q, x[j].h};
-            for (const Sample* o : {&a, &b})
-                if (!o->feasible) cand[n++] = {0.5 * (x[j].i_d + o->i_d), 0.5 * (x[j].i_q + o->i_q), x[j].h};
+            x[j] = sampled(C.at(K, j), P, 0.0, V2_ok), x[j].h *= s;
+            if (magnet_free_ && x[j].i_d > 0.0) x[j].feasible = false;
+            if (x[j].feasible) best_sample = std::max(best_sample, x[j].h);
         }
-        std::sort(cand, cand + n, [](const Candidate& u, const Candidate& v) { return u.T > v.T; });
-        // (two maxima can lie within two samples of each other: no candidate is taken for the
-        // maximum polished already by its distance)
-        for (int i = 0; i < n; ++i) {
-            if (top.H > -INFINITY && cand[i].T < top.H - kTopCandidateMargin * std::abs(top.H)) break;
-            try_top(cand[i].i_d, cand[i].i_q, true);
+        evaluations += N;
+        for (int j = 0; j < N; ++j) {
+            const double bar = std::max(top.H, best_sample);
+            if (!x[j].feasible || x[j].h < bar - kTopCandidateMargin * std::abs(bar)) continue;
+            try_system(System::top_current, x[j].i_d, x[j].i_q, true);
+            for (const Sample* o : {&x[(j + N - 1) % N], &x[(j + 1) % N]})
+                if (!o->feasible) try_top(0.5 * (x[j].i_d + o->i_d), 0.5 * (x[j].i_q + o->i_q), true);
         }
     }
     // The robust search where no local maximum came from the seed, or it is below the seed itself.
