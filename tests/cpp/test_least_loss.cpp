@@ -273,7 +273,8 @@ double brute_max_shaft_torque(const MagnetFlux& flux, const DriveLoss& loss, con
         return H_best;
     };
     double best = -kInf;
-    for (const auto& along : {std::function<double(double)>(on_circle), std::function<double(double)>(on_voltage_limit)}) {
+    for (const auto& along :
+         {std::function<double(double)>(on_circle), std::function<double(double)>(on_voltage_limit)}) {
         double a_best = 0.0, H_best = -kInf;
         for (int j = 0; j < n; ++j) {
             const double a = 2.0 * kPi * j / n, H = along(a);
@@ -328,8 +329,8 @@ TEST(LeastLoss, PriusTorqueMaxIsTheLargestShaftTorque) {
                     const CurrentCommand top = em.solve(s * 1e30, lim, R_s, shift, Recursion::optimal);
                     const LeastLossResult r = ll.solve(s * 1e30, lim, flux, loss, top);
                     const double ref = brute_max_shaft_torque(flux, loss, lim, s);
-                    SCOPED_TRACE(::testing::Message() << rpm << " r/min, u_dc " << u_dc << " V, shift " << shift
-                                                      << " Wb, side " << s);
+                    SCOPED_TRACE(::testing::Message()
+                                 << rpm << " r/min, u_dc " << u_dc << " V, shift " << shift << " Wb, side " << s);
                     EXPECT_NEAR(r.cmd.torque_max, ref, 1e-6 * ref);
                     EXPECT_NEAR(s * r.cmd.torque, r.cmd.torque_max, 1e-9 * ref);
                     ++n;
