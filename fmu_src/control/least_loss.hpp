@@ -4,11 +4,15 @@
 // |v| <= V_max; and T_max, the most shaft torque within the limits.
 //
 // How (each step exact on the map, Newton with the map's second derivatives):
-//  1. T_max from the least-current solver's T_max point (the most electromagnetic torque; the iron
-//     loss's drag moves the optimum little): Newton on the shaft torque's conditions with the
-//     same active limits (current circle, voltage limit, or their corner), each result verified a
-//     local maximum (KKT multipliers' signs); where none is, the robust search (3.) for the largest
-//     shaft torque on the sampled circles, polished the same way.
+//  1. T_max from the least-current solver's T_max point (the most electromagnetic torque): Newton
+//     on the shaft torque's conditions with the same active limits (current circle, voltage
+//     limit, or their corner); and, since the drag can make another maximum the largest (a
+//     measured map's torque along the current circle can have two within 0.02 % of each other),
+//     Newton on the current circle from each of its samples within the voltage limit whose shaft
+//     torque comes within 1 % of the best found, and on the corner from where the circle crosses
+//     the limit. Each result verified a local maximum (KKT multipliers' signs), the largest wins;
+//     where none is, the robust search (3.) for the largest shaft torque on the sampled circles,
+//     polished the same way.
 //  2. Below T_max, the global search: the constant-shaft-torque curve's crossings of the sampled
 //     current circles and of their rays (CurrentCircles: the map's resolution), each crossing's
 //     loss, circles beyond the best crossing's loss skipped (no point of current r loses less than
