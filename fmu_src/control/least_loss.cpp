@@ -4,6 +4,8 @@
 #include <cmath>
 #include <vector>
 
+#include "control/level_search.hpp"
+
 namespace ipmsm {
 namespace {
 
@@ -244,10 +246,18 @@ Sample sampled(const CurrentCircles::Sample& x, const Problem& P, double lin, do
 // an estimate is off by the torque's curvature over a sample).
 constexpr double kTopCandidateMargin = 0.01;
 
+// The walk along the curve about the best polished point: steps of this fraction of the map's
+// grid spacing, this many to each side (two circle samples' reach on the Prius map's 10 A grid).
+constexpr double kCurveStepFraction = 0.125;
+constexpr int kCurveSteps = 16;
+
 }  // namespace
 
 LeastLoss::LeastLoss(std::shared_ptr<const FluxMap> map, int pole_pairs, bool magnet_free)
-    : map_(std::move(map)), pole_pairs_(pole_pairs), magnet_free_(magnet_free) {}
+    : map_(std::move(map)),
+      resolution_(level_search::grid_resolution(*map_)),
+      pole_pairs_(pole_pairs),
+      magnet_free_(magnet_free) {}
 
 const CurrentCircles& LeastLoss::circles(double I_max) {
     if (!circles_ || circles_->I_max() != I_max) circles_ = std::make_shared<const CurrentCircles>(*map_, I_max);
@@ -500,6 +510,40 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         consider(newton(flux, P, System::current, T, top.p.i_d, top.p.i_q, lim.I_max), System::current);
         consider(newton(flux, P, System::voltage, T, top.p.i_d, top.p.i_q, lim.I_max), System::voltage);
         consider(newton(flux, P, System::interior, T, top.p.i_d, top.p.i_q, lim.I_max), System::interior);
+    }
+    // Along the curve about the best point, at a fraction of the map's grid spacing: where the
+    // loss along the curve ripples (a spline over a coarse grid), two local minima can lie within
+    // one crossing's reach, and Newton from it finds either (the published Prius map at 900 r/min,
+    // 238 N.m: 4.7 A and 0.07 % apart). A predictor-corrector walk (a step along the curve's
+    // tangent, Newton's correction of the torque); a point that loses less seeds Newton.
+    if (best.J < INFINITY) {
+        const Point from = best.p;
+        const double step = kCurveStepFraction * resolution_;
+        double lowest = best.J, ld = 0, lq = 0;
+        for (double side : {-1.0, 1.0}) {
+            double i_d = from.i_d, i_q = from.i_q;
+            for (int n = 0; n < kCurveSteps; ++n) {
+                const FluxPoint f = flux.eval(i_d, i_q);
+                ++evaluations;
+                const double psi2 = f.psi_d * f.psi_d + f.psi_q * f.psi_q, Pfe = P.P_fe(psi2);
+                const double h = P.kT * (f.psi_d * i_q - f.psi_q * i_d) - P.drag(Pfe);
+                const double gd = P.kT * (f.L_dd * i_q - f.L_qd * i_d - f.psi_q);
+                const double gq = P.kT * (f.L_dq * i_q + f.psi_d - f.L_qq * i_d);
+                const double g2 = gd * gd + gq * gq;
+                if (!(g2 > 0.0) || i_d * i_d + i_q * i_q > I2_ok) break;
+                if (n > 0 && std::abs(h - T) <= 1e-3 * std::max(top.H, 1.0)) {
+                    const double c = i_d * i_d + i_q * i_q, J = P.a * c + P.b * std::sqrt(c) + P.e * Pfe;
+                    if (J < lowest) lowest = J, ld = i_d, lq = i_q;
+                }
+                const double g = std::sqrt(g2);
+                i_d += -(h - T) * gd / g2 - side * step * gq / g;
+                i_q += -(h - T) * gq / g2 + side * step * gd / g;
+            }
+        }
+        if (lowest < best.J * (1.0 - kLossTolerance)) {
+            if (!consider(newton(flux, P, System::interior, T, ld, lq, lim.I_max), System::interior))
+                consider(newton(flux, P, System::voltage, T, ld, lq, lim.I_max), System::voltage);
+        }
     }
     // ---- 3. The check: no crossing, projected onto the curve, loses less than the command.
     const double scale = best.J < INFINITY ? std::max(1.0, best.J) : 1.0;

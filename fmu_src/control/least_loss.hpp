@@ -76,6 +76,7 @@ private:
     double psi2_shift_ = NAN;
     const CurrentCircles* psi2_circles_ = nullptr;
     std::shared_ptr<const FluxMap> map_;
+    double resolution_;  // the map's smallest grid spacing, A (level_search::grid_resolution)
     int pole_pairs_;
     bool magnet_free_;
     std::shared_ptr<const CurrentCircles> circles_;
