@@ -19,7 +19,9 @@
 //     the copper and inverter loss of r alone). The best crossings of distinct stretches of the
 //     curve seed Newton on the stationarity condition grad P x grad T_shaft = 0 (interior), or the
 //     curve's intersection with the voltage limit or the current circle where the interior point
-//     breaks a limit; the least exact loss of the points that hold the limits wins.
+//     breaks a limit; the least exact loss of the points that hold the limits wins. Then a walk
+//     along the curve about it in steps of a fraction of the map's grid spacing (the loss along
+//     the curve ripples on a coarse grid): a point that loses less seeds Newton again.
 //  3. The check: the command's shaft torque on the map, its limits, and no sampled crossing of the
 //     curve whose exact loss (projected onto the curve) is less: the search of 2. is global at the
 //     circles' resolution, and the check compares its every stretch with the command.
