@@ -4,18 +4,24 @@
 // |v| <= V_max; and T_max, the most shaft torque within the limits.
 //
 // How (each step exact on the map, Newton with the map's second derivatives):
-//  1. T_max from the least-current solver's T_max point (the most electromagnetic torque; the iron
-//     loss's drag moves the optimum little): Newton on the shaft torque's conditions with the
-//     same active limits (current circle, voltage limit, or their corner), each result verified a
-//     local maximum (KKT multipliers' signs); where none is, the robust search (3.) for the largest
-//     shaft torque on the sampled circles, polished the same way.
+//  1. T_max from the least-current solver's T_max point (the most electromagnetic torque): Newton
+//     on the shaft torque's conditions with the same active limits (current circle, voltage
+//     limit, or their corner); and, since the drag can make another maximum the largest (a
+//     measured map's torque along the current circle can have two within 0.02 % of each other),
+//     Newton on the current circle from each of its samples within the voltage limit whose shaft
+//     torque comes within 1 % of the best found, and on the corner from where the circle crosses
+//     the limit. Each result verified a local maximum (KKT multipliers' signs), the largest wins;
+//     where none is, the robust search (3.) for the largest shaft torque on the sampled circles,
+//     polished the same way.
 //  2. Below T_max, the global search: the constant-shaft-torque curve's crossings of the sampled
 //     current circles and of their rays (CurrentCircles: the map's resolution), each crossing's
 //     loss, circles beyond the best crossing's loss skipped (no point of current r loses less than
 //     the copper and inverter loss of r alone). The best crossings of distinct stretches of the
 //     curve seed Newton on the stationarity condition grad P x grad T_shaft = 0 (interior), or the
 //     curve's intersection with the voltage limit or the current circle where the interior point
-//     breaks a limit; the least exact loss of the points that hold the limits wins.
+//     breaks a limit; the least exact loss of the points that hold the limits wins. Then a walk
+//     along the curve about it in steps of a fraction of the map's grid spacing (the loss along
+//     the curve ripples on a coarse grid): a point that loses less seeds Newton again.
 //  3. The check: the command's shaft torque on the map, its limits, and no sampled crossing of the
 //     curve whose exact loss (projected onto the curve) is less: the search of 2. is global at the
 //     circles' resolution, and the check compares its every stretch with the command.
@@ -72,6 +78,7 @@ private:
     double psi2_shift_ = NAN;
     const CurrentCircles* psi2_circles_ = nullptr;
     std::shared_ptr<const FluxMap> map_;
+    double resolution_;  // the map's smallest grid spacing, A (level_search::grid_resolution)
     int pole_pairs_;
     bool magnet_free_;
     std::shared_ptr<const CurrentCircles> circles_;

@@ -45,8 +45,11 @@ class LossDrive:
     loss: LossParams
 
     def parts(self, i_d, i_q):
+        return self.parts_at_flux(i_d, i_q, *self.d.fmap.flux(i_d, i_q, self.d.psi_d_shift))
+
+    def parts_at_flux(self, i_d, i_q, psi_d, psi_q):
+        """parts() where the flux linkages (with the magnets' shift) are known already."""
         d, L = self.d, self.loss
-        psi_d, psi_q = d.fmap.flux(i_d, i_q, d.psi_d_shift)
         T_e = 1.5 * d.pole_pairs * (psi_d * i_q - psi_q * i_d)
         I2 = i_d**2 + i_q**2
         I = np.sqrt(I2)
@@ -79,6 +82,25 @@ def _disk(I_max, left_half, n_r=120, n_phi=900):
     return i_d, i_q
 
 
+#: the disk's samples with the map's flux linkages there, per (map, I_max, half): the magnets'
+#: temperature only shifts psi_d, so one evaluation of the splines serves every operating point
+_DISKS: dict = {}
+
+
+def _sampled_disk(L: LossDrive):
+    """The disk's currents and, at the drive's magnet shift, its loss, shaft torque and |v|."""
+    d = L.d
+    key = (id(d.fmap), d.I_max, d.left_half)
+    if key not in _DISKS or _DISKS[key][0] is not d.fmap:
+        i_d, i_q = _disk(d.I_max, d.left_half)
+        _DISKS[key] = (d.fmap, i_d, i_q, *d.fmap.flux(i_d, i_q))
+    _, i_d, i_q, psi_d0, psi_q = _DISKS[key]
+    psi_d = psi_d0 + d.psi_d_shift
+    T, P = L.parts_at_flux(i_d, i_q, psi_d, psi_q)
+    V = np.hypot(d.R_s * i_d - d.omega * psi_q, d.R_s * i_q + d.omega * psi_d)
+    return i_d, i_q, T, P, V
+
+
 def _constraints(L: LossDrive, extra=()):
     d = L.d
     cons = [{"type": "ineq", "fun": lambda x: 1.0 - x[0] ** 2 - x[1] ** 2},
@@ -94,18 +116,36 @@ def _feasible(L: LossDrive, i_d, i_q, rel=1e-7):
             and (not d.left_half or i_d <= rel * d.I_max))
 
 
+#: starts of SLSQP: the best samples, each at least this far (of I_max) from the ones taken, so
+#: that each starts on its own stretch of the curve (several disk samples lie on one stretch)
+START_APART = 0.02
+N_STARTS = 4
+
+
+def _starts(L: LossDrive, i_d, i_q, order) -> list[np.ndarray]:
+    """Up to N_STARTS of the samples in `order` (best first), START_APART I_max apart."""
+    taken: list[np.ndarray] = []
+    for k in order:
+        x = np.array([i_d[k], i_q[k]])
+        if all(np.hypot(*(x - y)) >= START_APART * L.d.I_max for y in taken):
+            taken.append(x)
+            if len(taken) == N_STARTS:
+                break
+    return taken
+
+
 def max_shaft_torque(L: LossDrive, sign: float) -> float:
     """The largest sign * T_shaft within both limits."""
     d = L.d
-    i_d, i_q = _disk(d.I_max, d.left_half)
-    ok = d.voltage(i_d, i_q) <= d.V_max
+    i_d, i_q, T_shaft, _, V = _sampled_disk(L)
+    ok = V <= d.V_max
     if not ok.any():
         return 0.0
-    T = np.where(ok, sign * L.shaft(i_d, i_q), -np.inf)
+    T = np.where(ok, sign * T_shaft, -np.inf)
     scale = max(float(np.max(np.abs(T[ok]))), 1e-9)
     best = float(np.max(T))
-    for k in np.argsort(T)[-4:]:
-        x0 = np.array([i_d[k], i_q[k]]) / d.I_max
+    for x in _starts(L, i_d, i_q, np.argsort(T)[::-1][:np.count_nonzero(ok)]):
+        x0 = x / d.I_max
         r = minimize(lambda x: -sign * L.shaft(x[0] * d.I_max, x[1] * d.I_max) / scale, x0, method="SLSQP",
                      constraints=_constraints(L), options={"ftol": 1e-15, "maxiter": 300})
         if _feasible(L, *(r.x * d.I_max)):
@@ -116,11 +156,10 @@ def max_shaft_torque(L: LossDrive, sign: float) -> float:
 def least_loss(L: LossDrive, T_target: float, T_scale: float) -> float:
     """The least total loss with T_shaft = T_target within both limits (inf if none found)."""
     d = L.d
-    i_d, i_q = _disk(d.I_max, d.left_half)
-    T, P = L.parts(i_d, i_q)
-    ok = (d.voltage(i_d, i_q) <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
+    i_d, i_q, T, P, V = _sampled_disk(L)
+    ok = (V <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
     P = np.where(ok, P, np.inf)
-    starts = [np.array([i_d[k], i_q[k]]) for k in np.argsort(P)[:6] if np.isfinite(P[k])]
+    starts = _starts(L, i_d, i_q, np.argsort(P)[:np.count_nonzero(ok)])
     P_scale = float(np.min(P)) if np.isfinite(np.min(P)) else 1.0
     eq = {"type": "eq", "fun": lambda x: (L.shaft(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale}
     best = math.inf

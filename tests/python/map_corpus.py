@@ -76,6 +76,30 @@ RAWP_MIRRORED = CorpusMap("syre_rawp_mirrored", 3, 0.44, 30.0, 565.0, 3000 * RPM
 BY_NAME = {m.name: m for m in [*CORPUS, RAWP_MIRRORED]}
 
 
+#: the corpus tests' speed bands (of w_m_max): MTPA; field weakening; deep field weakening, MTPV
+SPEED_BANDS = ((0.0, 0.3), (0.3, 0.65), (0.65, 1.0))
+#: their torque bands (of the peak torque): within reach, and beyond it (the command clamped)
+TORQUE_BANDS = ((0.02, 0.95), (1.05, 1.4))
+#: the corpus tests' u_dc (of the map's) and magnet temperature (K) ranges
+U_DC_RANGE = (0.85, 1.1)
+T_MAGNET_RANGE = (253.15, 393.15)
+
+
+def operating_points(rng, m: CorpusMap, T_peak: float, n_per_cell: int, w_min: float = 0.0):
+    """Four quadrants x the speed bands (the lowest from w_min of w_m_max) x the torque bands,
+    n_per_cell random points in each cell; u_dc and the magnet temperature random. Dicts of the
+    controller's inputs T_ref, w_m, u_dc, T_magnet."""
+    for T_sign in (1, -1):
+        for w_sign in (1, -1):
+            for lo, hi in SPEED_BANDS:
+                for t_lo, t_hi in TORQUE_BANDS:
+                    for _ in range(n_per_cell):
+                        yield dict(T_ref=float(T_sign * rng.uniform(t_lo, t_hi) * T_peak),
+                                   w_m=float(w_sign * rng.uniform(max(lo, w_min), hi) * m.w_m_max),
+                                   u_dc=float(rng.uniform(*U_DC_RANGE) * m.u_dc),
+                                   T_magnet=float(rng.uniform(*T_MAGNET_RANGE)))
+
+
 def bench_arguments(tmp: Path) -> list[str]:
     """bench_controller's --map arguments for the whole corpus, its maps written into tmp."""
     args = []

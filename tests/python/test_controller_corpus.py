@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from map_corpus import BY_NAME, CORPUS, RPM, CorpusMap
+from map_corpus import BY_NAME, CORPUS, RPM, CorpusMap, operating_points
 
 from scenarios.cosim.fmu import Fmu
 from scenarios.maps.flux_map import FluxMap, linear_flux_map, read_flux_map, write_flux_map
@@ -59,20 +59,6 @@ def answer(c) -> dict:
     i_d, i_q, T_cmd, T_max, region, fails = c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max", "region", "check_failures")
     return dict(i_d=float(i_d), i_q=float(i_q), T_cmd=float(T_cmd), T_max=float(T_max), region=int(region),
                 check_failures=int(fails))
-
-
-def operating_points(rng, m: CorpusMap, T_peak: float, n_per_cell: int):
-    """Four quadrants x three speed bands (MTPA; field weakening; deep field weakening, MTPV) x a
-    torque within reach or beyond it (clamped); u_dc and the magnet temperature random."""
-    for T_sign in (1, -1):
-        for w_sign in (1, -1):
-            for lo, hi in ((0.0, 0.3), (0.3, 0.65), (0.65, 1.0)):
-                for t_lo, t_hi in ((0.02, 0.95), (1.05, 1.4)):
-                    for _ in range(n_per_cell):
-                        yield dict(T_ref=float(T_sign * rng.uniform(t_lo, t_hi) * T_peak),
-                                   w_m=float(w_sign * rng.uniform(lo, hi) * m.w_m_max),
-                                   u_dc=float(rng.uniform(0.85, 1.1) * m.u_dc),
-                                   T_magnet=float(rng.uniform(253.15, 393.15)))
 
 
 def peak_torque(m, fmap) -> float:

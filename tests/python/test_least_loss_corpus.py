@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 from least_loss_reference import LossDrive, LossParams, least_loss, max_shaft_torque
-from map_corpus import BY_NAME, CORPUS, CorpusMap
+from map_corpus import BY_NAME, CORPUS, CorpusMap, operating_points
 
 from scenarios.maps.flux_map import read_flux_map
 
@@ -26,6 +26,7 @@ T_MAGNET_REF, K_PSI_T = 293.15, -0.0012
 TORQUE_TOL = 1e-6     # of T_max
 EXCESS_LOSS = 1e-4    # relative to the least loss (0.01 %)
 LIMIT_TOL = 1e-6
+W_MIN = 0.02          # of w_m_max: every point turns (iron loss and its drag present)
 
 
 def loss_params(m: CorpusMap, fmap) -> LossParams:
@@ -71,20 +72,6 @@ def answer(c) -> dict:
     i_d, i_q, T_cmd, T_max, region, P_loss = c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max", "region", "P_loss_cmd")
     return dict(i_d=float(i_d), i_q=float(i_q), T_cmd=float(T_cmd), T_max=float(T_max), region=int(region),
                 P_loss=float(P_loss))
-
-
-def operating_points(rng, m: CorpusMap, T_peak: float, n_per_cell: int):
-    """Four quadrants x three speed bands x a torque within reach or beyond it (clamped); u_dc and
-    the magnet temperature random."""
-    for T_sign in (1, -1):
-        for w_sign in (1, -1):
-            for lo, hi in ((0.02, 0.3), (0.3, 0.65), (0.65, 1.0)):
-                for t_lo, t_hi in ((0.02, 0.95), (1.05, 1.4)):
-                    for _ in range(n_per_cell):
-                        yield dict(T_ref=float(T_sign * rng.uniform(t_lo, t_hi) * T_peak),
-                                   w_m=float(w_sign * rng.uniform(lo, hi) * m.w_m_max),
-                                   u_dc=float(rng.uniform(0.85, 1.1) * m.u_dc),
-                                   T_magnet=float(rng.uniform(253.15, 393.15)))
 
 
 def deviations(L: LossDrive, op: dict, a: dict, I_max: float) -> dict:
@@ -143,7 +130,7 @@ def _random_points(controller_fmu, corpus, name, n_per_cell, seed, every=1):
     m, path, fmap, lp = corpus(name)
     op0 = dict(w_m=0.0, u_dc=m.u_dc, T_magnet=T_MAGNET_REF)
     T_peak = peak_torque(loss_drive(m, fmap, lp, op0))
-    ops = list(operating_points(np.random.default_rng(seed), m, T_peak, n_per_cell))[::every]
+    ops = list(operating_points(np.random.default_rng(seed), m, T_peak, n_per_cell, W_MIN))[::every]
     answers = run_points(controller_fmu, m, path, lp, ops)
     devs = [deviations(loss_drive(m, fmap, lp, op), op, a, m.I_max) for op, a in zip(ops, answers)]
     check(f"{name} least loss", ops, answers, devs)
