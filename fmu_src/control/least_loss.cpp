@@ -176,14 +176,17 @@ Point newton(const MagnetFlux& flux, const Problem& P, System sys, double T, dou
 struct Eval {
     double h, J, g, c;
 };
-Eval evaluate(const MagnetFlux& flux, const Problem& P, double i_d, double i_q) {
-    const FluxPoint f = flux.eval(i_d, i_q);
+// At the currents (i_d, i_q) whose fluxes are f.
+Eval evaluate_at(const FluxPoint& f, const Problem& P, double i_d, double i_q) {
     const double s = f.psi_d * f.psi_d + f.psi_q * f.psi_q;
     const double Pfe = P.P_fe(s);
     const double c = i_d * i_d + i_q * i_q;
     const double vd = P.R * i_d - P.omega * f.psi_q, vq = P.R * i_q + P.omega * f.psi_d;
     return {P.kT * (f.psi_d * i_q - f.psi_q * i_d) - P.drag(Pfe), P.a * c + P.b * std::sqrt(c) + P.e * Pfe,
             vd * vd + vq * vq, c};
+}
+Eval evaluate(const MagnetFlux& flux, const Problem& P, double i_d, double i_q) {
+    return evaluate_at(flux.eval(i_d, i_q), P, i_d, i_q);
 }
 
 // A sampled crossing of the curve h = T*: a seed.
@@ -525,16 +528,14 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
             for (int n = 0; n < kCurveSteps; ++n) {
                 const FluxPoint f = flux.eval(i_d, i_q);
                 ++evaluations;
-                const double psi2 = f.psi_d * f.psi_d + f.psi_q * f.psi_q, Pfe = P.P_fe(psi2);
-                const double h = P.kT * (f.psi_d * i_q - f.psi_q * i_d) - P.drag(Pfe);
+                const Eval e = evaluate_at(f, P, i_d, i_q);
+                const double h = e.h;
                 const double gd = P.kT * (f.L_dd * i_q - f.L_qd * i_d - f.psi_q);
                 const double gq = P.kT * (f.L_dq * i_q + f.psi_d - f.L_qq * i_d);
                 const double g2 = gd * gd + gq * gq;
-                if (!(g2 > 0.0) || i_d * i_d + i_q * i_q > I2_ok) break;
-                if (n > 0 && std::abs(h - T) <= 1e-3 * std::max(top.H, 1.0)) {
-                    const double c = i_d * i_d + i_q * i_q, J = P.a * c + P.b * std::sqrt(c) + P.e * Pfe;
-                    if (J < lowest) lowest = J, ld = i_d, lq = i_q;
-                }
+                if (!(g2 > 0.0) || e.c > I2_ok) break;
+                if (n > 0 && std::abs(h - T) <= 1e-3 * std::max(top.H, 1.0) && e.J < lowest)
+                    lowest = e.J, ld = i_d, lq = i_q;
                 const double g = std::sqrt(g2);
                 i_d += -(h - T) * gd / g2 - side * step * gq / g;
                 i_q += -(h - T) * gq / g2 + side * step * gd / g;
