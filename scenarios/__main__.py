@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from scenarios.core.paths import BUILD_DIR
+from scenarios.core.paths import BUILD_DIR, FMU_FOLDERS, fmu_folder
 from scenarios.core.version import VERSION
 from scenarios.maps import cli as map_cli
 from scenarios.runs import cli as runs_cli
@@ -14,7 +14,8 @@ from scenarios.runs.cli import slug as _slug  # noqa: F401 - the name tests and 
 
 #: exit status: bad input (file, key, what was expected); a run that could not finish
 EXIT_BAD_INPUT, EXIT_FAILED = 2, 1
-#: what `fmu-path` finds: the FMUs (build/fmu/NAME.fmu) and the SSP package (build/ssp/NAME.ssp)
+#: what `fmu-path` finds: the FMUs (build/fmu/NAME.fmu; --fmi 3: build/fmu3/NAME.fmu) and the SSP
+#: package (build/ssp/NAME.ssp)
 FMU_NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
 SSP_NAME = "IpmsmControllerPlant"
 
@@ -30,6 +31,8 @@ def main(argv=None) -> int:
     compare_cli.add_parser(sub)
     fp = sub.add_parser("fmu-path", help="where the FMUs (and the SSP package) are: print the file's path")
     fp.add_argument("name", choices=FMU_NAMES + (SSP_NAME,), help="an FMU's model identifier, or the SSP package")
+    fp.add_argument("--fmi", type=int, default=2, choices=tuple(FMU_FOLDERS),
+                    help="the FMU's FMI version: 2 (build/fmu, the default) or 3 (build/fmu3)")
     from scenarios.runs import check
     check.add_parser(sub)
     map_cli.add_parser(sub)
@@ -56,8 +59,11 @@ def main(argv=None) -> int:
 
 def _dispatch(args) -> int:
     if args.cmd == "fmu-path":
+        if args.name == SSP_NAME and args.fmi != 2:
+            print(f"error: --fmi {args.fmi}: the SSP package holds the FMI 2.0 FMUs only", file=sys.stderr)
+            return EXIT_BAD_INPUT
         path = (args.build / "ssp" / f"{SSP_NAME}.ssp" if args.name == SSP_NAME
-                else args.build / "fmu" / f"{args.name}.fmu")
+                else fmu_folder(args.build, args.fmi) / f"{args.name}.fmu")
         if not path.is_file():
             print(f"error: {path} is missing: build it (cmake --build build)", file=sys.stderr)
             return 2

@@ -55,6 +55,16 @@ def located(path: str | Path) -> Path:
 #: an installed wheel, the wheel's copies
 BUILD_DIR = located("build")
 
+#: the FMUs' folder in a build, by FMI version: build/fmu (FMI 2.0), build/fmu3 (FMI 3.0), the same
+#: three FMUs with the same variables and value references (issue 36)
+FMU_FOLDERS = {2: "fmu", 3: "fmu3"}
+
+
+def fmu_folder(build: Path = BUILD_DIR, fmi: int = 2) -> Path:
+    """The folder of the build's FMUs of FMI version fmi (2 or 3)."""
+    return Path(build) / FMU_FOLDERS[fmi]
+
+
 #: where results go by default: out/ in the repository; from a wheel, out/ in the current folder
 OUT_DIR = Path("out") if FROM_WHEEL else ROOT / "out"
 

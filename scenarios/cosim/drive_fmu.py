@@ -8,17 +8,19 @@ fast path of every run, study and check, stepped at the vehicle side's step (10 
 One fmi2SetReal of the five inputs and one fmi2DoStep per call, one fmi2GetReal of the Real
 outputs DriveStep records and one fmi2GetInteger of its Integer ones (by name, from the model
 description), each call's status checked: the per-step Python cost is four calls, whatever the
-number of inner steps. The reference loop (scenarios.cosim.reference) couples the two FMUs in
+number of inner steps. The FMI 3.0 drive (build/fmu3/IpmsmDrive.fmu) is stepped the same way,
+through its standard's functions (fmi3SetFloat64, fmi3DoStep, fmi3GetFloat64, fmi3GetInt32;
+scenarios.cosim.standard). The reference loop (scenarios.cosim.reference) couples the two FMUs in
 Python and returns the same DriveStep.
 """
 from __future__ import annotations
 
 import math
-from ctypes import c_double, c_int
 from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 
-from scenarios.cosim.fmu import FMI2_OK, FMI2_WARNING, CosimError, Fmu
+from scenarios.cosim.fmu import CosimError, Fmu
+from scenarios.cosim.standard import OK, WARNING
 
 INPUTS = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding")
 #: the thermal network's boundary temperatures (contract, "Thermal"): inputs when the FMU has them
@@ -84,8 +86,9 @@ REQUIRED = tuple(f.name for f in fields(DriveStep) if f.default is MISSING)
 
 
 def recorded_outputs(unit: Fmu) -> dict[str, tuple[str, ...]]:
-    """The unit's outputs that DriveStep records, by FMI type ("Real", "Integer"), in the record's
-    order; CosimError naming the first required one the unit lacks."""
+    """The unit's outputs that DriveStep records, by FMI type ("Real", "Integer"; "Float64",
+    "Int32" in FMI 3.0), in the record's order; CosimError naming the first required one the unit
+    lacks."""
     missing = [n for n in REQUIRED if n not in unit.vars or unit.vars[n].causality != "output"]
     if missing:
         raise CosimError(f"{unit.name} has no output {missing[0]!r}: not a drive FMU this record fits")
@@ -119,15 +122,15 @@ class DriveFmu(Fmu):
             self.exit_initialization()
             self.sample_time = self.get("sample_time")
             self._boundary = tuple(boundary.values())
-            outputs = recorded_outputs(self)
-            self.outputs = outputs.get("Real", ()) + outputs.get("Integer", ())
-            # the value references and values every advance() passes (fmi2ValueReference, fmi2Real,
-            # fmi2Integer arrays)
-            self._u_vr, self._u = self.vrs(*self.inputs), (c_double * len(self.inputs))()
-            self._reals = outputs.get("Real", ())
-            self._y_vr, self._y = self.vrs(*self._reals), (c_double * len(self._reals))()
-            self._ints = outputs.get("Integer", ())
-            self._n_vr, self._n = self.vrs(*self._ints), (c_int * len(self._ints))()
+            # the value references and values every advance() passes, made once: the inputs, and
+            # the recorded outputs by type (one Get call each), each with its Get function
+            real = self.api.NEUTRAL["Real"]
+            self._set_inputs, self._step = self.api.setter(real), self.api.do_step
+            self._u_vr, self._u = self.vrs(*self.inputs), (self.c_type("Real") * len(self.inputs))()
+            self._outputs = [(names, self.api.getter(kind), self.vrs(*names), (self.api.KINDS[kind][2] * len(names))(),
+                              f"{self.api.PREFIX}Get{kind} of the outputs")
+                             for kind, names in recorded_outputs(self).items()]
+            self.outputs = tuple(n for names, *_ in self._outputs for n in names)
             self.has_fault = FAULT_INPUT in self.vars   # contract, "Faults"
             self.fault = False
             if self.has_fault:
@@ -142,26 +145,27 @@ class DriveFmu(Fmu):
         if not self.has_fault:
             raise CosimError(f"{self.path} has no `fault` input (contract, \"Faults\"): rebuild the FMUs")
         if on != self.fault:
-            self.call("fmi2SetBoolean", self._fault_vr, 1, (c_int * 1)(1 if on else 0))
+            self.write(self._fault_vr, (self.c_type("Boolean") * 1)(on), "Boolean")
             self.fault = on
 
     def advance(self, dt: float, T_ref: float, w_m: float, u_dc: float, T_magnet: float,
                 T_winding: float) -> DriveStep:
         """One step of dt (a whole multiple of sample_time) with the inputs held over it."""
-        dll, c = self.dll, self.c
+        c = self.c
         self._u[:] = (T_ref, w_m, u_dc, T_magnet, T_winding, *self._boundary)
-        if (status := dll.fmi2SetReal(c, self._u_vr, len(self._u), self._u)) > FMI2_WARNING:
-            self.fail("fmi2SetReal of the inputs", status)
-        status = dll.fmi2DoStep(c, self.t, dt, 1)
-        if status != FMI2_OK:
-            raise CosimError(f"IpmsmDrive: fmi2DoStep from t = {self.t:.9g} s by {dt:.9g} s returned status "
-                             f"{status}; the FMU says: {self.last_messages()}")
+        if (status := self._set_inputs(c, self._u_vr, len(self._u), self._u)) > WARNING:
+            self.fail(f"{self.api.PREFIX}Set{self.api.NEUTRAL['Real']} of the inputs", status)
+        status = self._step(c, self.t, dt)
+        if status != OK:
+            raise CosimError(f"IpmsmDrive: {self.api.PREFIX}DoStep from t = {self.t:.9g} s by {dt:.9g} s returned "
+                             f"status {status}; the FMU says: {self.last_messages()}")
         self.t += dt
-        if (status := dll.fmi2GetReal(c, self._y_vr, len(self._y), self._y)) > FMI2_WARNING:
-            self.fail("fmi2GetReal of the outputs", status)
-        if (status := dll.fmi2GetInteger(c, self._n_vr, len(self._n), self._n)) > FMI2_WARNING:
-            self.fail("fmi2GetInteger of the outputs", status)
-        return DriveStep(**dict(zip(self._reals, self._y)), **dict(zip(self._ints, self._n)))
+        values = {}
+        for names, get, vrs, out, what in self._outputs:
+            if (status := get(c, vrs, len(out), out)) > WARNING:
+                self.fail(what, status)
+            values.update(zip(names, out))
+        return DriveStep(**values)
 
 
 def steps_of(dt: float, sample_time: float) -> int:

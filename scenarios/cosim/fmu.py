@@ -1,4 +1,4 @@
-"""The one Python handle on a co-simulation FMU (fmpy's FMU2Slave underneath): variables by name,
+"""The one Python handle on a co-simulation FMU (fmpy's FMU2Slave or FMU3Slave underneath): variables by name,
 value references resolved once, the FMU's log kept and passed to logging, every failed call a
 CosimError that quotes what the FMU logged.
 
@@ -9,8 +9,11 @@ CosimError that quotes what the FMU logged.
 
 Fmu(..., initialise=False) stays in Initialization Mode (parameters set) until exit_initialization():
 a master initialising several units in order needs that. The per-step paths (the drive FMU, the
-reference loop) call the FMU's fmi2* functions on ctypes arrays made once (`reals`, `vrs`): fmpy's
+reference loop) call the FMU's functions on ctypes arrays made once (`vrs`, `read`, `write`): fmpy's
 getReal/setReal build new arrays at every call, which costs 2-5 times the call itself.
+
+FMI 2.0 and FMI 3.0 FMUs alike (fmpy's FMU2Slave or FMU3Slave, by the model description's
+fmiVersion): what differs between the two standards is in scenarios.cosim.standard.
 """
 from __future__ import annotations
 
@@ -22,15 +25,12 @@ from ctypes import c_uint
 from pathlib import Path
 
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import FMU2Slave
+
+from scenarios.cosim.standard import FATAL, OK, WARNING, Fmi2, for_version
 
 LOG = logging.getLogger("scenarios.cosim")
-#: fmi2Status values (fmi2FunctionTypes.h)
-FMI2_OK, FMI2_WARNING, FMI2_FATAL = 0, 1, 4
-_LEVEL = {FMI2_OK: logging.INFO, FMI2_WARNING: logging.WARNING}
-#: per variable type: the fmi2Set/Get<Type> that takes it and the conversion of a value to it
-_SETTERS = {"Real": ("Real", float), "Integer": ("Integer", int), "Enumeration": ("Integer", int),
-            "Boolean": ("Boolean", bool), "String": ("String", str)}
+_LEVEL = {OK: logging.INFO, WARNING: logging.WARNING}
 
 
 def set_values(fmu: FMU2Slave, variables: Mapping, **values) -> None:
@@ -38,14 +38,14 @@ def set_values(fmu: FMU2Slave, variables: Mapping, **values) -> None:
     fmi2Set<Type>, the value converted to that type."""
     for name, value in values.items():
         v = variables[name]
-        kind, convert = _SETTERS[v.type]
+        kind, convert, _ = Fmi2.KINDS[v.type]
         getattr(fmu, "set" + kind)([v.valueReference], [convert(value)])
 
 
 def get_values(fmu: FMU2Slave, variables: Mapping, *names: str):
     """The named variables' values, each through its type's fmi2Get<Type>: one value for one
     name, else a list."""
-    out = [getattr(fmu, "get" + _SETTERS[variables[n].type][0])([variables[n].valueReference])[0] for n in names]
+    out = [getattr(fmu, "get" + Fmi2.KINDS[variables[n].type][0])([variables[n].valueReference])[0] for n in names]
     return out[0] if len(out) == 1 else out
 
 
@@ -82,15 +82,15 @@ class Fmu:
         self.t = 0.0
         self.fmu = None
         self.initialised = False  # fmi2Terminate is allowed only once initialisation has succeeded
+        standard = for_version(self.md.fmiVersion)
+        if standard is None:
+            raise CosimError(f"{self.path} is an FMI {self.md.fmiVersion} FMU: only FMI 2.0 and FMI 3.0 are run")
         self._dir = extract(str(self.path))
         try:
-            self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self._dir, modelIdentifier=self.name,
-                                 instanceName=instance_name or self.md.modelName)
-            self.fmu.instantiate(loggingOn=logging, callbacks=self._callbacks())
-            self.c = self.fmu.component
-            self.dll = self.fmu.dll
-            self.call("fmi2SetupExperiment", 0, 0.0, 0.0, 0, 0.0)
-            self.call("fmi2EnterInitializationMode")
+            self.api = standard(self.md, self._dir, instance_name or self.md.modelName, logging, self._log)
+            self.fmu, self.c, self.dll = self.api.slave, self.api.c, self.api.dll
+            for function, args in self.api.start_calls():
+                self.call(function, *args)
             self.set(**parameters)
             if initialise:
                 self.exit_initialization()
@@ -98,19 +98,12 @@ class Fmu:
             self.close()
             raise
 
-    def _callbacks(self) -> fmi2CallbackFunctions:
-        def logger(env, instance, status, category, message):
-            text = (message or b"").decode(errors="replace").replace("%%", "%")  # as printf would
-            self.messages.append((status, (category or b"").decode(errors="replace"), text))
-            if not self._quiet:
-                LOG.log(_LEVEL.get(status, logging.ERROR), "[%s] %s", self.name, text)
-
-        self._logger = fmi2CallbackLoggerTYPE(logger)  # alive as long as the instance
-        cb = fmi2CallbackFunctions()
-        cb.logger, cb.allocateMemory, cb.freeMemory = self._logger, defaultCallbacks.allocateMemory, \
-            defaultCallbacks.freeMemory
-        self._cb = cb
-        return cb
+    def _log(self, status, category, message) -> None:
+        """The FMU's logger (either standard's): kept, and passed to logging unless quiet."""
+        text = (message or b"").decode(errors="replace").replace("%%", "%")  # as printf would
+        self.messages.append((status, (category or b"").decode(errors="replace"), text))
+        if not self._quiet:
+            LOG.log(_LEVEL.get(status, logging.ERROR), "[%s] %s", self.name, text)
 
     def last_messages(self, n: int = 3) -> str:
         return " | ".join(m for _, _, m in list(self.messages)[-n:]) or "(the FMU logged no message)"
@@ -120,13 +113,13 @@ class Fmu:
                          f"the FMU says: {self.last_messages()}")
 
     def call(self, function: str, *args) -> None:
-        """fmi2<function>(component, *args), its status checked."""
+        """function(instance, *args) (its full name: fmi2..., fmi3...), its status checked."""
         status = getattr(self.dll, function)(self.c, *args)
-        if status > FMI2_WARNING:
+        if status > WARNING:
             self.fail(function, status)
 
     def exit_initialization(self) -> None:
-        self.call("fmi2ExitInitializationMode")
+        self.call(self.api.EXIT_INITIALIZATION)
         self.initialised = True
 
     def variable(self, name: str):
@@ -136,13 +129,24 @@ class Fmu:
             raise CosimError(f"{self.name} has no variable {name!r}") from None
 
     def vrs(self, *names: str):
-        """The variables' value references, as an fmi2ValueReference array."""
+        """The variables' value references, as an fmi2ValueReference (fmi3ValueReference) array."""
         return (c_uint * len(names))(*(self.variable(n).valueReference for n in names))
 
     def read(self, vrs, out, kind: str = "Real") -> None:
-        """fmi2Get<kind> of the value references vrs (an array from `vrs`) into out, an array of
-        their length (made once by the caller: the per-step paths)."""
-        self.call(f"fmi2Get{kind}", vrs, len(vrs), out)
+        """The Get function of kind ("Real", "Integer", "Boolean": Float64, Int32, Boolean in FMI
+        3.0) of the value references vrs (an array from `vrs`) into out, an array of their length
+        and the kind's C type (made once by the caller: the per-step paths)."""
+        if (status := self.api.getter(self.api.NEUTRAL[kind])(self.c, vrs, len(vrs), out)) > WARNING:
+            self.fail(f"{self.api.PREFIX}Get{self.api.NEUTRAL[kind]}", status)
+
+    def write(self, vrs, values, kind: str = "Real") -> None:
+        """As read, the Set function: values (an array of the kind's C type) to vrs."""
+        if (status := self.api.setter(self.api.NEUTRAL[kind])(self.c, vrs, len(vrs), values)) > WARNING:
+            self.fail(f"{self.api.PREFIX}Set{self.api.NEUTRAL[kind]}", status)
+
+    def c_type(self, kind: str):
+        """The C type of kind's values ("Real", "Integer", "Boolean") in this FMU's standard."""
+        return self.api.KINDS[self.api.NEUTRAL[kind]][2]
 
     def set(self, **values) -> None:
         """Variables by name (parameters, inputs), each converted to its type: one fmi2Set<Type>
@@ -152,7 +156,7 @@ class Fmu:
             v = self.variable(name)
             if v.causality not in ("parameter", "input"):
                 raise CosimError(f"{self.name}.{name} is {v.causality}: only parameters and inputs are set")
-            kind, convert = _SETTERS[v.type]
+            kind, convert, _ = self.api.KINDS[v.type]
             vrs, xs = by_kind.setdefault(kind, ([], []))
             vrs.append(v.valueReference)
             xs.append(convert(value))
@@ -173,7 +177,7 @@ class Fmu:
         """The variables' values, a list (as get())."""
         by_kind: dict[str, list[int]] = {}
         for i, name in enumerate(names):
-            by_kind.setdefault(_SETTERS[self.variable(name).type][0], []).append(i)
+            by_kind.setdefault(self.api.KINDS[self.variable(name).type][0], []).append(i)
         out: list = [None] * len(names)
         try:
             for kind, where in by_kind.items():
@@ -185,29 +189,35 @@ class Fmu:
                              f"{self.last_messages()}") from None
         return out
 
-    def do_step(self, t: float, h: float) -> None:
+    def step_from(self, t: float, h: float) -> None:
+        """DoStep from t by h, its status checked; self.t stays t, the step's start (a master that
+        keeps its own clock, scenarios.cosim.reference)."""
         self.t = t
-        self.call("fmi2DoStep", t, h, 1)
+        if (status := self.api.do_step(self.c, t, h)) > WARNING:
+            self.fail(f"{self.api.PREFIX}DoStep", status)
+
+    def do_step(self, t: float, h: float) -> None:
+        self.step_from(t, h)
         self.t = t + h
 
     step = do_step
 
     def save_state(self):
-        """fmi2GetFMUstate: a copy of the instance's state (and its time) to go back to; free it
-        with free_state."""
-        return self.fmu.getFMUstate(), self.t
+        """fmi2GetFMUstate (fmi3GetFMUState): a copy of the instance's state (and its time) to go
+        back to; free it with free_state."""
+        return self.api.get_state(), self.t
 
     def restore_state(self, saved) -> None:
-        """fmi2SetFMUstate: the instance as it was when `saved` was taken."""
-        self.fmu.setFMUstate(saved[0])
+        """fmi2SetFMUstate (fmi3SetFMUState): the instance as it was when `saved` was taken."""
+        self.api.set_state(saved[0])
         self.t = saved[1]
 
     def free_state(self, saved) -> None:
-        self.fmu.freeFMUstate(saved[0])
+        self.api.free_state(saved[0])
 
     def close(self) -> None:
         if self.fmu is not None:
-            fatal = any(s == FMI2_FATAL for s, _, _ in self.messages)
+            fatal = any(s == FATAL for s, _, _ in self.messages)
             try:
                 if self.initialised and not fatal:
                     self.fmu.terminate()

@@ -103,8 +103,7 @@ class ReferenceDrive:
                 f.set(**fed[role])
             t, h_k = (self.k * h, h) if self._clock is None else self._clock(self.k)
             for f in self.units.values():
-                f.t = t  # the step's start, for a failure's message
-                f.call("fmi2DoStep", t, h_k, 1)
+                f.step_from(t, h_k)  # f.t: the step's start (a failure's message names it)
             self.k += 1
             P_inv += self.units["plant"].get("P_inv")
         return self._record(n * h, P_inv / n)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from scenarios.core.boundary import InputError, check_writable, finite, inside
 from scenarios.core.constants import T_REFERENCE_K, U_DC_SCALE_MAX, ZERO_CELSIUS_K
-from scenarios.core.paths import OUT_DIR
+from scenarios.core.paths import FMU_FOLDERS, OUT_DIR
 from scenarios.cosim import BACKEND_ALIASES, BACKENDS, backend_name
 
 DRIVE_HELP = "drive description (TOML, docs/drives.md); default: scenarios/drives/default.toml"
@@ -57,6 +57,8 @@ def add_parsers(sub) -> None:
                      help="drive: the IpmsmDrive FMU stepped at the vehicle's 10 ms (the fast path); reference "
                           "(or fmpy, its former name): the reference loop, IpmsmController and IpmsmPlant coupled "
                           "at 100 us in Python (slow)")
+    run.add_argument("--fmi", type=int, default=2, choices=tuple(FMU_FOLDERS),
+                     help="the FMUs' FMI version: 2 (build/fmu, the default) or 3 (build/fmu3); the same results")
     run.add_argument("--u-dc-scale", type=float, default=1.0, help="DC voltage seen by the drive / battery's")
     run.add_argument("--magnet-degC", type=float, default=T_REFERENCE_K - ZERO_CELSIUS_K)
     run.add_argument("--repeat", type=int, default=1, help="drive the cycle this many times in a row (thermal "
@@ -186,12 +188,13 @@ def run(args) -> int:
     stem = Path(args.cycle).stem + ("" if args.repeat == 1 else f"_x{args.repeat}") + (
         "" if args.drive is None else f"_{drive.name}")
     stem += "" if objective == "current" else f"_least_{objective}"
+    stem += "" if args.fmi == 2 else f"_fmi{args.fmi}"
     out = args.out or inside(OUT_DIR, slug(f"{stem}_{method}"), "run's output folder")
     with run_folder(out) as folder:  # one run at a time, holding one run (scenarios.runs.out_folder)
         s = simulate(cycle, RunSpec(drive=drive, method=method, recursion=args.recursion, conditions=cond,
                                     backend=args.backend, objective=objective,
                                     controller_loss_scale=args.controller_loss_scale),
-                     fmus=fmu_paths(args.build), out=out)
+                     fmus=fmu_paths(args.build, args.fmi), out=out)
         title = f"{s.cycle}, {method}" + ("" if objective == "current" else f", least {objective}") + (
             "" if args.drive is None else f", {drive.name}")
         plot_run(out, title, drive)

@@ -18,13 +18,12 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import ExitStack
-from ctypes import c_double
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from scenarios.core.boundary import InputError
 from scenarios.core.constants import T_REFERENCE_K, ZERO_CELSIUS_K
-from scenarios.core.paths import BUILD_DIR
+from scenarios.core.paths import BUILD_DIR, fmu_folder
 from scenarios.core.progress import Progress
 from scenarios.cosim import BACKENDS, backend_name
 from scenarios.cosim.drive_fmu import DriveFmu
@@ -143,8 +142,10 @@ class RunSpec:
         return n_inner
 
 
-def fmu_paths(build: Path = BUILD_DIR) -> tuple[Path, Path]:
-    return build / "fmu" / "IpmsmController.fmu", build / "fmu" / "IpmsmPlant.fmu"
+def fmu_paths(build: Path = BUILD_DIR, fmi: int = 2) -> tuple[Path, Path]:
+    """The controller's and the plant's FMU of FMI version fmi (IpmsmDrive is beside them)."""
+    folder = fmu_folder(build, fmi)
+    return folder / "IpmsmController.fmu", folder / "IpmsmPlant.fmu"
 
 
 def controller_loss_estimates(c_params: dict, spec: RunSpec) -> dict:
@@ -289,8 +290,8 @@ class LeastLossReference(Fmu):
                          **drive.controller_params(method="ferrari", recursion=2, objective="loss"))
         self._made = None
         try:
-            self._u_vr, self._u = self.vrs(*self.INPUTS), (c_double * len(self.INPUTS))()
-            self._y_vr, self._y = self.vrs("P_loss_cmd"), (c_double * 1)()
+            self._u_vr, self._u = self.vrs(*self.INPUTS), (self.c_type("Real") * len(self.INPUTS))()
+            self._y_vr, self._y = self.vrs("P_loss_cmd"), (self.c_type("Real") * 1)()
             # as OptimumReference's: a step that fails on the state carried from step to step (the
             # regulator's) is taken again from the instance as it was made, its clock restarted there
             self._made, self._t0 = self.save_state(), 0.0
@@ -301,13 +302,13 @@ class LeastLossReference(Fmu):
     def loss(self, T_shaft: float, w_m: float, u_dc: float, T_magnet: float, T_winding: float, t: float,
              dt: float) -> float:
         self._u[:] = (T_shaft, w_m, u_dc, T_magnet, T_winding)
-        self.call("fmi2SetReal", self._u_vr, len(self._u), self._u)
+        self.write(self._u_vr, self._u)
         try:
             self.do_step(t - self._t0, dt)
         except CosimError:  # the carried state's failure: once more from the instance as made
             self.restore_state(self._made)
             self._t0 = t
-            self.call("fmi2SetReal", self._u_vr, len(self._u), self._u)
+            self.write(self._u_vr, self._u)
             self.do_step(0.0, dt)
         self.read(self._y_vr, self._y)
         return self._y[0]
