@@ -14,7 +14,7 @@ The per-step functions (`setter`, `getter`, `do_step`) take (instance, value ref
 values) and return the raw status, so the per-step paths keep their ctypes arrays made once."""
 from __future__ import annotations
 
-from ctypes import byref, c_bool, c_double, c_int, c_int32, c_int64
+import ctypes as C
 
 from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi3 import FMU3Slave
@@ -31,8 +31,8 @@ class Fmi2:
     PREFIX = "fmi2"
     #: a variable's type in the model description -> the Set/Get function's type, the value's
     #: conversion and its C type
-    KINDS = {"Real": ("Real", float, c_double), "Integer": ("Integer", int, c_int),
-             "Enumeration": ("Integer", int, c_int), "Boolean": ("Boolean", bool, c_int),
+    KINDS = {"Real": ("Real", float, C.c_double), "Integer": ("Integer", int, C.c_int),
+             "Enumeration": ("Integer", int, C.c_int), "Boolean": ("Boolean", bool, C.c_int),
              "String": ("String", str, None)}
     #: what a neutral name asks for (Fmu.read's "Real", "Integer", "Boolean")
     NEUTRAL = {"Real": "Real", "Integer": "Integer", "Boolean": "Boolean"}
@@ -83,9 +83,12 @@ class Fmi3(Fmi2):
 
     version = "3.0"
     PREFIX = "fmi3"
-    KINDS = {"Float64": ("Float64", float, c_double), "Int32": ("Int32", int, c_int32),
-             "Int64": ("Int64", int, c_int64), "Enumeration": ("Int64", int, c_int64),
-             "Boolean": ("Boolean", bool, c_bool), "String": ("String", str, None)}
+    KINDS = {"Float64": ("Float64", float, C.c_double), "Float32": ("Float32", float, C.c_float),
+             **{k: (k, int, t) for k, t in (("Int8", C.c_int8), ("UInt8", C.c_uint8), ("Int16", C.c_int16),
+                                            ("UInt16", C.c_uint16), ("Int32", C.c_int32), ("UInt32", C.c_uint32),
+                                            ("Int64", C.c_int64), ("UInt64", C.c_uint64))},
+             "Enumeration": ("Int64", int, C.c_int64), "Boolean": ("Boolean", bool, C.c_bool),
+             "String": ("String", str, None)}
     NEUTRAL = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
     EXIT_INITIALIZATION = "fmi3ExitInitializationMode"
 
@@ -98,7 +101,7 @@ class Fmi3(Fmi2):
         self.dll, self.c = self.slave.dll, self.slave.component
         self._do_step = self.dll.fmi3DoStep
         # fmi3DoStep's outputs, made once
-        self._event, self._terminate, self._early, self._last = c_bool(), c_bool(), c_bool(), c_double()
+        self._event, self._terminate, self._early, self._last = C.c_bool(), C.c_bool(), C.c_bool(), C.c_double()
 
     def start_calls(self) -> tuple:
         # (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)
@@ -113,8 +116,8 @@ class Fmi3(Fmi2):
         return lambda c, vrs, n, values: f(c, vrs, n, values, n)
 
     def do_step(self, c, t: float, h: float) -> int:
-        status = self._do_step(c, t, h, True, byref(self._event), byref(self._terminate), byref(self._early),
-                               byref(self._last))
+        status = self._do_step(c, t, h, True, C.byref(self._event), C.byref(self._terminate), C.byref(self._early),
+                               C.byref(self._last))
         # an FMU that asks to end the simulation: as FMI 2.0 says it (fmi2Discard, fmi2Terminated)
         return max(status, DISCARD) if self._terminate.value else status
 

@@ -92,6 +92,25 @@ SIGNATURES = {
 #: the functions every FMI 3.0 co-simulation FMU exports (the standard's common and co-simulation
 #: functions: an FMU without a capability still exports its functions, which then refuse)
 FMI3_CS_FUNCTIONS = frozenset(SIGNATURES)
+#: the other interface types' functions (Model Exchange, Scheduled Execution), which an FMU may
+#: export as well (refusing them where it does not implement that interface type)
+SIGNATURES.update({
+    "fmi3InstantiateModelExchange": (inst_t, [C.c_char_p, C.c_char_p, C.c_char_p, C.c_bool, C.c_bool, C.c_void_p,
+                                              LogMessage]),
+    "fmi3InstantiateScheduledExecution": (inst_t, [C.c_char_p, C.c_char_p, C.c_char_p, C.c_bool, C.c_bool,
+                                                   C.c_void_p, LogMessage, C.c_void_p, C.c_void_p, C.c_void_p]),
+    "fmi3ActivateModelPartition": (C.c_int, [inst_t, C.c_uint32, C.c_double]),
+    "fmi3EnterContinuousTimeMode": (C.c_int, [inst_t]),
+    "fmi3CompletedIntegratorStep": (C.c_int, [inst_t, C.c_bool, bool_p, bool_p]),
+    "fmi3SetTime": (C.c_int, [inst_t, C.c_double]),
+    "fmi3SetContinuousStates": (C.c_int, [inst_t, double_p, C.c_size_t]),
+    "fmi3GetContinuousStateDerivatives": (C.c_int, [inst_t, double_p, C.c_size_t]),
+    "fmi3GetEventIndicators": (C.c_int, [inst_t, double_p, C.c_size_t]),
+    "fmi3GetContinuousStates": (C.c_int, [inst_t, double_p, C.c_size_t]),
+    "fmi3GetNominalsOfContinuousStates": (C.c_int, [inst_t, double_p, C.c_size_t]),
+    "fmi3GetNumberOfEventIndicators": (C.c_int, [inst_t, size_p]),
+    "fmi3GetNumberOfContinuousStates": (C.c_int, [inst_t, size_p]),
+})
 
 
 class Unzipped3:
