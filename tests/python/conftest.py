@@ -106,3 +106,27 @@ def make(fmu_instances):
         return fmu_instances(name, kw.pop("instance_name", f"{name}{next(count)}"), **kw)
 
     return new
+
+
+@pytest.fixture
+def unwritable_folder(tmp_path):
+    """A folder no one may write into, root included: mode 555, and where that does not stop the
+    user (root ignores modes) the immutable attribute (chattr +i, ext4 and most Linux file
+    systems), which stops root too. Skips only where neither is possible."""
+    import shutil
+    import subprocess
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    immutable = False
+    if os.access(folder, os.W_OK) and shutil.which("chattr"):
+        immutable = subprocess.run(["chattr", "+i", str(folder)], capture_output=True).returncode == 0
+    if os.access(folder, os.W_OK):
+        pytest.skip("this user may write into a folder of mode 555 and chattr +i is not available")
+    try:
+        yield folder
+    finally:
+        if immutable:
+            subprocess.run(["chattr", "-i", str(folder)], check=True)
+        folder.chmod(0o755)
