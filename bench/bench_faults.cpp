@@ -20,13 +20,14 @@
 
 #include "drive/drive_model.hpp"
 #include "plant_model.hpp"
+#include "source_tree.hpp"
 
 namespace {
 
 fmi::Context context() {
     fmi::Context ctx;
     ctx.instance_name = "bench";
-    ctx.resource_dir = IPMSM_SOURCE_DIR "/fmu_src/resources";
+    ctx.resource_dir = ipmsm::source_path("fmu_src/resources");
     return ctx;
 }
 
