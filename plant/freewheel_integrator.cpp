@@ -372,7 +372,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
             InverseFluxPoint c_end;
             CvodeStats st;
             const bool ok = p.linearise(y, c, w.r_continue, span) &&
-                            explicit_steps(p, span, s.rtol, atol, y_end, psi_end, c_end, st);
+                            explicit_steps(p, span, s.rtol, atol, s.explicit_attempts, y_end, psi_end, c_end, st);
             out.steps += st.steps;
             out.rhs_evals += st.rhs_evals;
             if (!ok) {

@@ -151,6 +151,42 @@ def test_asc_saturated_steady_state(plant_fmu, default_map_path, measured_map_pa
     assert err < 1e-6
 
 
+def asc_current_trajectory(spline, R, om, i0, ts):
+    """The short circuit in the currents, L(i) di/dt = -R i + om J psi(i), L = dpsi/di of the map's spline:
+    scipy's DOP853 at rtol 1e-11 (independent of the plant's flux states, its linearised steps and CVODE)."""
+
+    def f(_, i):
+        ps = spline.psi(i)
+        rhs = [-R * i[0] + om * ps[1], -R * i[1] - om * ps[0]]
+        L = [[spline.sd.ev(i[0], i[1], dx=1), spline.sd.ev(i[0], i[1], dy=1)],
+             [spline.sq.ev(i[0], i[1], dx=1), spline.sq.ev(i[0], i[1], dy=1)]]
+        return np.linalg.solve(L, rhs)
+
+    sol = solve_ivp(f, (0.0, ts[-1]), list(i0), method="DOP853", rtol=1e-11, atol=1e-8, t_eval=ts)
+    assert sol.success
+    return sol.y.T
+
+
+@pytest.mark.parametrize("tolerances,bound", [({}, 1e-4), (TIGHT, 1e-7)], ids=["default", "tight"])
+@pytest.mark.parametrize("rpm", [8000.0, 12000.0])
+def test_asc_transient_default_map(plant_fmu, default_map_path, rpm, tolerances, bound):
+    """A trip from motoring into ASC on the saturated map: every 0.1 ms step's currents through the
+    short circuit's ringing against an independent tight integration (at the default tolerances the
+    plant's explicit steps carry the ringing, cvode_integrator.hpp; the same bound as freewheeling's)."""
+    spline = MapSpline(default_map_path)
+    w_m = rpm * math.pi / 30
+    i0, h, n = (-150.0, 100.0), 1e-4, 200
+    with Fmu(plant_fmu, w_m=w_m, i_d_start=i0[0], i_q_start=i0[1], **NO_FE, **tolerances) as f:
+        got = run(f, 2, n, h)[:, :2]
+    exact = asc_current_trajectory(spline, 0.012, P * w_m, i0, h * np.arange(1, n + 1))
+    assert exact[:, 0].min() > spline.i_d[0]  # on the map's grid (beyond it the plant continues the map its own way)
+    peak = np.abs(exact).max()
+    err = np.abs(got - exact).max() / peak
+    print(f"ASC at {rpm:.0f} r/min, {tolerances or 'default tolerances'}: max current error {err:.1e} of the peak "
+          f"{peak:.0f} A")
+    assert peak > 400 and err < bound
+
+
 # --- 3. freewheeling ------------------------------------------------------------------------------------
 
 def onset_speed(psi_0, p=P, u_dc=U_DC):
