@@ -8,6 +8,8 @@
 //                 cost is the transient's (the same integrator), not the state's
 //   freewheel+0.1s freewheeling after the trip's first 0.1 s (1000 steps untimed): the
 //                 conducting bridge's steady state without the trip's transient
+//   ASC+0.3s      ASC after the trip's first 0.3 s (3000 steps untimed): the short circuit's
+//                 ringing decayed (over L/R), its steady state
 // Reports microseconds per step (best of `rounds`; the thread's CPU time, so that other processes
 // on a shared machine do not count) and CVODE steps per step; and IpmsmDrive's do_step per inner
 // step (100 us) with and without a fault.
@@ -106,10 +108,13 @@ int main(int argc, char** argv) {
     for (double rpm : {3000.0, 6000.0, 8000.0, 12000.0}) {
         const double w_m = rpm * 3.14159265358979323846 / 30.0;
         const Cost sw = plant_cost(0, w_m, n, rounds);
-        const char* names[] = {"switching", "freewheeling", "ASC", "switching u=0", "freewheel+0.1s"};
-        for (int s = 0; s < 5; ++s) {
-            // the last row: freewheeling after the trip's first 0.1 s (the bridge's steady state)
-            const Cost c = s == 0 ? sw : s == 4 ? plant_cost(1, w_m, n, rounds, 1000) : plant_cost(s, w_m, n, rounds);
+        const char* names[] = {"switching", "freewheeling", "ASC", "switching u=0", "freewheel+0.1s", "ASC+0.3s"};
+        for (int s = 0; s < 6; ++s) {
+            // the last rows: the safe states after the trip's transient (their steady states)
+            const Cost c = s == 0   ? sw
+                           : s == 4 ? plant_cost(1, w_m, n, rounds, 1000)
+                           : s == 5 ? plant_cost(2, w_m, n, rounds, 3000)
+                                    : plant_cost(s, w_m, n, rounds);
             std::printf("%-10.0f %-14s %10.3f %12.2f %10.2f\n", rpm, names[s], c.us, c.cvode_steps, c.us / sw.us);
         }
     }
