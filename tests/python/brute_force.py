@@ -3,12 +3,17 @@ then scipy's SLSQP from the best samples. Shares nothing with the C++ solver but
 (MATH.md conventions) and the flux-map data (interpolated here by scipy's own splines)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
 
 from scenarios.maps.flux_map import FluxMap
+
+
+#: how many scalar points Drive.flux keeps (a finite-difference gradient in 2-D takes 3)
+RECENT_POINTS = 8
 
 
 @dataclass
@@ -23,13 +28,29 @@ class Drive:
     # Search only i_d <= 0: a magnet-free machine's optima tie in mirror pairs (i, -i), and the
     # controller's convention is the branch i_d <= 0 (docs/controller.md).
     left_half: bool = False
+    #: the flux linkages at the last few scalar currents: SLSQP evaluates the torque, the voltage
+    #: (and the loss) at the same point, and their finite differences at the same neighbours
+    _recent: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def flux(self, i_d, i_q):
+        """fmap.flux at the magnets' shift; a scalar point evaluated once (the same numbers)."""
+        if np.ndim(i_d) or np.ndim(i_q):
+            return self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        # the signs too: -0.0 == 0.0 as a key, and the spline need not give the same bits at both
+        key = (float(i_d), float(i_q), math.copysign(1.0, i_d), math.copysign(1.0, i_q))
+        found = self._recent.get(key)
+        if found is None:
+            if len(self._recent) >= RECENT_POINTS:
+                self._recent.clear()
+            found = self._recent[key] = self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        return found
 
     def torque(self, i_d, i_q):
-        psi_d, psi_q = self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        psi_d, psi_q = self.flux(i_d, i_q)
         return 1.5 * self.pole_pairs * (psi_d * i_q - psi_q * i_d)
 
     def voltage(self, i_d, i_q):
-        psi_d, psi_q = self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        psi_d, psi_q = self.flux(i_d, i_q)
         return np.hypot(self.R_s * i_d - self.omega * psi_q, self.R_s * i_q + self.omega * psi_d)
 
 

@@ -45,7 +45,7 @@ class LossDrive:
     loss: LossParams
 
     def parts(self, i_d, i_q):
-        return self.parts_at_flux(i_d, i_q, *self.d.fmap.flux(i_d, i_q, self.d.psi_d_shift))
+        return self.parts_at_flux(i_d, i_q, *self.d.flux(i_d, i_q))
 
     def parts_at_flux(self, i_d, i_q, psi_d, psi_q):
         """parts() where the flux linkages (with the magnets' shift) are known already."""
