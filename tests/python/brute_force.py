@@ -11,7 +11,6 @@ from scipy.optimize import minimize
 
 from scenarios.maps.flux_map import FluxMap
 
-
 #: how many scalar points Drive.flux keeps (a finite-difference gradient in 2-D takes 3)
 RECENT_POINTS = 8
 
@@ -60,14 +59,34 @@ def _disk(I_max, n_r=90, n_phi=720):
     return (r * np.cos(phi)).ravel(), (r * np.sin(phi)).ravel()
 
 
+#: SLSQP's finite-difference step (scipy.optimize.minimize's default `eps` for it)
+FD_STEP = float(np.sqrt(np.finfo(float).eps))
+
+
+def slsqp_constraint(kind: str, fun) -> dict:
+    """A constraint for SLSQP with its gradient by forward differences: what SLSQP computes when
+    given none (scipy's approx_derivative, 2-point, absolute step FD_STEP: the same points, the
+    same numbers; x stays far below 1/FD_STEP), without approx_derivative's set-up on every call,
+    which took most of the brute force's time."""
+    def jac(x):
+        f0 = float(fun(x))
+        g = np.empty(len(x))
+        for i in range(len(x)):
+            x1 = x.copy()
+            x1[i] = x[i] + FD_STEP
+            g[i] = (float(fun(x1)) - f0) / ((x[i] + FD_STEP) - x[i])
+        return g
+    return {"type": kind, "fun": fun, "jac": jac}
+
+
 def _constraints(d: Drive, extra=()):
     I, V = d.I_max, d.V_max
     cons = [
-        {"type": "ineq", "fun": lambda x: 1.0 - x[0] ** 2 - x[1] ** 2},
-        {"type": "ineq", "fun": lambda x: 1.0 - (d.voltage(x[0] * I, x[1] * I) / V) ** 2},
+        slsqp_constraint("ineq", lambda x: 1.0 - x[0] ** 2 - x[1] ** 2),
+        slsqp_constraint("ineq", lambda x: 1.0 - (d.voltage(x[0] * I, x[1] * I) / V) ** 2),
     ]
     if d.left_half:
-        cons.append({"type": "ineq", "fun": lambda x: -x[0]})
+        cons.append(slsqp_constraint("ineq", lambda x: -x[0]))
     return cons + list(extra)
 
 
@@ -84,13 +103,35 @@ def _disk_of(d: Drive):
     return i_d, i_q
 
 
+#: the disk's samples with the map's flux linkages there, per (map, I_max, half): the magnets'
+#: temperature only adds to psi_d, so one evaluation of the splines serves every operating point
+_DISKS: dict = {}
+#: the maps whose disks are kept (a test module's few; more are evaluated again)
+DISKS_KEPT = 8
+
+
+def _sampled_disk(d: Drive):
+    """The disk's currents (_disk_of) and there Drive.torque and Drive.voltage (the same numbers)."""
+    key = (id(d.fmap), d.I_max, d.left_half)
+    if key not in _DISKS or _DISKS[key][0] is not d.fmap:
+        if len(_DISKS) >= DISKS_KEPT:
+            _DISKS.clear()
+        i_d, i_q = _disk_of(d)
+        _DISKS[key] = (d.fmap, i_d, i_q, *d.fmap.flux(i_d, i_q))
+    _, i_d, i_q, psi_d0, psi_q = _DISKS[key]
+    psi_d = psi_d0 + d.psi_d_shift
+    T = 1.5 * d.pole_pairs * (psi_d * i_q - psi_q * i_d)
+    V = np.hypot(d.R_s * i_d - d.omega * psi_q, d.R_s * i_q + d.omega * psi_d)
+    return i_d, i_q, T, V
+
+
 def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
     """Largest sign*T within both limits, and the currents giving it."""
-    i_d, i_q = _disk_of(d)
-    ok = (d.voltage(i_d, i_q) <= d.V_max)
+    i_d, i_q, T_disk, V_disk = _sampled_disk(d)
+    ok = (V_disk <= d.V_max)
     if not ok.any():
         return 0.0, np.array([np.nan, np.nan])
-    T = np.where(ok, sign * d.torque(i_d, i_q), -np.inf)
+    T = np.where(ok, sign * T_disk, -np.inf)
     T_scale = max(np.max(T), 1e-9)
     best_T, best_x = -np.inf, None
     for k in np.argsort(T)[-4:]:
@@ -107,14 +148,13 @@ def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
 
 def min_current(d: Drive, T_target: float, T_scale: float) -> tuple[float, np.ndarray]:
     """Least current magnitude giving T_target within both limits, and the currents."""
-    i_d, i_q = _disk_of(d)
-    T = d.torque(i_d, i_q)
-    ok = (d.voltage(i_d, i_q) <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
+    i_d, i_q, T, V = _sampled_disk(d)
+    ok = (V <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
     I = np.where(ok, np.hypot(i_d, i_q), np.inf)
     starts = [np.array([i_d[k], i_q[k]]) for k in np.argsort(I)[:4] if np.isfinite(I[k])]
     if not starts:
         starts = [np.array([0.0, 0.0])]
-    eq = {"type": "eq", "fun": lambda x: (d.torque(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale}
+    eq = slsqp_constraint("eq", lambda x: (d.torque(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale)
     best_I, best_x = np.inf, None
     for s in starts:
         r = minimize(lambda x: x[0] ** 2 + x[1] ** 2, s / d.I_max, method="SLSQP",

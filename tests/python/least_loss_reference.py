@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from brute_force import Drive
+from brute_force import Drive, slsqp_constraint
 
 
 @dataclass(frozen=True)
@@ -103,10 +103,10 @@ def _sampled_disk(L: LossDrive):
 
 def _constraints(L: LossDrive, extra=()):
     d = L.d
-    cons = [{"type": "ineq", "fun": lambda x: 1.0 - x[0] ** 2 - x[1] ** 2},
-            {"type": "ineq", "fun": lambda x: 1.0 - (d.voltage(x[0] * d.I_max, x[1] * d.I_max) / d.V_max) ** 2}]
+    cons = [slsqp_constraint("ineq", lambda x: 1.0 - x[0] ** 2 - x[1] ** 2),
+            slsqp_constraint("ineq", lambda x: 1.0 - (d.voltage(x[0] * d.I_max, x[1] * d.I_max) / d.V_max) ** 2)]
     if d.left_half:
-        cons.append({"type": "ineq", "fun": lambda x: -x[0]})
+        cons.append(slsqp_constraint("ineq", lambda x: -x[0]))
     return cons + list(extra)
 
 
@@ -161,7 +161,7 @@ def least_loss(L: LossDrive, T_target: float, T_scale: float) -> float:
     P = np.where(ok, P, np.inf)
     starts = _starts(L, i_d, i_q, np.argsort(P)[:np.count_nonzero(ok)])
     P_scale = float(np.min(P)) if np.isfinite(np.min(P)) else 1.0
-    eq = {"type": "eq", "fun": lambda x: (L.shaft(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale}
+    eq = slsqp_constraint("eq", lambda x: (L.shaft(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale)
     best = math.inf
     for s in starts:
         r = minimize(lambda x: L.total(x[0] * d.I_max, x[1] * d.I_max) / P_scale, s / d.I_max, method="SLSQP",
