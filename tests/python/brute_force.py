@@ -63,12 +63,11 @@ def _disk(I_max, n_r=90, n_phi=720):
 FD_STEP = float(np.sqrt(np.finfo(float).eps))
 
 
-def slsqp_constraint(kind: str, fun) -> dict:
-    """A constraint for SLSQP with its gradient by forward differences: what SLSQP computes when
-    given none (scipy's approx_derivative, 2-point, absolute step FD_STEP: the same points, the
-    same numbers; x stays far below 1/FD_STEP), without approx_derivative's set-up on every call,
-    which took most of the brute force's time."""
-    def jac(x):
+def forward_difference(fun):
+    """fun's gradient as SLSQP computes it when given none (scipy's approx_derivative, 2-point,
+    absolute step FD_STEP: the same points, the same numbers; x stays far below 1/FD_STEP),
+    without approx_derivative's set-up on every call, which took most of the brute force's time."""
+    def gradient(x):
         f0 = float(fun(x))
         g = np.empty(len(x))
         for i in range(len(x)):
@@ -76,7 +75,18 @@ def slsqp_constraint(kind: str, fun) -> dict:
             x1[i] = x[i] + FD_STEP
             g[i] = (float(fun(x1)) - f0) / ((x[i] + FD_STEP) - x[i])
         return g
-    return {"type": kind, "fun": fun, "jac": jac}
+    return gradient
+
+
+def slsqp_constraint(kind: str, fun) -> dict:
+    """A constraint for SLSQP, its gradient by forward_difference."""
+    return {"type": kind, "fun": fun, "jac": forward_difference(fun)}
+
+
+def slsqp(objective, x0, constraints, maxiter: int = 300):
+    """scipy's SLSQP to ftol 1e-15, the objective's gradient by forward_difference."""
+    return minimize(objective, x0, jac=forward_difference(objective), method="SLSQP", constraints=constraints,
+                    options={"ftol": 1e-15, "maxiter": maxiter})
 
 
 def _constraints(d: Drive, extra=()):
@@ -136,8 +146,7 @@ def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
     best_T, best_x = -np.inf, None
     for k in np.argsort(T)[-4:]:
         x0 = np.array([i_d[k], i_q[k]]) / d.I_max
-        r = minimize(lambda x: -sign * d.torque(x[0] * d.I_max, x[1] * d.I_max) / T_scale, x0,
-                     method="SLSQP", constraints=_constraints(d), options={"ftol": 1e-15, "maxiter": 300})
+        r = slsqp(lambda x: -sign * d.torque(x[0] * d.I_max, x[1] * d.I_max) / T_scale, x0, _constraints(d))
         for x in (r.x, x0):
             if _feasible(d, *(x * d.I_max)):
                 Tx = float(sign * d.torque(*(x * d.I_max)))
@@ -157,8 +166,7 @@ def min_current(d: Drive, T_target: float, T_scale: float) -> tuple[float, np.nd
     eq = slsqp_constraint("eq", lambda x: (d.torque(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale)
     best_I, best_x = np.inf, None
     for s in starts:
-        r = minimize(lambda x: x[0] ** 2 + x[1] ** 2, s / d.I_max, method="SLSQP",
-                     constraints=_constraints(d, [eq]), options={"ftol": 1e-15, "maxiter": 300})
+        r = slsqp(lambda x: x[0] ** 2 + x[1] ** 2, s / d.I_max, _constraints(d, [eq]))
         x = r.x * d.I_max
         if _feasible(d, *x) and abs(d.torque(*x) - T_target) <= 1e-7 * T_scale:
             if np.hypot(*x) < best_I:

@@ -8,9 +8,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
-from brute_force import Drive, slsqp_constraint
+from brute_force import Drive, slsqp, slsqp_constraint
 
 
 @dataclass(frozen=True)
@@ -146,8 +145,7 @@ def max_shaft_torque(L: LossDrive, sign: float) -> float:
     best = float(np.max(T))
     for x in _starts(L, i_d, i_q, np.argsort(T)[::-1][:np.count_nonzero(ok)]):
         x0 = x / d.I_max
-        r = minimize(lambda x: -sign * L.shaft(x[0] * d.I_max, x[1] * d.I_max) / scale, x0, method="SLSQP",
-                     constraints=_constraints(L), options={"ftol": 1e-15, "maxiter": 300})
+        r = slsqp(lambda x: -sign * L.shaft(x[0] * d.I_max, x[1] * d.I_max) / scale, x0, _constraints(L))
         if _feasible(L, *(r.x * d.I_max)):
             best = max(best, float(sign * L.shaft(*(r.x * d.I_max))))
     return best
@@ -164,8 +162,8 @@ def least_loss(L: LossDrive, T_target: float, T_scale: float) -> float:
     eq = slsqp_constraint("eq", lambda x: (L.shaft(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale)
     best = math.inf
     for s in starts:
-        r = minimize(lambda x: L.total(x[0] * d.I_max, x[1] * d.I_max) / P_scale, s / d.I_max, method="SLSQP",
-                     constraints=_constraints(L, [eq]), options={"ftol": 1e-15, "maxiter": 400})
+        r = slsqp(lambda x: L.total(x[0] * d.I_max, x[1] * d.I_max) / P_scale, s / d.I_max, _constraints(L, [eq]),
+                  maxiter=400)
         x = r.x * d.I_max
         if _feasible(L, *x) and abs(L.shaft(*x) - T_target) <= 1e-7 * T_scale:
             best = min(best, float(L.total(*x)))
