@@ -45,11 +45,17 @@ class Drive:
         return found
 
     def torque(self, i_d, i_q):
-        psi_d, psi_q = self.flux(i_d, i_q)
-        return 1.5 * self.pole_pairs * (psi_d * i_q - psi_q * i_d)
+        return self.torque_at(i_d, i_q, *self.flux(i_d, i_q))
 
     def voltage(self, i_d, i_q):
-        psi_d, psi_q = self.flux(i_d, i_q)
+        return self.voltage_at(i_d, i_q, *self.flux(i_d, i_q))
+
+    def torque_at(self, i_d, i_q, psi_d, psi_q):
+        """torque() where the flux linkages (with the magnets' shift) are known already."""
+        return 1.5 * self.pole_pairs * (psi_d * i_q - psi_q * i_d)
+
+    def voltage_at(self, i_d, i_q, psi_d, psi_q):
+        """voltage() where the flux linkages (with the magnets' shift) are known already."""
         return np.hypot(self.R_s * i_d - self.omega * psi_q, self.R_s * i_q + self.omega * psi_d)
 
 
@@ -130,9 +136,7 @@ def _sampled_disk(d: Drive):
         _DISKS[key] = (d.fmap, i_d, i_q, *d.fmap.flux(i_d, i_q))
     _, i_d, i_q, psi_d0, psi_q = _DISKS[key]
     psi_d = psi_d0 + d.psi_d_shift
-    T = 1.5 * d.pole_pairs * (psi_d * i_q - psi_q * i_d)
-    V = np.hypot(d.R_s * i_d - d.omega * psi_q, d.R_s * i_q + d.omega * psi_d)
-    return i_d, i_q, T, V
+    return i_d, i_q, d.torque_at(i_d, i_q, psi_d, psi_q), d.voltage_at(i_d, i_q, psi_d, psi_q)
 
 
 def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:

@@ -49,7 +49,7 @@ class LossDrive:
     def parts_at_flux(self, i_d, i_q, psi_d, psi_q):
         """parts() where the flux linkages (with the magnets' shift) are known already."""
         d, L = self.d, self.loss
-        T_e = 1.5 * d.pole_pairs * (psi_d * i_q - psi_q * i_d)
+        T_e = d.torque_at(i_d, i_q, psi_d, psi_q)
         I2 = i_d**2 + i_q**2
         I = np.sqrt(I2)
         P_cu = 1.5 * d.R_s * I2
@@ -96,7 +96,7 @@ def _sampled_disk(L: LossDrive):
     _, i_d, i_q, psi_d0, psi_q = _DISKS[key]
     psi_d = psi_d0 + d.psi_d_shift
     T, P = L.parts_at_flux(i_d, i_q, psi_d, psi_q)
-    V = np.hypot(d.R_s * i_d - d.omega * psi_q, d.R_s * i_q + d.omega * psi_d)
+    V = d.voltage_at(i_d, i_q, psi_d, psi_q)
     return i_d, i_q, T, P, V
 
 
