@@ -36,9 +36,11 @@ TEST(Parts, EveryHolderHasEveryVariableOfItsParts) {
 
 template <class Model>
 void expect_forwarded(const char* model) {
-    for (const auto& v : Model::variables())
-        if (v.causality == fmi::Causality::parameter)
+    for (const auto& v : Model::variables()) {
+        if (v.causality == fmi::Causality::parameter) {
             EXPECT_NE(fmi::find_variable<DriveModel>(v.name), nullptr) << "IpmsmDrive lacks " << model << "." << v.name;
+        }
+    }
 }
 
 TEST(Parts, TheDriveForwardsEveryParameterOfItsModels) {
