@@ -29,6 +29,7 @@
 
 #include "fmi2_support.hpp"
 #include "model.hpp"
+#include "standard.hpp"
 #include "variable.hpp"
 
 namespace fmi {
@@ -207,6 +208,48 @@ std::vector<std::size_t> initial_dependencies(const std::string& output) {
     return deps;
 }
 
+// <UnitDefinitions> (the units the table uses, in table order, after `first` if given),
+// <LogCategories> and <DefaultExperiment>: the same elements in FMI 2.0 and FMI 3.0.
+template <class M>
+void write_units_categories_experiment(std::ostringstream& x, const char* first) {
+    const auto& vars = M::variables();
+    std::vector<const UnitInfo*> units;  // used ones, in table order
+    if (first != nullptr) units.push_back(find_unit(first));
+    for (const auto& v : vars)
+        if (!empty(v.unit)) {
+            const UnitInfo* u = find_unit(v.unit);
+            bool seen = false;
+            for (const UnitInfo* w : units) seen = seen || w == u;
+            if (!seen) units.push_back(u);
+        }
+    if (!units.empty()) {
+        x << "  <UnitDefinitions>\n";
+        for (const UnitInfo* u : units) {
+            x << "    <Unit name=\"" << xml_escape(u->name) << "\">\n      <BaseUnit";
+            const std::pair<const char*, int> exps[] = {{"kg", u->kg}, {"m", u->m},     {"s", u->s},   {"A", u->A},
+                                                        {"K", u->K},   {"mol", u->mol}, {"cd", u->cd}, {"rad", u->rad}};
+            for (const auto& [n, e] : exps)
+                if (e != 0) x << ' ' << n << "=\"" << e << '"';
+            x << "/>\n";
+            for (const auto& d : u->display) {
+                x << "      <DisplayUnit name=\"" << xml_escape(d.name) << "\" factor=\"" << number_text(d.factor)
+                  << '"';
+                if (d.offset != 0.0) x << " offset=\"" << number_text(d.offset) << '"';
+                x << "/>\n";
+            }
+            x << "    </Unit>\n";
+        }
+        x << "  </UnitDefinitions>\n";
+    }
+
+    x << "  <LogCategories>\n";
+    for (const auto& c : log_categories)
+        x << "    <Category name=\"" << c.name << "\" description=\"" << xml_escape(c.description) << "\"/>\n";
+    x << "  </LogCategories>\n";
+    x << "  <DefaultExperiment startTime=\"0\" stopTime=\"" << number_text(M::default_stop_time) << "\" stepSize=\""
+      << number_text(M::default_step_size) << "\"/>\n";
+}
+
 }  // namespace detail
 
 // The modelDescription.xml of M; throws std::runtime_error listing the table's problems.
@@ -242,40 +285,7 @@ std::string model_description() {
       << "    canSerializeFMUstate=\"true\"\n"
       << "    providesDirectionalDerivative=\"false\"/>\n";
 
-    std::vector<const UnitInfo*> units;  // used ones, in table order
-    for (const auto& v : vars)
-        if (!detail::empty(v.unit)) {
-            const UnitInfo* u = find_unit(v.unit);
-            bool seen = false;
-            for (const UnitInfo* w : units) seen = seen || w == u;
-            if (!seen) units.push_back(u);
-        }
-    if (!units.empty()) {
-        x << "  <UnitDefinitions>\n";
-        for (const UnitInfo* u : units) {
-            x << "    <Unit name=\"" << xml_escape(u->name) << "\">\n      <BaseUnit";
-            const std::pair<const char*, int> exps[] = {{"kg", u->kg}, {"m", u->m},     {"s", u->s},   {"A", u->A},
-                                                        {"K", u->K},   {"mol", u->mol}, {"cd", u->cd}, {"rad", u->rad}};
-            for (const auto& [n, e] : exps)
-                if (e != 0) x << ' ' << n << "=\"" << e << '"';
-            x << "/>\n";
-            for (const auto& d : u->display) {
-                x << "      <DisplayUnit name=\"" << xml_escape(d.name) << "\" factor=\"" << number_text(d.factor)
-                  << '"';
-                if (d.offset != 0.0) x << " offset=\"" << number_text(d.offset) << '"';
-                x << "/>\n";
-            }
-            x << "    </Unit>\n";
-        }
-        x << "  </UnitDefinitions>\n";
-    }
-
-    x << "  <LogCategories>\n";
-    for (const auto& c : log_categories)
-        x << "    <Category name=\"" << c.name << "\" description=\"" << xml_escape(c.description) << "\"/>\n";
-    x << "  </LogCategories>\n";
-    x << "  <DefaultExperiment startTime=\"0\" stopTime=\"" << number_text(M::default_stop_time) << "\" stepSize=\""
-      << number_text(M::default_step_size) << "\"/>\n";
+    detail::write_units_categories_experiment<M>(x, nullptr);
 
     x << "  <ModelVariables>\n";
     std::vector<std::size_t> outputs;
@@ -332,14 +342,14 @@ std::string model_description() {
 // The variable reference of M as an HTML section, from the same table as the XML (xml_escape's
 // entities and character references are HTML too).
 template <class M>
-std::string variables_html() {
+std::string variables_html(const Standard& s) {
     const M defaults{Context{}};
     const auto& vars = M::variables();
     std::ostringstream h;
     h << "<section id=\"variables\">\n<h2>Variable reference</h2>\n"
       << "<p>Generated from the FMU's variable table, the source of <code>modelDescription.xml</code>. "
-      << "A value outside the range is refused with <code>fmi2Error</code> and changes nothing; "
-      << "<em>fixed</em> parameters can be set only before <code>fmi2ExitInitializationMode</code>. "
+      << "A value outside the range is refused with <code>" << s.error << "</code> and changes nothing; "
+      << "<em>fixed</em> parameters can be set only before <code>" << s.exit_initialization_mode << "</code>. "
       << "Units are SI; the display unit is what a tool may show instead.</p>\n<table>\n"
       << "<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th>"
       << "<th>start</th><th>range</th><th>description</th></tr>\n";
@@ -376,9 +386,12 @@ inline void write_file_atomically(const std::string& path, const std::string& te
     if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot write " + path);
 }
 
-// main() of a generator: `gen [out.xml] [--html table.html]`; the XML to stdout without out.xml;
-// exit code 1 with the reason.
 template <class M>
+std::string model_description3();  // model_description3.hpp
+
+// main() of a generator: `gen [out.xml] [--html table.html]`; the XML to stdout without out.xml;
+// exit code 1 with the reason. S: the standard of the modelDescription.xml.
+template <class M, const Standard& S = fmi2_standard>
 int model_description_main(int argc, char** argv) {
     try {
         std::string xml_path, html_path;
@@ -391,8 +404,12 @@ int model_description_main(int argc, char** argv) {
             else
                 throw std::runtime_error("usage: " + std::string(argv[0]) + " [out.xml] [--html variables.html]");
         }
-        const std::string xml = model_description<M>();
-        if (!html_path.empty()) write_file_atomically(html_path, variables_html<M>());
+        std::string xml;
+        if constexpr (S.major == 3)
+            xml = model_description3<M>();
+        else
+            xml = model_description<M>();
+        if (!html_path.empty()) write_file_atomically(html_path, variables_html<M>(S));
         if (xml_path.empty()) {
             std::cout << xml;
             return std::cout.good() ? 0 : 1;
