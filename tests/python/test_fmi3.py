@@ -1,0 +1,233 @@
+"""The FMI 3.0 FMUs (build/fmu3/<Name>.fmu) are the FMI 2.0 ones under the other standard: the same
+variables (value references, types, units, ranges, starts, causality, variability), the same
+outputs bit for bit for the same inputs (golden_traces.py's 2000-step sequences in every
+configuration, fmpy.simulate_fmu, a whole UDDS through the drive), valid by fmpy's checker, the
+FMI 3.0 state API round trip and its refusal of a tampered state, and every refusal an fmi3Error
+with a log line that is valid UTF-8 and bounded, the instance usable after it."""
+from __future__ import annotations
+
+import ctypes as C
+import json
+import os
+import subprocess
+import zipfile
+from pathlib import Path
+
+import fmpy
+import golden_traces
+import numpy as np
+import pytest
+from fmpy.validation import validate_fmu
+
+import fmi2_raw as raw
+import fmi3_fmpy as f3
+from conftest import BUILD_FMU, WIN64_BUILT, fmu_path
+
+NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
+BUILD_FMU3 = Path(os.environ.get("IPMSM_FMU3_DIR", BUILD_FMU.parent / "fmu3"))
+#: bytes of a log message at most (fmu_src/fmi/log_text.hpp: 4000 characters)
+MAX_LOG_CHARS = 4000
+RELEASES = sorted((Path(__file__).resolve().parents[1] / "data").glob("value_references_*.json"))
+#: FMI 3.0's type of each FMI 2.0 type
+FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
+
+
+def fmu3_path(name: str) -> Path:
+    p = BUILD_FMU3 / f"{name}.fmu"
+    if not p.exists():
+        pytest.fail(f"{p} is missing: build first (./test.sh builds it)")
+    return p
+
+
+@pytest.fixture(scope="module")
+def unzipped3(tmp_path_factory):
+    """unzipped3(name) -> fmi3_fmpy.Unzipped3, extracted once a module (never over a loaded library)."""
+    cache = {}
+
+    def get(name: str) -> f3.Unzipped3:
+        if name not in cache:
+            cache[name] = f3.Unzipped3(fmu3_path(name), tmp_path_factory.mktemp(f"{name}3"))
+        return cache[name]
+
+    return get
+
+
+@pytest.fixture
+def instances3(unzipped3):
+    made = []
+
+    def new(name: str, instance_name: str = "instance", **options) -> f3.Instance3:
+        inst = f3.Instance3(unzipped3(name), instance_name, **options)
+        made.append(inst)
+        return inst
+
+    yield new
+    for inst in made:
+        inst.free()
+
+
+def assert_clean_log(text: str) -> None:
+    """Every message bounded (the log decoded as UTF-8 already: Log._log)."""
+    for line in text.splitlines():
+        assert len(line) <= MAX_LOG_CHARS + 100, f"a log line of {len(line)} characters"
+
+
+# --- the model description ---
+@pytest.mark.parametrize("name", NAMES)
+def test_fmpy_validate_finds_no_problem(name):
+    assert validate_fmu(str(fmu3_path(name))) == []
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_same_variables_as_fmi2(name):
+    md2 = fmpy.read_model_description(str(fmu_path(name)))
+    md3 = fmpy.read_model_description(str(fmu3_path(name)))
+    assert (md2.fmiVersion, md3.fmiVersion) == ("2.0", "3.0")
+    assert md3.instantiationToken == md2.guid
+    assert md3.coSimulation.modelIdentifier == md2.coSimulation.modelIdentifier == name
+    assert md3.modelExchange is None and md3.scheduledExecution is None
+    v3 = {v.name: v for v in md3.modelVariables}
+    for v in md2.modelVariables:
+        w = v3.pop(v.name)
+        assert (w.valueReference, w.type, w.causality, w.variability, w.initial) == (
+            v.valueReference, FMI3_TYPE[v.type], v.causality, v.variability, v.initial), v.name
+        assert (w.unit, w.displayUnit, w.min, w.max, w.start) == (v.unit, v.displayUnit, v.min, v.max, v.start), v.name
+    # the one more: FMI 3.0's independent variable, after every value reference of FMI 2.0
+    (time,) = v3.values()
+    assert (time.name, time.causality, time.type) == ("time", "independent", "Float64")
+    assert time.valueReference == len(md2.modelVariables)
+    vr3 = {v.name: v.valueReference for v in md3.modelVariables}
+    for release in RELEASES:  # as test_value_references.py checks the FMI 2.0 FMUs
+        doc = json.loads(release.read_text())
+        released, excused = doc["value_references"][name], doc.get("moved_since", {}).get(name, {})
+        assert {n: vr3.get(n) for n in released if n not in excused} == {
+            n: vr for n, vr in released.items() if n not in excused}
+    # the structure: the same outputs, the same initial dependencies (FMI 2.0 by index, FMI 3.0 by vr)
+    assert [u.variable.name for u in md3.outputs] == [u.variable.name for u in md2.outputs]
+    assert all(not u.dependencies for u in md3.outputs)
+    deps = {u.variable.name: sorted(d.name for d in u.dependencies) for u in md2.initialUnknowns}
+    assert {u.variable.name: sorted(d.name for d in u.dependencies) for u in md3.initialUnknowns} == deps
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_binaries_export_the_fmi3_functions_only(name):
+    with zipfile.ZipFile(fmu3_path(name)) as z:
+        files = set(z.namelist())
+    assert f"binaries/x86_64-linux/{name}.so" in files
+    assert not any(f.startswith(("binaries/linux64", "binaries/win64")) for f in files)
+    if WIN64_BUILT:
+        assert f"binaries/x86_64-windows/{name}.dll" in files
+    header = (Path(__file__).resolve().parents[2] / "fmu_src" / "fmi" / "headers3" / "fmi3Functions.h").read_text()
+    declared = {line.split()[-1].rstrip(";") for line in header.splitlines() if line.startswith("FMI3_Export fmi3")}
+    assert len(declared) == 75
+    with zipfile.ZipFile(fmu3_path(name)) as z:
+        data = z.read(f"binaries/x86_64-linux/{name}.so")
+    so = BUILD_FMU3 / name / "binaries" / "x86_64-linux" / f"{name}.so"
+    assert so.read_bytes() == data
+    out = subprocess.run(["nm", "-D", "--defined-only", str(so)], capture_output=True, text=True, check=True).stdout
+    exported = {line.split()[-1] for line in out.splitlines() if line.split()[-2] in ("T", "W")}
+    assert exported == declared
+
+
+# --- the same outputs, bit for bit ---
+@pytest.fixture(scope="module")
+def fmi2_unzipped(tmp_path_factory):
+    return {n: raw.Unzipped(fmu_path(n), tmp_path_factory.mktemp(f"{n}2")) for n in NAMES}
+
+
+@pytest.mark.parametrize("config", sorted(golden_traces.CONFIGS))
+def test_golden_traces_bit_for_bit_with_fmi2(config, fmi2_unzipped, unzipped3):
+    fmi2 = golden_traces.run(config, fmi2_unzipped)
+    fmi3 = golden_traces.run(config, {n: unzipped3(n) for n in NAMES}, f3.Instance3)
+    assert sorted(fmi3) == sorted(fmi2)
+    changed = [k for k in fmi2 if fmi2[k].tobytes() != fmi3[k].tobytes()]
+    assert not changed, f"{config}: FMI 3.0 differs from FMI 2.0 in {changed}"
+    assert all(len(c) == golden_traces.N_STEPS + 1 for c in fmi3.values())
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_fmpy_simulates_both_alike(name):
+    md = fmpy.read_model_description(str(fmu_path(name)))
+    stop = 200 * float(md.defaultExperiment.stepSize)
+    r2 = fmpy.simulate_fmu(str(fmu_path(name)), stop_time=stop)
+    r3 = fmpy.simulate_fmu(str(fmu3_path(name)), stop_time=stop)
+    assert r3.dtype.names == r2.dtype.names and len(r3) == len(r2) == 201
+    assert r2.tobytes() == r3.tobytes()
+
+
+class _RecordedDrive:
+    """What a run did with its IpmsmDrive (scenarios.runs.simulate's DriveFmu): its parameters and
+    start inputs, then each step's (dt, inputs) and the outputs it gave."""
+
+    def __init__(self):
+        self.params, self.start, self.steps = None, None, []
+
+
+@pytest.fixture(scope="module")
+def udds_on_fmi2():
+    """A whole UDDS run (the default RunSpec: the IpmsmDrive backend) on the FMI 2.0 drive, recorded."""
+    from scenarios.cosim import drive_fmu
+    from scenarios.runs import simulate as sim
+
+    record = _RecordedDrive()
+
+    class Recording(drive_fmu.DriveFmu):
+        def __init__(self, path, params=None, **start):
+            record.params, record.start = dict(params or {}), dict(start)
+            super().__init__(path, params, **start)
+
+        def advance(self, dt, *inputs):
+            r = super().advance(dt, *inputs)
+            record.steps.append((dt, inputs, r))
+            return r
+
+        def set_fault(self, on):
+            raise AssertionError("the default run has no fault")
+
+    original = sim.DriveFmu
+    sim.DriveFmu = Recording
+    try:
+        summary = sim.simulate("UDDS", progress=False)
+    finally:
+        sim.DriveFmu = original
+    return summary, record
+
+
+@pytest.mark.slow
+def test_a_whole_udds_through_the_fmi3_drive_bit_for_bit(udds_on_fmi2, unzipped3):
+    """The FMI 3.0 IpmsmDrive, fed what the FMI 2.0 one was fed over a whole UDDS (the vehicle side's
+    inputs, step by step), gives every output the run recorded bit for bit."""
+    summary, record = udds_on_fmi2
+    assert len(record.steps) > 100_000  # 1369 s at 10 ms
+    fmu = unzipped3("IpmsmDrive")
+    inst = f3.Instance3(fmu, "udds")
+    try:
+        start = record.start
+        boundary = {k: start.pop(k) for k in ("T_coolant", "T_ambient") if k in start}
+        assert inst.enter() == f3.OK
+        inst.set(**record.params)
+        inputs = ("T_ref", "w_m", "u_dc", "T_magnet", "T_winding", *boundary)
+        inst.set(**dict(zip(inputs, (start.get("T_ref", 0.0), start["w_m"], start["u_dc"], start["T_magnet"],
+                                     start["T_winding"], *boundary.values()))))
+        assert inst.exit() == f3.OK, inst.log.text()
+        first = record.steps[0][2]
+        reals = [f for f in type(first).__dataclass_fields__ if isinstance(getattr(first, f), float)
+                 and f in fmu.vars and fmu.vars[f].type == "Float64"]
+        ints = [f for f in type(first).__dataclass_fields__ if f in fmu.vars and fmu.vars[f].type == "Int32"]
+        u_vr = [fmu.vars[n].valueReference for n in inputs]
+        y_vr = [fmu.vars[n].valueReference for n in reals]
+        n_vr = [fmu.vars[n].valueReference for n in ints]
+        slave, t = inst.slave, 0.0
+        differ = []
+        for k, (dt, u, r) in enumerate(record.steps):
+            slave.setFloat64(u_vr, [*u, *boundary.values()])
+            slave.doStep(t, dt, True)
+            t += dt
+            y, n = slave.getFloat64(y_vr), slave.getInt32(n_vr)
+            want = [getattr(r, f) for f in reals]
+            if np.array(y).tobytes() != np.array(want).tobytes() or n != [getattr(r, f) for f in ints]:
+                differ.append(k)
+        assert not differ, f"{len(differ)} of {len(record.steps)} steps differ, the first at {differ[0]}"
+        assert summary is not None
+    finally:
+        inst.free()
