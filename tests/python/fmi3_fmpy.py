@@ -28,18 +28,22 @@ class Unzipped3:
 
 
 class Log:
-    """The instance's fmi3LogMessageCallback, keeping (status, category, message)."""
+    """The instance's fmi3LogMessageCallback, keeping (status, category, message bytes). text()
+    decodes the messages strictly: one that is not UTF-8 fails the test there (an exception in the
+    callback itself would only be printed by ctypes)."""
 
     def __init__(self):
-        self.records: list[tuple[int, str, str]] = []
+        self.records: list[tuple[int, bytes, bytes]] = []
         self.callback = fmi3LogMessageCallback(self._log)
 
     def _log(self, env, status, category, message):
-        # bytes as the FMU sent them: a message that is not UTF-8 fails the test here
-        self.records.append((status, (category or b"").decode(), (message or b"").decode()))
+        self.records.append((status, category or b"", message or b""))
+
+    def messages(self) -> list[str]:
+        return [m.decode("utf-8") for _, _, m in self.records]
 
     def text(self) -> str:
-        return "\n".join(f"[{STATUS.get(s, s)} {c}] {m}" for s, c, m in self.records)
+        return "\n".join(f"[{STATUS.get(s, s)} {c.decode('utf-8')}] {m.decode('utf-8')}" for s, c, m in self.records)
 
     def clear(self):
         self.records.clear()
@@ -175,6 +179,11 @@ class Instance3:
 
     def __enter__(self):
         return self
+
+    def call(self, name: str, *args) -> int:
+        """The raw status of the FMI 3.0 function `name` (fmpy's binding of it, without its check),
+        for arguments fmpy would not pass."""
+        return self.slave._functions[name](*args)
 
     def __exit__(self, *exc):
         self.free()

@@ -13,14 +13,15 @@ import subprocess
 import zipfile
 from pathlib import Path
 
+import fmi3_fmpy as f3
 import fmpy
 import golden_traces
 import numpy as np
 import pytest
+from fmpy.fmi3 import fmi3IntermediateUpdateCallback
 from fmpy.validation import validate_fmu
 
 import fmi2_raw as raw
-import fmi3_fmpy as f3
 from conftest import BUILD_FMU, WIN64_BUILT, fmu_path
 
 NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
@@ -231,3 +232,173 @@ def test_a_whole_udds_through_the_fmi3_drive_bit_for_bit(udds_on_fmi2, unzipped3
         assert summary is not None
     finally:
         inst.free()
+
+
+# --- the FMI 3.0 state API ---
+H = {"IpmsmController": 1e-4, "IpmsmPlant": 1e-4, "IpmsmDrive": 1e-3}
+
+
+def _started(new, name: str) -> f3.Instance3:
+    inst = new(name)
+    inst.init()
+    return inst
+
+
+def _trace(inst: f3.Instance3, name: str, k0: int, n: int) -> list[tuple]:
+    """n steps from step k0 with golden_traces' inputs (those the FMU has); the outputs after each."""
+    ins = set(inst.names("input"))
+    rows = []
+    for k in range(k0, k0 + n):
+        inst.set(**{n_: v for n_, v in golden_traces.inputs(k).items() if n_ in ins})
+        assert inst.step(H[name]) == f3.OK, inst.log.text()
+        rows.append(inst.outputs())
+    return rows
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_state_round_trip_continues_bit_for_bit(name, instances3):
+    inst = _started(instances3, name)
+    _trace(inst, name, 0, 30)
+    state = inst.get_state()
+    data = inst.serialize(state)
+    t = inst.t
+    first = _trace(inst, name, 30, 30)
+    # back through the serialised bytes, into this instance and into a fresh, uninitialised one
+    inst.restore(data, t)
+    assert inst.get("time") == t  # the independent variable: where the instance is
+    again = _trace(inst, name, 30, 30)
+    other = instances3(name, "other")
+    other.restore(data, t)
+    elsewhere = _trace(other, name, 30, 30)
+    assert repr(first) == repr(again) == repr(elsewhere)
+    # and without serialising: fmi3SetFMUState of the state kept
+    assert inst.set_state(state) == f3.OK
+    inst.t = t
+    assert repr(_trace(inst, name, 30, 30)) == repr(first)
+    assert inst.free_state(state) == f3.OK
+    assert inst.serialize(inst.get_state()) != data  # a state is the instance's now, not a copy of the first
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_tampered_state_is_refused_and_changes_nothing(name, instances3):
+    inst = _started(instances3, name)
+    _trace(inst, name, 0, 10)
+    data = inst.serialize(inst.get_state())
+    t = inst.t
+    before = inst.outputs()
+    for bad, why in ((data[:len(data) // 2] + bytes([data[len(data) // 2] ^ 0x10]) + data[len(data) // 2 + 1:],
+                      "checksum mismatch"),
+                     (data[:-9], "checksum mismatch"),
+                     (b"IPMSMFST" + data[8:20], "corrupt or truncated"),
+                     (b"NOTASTAT" + data[8:], "is not one")):
+        inst.log.clear()
+        status, state = inst.deserialize_status(bad)
+        assert status == f3.ERROR and not state
+        assert "fmi3DeserializeFMUState" in inst.log.text() and why in inst.log.text(), inst.log.text()
+        assert_clean_log(inst.log.text())
+    assert inst.outputs() == before and inst.t == t
+    assert len(_trace(inst, name, 10, 3)) == 3  # still usable
+
+
+# --- refusals: fmi3Error, a log line, the instance usable ---
+def test_a_parameter_out_of_range_is_refused_with_a_bounded_utf8_line(instances3):
+    inst = instances3("IpmsmController")
+    assert inst.enter() == f3.OK
+    kept = inst.get("R_s")
+    text = raw.refused(inst, inst.set_status, "R_s", -1.0, match="R_s")
+    assert "fmi3SetFloat64" in text and "kept" in text
+    assert inst.get("R_s") == kept
+    assert len(inst.log.records) == 1 and len(inst.log.messages()[0]) <= MAX_LOG_CHARS
+    # a String parameter with bytes that are not UTF-8 and a huge length: the refusal's line is
+    # valid UTF-8 and bounded
+    huge = b"\xff\xfe" + b"/no/such/map" * 20_000 + b".csv"
+    vr = (C.c_uint32 * 1)(inst.fmu.vars["flux_map"].valueReference)
+    assert inst.call("fmi3SetString", inst.c, vr, 1, (C.c_char_p * 1)(huge), 1) == f3.OK
+    inst.log.clear()
+    assert inst.exit() == f3.ERROR
+    assert all(len(m) <= MAX_LOG_CHARS for m in inst.log.messages()) and "flux map" in inst.log.text()
+    assert "\\xFF\\xFE/no/such/map" in inst.log.text()  # the bytes that are not UTF-8, escaped
+    inst.set(flux_map="")
+    assert inst.exit() == f3.OK, inst.log.text()  # usable: corrected and called again
+    assert inst.step(1e-4) == f3.OK
+
+
+def test_wrong_state_null_pointers_and_unsupported_functions_are_refused(instances3):
+    inst = instances3("IpmsmPlant")
+    refused = raw.refused
+    # a step before initialisation, then the wrong communication point
+    refused(inst, inst.step, 1e-4, match="fmi3DoStep is not allowed in state instantiated")
+    inst.init()
+    refused(inst, inst.step, 1e-4, 0.5, match="previous step ended at 0")
+    assert inst.step(1e-4) == f3.OK
+    vr_time = C.c_uint32(inst.fmu.vars["time"].valueReference)
+    assert inst.get("time") == inst.t
+    refused(inst, inst.set_status, "time", 1.0, match="independent variable")
+    b = C.c_bool()
+    d = C.c_double()
+    vr = (C.c_uint32 * 2)(0, 1)
+    out = (C.c_double * 2)()
+    for call, args, match in (
+            ("fmi3DoStep", (inst.c, inst.t, 1e-4, True, None, C.byref(b), C.byref(b), C.byref(d)), "NULL"),
+            ("fmi3GetFloat64", (inst.c, vr, 2, out, 1), "nValues = 1 but nValueReferences = 2"),
+            ("fmi3GetFloat64", (inst.c, None, 2, out, 2), "NULL"),
+            ("fmi3GetFloat64", (inst.c, C.byref(vr_time), 1, out, 1), None),  # (OK: the time)
+            ("fmi3GetFloat32", (inst.c, vr, 1, (C.c_float * 1)(), 1), "has no Float32 variable"),
+            ("fmi3SetUInt64", (inst.c, vr, 1, (C.c_uint64 * 1)(), 1), "has no UInt64 variable"),
+            ("fmi3GetClock", (inst.c, vr, 1, (C.c_bool * 1)()), "has no Clock variable"),
+            ("fmi3EnterEventMode", (inst.c,), "no Event Mode"),
+            ("fmi3EnterStepMode", (inst.c,), "Step Mode"),
+            ("fmi3EnterConfigurationMode", (inst.c,), "no structural parameters"),
+            ("fmi3UpdateDiscreteStates", (inst.c, None, None, None, None, None, None), "no Event Mode"),
+            ("fmi3GetIntervalDecimal", (inst.c, vr, 1, out, None), "no clocks"),
+            ("fmi3GetDirectionalDerivative", (inst.c, vr, 1, vr, 1, out, 1, out, 1), "providesDirectional"),
+            ("fmi3GetOutputDerivatives", (inst.c, vr, 1, None, out, 1), "maxOutputDerivativeOrder"),
+            ("fmi3GetNumberOfContinuousStates", (inst.c, None), "co-simulation only"),
+            ("fmi3SetTime", (inst.c, 0.0), "co-simulation only"),
+            ("fmi3GetVariableDependencies", (inst.c, 0, None, None, None, None, 0), "ModelStructure")):
+        inst.log.clear()
+        status = inst.call(call, *args)
+        if match is None:
+            assert status == f3.OK and out[0] == inst.t
+            continue
+        assert status == f3.ERROR, f"{call}: {status}"
+        assert len(inst.log.records) == 1 and call in inst.log.text() and match in inst.log.text(), inst.log.text()
+        assert_clean_log(inst.log.text())
+    # a NULL or foreign instance: fmi3Error, nobody to log to
+    assert inst.call("fmi3Terminate", None) == f3.ERROR
+    assert inst.call("fmi3DoStep", C.c_void_p(C.addressof(d)), 0.0, 1e-4, True, None, None, None, None) == f3.ERROR
+    assert inst.step(1e-4) == f3.OK  # the instance is as it was
+    assert inst.terminate() == f3.OK and inst.reset() == f3.OK
+    inst.init()
+    assert inst.step(1e-4) == f3.OK
+
+
+def test_instantiation_refusals_log_why(unzipped3):
+    fmu = unzipped3("IpmsmController")
+    probe = f3.Instance3(fmu, "probe")
+    log = f3.Log()
+    no_update = fmi3IntermediateUpdateCallback()
+    resources = (Path(fmu.directory) / "resources").as_posix().encode() + b"/"
+    try:
+        def args(name: bytes, token: str, event_mode_used: bool):
+            return (name, token.encode(), resources, False, False, event_mode_used, False, None, 0, None,
+                    log.callback, no_update)
+
+        for arguments, match in ((args(b"x", "{wrong}", False), "does not match"),
+                                 (args(b"x", fmu.guid, True), "eventModeUsed must be false"),
+                                 (args(b"", fmu.guid, False), "instanceName")):
+            log.clear()
+            assert not probe.call("fmi3InstantiateCoSimulation", *arguments)
+            assert match in log.text() and "fmi3InstantiateCoSimulation" in log.text(), log.text()
+        log.clear()
+        assert not probe.call("fmi3InstantiateModelExchange", b"x", fmu.guid.encode(), resources, False, False, None,
+                              log.callback)
+        assert "co-simulation FMU only" in log.text()
+        # without a resource path the model warns and has no resources directory
+        log.clear()
+        c = probe.call("fmi3InstantiateCoSimulation", b"x", fmu.guid.encode(), None, False, True, False, False, None, 0,
+                       None, log.callback, no_update)
+        assert c and "resourcePath is NULL" in log.text()
+        probe.call("fmi3FreeInstance", c)
+    finally:
+        probe.free()
