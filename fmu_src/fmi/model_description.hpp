@@ -250,22 +250,26 @@ void write_units_categories_experiment(std::ostringstream& x, const char* first)
       << number_text(M::default_step_size) << "\"/>\n";
 }
 
-}  // namespace detail
-
-// The modelDescription.xml of M; throws std::runtime_error listing the table's problems.
+// The table's model with its start values, after the table's checks (std::runtime_error listing
+// the problems).
 template <class M>
-std::string model_description() {
-    const M defaults{Context{}};
-    if (const std::string problems = detail::table_problems(defaults); !problems.empty())
-        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier +
-                                 " breaks FMI 2.0 rules:\n" + problems);
-    const auto& vars = M::variables();
-    std::ostringstream x;
+M checked_defaults() {
+    M defaults{Context{}};
+    if (const std::string problems = table_problems(defaults); !problems.empty())
+        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier + " breaks FMI rules:\n" +
+                                 problems);
+    return defaults;
+}
+
+// The root element's opening tag, then <CoSimulation>'s first attributes: the same in FMI 2.0 and
+// FMI 3.0 but for the version and the name of the GUID's attribute.
+template <class M>
+void write_root(std::ostringstream& x, const char* fmi_version, const char* token_attribute) {
     x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
       << "<fmiModelDescription\n"
-      << "  fmiVersion=\"2.0\"\n"
+      << "  fmiVersion=\"" << fmi_version << "\"\n"
       << "  modelName=\"" << xml_escape(M::model_identifier) << "\"\n"
-      << "  guid=\"" << xml_escape(M::guid) << "\"\n"
+      << "  " << token_attribute << "=\"" << xml_escape(M::guid) << "\"\n"
       << "  description=\"" << xml_escape(M::description) << "\"\n"
 #ifdef IPMSM_FMU_VERSION
       << "  version=\"" << xml_escape(IPMSM_FMU_VERSION) << "\"\n"
@@ -274,8 +278,36 @@ std::string model_description() {
       << "  variableNamingConvention=\"flat\">\n"
       << "  <CoSimulation\n"
       << "    modelIdentifier=\"" << xml_escape(M::model_identifier) << "\"\n"
-      << "    needsExecutionTool=\"false\"\n"
-      << "    canHandleVariableCommunicationStepSize=\"true\"\n"
+      << "    needsExecutionTool=\"false\"\n";
+}
+
+// A variable's unit, display unit, relativeQuantity and range: attributes of the type element in
+// FMI 2.0 (<Real>), of the variable's own element in FMI 3.0 (<Float64>).
+template <class M>
+void write_type_attributes(std::ostringstream& x, const Variable<M>& v) {
+    const Type type = type_of(v);
+    if (!empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
+    if (!empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
+    if (v.relative_quantity && type == Type::Real) x << " relativeQuantity=\"true\"";
+    if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
+        auto bound = [&](double b) {
+            return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));
+        };
+        if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
+        if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
+    }
+}
+
+}  // namespace detail
+
+// The modelDescription.xml of M; throws std::runtime_error listing the table's problems.
+template <class M>
+std::string model_description() {
+    const M defaults = detail::checked_defaults<M>();
+    const auto& vars = M::variables();
+    std::ostringstream x;
+    detail::write_root<M>(x, "2.0", "guid");
+    x << "    canHandleVariableCommunicationStepSize=\"true\"\n"
       << "    canInterpolateInputs=\"false\"\n"
       << "    maxOutputDerivativeOrder=\"0\"\n"
       << "    canRunAsynchronuously=\"false\"\n"
@@ -299,16 +331,7 @@ std::string model_description() {
           << variability_name(v.variability) << '"';
         if (computed) x << " initial=\"calculated\"";
         x << ">\n      <" << type_name(type);
-        if (!detail::empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
-        if (!detail::empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
-        if (v.relative_quantity && type == Type::Real) x << " relativeQuantity=\"true\"";
-        if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
-            auto bound = [&](double b) {
-                return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));
-            };
-            if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
-            if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
-        }
+        detail::write_type_attributes(x, v);
         if (!computed) x << " start=\"" << detail::start_text(defaults, v) << '"';
         x << "/>\n    </ScalarVariable>\n";
     }

@@ -35,27 +35,11 @@ inline const char* fmi3_type_name(Type t) {
 
 template <class M>
 std::string model_description3() {
-    const M defaults{Context{}};
-    if (const std::string problems = detail::table_problems(defaults); !problems.empty())
-        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier + " breaks FMI rules:\n" +
-                                 problems);
+    const M defaults = detail::checked_defaults<M>();
     const auto& vars = M::variables();
     std::ostringstream x;
-    x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-      << "<fmiModelDescription\n"
-      << "  fmiVersion=\"3.0\"\n"
-      << "  modelName=\"" << xml_escape(M::model_identifier) << "\"\n"
-      << "  instantiationToken=\"" << xml_escape(M::guid) << "\"\n"
-      << "  description=\"" << xml_escape(M::description) << "\"\n"
-#ifdef IPMSM_FMU_VERSION
-      << "  version=\"" << xml_escape(IPMSM_FMU_VERSION) << "\"\n"
-#endif
-      << "  generationTool=\"ipmsm-fmu\"\n"
-      << "  variableNamingConvention=\"flat\">\n"
-      << "  <CoSimulation\n"
-      << "    modelIdentifier=\"" << xml_escape(M::model_identifier) << "\"\n"
-      << "    needsExecutionTool=\"false\"\n"
-      << "    canBeInstantiatedOnlyOncePerProcess=\"false\"\n"
+    detail::write_root<M>(x, "3.0", "instantiationToken");
+    x << "    canBeInstantiatedOnlyOncePerProcess=\"false\"\n"
       << "    canGetAndSetFMUState=\"true\"\n"
       << "    canSerializeFMUState=\"true\"\n"
       << "    providesDirectionalDerivatives=\"false\"\n"
@@ -85,16 +69,7 @@ std::string model_description3() {
           << "\" description=\"" << xml_escape(v.description) << "\" causality=\"" << causality_name(v.causality)
           << "\" variability=\"" << variability_name(v.variability) << '"';
         if (computed) x << " initial=\"calculated\"";
-        if (!detail::empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
-        if (!detail::empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
-        if (v.relative_quantity && type == Type::Real) x << " relativeQuantity=\"true\"";
-        if (type == Type::Real || type == Type::Integer) {
-            auto bound = [&](double b) {
-                return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));
-            };
-            if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
-            if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
-        }
+        detail::write_type_attributes(x, v);
         if (computed)
             x << "/>\n";
         else if (type == Type::String)

@@ -13,6 +13,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi3 import FMU3Slave, fmi3FMUState, fmi3LogMessageCallback
 
+import fmi2_raw as raw
 from fmi2_raw import ERROR, OK, STATUS, WARNING, refused  # noqa: F401 (the same statuses, refused() too)
 
 
@@ -120,10 +121,7 @@ class Instance3:
                   "String": self.slave.setString}[v.type]
         return status_of(setter, [v.valueReference], [value])
 
-    def set(self, **values):
-        for name, value in values.items():
-            status = self.set_status(name, value)
-            assert status == OK, f"set {name} = {value!r}: {STATUS[status]}\n{self.log.text()}"
+    set = raw.Instance.set
 
     def get_status(self, name):
         """(status, value)"""
@@ -135,19 +133,10 @@ class Instance3:
         except FMICallException as e:
             return e.status, None
 
-    def get(self, *names):
-        values = []
-        for name in names:
-            status, value = self.get_status(name)
-            assert status == OK, f"get {name}: {STATUS[status]}\n{self.log.text()}"
-            values.append(value)
-        return values[0] if len(values) == 1 else values
-
-    def names(self, *causalities):
-        return [v.name for v in self.fmu.md.modelVariables if v.causality in causalities]
-
-    def outputs(self):
-        return tuple(self.get(n) for n in self.names("output"))
+    # by name, as fmi2_raw.Instance does it
+    get = raw.Instance.get
+    names = raw.Instance.names
+    outputs = raw.Instance.outputs
 
     # --- FMU states ---
     def get_state(self):
