@@ -402,3 +402,17 @@ def test_instantiation_refusals_log_why(unzipped3):
         probe.call("fmi3FreeInstance", c)
     finally:
         probe.free()
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_state_serialised_by_the_fmi2_fmu_continues_in_the_fmi3_fmu(name, fmu_instances, instances3):
+    """One serialised format for both standards (fmu_src/fmi/README.md): a state saved by the FMI
+    2.0 FMU continues in the FMI 3.0 one as it does in the FMI 2.0 one, bit for bit."""
+    two = fmu_instances(name, "two")
+    two.init()
+    _trace(two, name, 0, 20)
+    data, t = two.serialize(two.get_state()), two.t
+    in_two = _trace(two, name, 20, 20)
+    three = instances3(name, "three")
+    three.restore(data, t)
+    assert repr(_trace(three, name, 20, 20)) == repr(in_two)
