@@ -373,7 +373,14 @@ std::string variables_html(const Standard& s) {
       << "<p>Generated from the FMU's variable table, the source of <code>modelDescription.xml</code>. "
       << "A value outside the range is refused with <code>" << s.error << "</code> and changes nothing; "
       << "<em>fixed</em> parameters can be set only before <code>" << s.exit_initialization_mode << "</code>. "
-      << "Units are SI; the display unit is what a tool may show instead.</p>\n<table>\n"
+      << "Units are SI; the display unit is what a tool may show instead.</p>\n";
+    if (s.major == 3)
+        h << "<p>This is the FMU's FMI 3.0 build, from the same model and table as its FMI 2.0 build: where "
+          << "this page names an FMI 2.0 function or type, read its FMI 3.0 counterpart (<code>fmi2SetReal</code>: "
+          << "<code>fmi3SetFloat64</code>, <code>fmi2Error</code>: <code>fmi3Error</code>, Real: Float64, "
+          << "Integer: Int32). FMI 3.0's independent variable <code>time</code> (s) has the value reference "
+          << vars.size() << ".</p>\n";
+    h << "<table>\n"
       << "<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th>"
       << "<th>start</th><th>range</th><th>description</th></tr>\n";
     for (std::size_t i = 0; i < vars.size(); ++i) {
