@@ -131,6 +131,7 @@ function(add_fmu)
     target_link_libraries(${target} PRIVATE fmi2_glue ${FMU_LIBRARIES})
     set_target_properties(${target} PROPERTIES PREFIX "" OUTPUT_NAME ${name} SUFFIX ".dll"
       RUNTIME_OUTPUT_DIRECTORY ${CMAKE_RUNTIME_OUTPUT_DIRECTORY}${output_subdir}
+      ARCHIVE_OUTPUT_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}${output_subdir}  # the import library
       C_VISIBILITY_PRESET hidden CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)
     target_compile_options(${target} PRIVATE -ffunction-sections -fdata-sections)
     # -static: libstdc++, libgcc and winpthread inside (-static-libgcc -static-libstdc++ alone

@@ -52,11 +52,11 @@ inline constexpr PhaseMask kSet = mask(Phase::instantiated, Phase::initializatio
 inline constexpr PhaseMask kStatus = mask(Phase::step_complete, Phase::terminated);
 
 // The variable that vr names, if it has the type of the Get or Set function; else throws. (FMI
-// 3.0's independent variable `time`, value reference vars.size(), is read by the Get alone.)
+// 3.0's independent variable `time`, kTimeValueReference, is read by the Get alone.)
 template <class M>
 const Variable<M>& variable_of(fmi2ValueReference vr, Type type, const Standard& s) {
     const auto& vars = variables<M>();
-    if (s.time_variable && vr == vars.size())
+    if (s.time_variable && vr == kTimeValueReference)
         throw Error("value reference " + std::to_string(vr) +
                     " is time, the independent variable: it can be read, and only " + s.do_step + " advances it");
     if (vr >= vars.size())
@@ -257,7 +257,7 @@ struct Functions {
             const auto& vars = variables<M>();
             // FMI 3.0's independent variable: where the instance is in time.
             const bool has_time = S.time_variable && type == Type::Real;
-            auto is_time = [&](fmi2ValueReference r) { return has_time && r == vars.size(); };
+            auto is_time = [&](fmi2ValueReference r) { return has_time && r == kTimeValueReference; };
             // In Initialization Mode an output or local comes from initial_model().
             const bool init = in.phase == Phase::initialization_mode;
             bool from_initial = false;

@@ -379,7 +379,7 @@ std::string variables_html(const Standard& s) {
           << "this page names an FMI 2.0 function or type, read its FMI 3.0 counterpart (<code>fmi2SetReal</code>: "
           << "<code>fmi3SetFloat64</code>, <code>fmi2Error</code>: <code>fmi3Error</code>, Real: Float64, "
           << "Integer: Int32). FMI 3.0's independent variable <code>time</code> (s) has the value reference "
-          << vars.size() << ".</p>\n";
+          << kTimeValueReference << ".</p>\n";
     h << "<table>\n"
       << "<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th>"
       << "<th>start</th><th>range</th><th>description</th></tr>\n";

@@ -2,8 +2,8 @@
 // start values as the FMI 2.0 one (model_description.hpp): the same names, value references,
 // units, ranges, start values, causalities and variabilities. What FMI 3.0 changes:
 // - the types are Float64, Int32, Boolean, String (a String's start is a <Start> element);
-// - the independent variable `time` (FMI 3.0 asks for exactly one) takes the value reference
-//   after the table's last, so that every other keeps its FMI 2.0 one;
+// - the independent variable `time` (FMI 3.0 asks for exactly one) has the value reference
+//   kTimeValueReference (standard.hpp), beyond every table position;
 // - <ModelStructure> names variables by value reference (<Output>, <InitialUnknown>), with the
 //   same dependencies as the FMI 2.0 description;
 // - <CoSimulation> has FMI 3.0's capability flags: no Event Mode, no early return, no
@@ -54,9 +54,8 @@ std::string model_description3() {
       << "    providesEvaluateDiscreteStates=\"false\"/>\n";
     detail::write_units_categories_experiment<M>(x, "s");
 
-    const std::size_t time_vr = vars.size();
     x << "  <ModelVariables>\n"
-      << "    <Float64 name=\"time\" valueReference=\"" << time_vr
+      << "    <Float64 name=\"time\" valueReference=\"" << kTimeValueReference
       << "\" description=\"Simulation time (the independent variable)\" causality=\"independent\""
          " variability=\"continuous\" unit=\"s\"/>\n";
     std::vector<std::size_t> outputs;  // value references

@@ -8,11 +8,15 @@
 
 namespace fmi {
 
+// The value reference of FMI 3.0's independent variable `time`: fixed, far beyond the table's
+// positions (the other value references), so that a variable added to a table never moves it.
+inline constexpr std::uint32_t kTimeValueReference = 2147483647;  // 2^31 - 1
+
 struct Standard {
     const char* version;  // "2.0", "3.0"
     int major;            // 2, 3
     std::uint64_t salt;   // xor-ed into an instance's tag: an FMI 2.0 instance is not an FMI 3.0 one
-    bool time_variable;   // the table is followed by the independent variable `time` (FMI 3.0)
+    bool time_variable;   // the independent variable `time` (FMI 3.0), value reference kTimeValueReference
     const char* error;    // the status a refused call returns
     const char* free_instance;
     const char* set_debug_logging;

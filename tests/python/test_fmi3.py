@@ -9,6 +9,7 @@ from __future__ import annotations
 import ctypes as C
 import json
 import os
+import re
 import subprocess
 import zipfile
 from pathlib import Path
@@ -18,6 +19,7 @@ import fmpy
 import golden_traces
 import numpy as np
 import pytest
+import test_conformance as conformance
 from fmpy.fmi3 import fmi3IntermediateUpdateCallback
 from fmpy.validation import validate_fmu
 
@@ -28,7 +30,13 @@ NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
 BUILD_FMU3 = Path(os.environ.get("IPMSM_FMU3_DIR", BUILD_FMU.parent / "fmu3"))
 #: bytes of a log message at most (fmu_src/fmi/log_text.hpp: 4000 characters)
 MAX_LOG_CHARS = 4000
+#: the value reference of FMI 3.0's independent variable time (fmu_src/fmi/standard.hpp: 2^31 - 1, fixed)
+TIME_VR = 2**31 - 1
 RELEASES = sorted((Path(__file__).resolve().parents[1] / "data").glob("value_references_*.json"))
+#: every function fmi3Functions.h declares (the official header, fmu_src/fmi/headers3/)
+FMI3_FUNCTIONS = {line.split()[-1].rstrip(";") for line in (
+    Path(__file__).resolve().parents[2] / "fmu_src" / "fmi" / "headers3" / "fmi3Functions.h").read_text().splitlines()
+    if line.startswith("FMI3_Export fmi3")}
 #: FMI 3.0's type of each FMI 2.0 type
 FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
 
@@ -93,10 +101,10 @@ def test_the_same_variables_as_fmi2(name):
         assert (w.valueReference, w.type, w.causality, w.variability, w.initial) == (
             v.valueReference, FMI3_TYPE[v.type], v.causality, v.variability, v.initial), v.name
         assert (w.unit, w.displayUnit, w.min, w.max, w.start) == (v.unit, v.displayUnit, v.min, v.max, v.start), v.name
-    # the one more: FMI 3.0's independent variable, after every value reference of FMI 2.0
+    # the one more: FMI 3.0's independent variable, at a fixed value reference beyond the table's
     (time,) = v3.values()
     assert (time.name, time.causality, time.type) == ("time", "independent", "Float64")
-    assert time.valueReference == len(md2.modelVariables)
+    assert time.valueReference == TIME_VR
     vr3 = {v.name: v.valueReference for v in md3.modelVariables}
     for release in RELEASES:  # as test_value_references.py checks the FMI 2.0 FMUs
         doc = json.loads(release.read_text())
@@ -118,8 +126,7 @@ def test_the_binaries_export_the_fmi3_functions_only(name):
     assert not any(f.startswith(("binaries/linux64", "binaries/win64")) for f in files)
     if WIN64_BUILT:
         assert f"binaries/x86_64-windows/{name}.dll" in files
-    header = (Path(__file__).resolve().parents[2] / "fmu_src" / "fmi" / "headers3" / "fmi3Functions.h").read_text()
-    declared = {line.split()[-1].rstrip(";") for line in header.splitlines() if line.startswith("FMI3_Export fmi3")}
+    declared = FMI3_FUNCTIONS
     assert len(declared) == 75
     with zipfile.ZipFile(fmu3_path(name)) as z:
         data = z.read(f"binaries/x86_64-linux/{name}.so")
@@ -128,6 +135,29 @@ def test_the_binaries_export_the_fmi3_functions_only(name):
     out = subprocess.run(["nm", "-D", "--defined-only", str(so)], capture_output=True, text=True, check=True).stdout
     exported = {line.split()[-1] for line in out.splitlines() if line.split()[-2] in ("T", "W")}
     assert exported == declared
+
+
+def _needed(lib: Path) -> set[str]:
+    dyn = subprocess.run(["readelf", "-d", str(lib)], check=True, capture_output=True, text=True).stdout
+    return set(re.findall(r"\(NEEDED\)\s+Shared library: \[([^\]]+)\]", dyn))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_binaries_are_linked_as_the_fmi2_ones(name, unzipped, unzipped3):
+    """The same recipe (add_fmu): the same C runtime needs and symbol versions (test_conformance.py
+    checks the FMI 2.0 ones against the glibc baseline), win64 only system DLLs and fmi3* exports."""
+    so2 = unzipped(name).library
+    so3 = Path(unzipped3(name).directory) / "binaries" / "x86_64-linux" / f"{name}.so"
+    assert _needed(so3) == _needed(so2)
+    assert conformance._versions(so3) == conformance._versions(so2)
+    if not WIN64_BUILT:
+        return
+    pe = conformance._pe_headers(Path(unzipped3(name).directory) / "binaries" / "x86_64-windows" / f"{name}.dll")
+    imported = set(re.findall(r"DLL Name: (\S+)", pe))
+    assert imported and all(conformance.WINDOWS_SYSTEM_DLLS.fullmatch(d) for d in imported), imported
+    table = pe.split("[Ordinal/Name Pointer] Table", 1)[1].split("\n\n", 1)[0]
+    exported = set(re.findall(r"^\s*\[\s*\d+\] (\S+)$", table, re.MULTILINE))
+    assert exported == FMI3_FUNCTIONS
 
 
 # --- the same outputs, bit for bit ---
@@ -416,3 +446,15 @@ def test_a_state_serialised_by_the_fmi2_fmu_continues_in_the_fmi3_fmu(name, fmu_
     three = instances3(name, "three")
     three.restore(data, t)
     assert repr(_trace(three, name, 20, 20)) == repr(in_two)
+
+
+def test_an_fmi2_instance_is_foreign_to_the_fmi3_library(fmu_instances, instances3):
+    """The same model under the other standard: its instance pointer is refused, nothing touched."""
+    two = fmu_instances("IpmsmPlant", "two")
+    two.init()
+    three = instances3("IpmsmPlant", "three")
+    b, d = C.c_bool(), C.c_double()
+    assert three.call("fmi3DoStep", two.c, 0.0, 1e-4, True, C.byref(b), C.byref(b), C.byref(b), C.byref(d)) == f3.ERROR
+    assert three.call("fmi3Terminate", two.c) == f3.ERROR
+    assert two.fmu.fmi2DoStep(three.c, 0.0, 1e-4, 1) == raw.ERROR
+    assert two.step(1e-4) == raw.OK and two.t == 1e-4

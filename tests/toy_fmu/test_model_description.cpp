@@ -130,7 +130,7 @@ TEST(ModelDescription, WritesFmi3) {
     EXPECT_TRUE(has("hasEventMode=\"false\""));
     EXPECT_TRUE(has("canSerializeFMUState=\"true\""));
     EXPECT_TRUE(
-        has("<Float64 name=\"time\" valueReference=\"5\" description=\"Simulation time (the independent "
+        has("<Float64 name=\"time\" valueReference=\"2147483647\" description=\"Simulation time (the independent "
             "variable)\" causality=\"independent\" variability=\"continuous\" unit=\"s\"/>"));
     EXPECT_TRUE(has("<Unit name=\"s\">"));  // time's unit, though no variable of the table has it
     EXPECT_TRUE(
