@@ -78,7 +78,7 @@ void check_settable(const Variable<M>& v, Phase p, const Standard& s) {
         case Causality::parameter:
             if (v.variability == Variability::fixed && p != Phase::instantiated && p != Phase::initialization_mode)
                 throw Error(std::string(v.name) + " is a fixed parameter: it can be set only before " +
-                            s.exit_initialization_mode + " (the instance is in state " + phase_name(p) + ")");
+                            s.exit_initialization_mode + " (the instance is in state " + phase_name(p, s.major) + ")");
             return;
         case Causality::output:
         case Causality::local:
@@ -107,11 +107,11 @@ fmi2Status guarded(void* c, const char* fn, PhaseMask allowed, Body&& body) noex
     if (in == nullptr) return fmi2Error;  // NULL or not an instance of this FMU: nobody to log to
     try {
         if (in->tracing())
-            in->log(fmi2OK, LogCategory::all, std::string(fn) + " (state " + phase_name(in->phase) + ")");
+            in->log(fmi2OK, LogCategory::all, std::string(fn) + " (state " + phase_name(in->phase, S.major) + ")");
         if (!(mask(in->phase) & allowed)) {
             in->log(fmi2Error, LogCategory::error,
-                    std::string(fn) + " is not allowed in state " + phase_name(in->phase) +
-                        " (allowed in: " + mask_text(allowed) + "); nothing was changed");
+                    std::string(fn) + " is not allowed in state " + phase_name(in->phase, S.major) +
+                        " (allowed in: " + mask_text(allowed, S.major) + "); nothing was changed");
             return fmi2Error;
         }
         // A call that completes returns fmi2OK even when the model logged a warning (status
