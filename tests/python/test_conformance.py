@@ -38,7 +38,7 @@ import pytest
 from fmpy import read_model_description
 
 import fmi2_raw as raw
-from conftest import ROOT, WIN64_BUILT, fmu_path
+from conftest import ROOT, WIN64_BUILT, fmu_path, patient
 
 REAL_FMUS = ["IpmsmController", "IpmsmPlant", "IpmsmDrive"]
 ALL_FMUS = REAL_FMUS + ["ToyLag"]  # ToyLag: the glue's test FMU, built by the same add_fmu()
@@ -71,7 +71,7 @@ def test_vdmcheck2_finds_no_problem(name):
     assert java and VDMCHECK2.is_file(), (
         f"VDMCheck2 is not installed ({VDMCHECK2}): scripts/setup.sh installs it (scripts/install_vdmcheck2.sh)")
     r = subprocess.run([java, "-jar", str(VDMCHECK2), str(fmu_path(name))], capture_output=True, text=True,
-                       timeout=300)
+                       timeout=patient(300))
     report = r.stdout + r.stderr
     print(f"\n[VDMCheck2 {name}] {report.strip()}")
     assert r.returncode == 0 and "No errors found." in report, report
@@ -89,7 +89,7 @@ def test_vdmcheck2_does_find_problems(tmp_path):
     assert bad != xml
     (tmp_path / "modelDescription.xml").write_text(bad)
     r = subprocess.run([java, "-jar", str(VDMCHECK2), str(tmp_path / "modelDescription.xml")],
-                       capture_output=True, text=True, timeout=300)
+                       capture_output=True, text=True, timeout=patient(300))
     assert r.returncode != 0 and "Errors found." in r.stdout, r.stdout + r.stderr
     assert "validStartStopTime" in r.stdout and "validVariableAttributes" in r.stdout, r.stdout
 
@@ -166,7 +166,7 @@ def test_every_symbol_resolves_at_load(name, unzipped):
     code = ("import ctypes, sys; h = ctypes.CDLL(sys.argv[1], mode=ctypes.RTLD_LOCAL | 2); "
             "print(h.fmi2GetVersion and ctypes.cast(h.fmi2GetVersion, ctypes.c_void_p).value is not None)")
     r = subprocess.run([sys.executable, "-c", code, str(lib)], env={**os.environ, "LD_BIND_NOW": "1"},
-                       capture_output=True, text=True, timeout=60)
+                       capture_output=True, text=True, timeout=patient(60))
     assert r.returncode == 0 and r.stdout.strip() == "True", r.stdout + r.stderr
 
 

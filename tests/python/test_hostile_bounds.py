@@ -21,7 +21,7 @@ import pytest
 from scenarios.maps.flux_map import linear_flux_map, write_flux_map
 
 import fmi2_raw as raw
-from conftest import fmu_path
+from conftest import fmu_path, patient
 from fmi2_raw import ERROR, OK, WARNING
 
 FMUS = ["IpmsmController", "IpmsmPlant"]
@@ -133,7 +133,7 @@ def test_a_file_beyond_the_size_limit_is_refused_unread(tmp_path, good_map, name
 
 @pytest.mark.parametrize("name", FMUS)
 def test_a_device_is_refused_at_once(tmp_path, good_map, name):
-    report = child(name, "/dev/zero", good_map, tmp_path, timeout=30)
+    report = child(name, "/dev/zero", good_map, tmp_path, timeout=patient(30))
     assert_refused_then_usable(report, "not a regular file (a device)")
 
 
@@ -141,7 +141,7 @@ def test_a_device_is_refused_at_once(tmp_path, good_map, name):
 def test_a_named_pipe_is_refused_without_blocking(tmp_path, good_map, name):
     fifo = tmp_path / "map.fifo"
     os.mkfifo(fifo)
-    report = child(name, fifo, good_map, tmp_path, timeout=30)
+    report = child(name, fifo, good_map, tmp_path, timeout=patient(30))
     assert_refused_then_usable(report, "not a regular file (a named pipe)")
 
 

@@ -156,13 +156,9 @@ def test_outputs_are_0644_atomic_and_a_junit_symlink_stays_a_link(tmp_path, caps
     assert not [p for p in (tmp_path / "out").iterdir() if p.name.startswith(".")]
 
 
-def test_an_unwritable_junit_folder_is_refused_before_any_run(tmp_path, capsys, fake_runs):
+def test_an_unwritable_junit_folder_is_refused_before_any_run(tmp_path, capsys, fake_runs, unwritable_folder):
     c = cycle(tmp_path, "x.csv", 5.0)
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    ro.chmod(0o555)
-    if os.access(ro, os.W_OK):
-        pytest.skip("running as a user who may write anywhere (root)")
+    ro = unwritable_folder
     status, junit, io = run(tmp_path, drive(tmp_path, [c]), capsys, junit=ro / "j.xml")
     assert status == 2 and "--junit" in io.err and str(ro) in io.err
     assert fake_runs == [] and not (tmp_path / "out" / "check.md").exists()

@@ -17,10 +17,12 @@ import pytest
 from scenarios.core.paths import ROOT
 from scenarios.maps.flux_map import DEFAULT_MAP
 
+from conftest import patient
+
 #: bytes of address space a refusing command may map: the interpreter with numpy, scipy and the
 #: package imported is about 0.6 GiB; the bombs of the issue asked for 2.5 GB to 745 GiB
 CHILD_AS_BYTES = 3 << 29   # 1.5 GiB
-CHILD_TIMEOUT_S = 60.0
+CHILD_TIMEOUT_S = patient(60.0)
 
 
 def _limit() -> None:
@@ -132,11 +134,11 @@ def test_a_hostile_flux_map_path_or_file_is_refused(case, tmp_path):
         os.mkfifo(m)
         fm = str(m)
     p = drive(tmp_path, "", flux_map=fm)
-    r = cli("run", "UDDS", "--drive", str(p), "--out", str(tmp_path / "out"), timeout=30)
+    r = cli("run", "UDDS", "--drive", str(p), "--out", str(tmp_path / "out"), timeout=patient(30))
     assert_refused(r, p, "motor.flux_map")
     if case in ("sparse 2 GB", "over 512 points"):  # refused for its size, not by the memory limit running out
         assert "at most" in r.err and "MemoryError" not in r.err, r.err
-    assert r.wall < 20.0
+    assert r.wall < patient(20.0)
     assert not (tmp_path / "out").exists()
 
 
@@ -154,9 +156,9 @@ def test_a_hostile_toml_is_refused_before_it_is_parsed(case, tmp_path):
     else:
         with open(p, "wb") as f:
             f.truncate(1 << 30)
-    r = cli("run", "UDDS", "--drive", str(p), "--out", str(tmp_path / "out"), timeout=30)
+    r = cli("run", "UDDS", "--drive", str(p), "--out", str(tmp_path / "out"), timeout=patient(30))
     assert_refused(r, p, "(file)" if case in ("a folder", "1 GB file") else "line 1")
-    assert r.wall < 20.0
+    assert r.wall < patient(20.0)
 
 
 # -- cycles -----------------------------------------------------------------------------------------
@@ -178,7 +180,7 @@ def test_a_hostile_cycle_is_refused_with_its_line(case, tmp_path):
     data, where = CYCLE_CASES[case]
     c = tmp_path / "c.csv"
     c.write_bytes(data)
-    r = cli("run", str(c), "--out", str(tmp_path / "out"), timeout=30)
+    r = cli("run", str(c), "--out", str(tmp_path / "out"), timeout=patient(30))
     assert_refused(r, c, where)
     assert not (tmp_path / "out").exists()
 
@@ -186,7 +188,7 @@ def test_a_hostile_cycle_is_refused_with_its_line(case, tmp_path):
 def test_a_cycle_file_that_is_a_pipe_does_not_block(tmp_path):
     c = tmp_path / "c.csv"
     os.mkfifo(c)
-    r = cli("run", str(c), "--out", str(tmp_path / "out"), timeout=30)
+    r = cli("run", str(c), "--out", str(tmp_path / "out"), timeout=patient(30))
     assert_refused(r, c, "(file)", "regular file")
 
 
@@ -226,12 +228,8 @@ def test_a_bad_command_line_number_is_refused(argv, key, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_an_unwritable_out_is_refused_before_any_run(tmp_path):
-    ro = tmp_path / "ro"
-    ro.mkdir()
-    ro.chmod(0o555)
-    if os.access(ro, os.W_OK):
-        pytest.skip("running as a user who may write anywhere (root)")
+def test_an_unwritable_out_is_refused_before_any_run(unwritable_folder):
+    ro = unwritable_folder
     r = cli("run", "UDDS", "--out", str(ro / "x"))
     assert_refused(r, ro / "x", "--out")
 
@@ -290,10 +288,10 @@ def test_a_hostile_study_spec_is_refused_in_bounded_memory(case, tmp_path):
     else:
         p.write_text("[study]\nu_dc_scale = " + "9" * 400 + "\n")
         key = "study.u_dc_scale"
-    r = cli("study", str(p), "--out", str(tmp_path / "out"), timeout=30)
+    r = cli("study", str(p), "--out", str(tmp_path / "out"), timeout=patient(30))
     assert r.returncode == 2, r.err
     assert "Traceback" not in r.err and str(p) in r.err and key in r.err, r.err
-    assert r.wall < 20.0
+    assert r.wall < patient(20.0)
 
 
 def test_twenty_thousand_runs_are_planned_in_linear_time(tmp_path):
@@ -302,13 +300,13 @@ def test_twenty_thousand_runs_are_planned_in_linear_time(tmp_path):
     t0 = time.perf_counter()
     spec = parse({"study": study}, tmp_path / "s.toml")
     wall = time.perf_counter() - t0
-    assert len(spec.runs) == 20_000 and wall < 10.0, wall
+    assert len(spec.runs) == 20_000 and wall < patient(10.0), wall
     from scenarios.study.spec import SpecError
     runs = [{"u_dc_scale": 0.5 + i * 1e-5} for i in range(20_000)] + [{"u_dc_scale": 0.5 + 19_999e-5}]
     t0 = time.perf_counter()
     with pytest.raises(SpecError, match="the same run twice"):   # the duplicate last: the worst case
         parse({"run": runs}, tmp_path / "s.toml")
-    assert time.perf_counter() - t0 < 10.0
+    assert time.perf_counter() - t0 < patient(10.0)
 
 
 # -- map show / import (bounded) ------------------------------------------------------------------------
@@ -318,7 +316,7 @@ def test_a_mat_file_that_inflates_beyond_the_limit_is_refused_unread(tmp_path):
     m = tmp_path / "bomb.mat"
     a = np.zeros((3000, 3000))   # 72 MB of doubles, 0.3 MB compressed
     sio.savemat(m, {"Id": a, "Iq": a[:1], "Fd": a[:1], "Fq": a[:1]}, do_compression=True)
-    r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"), timeout=30)
+    r = cli("map", "import", str(m), "--out", str(tmp_path / "x.csv"), timeout=patient(30))
     assert r.returncode == 2 and str(m) in r.err and "inflated" in r.err, r.err
     assert not (tmp_path / "x.csv").exists()
 
@@ -351,4 +349,4 @@ def test_an_out_that_cannot_be_a_folder_is_refused_before_any_run(cmd, tmp_path)
     t0 = time.perf_counter()
     r = cli(*argv, "--out", str(out))
     assert r.returncode == 2 and "--out" in r.err and str(out) in r.err and "Traceback" not in r.err, r.err
-    assert time.perf_counter() - t0 < 30.0   # refused before the cycle (minutes) ran
+    assert time.perf_counter() - t0 < patient(30.0)   # refused before the cycle (minutes) ran

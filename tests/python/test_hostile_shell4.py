@@ -17,10 +17,12 @@ import pytest
 
 from scenarios.maps.flux_map import DEFAULT_MAP
 
+from conftest import patient
+
 ROOT = Path(__file__).resolve().parents[2]
 #: the child's address space: the Python side with fmpy, numpy, scipy and matplotlib loaded fits
 AS_LIMIT = 4 << 30
-TIMEOUT_S = 300
+TIMEOUT_S = patient(300)
 
 
 def cli(*args: str, env: dict | None = None, timeout: float = TIMEOUT_S) -> subprocess.CompletedProcess:
@@ -201,7 +203,7 @@ def test_a_high_stator_resistance_runs_to_the_end(tmp_path):
 def test_repeat_past_the_week_cap_is_refused(tmp_path):
     c = tmp_path / "six_days.csv"
     c.write_text("time_s,speed_mps\n0,0\n518400,0\n")
-    r = cli("run", str(c), "--repeat", "100", "--out", str(tmp_path / "o"), timeout=60)
+    r = cli("run", str(c), "--repeat", "100", "--out", str(tmp_path / "o"), timeout=patient(60))
     assert r.returncode == 2 and "--repeat" in r.stderr and not (tmp_path / "o").exists()
 
 

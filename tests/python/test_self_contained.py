@@ -15,7 +15,7 @@ import pytest
 
 from scenarios.core import paths
 
-from conftest import ROOT
+from conftest import ROOT, patient
 
 SHARED = ROOT.parent / "shared"
 HANDED_OVER = json.loads((ROOT / "tests" / "data" / "handed_over.json").read_text())
@@ -49,7 +49,7 @@ def test_a_standard_cycle_runs_with_nothing_beside_the_repository(tmp_path):
     out = tmp_path / "udds"
     code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR), out=str(out))
     r = subprocess.run([sys.executable, "-c", code, "run", "UDDS", "--backend", "drive", "--out", str(out)],
-                       capture_output=True, text=True, timeout=300, cwd=tmp_path)
+                       capture_output=True, text=True, timeout=patient(300), cwd=tmp_path)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     summary = json.loads((out / "summary.json").read_text())
     assert summary["cycle"] == "UDDS" and summary["distance_km"] > 11.0
@@ -60,7 +60,8 @@ def test_the_guard_refuses_what_lies_beside_the_repository(tmp_path):
     beside = ROOT.parent / f".{ROOT.name}-guard-probe"
     code = GUARD.format(root=str(ROOT), build=str(paths.BUILD_DIR), out=str(tmp_path / "out"))
     code = code.replace("import runpy", f"open({str(beside)!r}, 'w')\nimport runpy")
-    r = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True, timeout=60)
+    r = subprocess.run([sys.executable, "-c", code, "--version"], capture_output=True, text=True,
+                       timeout=patient(60))
     assert r.returncode != 0 and "outside the repository" in r.stderr
     assert not beside.exists()
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import pytest
 
 import fmi2_raw as raw
-from conftest import fmu_path
+from conftest import fmu_path, patient
 from fmi2_raw import ERROR, OK, WARNING
 
 #: (FMU, values at initialisation, inputs for the steps): a working point with current and speed
@@ -305,7 +305,7 @@ def test_a_drive_state_with_an_invalid_controller_method_never_crashes(method):
     unchecked. Now the drive's variables hold them once: the variable is refused naming it, and
     no int32 of the model's fields set to the method crashes a step (in a child process)."""
     r = subprocess.run([sys.executable, "-c", _METHOD_CHILD, str(Path(__file__).parent), str(method)],
-                       capture_output=True, text=True, timeout=300)
+                       capture_output=True, text=True, timeout=patient(300))
     assert r.returncode == 0, f"the child died ({r.returncode}): {r.stderr[-2000:]}"
     out = json.loads(r.stdout.splitlines()[-1])
     status, log = out["variable"]

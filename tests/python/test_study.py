@@ -22,7 +22,7 @@ from scenarios.study.spec import run_spec
 from scenarios.study.table import read_runs, summary_of, trace_path
 from scenarios.vehicle.cycles import load_cycle, segment
 
-from conftest import same
+from conftest import patient, same
 
 WINDOW = [300.0, 302.0]  # s of WLTC 3b, the vehicle moving (a window at standstill has no Wh/km)
 # each method's own commands (command_check 0): with the check on, a table's failing commands are
@@ -121,10 +121,10 @@ def test_interrupted_study_resumes_only_missing_runs(tmp_path):
     p = subprocess.Popen(study_cli(spec, out, "--workers", "1"), cwd=ROOT, start_new_session=True,
                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        deadline = time.monotonic() + 120
+        deadline = time.monotonic() + patient(120)
         while len(list((out / "parts").glob("*.parquet"))) < 3:
             assert p.poll() is None, "the study ended before it could be interrupted"
-            assert time.monotonic() < deadline, "no 3 runs in 120 s"
+            assert time.monotonic() < deadline, f"no 3 runs in {patient(120):g} s"
             time.sleep(0.05)
     finally:
         os.killpg(p.pid, signal.SIGKILL)
@@ -133,7 +133,7 @@ def test_interrupted_study_resumes_only_missing_runs(tmp_path):
     assert 3 <= k < 8
     resumed_at = time.time()
     r = subprocess.run(study_cli(spec, out, "--workers", "2"), cwd=ROOT, capture_output=True, text=True,
-                       timeout=300)
+                       timeout=patient(300))
     assert r.returncode == 0, r.stderr
     assert f"{8 - k} runs executed (0 failed), {k} done before" in r.stdout
     rows = rows_by_key(out)
@@ -176,11 +176,11 @@ def test_study_on_a_separately_started_scheduler_and_workers(tmp_path):
                                     "--nthreads", "1", "--host", "127.0.0.1", "--no-dashboard"], cwd=tmp_path,
                                    env=env, stdout=log, stderr=subprocess.STDOUT)
         with Client(address, timeout="30s") as c:
-            c.wait_for_workers(2, timeout=60)
+            c.wait_for_workers(2, timeout=patient(60))
             external = set(c.scheduler_info()["workers"])
         spec = write_spec(tmp_path / "s.toml", recursions=(2,))
         r = subprocess.run(study_cli(spec, tmp_path / "out", "--scheduler", address), cwd=ROOT, capture_output=True,
-                           text=True, timeout=300)
+                           text=True, timeout=patient(300))
         assert r.returncode == 0, r.stderr
         runs = parse({"study": {"cycles": ["WLTC3b"], "window_s": WINDOW, "methods": ["ferrari", "lut_speed"],
                                 "recursions": [2], "u_dc_scale": [1.0, 0.85]}}).runs
@@ -217,7 +217,7 @@ def test_runs_with_a_bad_map_fail_with_their_message_and_the_others_complete(tmp
     spec = write_spec(tmp_path / "s.toml", methods=("ferrari",), recursions=(2,), u_dc_scale=(1.0,),
                       drives=(str(DEFAULT_DRIVE), "torn.toml", "falling.toml"))
     r = subprocess.run(study_cli(spec, tmp_path / "out", "--workers", "2"), cwd=ROOT, capture_output=True, text=True,
-                       timeout=300)
+                       timeout=patient(300))
     assert r.returncode == 1, r.stderr  # some runs failed
     assert "3 runs executed (2 failed)" in r.stdout
     rows = {os.path.basename(x["drive"]): x for x in read_runs(tmp_path / "out").to_pylist()}

@@ -10,6 +10,8 @@ from scenarios.core.paths import ROOT
 from scenarios.study import SpecError, load_spec
 from scenarios.study.spec import T_DEFAULT_DEGC
 
+from conftest import patient
+
 
 def write(tmp_path, text, name="s.toml"):
     p = tmp_path / name
@@ -96,12 +98,12 @@ def test_bad_spec_names_file_and_key(tmp_path, text, key):
 def test_cli_exit_2_on_a_bad_spec(tmp_path):
     p = write(tmp_path, '[study]\nmethods = ["newton"]\n')
     r = subprocess.run([sys.executable, "-m", "scenarios", "study", str(p), "--out", str(tmp_path / "o")],
-                       cwd=ROOT, capture_output=True, text=True, timeout=60)
+                       cwd=ROOT, capture_output=True, text=True, timeout=patient(60))
     assert r.returncode == 2
     assert f"{p}: study.methods" in r.stderr
     assert not (tmp_path / "o").exists()
     r = subprocess.run([sys.executable, "-m", "scenarios", "study", str(tmp_path / "none.toml")],
-                       cwd=ROOT, capture_output=True, text=True, timeout=60)
+                       cwd=ROOT, capture_output=True, text=True, timeout=patient(60))
     assert r.returncode == 2 and "No such file or directory" in r.stderr
 
 

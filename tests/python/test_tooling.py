@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, patient
 
 STEPS = ("setup.sh", "sanitize.sh", "lint.sh")  # scripts/ of test.sh and run.sh
 COMMANDS = ("ctest", "python")                  # on PATH once the set-up has run
@@ -31,7 +31,7 @@ def _run(tmp_path, script: str, *args: str, lint_status: int = 0) -> list[str]:
         stub = tmp_path / "bin" / name
         stub.write_text(f'#!/bin/sh\necho "{name}: $#: $*" >> "{log}"\n')
         stub.chmod(0o755)
-    r = subprocess.run(["bash", str(tmp_path / script), *args], timeout=60, capture_output=True, text=True)
+    r = subprocess.run(["bash", str(tmp_path / script), *args], timeout=patient(60), capture_output=True, text=True)
     assert (r.returncode == 0) == (lint_status == 0), (r.returncode, r.stderr)
     return log.read_text().splitlines()
 
