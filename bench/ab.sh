@@ -38,11 +38,11 @@ build() {  # build REV DIR
         sources=("$d"/src/fmu_src/{numerics,machine,control}/*.cpp)
     fi
     [ -d "$d/src/tests/support" ] && sources+=("$d"/src/tests/support/*.cpp)
-    local flags=(-std=c++17 -O3 -DNDEBUG -I"$include" -I"$d/src/tests/support" -isystem /usr/include/eigen3)
+    local flags=(-std=c++17 -O3 -DNDEBUG -DIPMSM_SOURCE_DIR="\"$repo\"" -I"$include" -I"$d/src/tests/support" -isystem /usr/include/eigen3)
     for f in "${sources[@]}"; do g++ "${flags[@]}" -fPIC -c "$f" -o "$d/obj/$(basename "$f" .cpp).o" & done
     wait
     ar rcs "$d/libcore.a" "$d"/obj/*.o
-    g++ "${flags[@]}" -fPIE -DIPMSM_SOURCE_DIR="\"$repo\"" "$d/src/bench/bench_controller.cpp" "$d/libcore.a" \
+    g++ "${flags[@]}" -fPIE "$d/src/bench/bench_controller.cpp" "$d/libcore.a" \
         -o "$d/bench_controller"
 }
 

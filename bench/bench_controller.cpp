@@ -30,6 +30,7 @@
 #include "control/torque_table.hpp"
 #include "flux_map_generators.hpp"
 #include "numerics/quartic.hpp"
+#include "source_tree.hpp"
 
 using namespace ipmsm;
 using Clock = std::chrono::steady_clock;
@@ -190,7 +191,7 @@ void least_loss_rows(const CorpusMap& c) {
 
 int main(int argc, char** argv) {
     std::vector<CorpusMap> corpus;
-    std::string path = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+    std::string path = ipmsm::source_path("fmu_src/resources/ev_ipmsm_default.csv");
     for (int a = 1; a < argc; ++a) {
         const std::string arg = argv[a];
         if (arg == "--map" && a + 7 < argc) {

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "drive/drive_model.hpp"
+#include "source_tree.hpp"
 
 namespace {
 
@@ -57,7 +58,7 @@ bool g_thermal = false;  // thermal_model (argument 5)
 Result run(const std::vector<Row>& rows, bool glue_copy) {
     fmi::Context ctx;
     ctx.instance_name = "bench";
-    ctx.resource_dir = IPMSM_SOURCE_DIR "/fmu_src/resources";
+    ctx.resource_dir = ipmsm::source_path("fmu_src/resources");
     ipmsm::DriveModel d(ctx);
     d.T_ref = rows[0].T_ref, d.w_m = rows[0].w_m, d.u_dc = rows[0].u_dc;
     d.T_magnet = d.T_winding = kTemperature;

@@ -14,6 +14,7 @@
 #include "flux_map_generators.hpp"
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
+#include "source_tree.hpp"
 
 using namespace ipmsm;
 
@@ -117,8 +118,7 @@ void bench_far_outside(double& checksum) {
 }  // namespace
 
 int main(int argc, char** argv) {
-    const std::string path =
-        std::string(IPMSM_SOURCE_DIR) + "/scenarios/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
+    const std::string path = ipmsm::source_path("scenarios/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv");
     double checksum = 0;
     try {
         if (argc > 1) bench_map(argv[1], FluxMap(read_flux_map(argv[1])), true, checksum);

@@ -43,6 +43,7 @@
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
 #include "plant_model.hpp"
+#include "source_tree.hpp"
 
 using namespace ipmsm;
 namespace fs = std::filesystem;
@@ -130,7 +131,7 @@ Trace record(const std::string& flux_map, const char* name, const std::function<
     try {
         fmi::Context ctx;
         ctx.instance_name = "bench";
-        ctx.resource_dir = IPMSM_SOURCE_DIR "/fmu_src/resources";
+        ctx.resource_dir = ipmsm::source_path("fmu_src/resources");
         ctx.log_warning = [](const std::string& m) { std::fprintf(stderr, "model: %s\n", m.c_str()); };
         ControllerModel controller(ctx);
         PlantModel plant(ctx);
@@ -281,7 +282,7 @@ int main(int argc, char** argv) {
     Fmu plant(fmu_dir / "IpmsmPlant", "IpmsmPlant");
 
     const std::string map_path =
-        argc > 2 ? std::string(argv[2]) : std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources/ev_ipmsm_default.csv";
+        argc > 2 ? std::string(argv[2]) : ipmsm::source_path("fmu_src/resources/ev_ipmsm_default.csv");
     const std::string custom_map = argc > 2 ? map_path : std::string();
     if (argc > 2) plant.flux_map = map_path;
     std::printf("flux map %s\n", map_path.c_str());

@@ -295,8 +295,8 @@ void CvodeIntegrator::advance(const DqFluxOde& ode, double h, const StepIntegran
         double y_end[kStates], psi_end[2];
         InverseFluxPoint c_end;
         CvodeStats est;
-        if (explicit_steps(static_cast<const LinearisedProblem&>(w), h, settings_.rtol, atol.data(), y_end, psi_end,
-                           c_end, est)) {
+        if (explicit_steps(static_cast<const LinearisedProblem&>(w), h, settings_.rtol, atol.data(),
+                           settings_.explicit_attempts, y_end, psi_end, c_end, est)) {
             commit(h, psi_end, c_end, h, est, y_end + 2, w.warning);
             return;
         }

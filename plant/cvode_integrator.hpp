@@ -44,7 +44,7 @@
 // integrals, each step's embedded error estimate measured in CVODE's weighted RMS norm with the
 // same tolerances (weights rtol |y| + atol at the step's end). The first step spans the whole
 // call; where the estimate misses, shorter ones follow under the standard step-size controller,
-// and after kMaxExplicitSteps attempts CVODE integrates the call as without them. The remainder
+// and after explicit_attempts attempts CVODE integrates the call as without them. The remainder
 // z is of second order in the step's change of psi, so one step passes where the currents change
 // smoothly over the call; the step integrals' integrands carry the currents' whole change (at
 // high speed, a rotation of the frame by omega h within the call), and there a few shorter steps
@@ -102,6 +102,9 @@ struct CvodeSettings {
     double nonlin_conv_coef = 0;    // CVodeSetNonlinConvCoef; 0: CVODE's default 0.1
     double current_scale = 1e3;     // A: the quadratures' absolute tolerances (above)
     bool explicit_first = false;    // try embedded Runge-Kutta steps before CVODE (above)
+    // Attempts of explicit steps across one call before CVODE integrates it instead: a call that
+    // needs more is stiff or has a kink the third-order method cannot step over cheaply.
+    int explicit_attempts = 8;
 
     // Settings that shape CVODE's objects (a workspace is reused only if they match).
     bool same_structure(const CvodeSettings& o) const {

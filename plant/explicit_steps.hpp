@@ -24,10 +24,6 @@ namespace ipmsm {
 
 namespace explicit_detail {
 
-// Attempts of explicit steps across one call before CVODE integrates it instead: a call that
-// needs more is stiff or has a kink the third-order method cannot step over cheaply.
-constexpr int kMaxExplicitSteps = 8;
-
 // One Bogacki-Shampine 3(2) step of length dt from y with y' = k1 (Bogacki and Shampine, Appl.
 // Math. Lett. 2 (1989) 321-325), the flows at its stages dt / 2, 3 dt / 4 and dt given: y_new,
 // k4 = y'(y_new) (the next step's k1), psi and the currents there; returns the squared
@@ -64,14 +60,13 @@ double bs3_step(const Problem& p, const FlowAt& F2, const FlowAt& F3, const Flow
 // under the standard step-size controller for a third-order pair (safety 0.9, a change per
 // step within [0.2, 5]: Hairer, Norsett and Wanner, Solving Ordinary Differential Equations I,
 // 2nd ed., section II.4). True, with y(span), psi(span), the currents there and the steps
-// taken, when at most kMaxExplicitSteps attempts crossed the span (false as soon as the step
+// taken, when at most max_attempts attempts crossed the span (false as soon as the step
 // length the estimates ask for says they will not, or where the currents could not be found or
 // left the problem's region: CVODE decides).
 template <class Problem>
-bool explicit_steps(const Problem& p, double span, double rtol, const double* atol, double* y_end, double* psi_end,
-                    InverseFluxPoint& c_end, CvodeStats& st) {
+bool explicit_steps(const Problem& p, double span, double rtol, const double* atol, int max_attempts, double* y_end,
+                    double* psi_end, InverseFluxPoint& c_end, CvodeStats& st) {
     using explicit_detail::bs3_step;
-    using explicit_detail::kMaxExplicitSteps;
     constexpr int n = Problem::kY;
     double k1[n], k4[n], y[n], y_new[n];
     std::fill(y, y + n, 0.0);
@@ -96,7 +91,7 @@ bool explicit_steps(const Problem& p, double span, double rtol, const double* at
         if (!std::isfinite(sum)) return false;
         const double norm = std::sqrt(sum / n);
         dt *= norm > 0.0 ? std::clamp(0.9 * std::cbrt(1.0 / norm), 0.2, 5.0) : 5.0;
-        if ((span - tau) / dt > kMaxExplicitSteps - attempt) return false;  // would not fit in the attempts left
+        if ((span - tau) / dt > max_attempts - attempt) return false;  // would not fit in the attempts left
         const bool last = tau + dt >= span * (1.0 - 1e-12);
         if (last) dt = span - tau;
         const FlowAt H = p.lin.at(0.25 * dt), H2 = H.then(H), F2 = F0.then(H2), F4 = F2.then(H2);

@@ -372,7 +372,7 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
             InverseFluxPoint c_end;
             CvodeStats st;
             const bool ok = p.linearise(y, c, w.r_continue, span) &&
-                            explicit_steps(p, span, s.rtol, atol, y_end, psi_end, c_end, st);
+                            explicit_steps(p, span, s.rtol, atol, s.explicit_attempts, y_end, psi_end, c_end, st);
             out.steps += st.steps;
             out.rhs_evals += st.rhs_evals;
             if (!ok) {
@@ -481,6 +481,15 @@ FreewheelStep FreewheelIntegrator::advance(const DqFluxOde& ode, double k, const
     out.c = w.currents(y);
     if (!std::isfinite(out.psi[0] + out.psi[1] + out.c.i_d + out.c.i_q))
         throw CvodeError("freewheeling: non-finite flux linkages or currents at the end of the step");
+    // Below the onset, a call ending within the zero tolerance of psi_0 (its zero not yet crossed)
+    // has brought the current to zero: the next call would start there as from i = 0, blocked. The
+    // bridge blocks at this call's end, so that the block is counted where it happens.
+    if (!onset && std::hypot(y[0] - psi0[0], y[1] - psi0[1]) <= zero_tol) {
+        out.psi[0] = psi0[0], out.psi[1] = psi0[1];
+        out.c = InverseFluxPoint{};
+        out.blocked = true;
+        ++out.switchings;
+    }
     return out;
 }
 

@@ -32,6 +32,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kMaxCvodeSteps = 200000;
 constexpr double kVoltageMax = 1e4;  // V: far beyond any traction inverter
 constexpr double kSpeedMax = 1e4;    // rad/s mechanical (95 000 r/min)
+// Explicit steps per call before CVODE in ASC (settings()): the short circuit's ringing takes
+// 5-15 a call from 3000 to 12000 r/min on the default motor, a few calls of a trip more.
+constexpr int kAscExplicitAttempts = 32;
 
 std::string num(double x) {
     std::ostringstream os;
@@ -253,6 +256,12 @@ CvodeSettings PlantModel::settings() const {
     if (map_)                  // the quadratures' absolute tolerances scale with the largest current of the map's grid
         s.current_scale = std::max({std::abs(map_->i_d_min()), std::abs(map_->i_d_max()), std::abs(map_->i_q_min()),
                                     std::abs(map_->i_q_max())});
+    // The short circuit's transient rings at omega in dq until it decays over L/R (tenths of a
+    // second at the default motor's milliohms), and the step integrals (T_e, P_cu) must follow the
+    // ringing to rtol: ~5-15 explicit steps a call, each a few right-hand sides, where CVODE,
+    // restarted at order 1 in every call, takes as many steps at several times their cost
+    // (docs/performance.md, "The inverter's safe states"). Switching keeps the general bound.
+    if (inverter_state == static_cast<int>(InverterState::asc)) s.explicit_attempts = kAscExplicitAttempts;
     return s;
 }
 

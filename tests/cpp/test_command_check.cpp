@@ -19,6 +19,7 @@
 #include "control/torque_table.hpp"
 #include "flux_map_generators.hpp"
 #include "machine/magnet_flux.hpp"
+#include "source_tree.hpp"
 
 using namespace ipmsm;
 
@@ -31,7 +32,7 @@ constexpr double kRpm = 3.14159265358979323846 / 30.0;
 
 // The published map without the rows i_d > 90 A.
 std::shared_ptr<const FluxMap> prius_map() {
-    std::ifstream in(std::string(IPMSM_SOURCE_DIR) + "/scenarios/data/fluxmaps/real/plecs_prius_as_published.csv");
+    std::ifstream in(ipmsm::source_path("scenarios/data/fluxmaps/real/plecs_prius_as_published.csv"));
     std::ostringstream kept;
     std::string line;
     while (std::getline(in, line)) {

@@ -12,6 +12,7 @@
 #include "drive/drive_model.hpp"
 #include "machine/winding_resistance.hpp"
 #include "plant_model.hpp"
+#include "source_tree.hpp"
 #include "variable.hpp"
 
 namespace {
@@ -41,7 +42,7 @@ TEST(Derating, WindingResistanceIsThePlantsLaw) {
 
 fmi::Context resources() {
     fmi::Context context;
-    context.resource_dir = IPMSM_SOURCE_DIR "/fmu_src/resources";
+    context.resource_dir = ipmsm::source_path("fmu_src/resources");
     return context;
 }
 

@@ -22,12 +22,13 @@
 #include "machine/inverse_flux_map.hpp"
 #include "machine/operating_region.hpp"
 #include "numerics/bicubic_spline.hpp"
+#include "source_tree.hpp"
 
 using namespace ipmsm;
 
 namespace {
 
-const std::string kBaldor = std::string(IPMSM_SOURCE_DIR) + "/scenarios/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv";
+const std::string kBaldor = ipmsm::source_path("scenarios/data/fluxmaps/baldor_5p6kW_pmsyrm_measured.csv");
 
 std::string temp_dir() {
     static const std::string dir = [] {

@@ -25,6 +25,7 @@
 #include "machine/flux_map_cache.hpp"
 #include "machine/flux_map_metadata.hpp"
 #include "machine/map_file.hpp"
+#include "source_tree.hpp"
 
 using namespace ipmsm;
 
@@ -209,7 +210,7 @@ TEST(FluxMapBounds, MetadataLeadingNumberAndUnits) {
 // The one rule for a metadata value, case by case from the corpus the Python reader is held to
 // as well (tests/data/metadata_values.csv: key,text,value with value a number or "refused").
 TEST(FluxMapBounds, MetadataValuesAsTheSharedCorpusSays) {
-    std::ifstream in(std::string(IPMSM_SOURCE_DIR) + "/tests/data/metadata_values.csv");
+    std::ifstream in(ipmsm::source_path("tests/data/metadata_values.csv"));
     ASSERT_TRUE(in) << "tests/data/metadata_values.csv";
     std::string line;
     std::getline(in, line);  // header

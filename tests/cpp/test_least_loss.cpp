@@ -20,6 +20,7 @@
 #include "machine/flux_map.hpp"
 #include "machine/machine.hpp"
 #include "machine/magnet_flux.hpp"
+#include "source_tree.hpp"
 
 using namespace ipmsm;
 
@@ -308,7 +309,7 @@ TEST(LeastLoss, PriusTorqueMaxIsTheLargestShaftTorque) {
     // does not sit on the largest shaft torque (at 1523 r/min, 473 V, the magnets at 116 C: T_max
     // was 1.4e-4 short). The default motor's iron loss and inverter, scaled by the drive's power.
     const auto map = std::make_shared<const FluxMap>(
-        read_flux_map(std::string(IPMSM_SOURCE_DIR) + "/scenarios/data/fluxmaps/real/plecs_prius_as_published.csv"));
+        read_flux_map(ipmsm::source_path("scenarios/data/fluxmaps/real/plecs_prius_as_published.csv")));
     constexpr double I_max = 200.0, R_s = 0.015;
     const double scale = I_max * 500.0 / (kIMax * 355.0);
     const IronLossModel iron{kIron.k_h * scale, 2.0, kIron.k_e * scale, std::abs(map->psi_m())};

@@ -28,13 +28,14 @@
 #include "machine/flux_map.hpp"
 #include "machine/inverse_flux_map.hpp"
 #include "plant_model.hpp"
+#include "source_tree.hpp"
 #include "state_stream.hpp"
 
 using namespace ipmsm;
 
 namespace {
 
-const std::string kResources = std::string(IPMSM_SOURCE_DIR) + "/fmu_src/resources";
+const std::string kResources = ipmsm::source_path("fmu_src/resources");
 const std::string kDefaultMap = kResources + "/ev_ipmsm_default.csv";
 
 std::string temp_file(const std::string& name, const std::string& text) {

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "drive/drive_model.hpp"
+#include "source_tree.hpp"
 #include "variable.hpp"
 
 namespace {
@@ -55,7 +56,7 @@ TEST(VariableForwarding, ReadsAndWritesWhereTheValueLives) {
 TEST(VariableForwarding, DriveParameterReachesBothModels) {
     std::vector<std::string> warnings;
     fmi::Context context;
-    context.resource_dir = IPMSM_SOURCE_DIR "/fmu_src/resources";
+    context.resource_dir = ipmsm::source_path("fmu_src/resources");
     context.log_warning = [&](const std::string& m) { warnings.push_back(m); };
     ipmsm::DriveModel drive(context);
     const auto* pole_pairs = fmi::find_variable<ipmsm::DriveModel>("pole_pairs");

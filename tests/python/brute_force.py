@@ -3,12 +3,16 @@ then scipy's SLSQP from the best samples. Shares nothing with the C++ solver but
 (MATH.md conventions) and the flux-map data (interpolated here by scipy's own splines)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import minimize
 
 from scenarios.maps.flux_map import FluxMap
+
+#: how many scalar points Drive.flux keeps (a finite-difference gradient in 2-D takes 3)
+RECENT_POINTS = 8
 
 
 @dataclass
@@ -23,13 +27,35 @@ class Drive:
     # Search only i_d <= 0: a magnet-free machine's optima tie in mirror pairs (i, -i), and the
     # controller's convention is the branch i_d <= 0 (docs/controller.md).
     left_half: bool = False
+    #: the flux linkages at the last few scalar currents: SLSQP evaluates the torque, the voltage
+    #: (and the loss) at the same point, and their finite differences at the same neighbours
+    _recent: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def flux(self, i_d, i_q):
+        """fmap.flux at the magnets' shift; a scalar point evaluated once (the same numbers)."""
+        if np.ndim(i_d) or np.ndim(i_q):
+            return self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        # the signs too: -0.0 == 0.0 as a key, and the spline need not give the same bits at both
+        key = (float(i_d), float(i_q), math.copysign(1.0, i_d), math.copysign(1.0, i_q))
+        found = self._recent.get(key)
+        if found is None:
+            if len(self._recent) >= RECENT_POINTS:
+                self._recent.clear()
+            found = self._recent[key] = self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        return found
 
     def torque(self, i_d, i_q):
-        psi_d, psi_q = self.fmap.flux(i_d, i_q, self.psi_d_shift)
-        return 1.5 * self.pole_pairs * (psi_d * i_q - psi_q * i_d)
+        return self.torque_at(i_d, i_q, *self.flux(i_d, i_q))
 
     def voltage(self, i_d, i_q):
-        psi_d, psi_q = self.fmap.flux(i_d, i_q, self.psi_d_shift)
+        return self.voltage_at(i_d, i_q, *self.flux(i_d, i_q))
+
+    def torque_at(self, i_d, i_q, psi_d, psi_q):
+        """torque() where the flux linkages (with the magnets' shift) are known already."""
+        return 1.5 * self.pole_pairs * (psi_d * i_q - psi_q * i_d)
+
+    def voltage_at(self, i_d, i_q, psi_d, psi_q):
+        """voltage() where the flux linkages (with the magnets' shift) are known already."""
         return np.hypot(self.R_s * i_d - self.omega * psi_q, self.R_s * i_q + self.omega * psi_d)
 
 
@@ -39,14 +65,44 @@ def _disk(I_max, n_r=90, n_phi=720):
     return (r * np.cos(phi)).ravel(), (r * np.sin(phi)).ravel()
 
 
+#: SLSQP's finite-difference step (scipy.optimize.minimize's default `eps` for it)
+FD_STEP = float(np.sqrt(np.finfo(float).eps))
+
+
+def forward_difference(fun):
+    """fun's gradient as SLSQP computes it when given none (scipy's approx_derivative, 2-point,
+    absolute step FD_STEP: the same points, the same numbers; x stays far below 1/FD_STEP),
+    without approx_derivative's set-up on every call, which took most of the brute force's time."""
+    def gradient(x):
+        f0 = float(fun(x))
+        g = np.empty(len(x))
+        for i in range(len(x)):
+            x1 = x.copy()
+            x1[i] = x[i] + FD_STEP
+            g[i] = (float(fun(x1)) - f0) / ((x[i] + FD_STEP) - x[i])
+        return g
+    return gradient
+
+
+def slsqp_constraint(kind: str, fun) -> dict:
+    """A constraint for SLSQP, its gradient by forward_difference."""
+    return {"type": kind, "fun": fun, "jac": forward_difference(fun)}
+
+
+def slsqp(objective, x0, constraints, maxiter: int = 300):
+    """scipy's SLSQP to ftol 1e-15, the objective's gradient by forward_difference."""
+    return minimize(objective, x0, jac=forward_difference(objective), method="SLSQP", constraints=constraints,
+                    options={"ftol": 1e-15, "maxiter": maxiter})
+
+
 def _constraints(d: Drive, extra=()):
     I, V = d.I_max, d.V_max
     cons = [
-        {"type": "ineq", "fun": lambda x: 1.0 - x[0] ** 2 - x[1] ** 2},
-        {"type": "ineq", "fun": lambda x: 1.0 - (d.voltage(x[0] * I, x[1] * I) / V) ** 2},
+        slsqp_constraint("ineq", lambda x: 1.0 - x[0] ** 2 - x[1] ** 2),
+        slsqp_constraint("ineq", lambda x: 1.0 - (d.voltage(x[0] * I, x[1] * I) / V) ** 2),
     ]
     if d.left_half:
-        cons.append({"type": "ineq", "fun": lambda x: -x[0]})
+        cons.append(slsqp_constraint("ineq", lambda x: -x[0]))
     return cons + list(extra)
 
 
@@ -63,19 +119,38 @@ def _disk_of(d: Drive):
     return i_d, i_q
 
 
+#: the disk's samples with the map's flux linkages there, per (map, I_max, half): the magnets'
+#: temperature only adds to psi_d, so one evaluation of the splines serves every operating point
+_DISKS: dict = {}
+#: the maps whose disks are kept (a test module's few; more are evaluated again)
+DISKS_KEPT = 8
+
+
+def _sampled_disk(d: Drive):
+    """The disk's currents (_disk_of) and there Drive.torque and Drive.voltage (the same numbers)."""
+    key = (id(d.fmap), d.I_max, d.left_half)
+    if key not in _DISKS or _DISKS[key][0] is not d.fmap:
+        if len(_DISKS) >= DISKS_KEPT:
+            _DISKS.clear()
+        i_d, i_q = _disk_of(d)
+        _DISKS[key] = (d.fmap, i_d, i_q, *d.fmap.flux(i_d, i_q))
+    _, i_d, i_q, psi_d0, psi_q = _DISKS[key]
+    psi_d = psi_d0 + d.psi_d_shift
+    return i_d, i_q, d.torque_at(i_d, i_q, psi_d, psi_q), d.voltage_at(i_d, i_q, psi_d, psi_q)
+
+
 def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
     """Largest sign*T within both limits, and the currents giving it."""
-    i_d, i_q = _disk_of(d)
-    ok = (d.voltage(i_d, i_q) <= d.V_max)
+    i_d, i_q, T_disk, V_disk = _sampled_disk(d)
+    ok = (V_disk <= d.V_max)
     if not ok.any():
         return 0.0, np.array([np.nan, np.nan])
-    T = np.where(ok, sign * d.torque(i_d, i_q), -np.inf)
+    T = np.where(ok, sign * T_disk, -np.inf)
     T_scale = max(np.max(T), 1e-9)
     best_T, best_x = -np.inf, None
     for k in np.argsort(T)[-4:]:
         x0 = np.array([i_d[k], i_q[k]]) / d.I_max
-        r = minimize(lambda x: -sign * d.torque(x[0] * d.I_max, x[1] * d.I_max) / T_scale, x0,
-                     method="SLSQP", constraints=_constraints(d), options={"ftol": 1e-15, "maxiter": 300})
+        r = slsqp(lambda x: -sign * d.torque(x[0] * d.I_max, x[1] * d.I_max) / T_scale, x0, _constraints(d))
         for x in (r.x, x0):
             if _feasible(d, *(x * d.I_max)):
                 Tx = float(sign * d.torque(*(x * d.I_max)))
@@ -86,18 +161,16 @@ def max_torque(d: Drive, sign: float) -> tuple[float, np.ndarray]:
 
 def min_current(d: Drive, T_target: float, T_scale: float) -> tuple[float, np.ndarray]:
     """Least current magnitude giving T_target within both limits, and the currents."""
-    i_d, i_q = _disk_of(d)
-    T = d.torque(i_d, i_q)
-    ok = (d.voltage(i_d, i_q) <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
+    i_d, i_q, T, V = _sampled_disk(d)
+    ok = (V <= d.V_max) & (np.abs(T - T_target) <= 0.03 * T_scale)
     I = np.where(ok, np.hypot(i_d, i_q), np.inf)
     starts = [np.array([i_d[k], i_q[k]]) for k in np.argsort(I)[:4] if np.isfinite(I[k])]
     if not starts:
         starts = [np.array([0.0, 0.0])]
-    eq = {"type": "eq", "fun": lambda x: (d.torque(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale}
+    eq = slsqp_constraint("eq", lambda x: (d.torque(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale)
     best_I, best_x = np.inf, None
     for s in starts:
-        r = minimize(lambda x: x[0] ** 2 + x[1] ** 2, s / d.I_max, method="SLSQP",
-                     constraints=_constraints(d, [eq]), options={"ftol": 1e-15, "maxiter": 300})
+        r = slsqp(lambda x: x[0] ** 2 + x[1] ** 2, s / d.I_max, _constraints(d, [eq]))
         x = r.x * d.I_max
         if _feasible(d, *x) and abs(d.torque(*x) - T_target) <= 1e-7 * T_scale:
             if np.hypot(*x) < best_I:

@@ -8,9 +8,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
-from brute_force import Drive
+from brute_force import Drive, slsqp, slsqp_constraint
 
 
 @dataclass(frozen=True)
@@ -45,12 +44,12 @@ class LossDrive:
     loss: LossParams
 
     def parts(self, i_d, i_q):
-        return self.parts_at_flux(i_d, i_q, *self.d.fmap.flux(i_d, i_q, self.d.psi_d_shift))
+        return self.parts_at_flux(i_d, i_q, *self.d.flux(i_d, i_q))
 
     def parts_at_flux(self, i_d, i_q, psi_d, psi_q):
         """parts() where the flux linkages (with the magnets' shift) are known already."""
         d, L = self.d, self.loss
-        T_e = 1.5 * d.pole_pairs * (psi_d * i_q - psi_q * i_d)
+        T_e = d.torque_at(i_d, i_q, psi_d, psi_q)
         I2 = i_d**2 + i_q**2
         I = np.sqrt(I2)
         P_cu = 1.5 * d.R_s * I2
@@ -97,16 +96,16 @@ def _sampled_disk(L: LossDrive):
     _, i_d, i_q, psi_d0, psi_q = _DISKS[key]
     psi_d = psi_d0 + d.psi_d_shift
     T, P = L.parts_at_flux(i_d, i_q, psi_d, psi_q)
-    V = np.hypot(d.R_s * i_d - d.omega * psi_q, d.R_s * i_q + d.omega * psi_d)
+    V = d.voltage_at(i_d, i_q, psi_d, psi_q)
     return i_d, i_q, T, P, V
 
 
 def _constraints(L: LossDrive, extra=()):
     d = L.d
-    cons = [{"type": "ineq", "fun": lambda x: 1.0 - x[0] ** 2 - x[1] ** 2},
-            {"type": "ineq", "fun": lambda x: 1.0 - (d.voltage(x[0] * d.I_max, x[1] * d.I_max) / d.V_max) ** 2}]
+    cons = [slsqp_constraint("ineq", lambda x: 1.0 - x[0] ** 2 - x[1] ** 2),
+            slsqp_constraint("ineq", lambda x: 1.0 - (d.voltage(x[0] * d.I_max, x[1] * d.I_max) / d.V_max) ** 2)]
     if d.left_half:
-        cons.append({"type": "ineq", "fun": lambda x: -x[0]})
+        cons.append(slsqp_constraint("ineq", lambda x: -x[0]))
     return cons + list(extra)
 
 
@@ -146,8 +145,7 @@ def max_shaft_torque(L: LossDrive, sign: float) -> float:
     best = float(np.max(T))
     for x in _starts(L, i_d, i_q, np.argsort(T)[::-1][:np.count_nonzero(ok)]):
         x0 = x / d.I_max
-        r = minimize(lambda x: -sign * L.shaft(x[0] * d.I_max, x[1] * d.I_max) / scale, x0, method="SLSQP",
-                     constraints=_constraints(L), options={"ftol": 1e-15, "maxiter": 300})
+        r = slsqp(lambda x: -sign * L.shaft(x[0] * d.I_max, x[1] * d.I_max) / scale, x0, _constraints(L))
         if _feasible(L, *(r.x * d.I_max)):
             best = max(best, float(sign * L.shaft(*(r.x * d.I_max))))
     return best
@@ -161,11 +159,11 @@ def least_loss(L: LossDrive, T_target: float, T_scale: float) -> float:
     P = np.where(ok, P, np.inf)
     starts = _starts(L, i_d, i_q, np.argsort(P)[:np.count_nonzero(ok)])
     P_scale = float(np.min(P)) if np.isfinite(np.min(P)) else 1.0
-    eq = {"type": "eq", "fun": lambda x: (L.shaft(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale}
+    eq = slsqp_constraint("eq", lambda x: (L.shaft(x[0] * d.I_max, x[1] * d.I_max) - T_target) / T_scale)
     best = math.inf
     for s in starts:
-        r = minimize(lambda x: L.total(x[0] * d.I_max, x[1] * d.I_max) / P_scale, s / d.I_max, method="SLSQP",
-                     constraints=_constraints(L, [eq]), options={"ftol": 1e-15, "maxiter": 400})
+        r = slsqp(lambda x: L.total(x[0] * d.I_max, x[1] * d.I_max) / P_scale, s / d.I_max, _constraints(L, [eq]),
+                  maxiter=400)
         x = r.x * d.I_max
         if _feasible(L, *x) and abs(L.shaft(*x) - T_target) <= 1e-7 * T_scale:
             best = min(best, float(L.total(*x)))

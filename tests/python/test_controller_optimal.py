@@ -27,23 +27,33 @@ def operating_points(rng, n, w_max, u_dc_range, T_magnet_range, T_peak):
         )
 
 
-def compare(controller_fmu, map_path, fmap, params, points, recursion, k_u=0.95):
-    """Run the FMU at each point from a cold start and compare with the brute force."""
-    rows = []
+def references(fmap, params, points, k_u=0.95) -> list[dict]:
+    """The brute force at each point: its drive, T_max, the commanded torque, the least current for
+    it. Independent of the FMU and its recursion mode: computed once for the tests of one map."""
+    refs = []
     p, R_s, I_max = params["pole_pairs"], params["R_s"], params["I_max"]
+    for op in points:
+        shift = fmap.psi_m * params["k_psi_T"] * (op["T_magnet"] - params["T_magnet_ref"])
+        d = Drive(fmap, p, R_s, I_max, k_u * op["u_dc"] / np.sqrt(3), p * op["w_m"], shift)
+        sign = -1.0 if op["T_ref"] < 0 else 1.0
+        T_max_ref, _ = max_torque(d, sign)
+        T_cmd_ref = sign * min(abs(op["T_ref"]), T_max_ref)
+        I_ref, _ = min_current(d, T_cmd_ref, max(T_max_ref, 1e-9))
+        refs.append(dict(d=d, T_max_ref=T_max_ref, T_cmd_ref=T_cmd_ref, I_ref=I_ref))
+    return refs
+
+
+def compare(controller_fmu, map_path, params, points, refs, recursion, k_u=0.95):
+    """Run the FMU at each point from a cold start and compare with the brute force (refs)."""
+    rows = []
     with Fmu(controller_fmu, method=1, recursion=recursion, flux_map=str(map_path), k_u=k_u, **params) as c:
-        for k, op in enumerate(points):
+        for k, (op, ref) in enumerate(zip(points, refs)):
             c.set(**op, i_d=0.0, i_q=0.0)
             c.step(k * H, H)
             i_d, i_q, T_cmd, T_max, region = c.get("i_d_ref", "i_q_ref", "T_cmd", "T_max", "region")
-            shift = fmap.psi_m * params["k_psi_T"] * (op["T_magnet"] - params["T_magnet_ref"])
-            d = Drive(fmap, p, R_s, I_max, k_u * op["u_dc"] / np.sqrt(3), p * op["w_m"], shift)
-            sign = -1.0 if op["T_ref"] < 0 else 1.0
-            T_max_ref, _ = max_torque(d, sign)
-            T_cmd_ref = sign * min(abs(op["T_ref"]), T_max_ref)
-            I_ref, _ = min_current(d, T_cmd_ref, max(T_max_ref, 1e-9))
+            d = ref["d"]
             rows.append(dict(op=op, i_d=i_d, i_q=i_q, T_cmd=T_cmd, T_max=T_max, region=region,
-                             T_max_ref=T_max_ref, T_cmd_ref=T_cmd_ref, I_ref=I_ref,
+                             T_max_ref=ref["T_max_ref"], T_cmd_ref=ref["T_cmd_ref"], I_ref=ref["I_ref"],
                              T_at_cmd=float(d.torque(i_d, i_q)), I=float(np.hypot(i_d, i_q)),
                              V=float(d.voltage(i_d, i_q)), V_max=d.V_max))
     return rows
@@ -93,10 +103,14 @@ def check(rows, I_max, current_tol, torque_tol, label, T_max_shortfall=None, lim
 
 @pytest.fixture(scope="module")
 def default_setup(default_map_path):
+    """The default map, its parameters, 200 random points and their brute-force references
+    (shared by the recursion 2 and recursion 1 tests: the brute force knows no recursion)."""
     fmap = read_flux_map(default_map_path)
     params = dict(pole_pairs=4, R_s=fmap.number("R_s_ohm"), I_max=fmap.number("I_max_A"),
                   k_psi_T=-0.0012, T_magnet_ref=293.15)
-    return fmap, params
+    rng = np.random.default_rng(2)
+    points = list(operating_points(rng, 200, 1256.6, (250, 400), (253.15, 393.15), 300.0))
+    return fmap, params, points, references(fmap, params, points)
 
 
 def test_linear_machine_exact(controller_fmu, tmp_path):
@@ -108,31 +122,33 @@ def test_linear_machine_exact(controller_fmu, tmp_path):
     params = dict(pole_pairs=4, R_s=0.012, I_max=500.0, k_psi_T=-0.0012, T_magnet_ref=293.15)
     rng = np.random.default_rng(1)
     points = list(operating_points(rng, 150, 1256.6, (250, 400), (253.15, 393.15), 300.0))
+    refs = references(fmap, params, points)
     for recursion in (0, 2):
-        rows = compare(controller_fmu, path, fmap, params, points, recursion)
+        rows = compare(controller_fmu, path, params, points, refs, recursion)
         regions, _ = check(rows, 500.0, CURRENT_TOL, TORQUE_TOL_LINEAR, f"linear, recursion {recursion}")
         for reg in (1, 2, 3, 4):
             assert regions[reg] >= 5, f"region {reg} barely exercised: {regions}"
 
 
 def test_default_map_recursion2_is_optimal(controller_fmu, default_map_path, default_setup):
-    fmap, params = default_setup
-    rng = np.random.default_rng(2)
-    points = list(operating_points(rng, 200, 1256.6, (250, 400), (253.15, 393.15), 300.0))
-    rows = compare(controller_fmu, default_map_path, fmap, params, points, 2)
+    fmap, params, points, refs = default_setup
+    rows = compare(controller_fmu, default_map_path, params, points, refs, 2)
     regions, _ = check(rows, params["I_max"], CURRENT_TOL, TORQUE_TOL_MAP, "default map, recursion 2")
     for reg in (1, 2, 3, 4):
         assert regions[reg] >= 5, f"region {reg} barely exercised: {regions}"
+
+
+#: the recursion 1 test takes the first of the default points (their references shared)
+RECURSION1_POINTS = 80
 
 
 def test_default_map_recursion1_is_checked_to_the_optimum(controller_fmu, default_map_path, default_setup):
     """The paper's recursion: its own commands use more current than needed on a saturated map
     (and its T_max falls short); every command is checked on the map before it leaves
     (docs/controller.md), so what leaves is exact, and the corrections are counted."""
-    fmap, params = default_setup
-    rng = np.random.default_rng(3)
-    points = list(operating_points(rng, 80, 1256.6, (250, 400), (253.15, 393.15), 300.0))
-    rows = compare(controller_fmu, default_map_path, fmap, params, points, 1)
+    fmap, params, points, refs = default_setup
+    points, refs = points[:RECURSION1_POINTS], refs[:RECURSION1_POINTS]
+    rows = compare(controller_fmu, default_map_path, params, points, refs, 1)
     check(rows, params["I_max"], CURRENT_TOL, TORQUE_TOL_MAP, "default map, recursion 1 (checked)")
     with Fmu(controller_fmu, method=1, recursion=1, flux_map=str(default_map_path), **params) as c:
         for k, op in enumerate(points[:20]):
@@ -146,7 +162,7 @@ def test_measured_map_recursion2_is_optimal(controller_fmu, measured_map_path):
     params = dict(pole_pairs=2, R_s=0.63, I_max=18.0, k_psi_T=-0.0012, T_magnet_ref=293.15)
     rng = np.random.default_rng(4)
     points = list(operating_points(rng, 150, 500.0, (450, 600), (253.15, 393.15), 45.0))
-    rows = compare(controller_fmu, measured_map_path, fmap, params, points, 2)
+    rows = compare(controller_fmu, measured_map_path, params, points, references(fmap, params, points), 2)
     regions, _ = check(rows, params["I_max"], CURRENT_TOL, TORQUE_TOL_MAP, "measured Baldor map, recursion 2")
     for reg in (1, 2):
         assert regions[reg] >= 5, f"region {reg} barely exercised: {regions}"

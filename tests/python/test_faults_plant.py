@@ -151,6 +151,44 @@ def test_asc_saturated_steady_state(plant_fmu, default_map_path, measured_map_pa
     assert err < 1e-6
 
 
+def current_trajectory(spline, R, om, i0, ts, k=0.0):
+    """The currents, L(i) di/dt = u(i) - R i + om J psi(i), L = dpsi/di of the map's spline, with the short
+    circuit's u = 0 (k = 0) or the conducting bridge's u = -k i/|i|: scipy's DOP853 at rtol 1e-11
+    (independent of the plant's flux states, its linearised steps and CVODE)."""
+
+    def f(_, i):
+        ps = spline.psi(i)
+        u = -k * np.asarray(i) / math.hypot(i[0], i[1]) if k else np.zeros(2)
+        rhs = [u[0] - R * i[0] + om * ps[1], u[1] - R * i[1] - om * ps[0]]
+        L = [[spline.sd.ev(i[0], i[1], dx=1), spline.sd.ev(i[0], i[1], dy=1)],
+             [spline.sq.ev(i[0], i[1], dx=1), spline.sq.ev(i[0], i[1], dy=1)]]
+        return np.linalg.solve(L, rhs)
+
+    sol = solve_ivp(f, (0.0, ts[-1]), list(i0), method="DOP853", rtol=1e-11, atol=1e-8, t_eval=ts)
+    assert sol.success
+    return sol.y.T
+
+
+@pytest.mark.parametrize("tolerances,bound", [({}, 1e-4), (TIGHT, 1e-7)], ids=["default", "tight"])
+@pytest.mark.parametrize("rpm", [8000.0, 12000.0])
+def test_asc_transient_default_map(plant_fmu, default_map_path, rpm, tolerances, bound):
+    """A trip from motoring into ASC on the saturated map: every 0.1 ms step's currents through the
+    short circuit's ringing against an independent tight integration (at the default tolerances the
+    plant's explicit steps carry the ringing, cvode_integrator.hpp; the same bound as freewheeling's)."""
+    spline = MapSpline(default_map_path)
+    w_m = rpm * math.pi / 30
+    i0, h, n = (-150.0, 100.0), 1e-4, 200
+    with Fmu(plant_fmu, w_m=w_m, i_d_start=i0[0], i_q_start=i0[1], **NO_FE, **tolerances) as f:
+        got = run(f, 2, n, h)[:, :2]
+    exact = current_trajectory(spline, 0.012, P * w_m, i0, h * np.arange(1, n + 1))
+    assert exact[:, 0].min() > spline.i_d[0]  # on the map's grid (beyond it the plant continues the map its own way)
+    peak = np.abs(exact).max()
+    err = np.abs(got - exact).max() / peak
+    print(f"ASC at {rpm:.0f} r/min, {tolerances or 'default tolerances'}: max current error {err:.1e} of the peak "
+          f"{peak:.0f} A")
+    assert peak > 400 and err < bound
+
+
 # --- 3. freewheeling ------------------------------------------------------------------------------------
 
 def onset_speed(psi_0, p=P, u_dc=U_DC):
@@ -224,24 +262,6 @@ def test_freewheel_above_onset_default_map(plant_fmu, default_map_path, ratio):
     assert err < 1e-6
 
 
-def freewheel_current_trajectory(spline, R, om, k, i0, ts):
-    """The fundamental model's conducting bridge in the currents, L(i) di/dt = -k i/|i| - R i + om J psi(i),
-    L = dpsi/di of the map's spline: scipy's DOP853 at rtol 1e-11 (independent of the plant's flux states,
-    its linearised steps and CVODE)."""
-
-    def f(_, i):
-        ps = spline.psi(i)
-        r = math.hypot(i[0], i[1])
-        rhs = [-k * i[0] / r - R * i[0] + om * ps[1], -k * i[1] / r - R * i[1] - om * ps[0]]
-        L = [[spline.sd.ev(i[0], i[1], dx=1), spline.sd.ev(i[0], i[1], dy=1)],
-             [spline.sq.ev(i[0], i[1], dx=1), spline.sq.ev(i[0], i[1], dy=1)]]
-        return np.linalg.solve(L, rhs)
-
-    sol = solve_ivp(f, (0.0, ts[-1]), list(i0), method="DOP853", rtol=1e-11, atol=1e-8, t_eval=ts)
-    assert sol.success
-    return sol.y.T
-
-
 @pytest.mark.parametrize("tolerances,bound", [({}, 1e-4), (TIGHT, 1e-7)], ids=["default", "tight"])
 @pytest.mark.parametrize("ratio", [1.3, 1.9])
 def test_freewheel_conducting_trajectory_default_map(plant_fmu, default_map_path, ratio, tolerances, bound):
@@ -259,7 +279,7 @@ def test_freewheel_conducting_trajectory_default_map(plant_fmu, default_map_path
             got.append(f.get("i_d", "i_q"))
             steps.append(f.get("cvode_steps"))
         assert f.get("bridge_switchings") == 0  # conducting throughout
-    exact = freewheel_current_trajectory(spline, 0.012, P * w_m, K_BRIDGE, i0, h * np.arange(1, n + 1))
+    exact = current_trajectory(spline, 0.012, P * w_m, i0, h * np.arange(1, n + 1), k=K_BRIDGE)
     peak = np.abs(exact).max()
     err = np.abs(np.array(got) - exact).max() / peak
     print(f"{ratio} x the onset, {tolerances or 'default tolerances'}: max current error {err:.1e} of the peak "
@@ -269,8 +289,10 @@ def test_freewheel_conducting_trajectory_default_map(plant_fmu, default_map_path
         assert max(steps[-50:]) == 1
 
 
-def test_freewheel_speed_sweeps_through_onset_without_chattering(plant_fmu, linear_map):
-    """Speed falling from 1.3 to 0.7 of the onset and back, 1 ms steps: one block, one onset."""
+@pytest.mark.parametrize("h", [1e-3, 1e-4])
+def test_freewheel_speed_sweeps_through_onset_without_chattering(plant_fmu, linear_map, h):
+    """Speed falling from 1.3 to 0.7 of the onset and back in 600 steps: one block, one onset (with 0.1 ms
+    steps a step ends a hair short of the zero, within its tolerance: the block is still counted)."""
     w_on = onset_speed(LIN["psi_m"])
     speeds = np.concatenate([np.linspace(1.3, 0.7, 300), np.linspace(0.7, 1.3, 300)]) * w_on
     with Fmu(plant_fmu, flux_map=str(linear_map), R_s=R_LIN, w_m=speeds[0], **NO_FE) as f:
@@ -278,7 +300,7 @@ def test_freewheel_speed_sweeps_through_onset_without_chattering(plant_fmu, line
         counts = []
         for w in speeds:
             f.set(w_m=w)
-            f.step(f.t, 1e-3)
+            f.step(f.t, h)
             counts.append((f.get("bridge_switchings"), f.get("cvode_steps")))
         c = np.array(counts)
     print(f"switchings {c[-1, 0]}, CVODE steps per 1 ms step: max {c[:, 1].max()}, mean {c[:, 1].mean():.1f}")
