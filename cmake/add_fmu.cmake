@@ -1,4 +1,5 @@
 # add_fmu(NAME <ModelIdentifier>
+#         [FMI 3]                       # the FMI 3.0 FMU of the model (default: FMI 2.0), below
 #         SOURCES <.cpp ...>            # the one that includes fmi2_entry_points.inc, plus model sources
 #         [LIBRARIES <targets ...>]     # linked into the FMU and its generator
 #         [RESOURCES <files ...>]       # copied into resources/ (files, not directories)
@@ -27,12 +28,19 @@
 # imports only KERNEL32 and msvcrt), exporting exactly the fmi2* functions that fmi2Functions.h
 # declares __declspec(dllexport) (tests/python/test_conformance.py checks both).
 #
+# FMI 3: the same, for the FMI 3.0 co-simulation FMU of the same model, its SOURCES including
+# fmi3_entry_points.inc: the target <NAME>_fmi3 (the library still named <NAME>, in its own
+# directory), exporting the fmi3* functions only (fmu_src/fmi/exports3.map), the generator
+# <NAME>_fmi3_modelDescription (IPMSM_FMI3_GENERATOR), packed to ${CMAKE_BINARY_DIR}/fmu3/<NAME>.fmu
+# with FMI 3.0's platform folders binaries/x86_64-linux/ and binaries/x86_64-windows/.
+#
 # This file is also the assembly script: `cmake -DFMU_CONFIG=<file> -P add_fmu.cmake`.
 
 if(CMAKE_SCRIPT_MODE_FILE)
-  include(${FMU_CONFIG})  # NAME, DIR, FMU, LIBRARY, WIN64_LIBRARY, GENERATOR, RESOURCES, DOCUMENTATION
+  # NAME, DIR, FMU, LIBRARY, WIN64_LIBRARY, LINUX_PLATFORM, WIN64_PLATFORM, GENERATOR, RESOURCES, DOCUMENTATION
+  include(${FMU_CONFIG})
   file(REMOVE_RECURSE ${DIR})
-  file(MAKE_DIRECTORY ${DIR}/binaries/linux64 ${DIR}/resources)
+  file(MAKE_DIRECTORY ${DIR}/binaries/${LINUX_PLATFORM} ${DIR}/resources)
   set(html_args)
   if(DOCUMENTATION)
     set(html_args --html ${DIR}.variables.html)
@@ -41,10 +49,10 @@ if(CMAKE_SCRIPT_MODE_FILE)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "${NAME}: the modelDescription.xml generator failed (${rc})")
   endif()
-  file(COPY_FILE ${LIBRARY} ${DIR}/binaries/linux64/${NAME}.so)
+  file(COPY_FILE ${LIBRARY} ${DIR}/binaries/${LINUX_PLATFORM}/${NAME}.so)
   if(WIN64_LIBRARY)
-    file(MAKE_DIRECTORY ${DIR}/binaries/win64)
-    file(COPY_FILE ${WIN64_LIBRARY} ${DIR}/binaries/win64/${NAME}.dll)
+    file(MAKE_DIRECTORY ${DIR}/binaries/${WIN64_PLATFORM})
+    file(COPY_FILE ${WIN64_LIBRARY} ${DIR}/binaries/${WIN64_PLATFORM}/${NAME}.dll)
   endif()
   foreach(r IN LISTS RESOURCES)
     get_filename_component(r_name ${r} NAME)
@@ -78,14 +86,36 @@ endif()
 
 set(IPMSM_ADD_FMU_SCRIPT ${CMAKE_CURRENT_LIST_FILE})
 set(IPMSM_FMI2_EXPORTS_MAP ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/exports.map)
+set(IPMSM_FMI3_EXPORTS_MAP ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/exports3.map)
 set(IPMSM_FMI2_GLIBC_COMPAT ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/glibc_compat.cpp)
 
 function(add_fmu)
-  cmake_parse_arguments(PARSE_ARGV 0 FMU "" "NAME;DOCUMENTATION" "SOURCES;LIBRARIES;RESOURCES")
+  cmake_parse_arguments(PARSE_ARGV 0 FMU "" "NAME;FMI;DOCUMENTATION" "SOURCES;LIBRARIES;RESOURCES")
   if(NOT FMU_NAME OR NOT FMU_SOURCES)
     message(FATAL_ERROR "add_fmu: NAME and SOURCES are required")
   endif()
   set(name ${FMU_NAME})
+  # Per standard: the target, the generator's define, the exported symbols, where the FMU goes and
+  # its binaries' platform folders.
+  if(NOT FMU_FMI OR FMU_FMI STREQUAL "2")
+    set(target ${name})
+    set(generator_define IPMSM_FMI2_GENERATOR)
+    set(exports_map ${IPMSM_FMI2_EXPORTS_MAP})
+    set(fmu_dir ${CMAKE_BINARY_DIR}/fmu)
+    set(output_subdir "")
+    set(linux_platform linux64)
+    set(win64_platform win64)
+  elseif(FMU_FMI STREQUAL "3")
+    set(target ${name}_fmi3)
+    set(generator_define IPMSM_FMI3_GENERATOR)
+    set(exports_map ${IPMSM_FMI3_EXPORTS_MAP})
+    set(fmu_dir ${CMAKE_BINARY_DIR}/fmu3)
+    set(output_subdir /fmi3)  # beside the FMI 2.0 library of the same name
+    set(linux_platform x86_64-linux)
+    set(win64_platform x86_64-windows)
+  else()
+    message(FATAL_ERROR "add_fmu: FMI must be 2 or 3, not ${FMU_FMI}")
+  endif()
   set(resources "")
   foreach(r IN LISTS FMU_RESOURCES)
     get_filename_component(r ${r} ABSOLUTE)
@@ -97,73 +127,79 @@ function(add_fmu)
   endif()
 
   if(WIN32)  # the win64 cross build: the DLL only, packed by the Linux build
-    add_library(${name} SHARED ${FMU_SOURCES})
-    target_link_libraries(${name} PRIVATE fmi2_glue ${FMU_LIBRARIES})
-    set_target_properties(${name} PROPERTIES PREFIX "" OUTPUT_NAME ${name} SUFFIX ".dll"
+    add_library(${target} SHARED ${FMU_SOURCES})
+    target_link_libraries(${target} PRIVATE fmi2_glue ${FMU_LIBRARIES})
+    set_target_properties(${target} PROPERTIES PREFIX "" OUTPUT_NAME ${name} SUFFIX ".dll"
+      RUNTIME_OUTPUT_DIRECTORY ${CMAKE_RUNTIME_OUTPUT_DIRECTORY}${output_subdir}
+      ARCHIVE_OUTPUT_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}${output_subdir}  # the import library
       C_VISIBILITY_PRESET hidden CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)
-    target_compile_options(${name} PRIVATE -ffunction-sections -fdata-sections)
+    target_compile_options(${target} PRIVATE -ffunction-sections -fdata-sections)
     # -static: libstdc++, libgcc and winpthread inside (-static-libgcc -static-libstdc++ alone
     # still leave libwinpthread-1.dll); --strip-debug: the mingw runtime's DWARF (half the DLL).
-    target_link_options(${name} PRIVATE -static "LINKER:--gc-sections" "LINKER:--no-undefined"
+    target_link_options(${target} PRIVATE -static "LINKER:--gc-sections" "LINKER:--no-undefined"
       "LINKER:--strip-debug")
-    set_target_properties(${name} PROPERTIES IMPORT_PREFIX "" IMPORT_SUFFIX ".dll.a")
-    # The generator and <NAME>_fmu exist as in the Linux build (for CMake code that names them),
+    set_target_properties(${target} PROPERTIES IMPORT_PREFIX "" IMPORT_SUFFIX ".dll.a")
+    # The generator and <target>_fmu exist as in the Linux build (for CMake code that names them),
     # but only the DLL is built: the Linux build writes modelDescription.xml and packs the FMU.
-    add_executable(${name}_modelDescription EXCLUDE_FROM_ALL ${FMU_SOURCES})
-    target_link_libraries(${name}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
-    target_compile_definitions(${name}_modelDescription PRIVATE
-      IPMSM_FMI2_GENERATOR IPMSM_FMU_VERSION="${PROJECT_VERSION}")
-    add_custom_target(${name}_fmu ALL DEPENDS ${name})
+    add_executable(${target}_modelDescription EXCLUDE_FROM_ALL ${FMU_SOURCES})
+    target_link_libraries(${target}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
+    target_compile_definitions(${target}_modelDescription PRIVATE
+      ${generator_define} IPMSM_FMU_VERSION="${PROJECT_VERSION}")
+    add_custom_target(${target}_fmu ALL DEPENDS ${target})
     return()
   endif()
 
   # The FMU's shared library.
-  add_library(${name} SHARED ${FMU_SOURCES})
-  target_link_libraries(${name} PRIVATE fmi2_glue ${FMU_LIBRARIES})
-  set_target_properties(${name} PROPERTIES
+  add_library(${target} SHARED ${FMU_SOURCES})
+  target_link_libraries(${target} PRIVATE fmi2_glue ${FMU_LIBRARIES})
+  set_target_properties(${target} PROPERTIES
     PREFIX "" OUTPUT_NAME ${name} SUFFIX ".so"
+    LIBRARY_OUTPUT_DIRECTORY ${CMAKE_CURRENT_BINARY_DIR}${output_subdir}
     C_VISIBILITY_PRESET hidden CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON
-    LINK_DEPENDS ${IPMSM_FMI2_EXPORTS_MAP})
-  target_compile_options(${name} PRIVATE -ffunction-sections -fdata-sections)
-  target_link_options(${name} PRIVATE "LINKER:--version-script=${IPMSM_FMI2_EXPORTS_MAP}" "LINKER:--gc-sections")
+    LINK_DEPENDS ${exports_map})
+  target_compile_options(${target} PRIVATE -ffunction-sections -fdata-sections)
+  target_link_options(${target} PRIVATE "LINKER:--version-script=${exports_map}" "LINKER:--gc-sections")
   if(NOT IPMSM_SANITIZE)  # the sanitizer runtimes are shared libraries with undefined hooks
     # libstdc++ static (a target's own may be older than GCC 12's); libgcc_s.so.1 shared: a static
     # libgcc's unwinder calls _dl_find_object (GLIBC_2.35). glibc_compat.cpp pins the rest.
-    target_sources(${name} PRIVATE ${IPMSM_FMI2_GLIBC_COMPAT})
-    target_link_options(${name} PRIVATE "LINKER:--no-undefined" -static-libstdc++ -shared-libgcc
+    target_sources(${target} PRIVATE ${IPMSM_FMI2_GLIBC_COMPAT})
+    target_link_options(${target} PRIVATE "LINKER:--no-undefined" -static-libstdc++ -shared-libgcc
       "LINKER:--wrap=hypot,--wrap=exp,--wrap=log,--wrap=pow,--wrap=stat,--wrap=fstat64,--wrap=pthread_once")
   endif()
 
-  # The modelDescription.xml generator: the same sources, fmi2_entry_points.inc defines main().
-  add_executable(${name}_modelDescription ${FMU_SOURCES})
-  target_link_libraries(${name}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
-  target_compile_definitions(${name}_modelDescription PRIVATE
-    IPMSM_FMI2_GENERATOR IPMSM_FMU_VERSION="${PROJECT_VERSION}")
+  # The modelDescription.xml generator: the same sources, the entry points define main().
+  add_executable(${target}_modelDescription ${FMU_SOURCES})
+  target_link_libraries(${target}_modelDescription PRIVATE fmi2_glue ${FMU_LIBRARIES})
+  target_compile_definitions(${target}_modelDescription PRIVATE
+    ${generator_define} IPMSM_FMU_VERSION="${PROJECT_VERSION}")
 
   # Assembly and zip.
-  set(dir ${CMAKE_BINARY_DIR}/fmu/${name})
-  set(fmu ${CMAKE_BINARY_DIR}/fmu/${name}.fmu)
-  set(config ${CMAKE_CURRENT_BINARY_DIR}/${name}_fmu_config.cmake)
+  set(dir ${fmu_dir}/${name})
+  set(fmu ${fmu_dir}/${name}.fmu)
+  set(config ${CMAKE_CURRENT_BINARY_DIR}/${target}_fmu_config.cmake)
   set(win64_library "")
   if(IPMSM_WIN64)
-    set(win64_library ${IPMSM_WIN64_BINARY_DIR}/bin/${name}.dll)
-    set_property(GLOBAL APPEND PROPERTY IPMSM_WIN64_FMUS ${name})
+    set(win64_library ${IPMSM_WIN64_BINARY_DIR}/bin${output_subdir}/${name}.dll)
+    set_property(GLOBAL APPEND PROPERTY IPMSM_WIN64_FMUS ${target})
+    set_property(GLOBAL APPEND PROPERTY IPMSM_WIN64_DLLS ${win64_library})
   endif()
   file(GENERATE OUTPUT ${config} CONTENT
 "set(NAME \"${name}\")
 set(DIR \"${dir}\")
 set(FMU \"${fmu}\")
-set(LIBRARY \"$<TARGET_FILE:${name}>\")
+set(LIBRARY \"$<TARGET_FILE:${target}>\")
 set(WIN64_LIBRARY \"${win64_library}\")
-set(GENERATOR \"$<TARGET_FILE:${name}_modelDescription>\")
+set(LINUX_PLATFORM \"${linux_platform}\")
+set(WIN64_PLATFORM \"${win64_platform}\")
+set(GENERATOR \"$<TARGET_FILE:${target}_modelDescription>\")
 set(RESOURCES \"${resources}\")
 set(DOCUMENTATION \"${documentation}\")
 ")
   add_custom_command(
     OUTPUT ${fmu}
     COMMAND ${CMAKE_COMMAND} -DFMU_CONFIG=${config} -P ${IPMSM_ADD_FMU_SCRIPT}
-    DEPENDS ${name} ${name}_modelDescription ${win64_library} ${resources} ${documentation} ${config} ${IPMSM_ADD_FMU_SCRIPT}
+    DEPENDS ${target} ${target}_modelDescription ${win64_library} ${resources} ${documentation} ${config} ${IPMSM_ADD_FMU_SCRIPT}
     COMMENT "Packaging FMU ${fmu}"
     VERBATIM)
-  add_custom_target(${name}_fmu ALL DEPENDS ${fmu})
+  add_custom_target(${target}_fmu ALL DEPENDS ${fmu})
 endfunction()

@@ -26,11 +26,8 @@ function(ipmsm_add_win64_build)
   if(NOT IPMSM_WIN64 OR CMAKE_CROSSCOMPILING)
     return()
   endif()
-  get_property(fmus GLOBAL PROPERTY IPMSM_WIN64_FMUS)
-  set(byproducts "")
-  foreach(name IN LISTS fmus)
-    list(APPEND byproducts ${IPMSM_WIN64_BINARY_DIR}/bin/${name}.dll)
-  endforeach()
+  get_property(fmus GLOBAL PROPERTY IPMSM_WIN64_FMUS)  # add_fmu's targets, FMI 2.0 and 3.0
+  get_property(byproducts GLOBAL PROPERTY IPMSM_WIN64_DLLS)  # their DLLs
   set(launchers "")
   if(CMAKE_CXX_COMPILER_LAUNCHER)
     list(APPEND launchers -DCMAKE_C_COMPILER_LAUNCHER=${CMAKE_CXX_COMPILER_LAUNCHER}

@@ -401,7 +401,7 @@ void DriveModel::do_step(double t, double h) {
         std::ostringstream os;
         os << "the communication step " << fmi::number_text(h) << " s is more than "
            << fmi::number_text(max_samples_per_step) << " sample times (sample_time = " << fmi::number_text(sample_time)
-           << " s): one fmi2DoStep computes at most that many; step in parts";
+           << " s): one DoStep computes at most that many; step in parts";
         throw fmi::Error(os.str());
     }
     const long long n = std::llround(n_real);
@@ -441,7 +441,7 @@ void DriveModel::do_step(double t, double h) {
             os << "the communication step " << fmi::number_text(h) << " s needed more than "
                << fmi::number_text(max_plant_steps_per_step) << " internal steps of the plant after "
                << fmi::number_text(static_cast<double>(j + 1) * sample_time)
-               << " s: one fmi2DoStep computes at most that many (its wall time is bounded); step in parts, or "
+               << " s: one DoStep computes at most that many (its wall time is bounded); step in parts, or "
                   "loosen rtol/atol";
             throw fmi::Error(os.str());
         }

@@ -25,7 +25,17 @@ enum class Phase : std::uint8_t {
     fatal = 6,  // out of memory: only fmi2FreeInstance
 };
 
-inline const char* phase_name(Phase p) {
+// A state's name in messages, as the standard `major` (2, 3) names it; error and fatal are the glue's.
+inline const char* phase_name(Phase p, int major = 2) {
+    if (major == 3) {
+        switch (p) {
+            case Phase::instantiated: return "Instantiated";
+            case Phase::initialization_mode: return "InitializationMode";
+            case Phase::step_complete: return "StepMode";
+            case Phase::terminated: return "Terminated";
+            default: break;
+        }
+    }
     switch (p) {
         case Phase::instantiated: return "instantiated";
         case Phase::initialization_mode: return "initializationMode";
@@ -45,11 +55,11 @@ constexpr PhaseMask mask(Phase p, P... rest) {
     return mask(p) | mask(rest...);
 }
 
-inline std::string mask_text(PhaseMask m) {
+inline std::string mask_text(PhaseMask m, int major = 2) {
     std::string s;
     for (Phase p : {Phase::instantiated, Phase::initialization_mode, Phase::step_complete, Phase::terminated,
                     Phase::error, Phase::fatal})
-        if (m & mask(p)) s += (s.empty() ? "" : ", ") + std::string(phase_name(p));
+        if (m & mask(p)) s += (s.empty() ? "" : ", ") + std::string(phase_name(p, major));
     return s.empty() ? "none" : s;
 }
 

@@ -147,7 +147,7 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
     }
     if (!mismatch.empty())
         throw Error(std::string(what) + " was saved with other fixed parameters than this instance has (" + mismatch +
-                    "); set the same parameters before fmi2DeSerializeFMUstate");
+                    "); set the same parameters before " + in.standard.deserialize_fmu_state);
 
     const bool saved_initialised = phase == Phase::step_complete || phase == Phase::terminated;
     const bool here_initialised = in.phase == Phase::step_complete || in.phase == Phase::terminated;

@@ -1,4 +1,4 @@
-// One FMU instance (an fmi2Component): the model, where the instance is in the FMI state machine
+// One FMU instance (an fmi2Component or fmi3Instance): the model, where the instance is in the FMI state machine
 // and in time, its logging, and the undo of a failed model call. README.md in this folder says
 // what the glue does with it.
 #pragma once
@@ -15,8 +15,10 @@
 
 #include "fmi2Functions.h"
 #include "fmi2_support.hpp"
+#include "fmi3FunctionTypes.h"
 #include "log_text.hpp"
 #include "model.hpp"
+#include "standard.hpp"
 #include "variable.hpp"
 
 namespace fmi::glue {
@@ -46,21 +48,34 @@ inline constexpr unsigned default_categories = bit(LogCategory::events) | bit(Lo
                                                bit(LogCategory::discard) | bit(LogCategory::error) |
                                                bit(LogCategory::fatal);
 
-inline void call_logger(fmi2CallbackLogger logger, fmi2ComponentEnvironment env, const char* instance,
-                        fmi2Status status, LogCategory category, const std::string& message) noexcept {
-    if (logger == nullptr) return;
+// The importer's logger: FMI 2.0's takes the message as a printf format and the instance's name,
+// FMI 3.0's takes the message as is. The glue's statuses are fmi2Status; fmi3Status has the same
+// values for the same names (fmi3_functions.hpp checks that).
+struct Logger {
+    fmi2CallbackLogger fmi2 = nullptr;
+    fmi3LogMessageCallback fmi3 = nullptr;
+    void* environment = nullptr;
+};
+
+inline void call_logger(const Logger& logger, const char* instance, fmi2Status status, LogCategory category,
+                        const std::string& message) noexcept {
+    if (logger.fmi2 == nullptr && logger.fmi3 == nullptr) return;
     try {
-        // Valid UTF-8 and bounded (log_text.hpp); line breaks kept. Then '%' doubled: the
-        // logger treats the message as a printf format.
+        // Valid UTF-8 and bounded (log_text.hpp); line breaks kept.
         const std::string safe = utf8_excerpt(message, kMaxLogChars, false);
+        const char* name = log_categories[static_cast<unsigned>(category)].name;
+        if (logger.fmi3 != nullptr) {
+            logger.fmi3(logger.environment, static_cast<fmi3Status>(status), name, safe.c_str());
+            return;
+        }
+        // FMI 2.0: '%' doubled, the logger treats the message as a printf format.
         std::string text;
         text.reserve(safe.size() + 8);
         for (char ch : safe) {
             text += ch;
             if (ch == '%') text += '%';
         }
-        logger(env, instance != nullptr ? instance : "", status, log_categories[static_cast<unsigned>(category)].name,
-               text.c_str());
+        logger.fmi2(logger.environment, instance != nullptr ? instance : "", status, name, text.c_str());
     } catch (...) {}
 }
 
@@ -77,13 +92,14 @@ struct Snapshot {
 template <class M>
 class Instance {
 public:
-    // First member: lets the glue recognise its own instances (and not the other FMU's).
-    static constexpr std::uint64_t kTag = fnv1a(M::guid) ^ 0x494e5354414e4345ull;
-    std::uint64_t tag = kTag;
+    // First member: lets the glue recognise its own instances (and not the other FMU's, nor the
+    // same model's under the other standard).
+    static constexpr std::uint64_t tag_of(const Standard& s) { return fnv1a(M::guid) ^ 0x494e5354414e4345ull ^ s.salt; }
+    std::uint64_t tag;
 
+    const Standard& standard;
     const std::string name;
-    const fmi2CallbackLogger logger;
-    const fmi2ComponentEnvironment environment;
+    const Logger logger;
     unsigned categories;  // enabled log categories, bit(LogCategory)
 
     const Context context;  // what fresh models (fmi2Reset) are made with
@@ -96,11 +112,11 @@ public:
     std::unique_ptr<M> initial;        // Initialization Mode: the model as exit_initialization() leaves it
     std::unordered_set<Snapshot<M>*> snapshots;
 
-    Instance(const char* instance_name, fmi2CallbackLogger log, fmi2ComponentEnvironment env, bool logging_on,
-             std::string resource_dir)
-        : name(instance_name),
+    Instance(const Standard& spoken, const char* instance_name, Logger log, bool logging_on, std::string resource_dir)
+        : tag(tag_of(spoken)),
+          standard(spoken),
+          name(instance_name),
           logger(log),
-          environment(env),
           categories(logging_on ? default_categories : 0u),
           context(make_context(std::move(resource_dir))),
           model(context),
@@ -116,7 +132,7 @@ public:
     void log(fmi2Status status, LogCategory category, const std::string& message) noexcept {
         const bool always = status == fmi2Error || status == fmi2Fatal;
         if (!always && !(categories & (bit(category) | bit(LogCategory::all)))) return;
-        call_logger(logger, environment, name.c_str(), status, category, message);
+        call_logger(logger, name.c_str(), status, category, message);
     }
     bool tracing() const { return (categories & bit(LogCategory::all)) != 0; }
 
@@ -173,10 +189,12 @@ public:
         try {
             m->exit_initialization();
         } catch (const std::bad_alloc&) {  // on a copy: the instance is untouched
-            throw Error(why + std::string("out of memory (a parameter or data file asks for too large a table or "
-                                          "map; fmi2ExitInitializationMode would fail the same way)"));
+            throw Error(why +
+                        std::string("out of memory (a parameter or data file asks for too large a table or map; ") +
+                        standard.exit_initialization_mode + " would fail the same way)");
         } catch (const std::exception& e) {
-            throw Error(why + std::string(e.what()) + " (fmi2ExitInitializationMode would fail the same way)");
+            throw Error(why + std::string(e.what()) + " (" + standard.exit_initialization_mode +
+                        " would fail the same way)");
         } catch (...) {
             throw Error(why + std::string("unknown exception (not a std::exception)"));
         }

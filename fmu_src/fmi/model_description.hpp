@@ -29,6 +29,7 @@
 
 #include "fmi2_support.hpp"
 #include "model.hpp"
+#include "standard.hpp"
 #include "variable.hpp"
 
 namespace fmi {
@@ -207,44 +208,15 @@ std::vector<std::size_t> initial_dependencies(const std::string& output) {
     return deps;
 }
 
-}  // namespace detail
-
-// The modelDescription.xml of M; throws std::runtime_error listing the table's problems.
+// <UnitDefinitions> (the units the table uses, in table order, after `first` if given),
+// <LogCategories> and <DefaultExperiment>: the same elements in FMI 2.0 and FMI 3.0.
 template <class M>
-std::string model_description() {
-    const M defaults{Context{}};
-    if (const std::string problems = detail::table_problems(defaults); !problems.empty())
-        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier +
-                                 " breaks FMI 2.0 rules:\n" + problems);
+void write_units_categories_experiment(std::ostringstream& x, const char* first) {
     const auto& vars = M::variables();
-    std::ostringstream x;
-    x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-      << "<fmiModelDescription\n"
-      << "  fmiVersion=\"2.0\"\n"
-      << "  modelName=\"" << xml_escape(M::model_identifier) << "\"\n"
-      << "  guid=\"" << xml_escape(M::guid) << "\"\n"
-      << "  description=\"" << xml_escape(M::description) << "\"\n"
-#ifdef IPMSM_FMU_VERSION
-      << "  version=\"" << xml_escape(IPMSM_FMU_VERSION) << "\"\n"
-#endif
-      << "  generationTool=\"ipmsm-fmu\"\n"
-      << "  variableNamingConvention=\"flat\">\n"
-      << "  <CoSimulation\n"
-      << "    modelIdentifier=\"" << xml_escape(M::model_identifier) << "\"\n"
-      << "    needsExecutionTool=\"false\"\n"
-      << "    canHandleVariableCommunicationStepSize=\"true\"\n"
-      << "    canInterpolateInputs=\"false\"\n"
-      << "    maxOutputDerivativeOrder=\"0\"\n"
-      << "    canRunAsynchronuously=\"false\"\n"
-      << "    canBeInstantiatedOnlyOncePerProcess=\"false\"\n"
-      << "    canNotUseMemoryManagementFunctions=\"true\"\n"
-      << "    canGetAndSetFMUstate=\"true\"\n"
-      << "    canSerializeFMUstate=\"true\"\n"
-      << "    providesDirectionalDerivative=\"false\"/>\n";
-
     std::vector<const UnitInfo*> units;  // used ones, in table order
+    if (first != nullptr) units.push_back(find_unit(first));
     for (const auto& v : vars)
-        if (!detail::empty(v.unit)) {
+        if (!empty(v.unit)) {
             const UnitInfo* u = find_unit(v.unit);
             bool seen = false;
             for (const UnitInfo* w : units) seen = seen || w == u;
@@ -276,6 +248,76 @@ std::string model_description() {
     x << "  </LogCategories>\n";
     x << "  <DefaultExperiment startTime=\"0\" stopTime=\"" << number_text(M::default_stop_time) << "\" stepSize=\""
       << number_text(M::default_step_size) << "\"/>\n";
+}
+
+// The table's model with its start values, after the table's checks (std::runtime_error listing
+// the problems).
+template <class M>
+M checked_defaults() {
+    M defaults{Context{}};
+    if (const std::string problems = table_problems(defaults); !problems.empty())
+        throw std::runtime_error(std::string("the variable table of ") + M::model_identifier + " breaks FMI rules:\n" +
+                                 problems);
+    return defaults;
+}
+
+// The root element's opening tag, then <CoSimulation>'s first attributes: the same in FMI 2.0 and
+// FMI 3.0 but for the version and the name of the GUID's attribute.
+template <class M>
+void write_root(std::ostringstream& x, const char* fmi_version, const char* token_attribute) {
+    x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+      << "<fmiModelDescription\n"
+      << "  fmiVersion=\"" << fmi_version << "\"\n"
+      << "  modelName=\"" << xml_escape(M::model_identifier) << "\"\n"
+      << "  " << token_attribute << "=\"" << xml_escape(M::guid) << "\"\n"
+      << "  description=\"" << xml_escape(M::description) << "\"\n"
+#ifdef IPMSM_FMU_VERSION
+      << "  version=\"" << xml_escape(IPMSM_FMU_VERSION) << "\"\n"
+#endif
+      << "  generationTool=\"ipmsm-fmu\"\n"
+      << "  variableNamingConvention=\"flat\">\n"
+      << "  <CoSimulation\n"
+      << "    modelIdentifier=\"" << xml_escape(M::model_identifier) << "\"\n"
+      << "    needsExecutionTool=\"false\"\n";
+}
+
+// A variable's unit, display unit, relativeQuantity and range: attributes of the type element in
+// FMI 2.0 (<Real>), of the variable's own element in FMI 3.0 (<Float64>).
+template <class M>
+void write_type_attributes(std::ostringstream& x, const Variable<M>& v) {
+    const Type type = type_of(v);
+    if (!empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
+    if (!empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
+    if (v.relative_quantity && type == Type::Real) x << " relativeQuantity=\"true\"";
+    if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
+        auto bound = [&](double b) {
+            return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));
+        };
+        if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
+        if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
+    }
+}
+
+}  // namespace detail
+
+// The modelDescription.xml of M; throws std::runtime_error listing the table's problems.
+template <class M>
+std::string model_description() {
+    const M defaults = detail::checked_defaults<M>();
+    const auto& vars = M::variables();
+    std::ostringstream x;
+    detail::write_root<M>(x, "2.0", "guid");
+    x << "    canHandleVariableCommunicationStepSize=\"true\"\n"
+      << "    canInterpolateInputs=\"false\"\n"
+      << "    maxOutputDerivativeOrder=\"0\"\n"
+      << "    canRunAsynchronuously=\"false\"\n"
+      << "    canBeInstantiatedOnlyOncePerProcess=\"false\"\n"
+      << "    canNotUseMemoryManagementFunctions=\"true\"\n"
+      << "    canGetAndSetFMUstate=\"true\"\n"
+      << "    canSerializeFMUstate=\"true\"\n"
+      << "    providesDirectionalDerivative=\"false\"/>\n";
+
+    detail::write_units_categories_experiment<M>(x, nullptr);
 
     x << "  <ModelVariables>\n";
     std::vector<std::size_t> outputs;
@@ -289,16 +331,7 @@ std::string model_description() {
           << variability_name(v.variability) << '"';
         if (computed) x << " initial=\"calculated\"";
         x << ">\n      <" << type_name(type);
-        if (!detail::empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
-        if (!detail::empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
-        if (v.relative_quantity && type == Type::Real) x << " relativeQuantity=\"true\"";
-        if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
-            auto bound = [&](double b) {
-                return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));
-            };
-            if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
-            if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
-        }
+        detail::write_type_attributes(x, v);
         if (!computed) x << " start=\"" << detail::start_text(defaults, v) << '"';
         x << "/>\n    </ScalarVariable>\n";
     }
@@ -332,15 +365,22 @@ std::string model_description() {
 // The variable reference of M as an HTML section, from the same table as the XML (xml_escape's
 // entities and character references are HTML too).
 template <class M>
-std::string variables_html() {
+std::string variables_html(const Standard& s) {
     const M defaults{Context{}};
     const auto& vars = M::variables();
     std::ostringstream h;
     h << "<section id=\"variables\">\n<h2>Variable reference</h2>\n"
       << "<p>Generated from the FMU's variable table, the source of <code>modelDescription.xml</code>. "
-      << "A value outside the range is refused with <code>fmi2Error</code> and changes nothing; "
-      << "<em>fixed</em> parameters can be set only before <code>fmi2ExitInitializationMode</code>. "
-      << "Units are SI; the display unit is what a tool may show instead.</p>\n<table>\n"
+      << "A value outside the range is refused with <code>" << s.error << "</code> and changes nothing; "
+      << "<em>fixed</em> parameters can be set only before <code>" << s.exit_initialization_mode << "</code>. "
+      << "Units are SI; the display unit is what a tool may show instead.</p>\n";
+    if (s.major == 3)
+        h << "<p>This is the FMU's FMI 3.0 build, from the same model and table as its FMI 2.0 build: where "
+          << "this page names an FMI 2.0 function or type, read its FMI 3.0 counterpart (<code>fmi2SetReal</code>: "
+          << "<code>fmi3SetFloat64</code>, <code>fmi2Error</code>: <code>fmi3Error</code>, Real: Float64, "
+          << "Integer: Int32). FMI 3.0's independent variable <code>time</code> (s) has the value reference "
+          << kTimeValueReference << ".</p>\n";
+    h << "<table>\n"
       << "<tr><th>name</th><th>vr</th><th>causality</th><th>variability</th><th>type</th><th>unit</th>"
       << "<th>start</th><th>range</th><th>description</th></tr>\n";
     for (std::size_t i = 0; i < vars.size(); ++i) {
@@ -376,9 +416,12 @@ inline void write_file_atomically(const std::string& path, const std::string& te
     if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot write " + path);
 }
 
-// main() of a generator: `gen [out.xml] [--html table.html]`; the XML to stdout without out.xml;
-// exit code 1 with the reason.
 template <class M>
+std::string model_description3();  // model_description3.hpp
+
+// main() of a generator: `gen [out.xml] [--html table.html]`; the XML to stdout without out.xml;
+// exit code 1 with the reason. S: the standard of the modelDescription.xml.
+template <class M, const Standard& S = fmi2_standard>
 int model_description_main(int argc, char** argv) {
     try {
         std::string xml_path, html_path;
@@ -391,8 +434,12 @@ int model_description_main(int argc, char** argv) {
             else
                 throw std::runtime_error("usage: " + std::string(argv[0]) + " [out.xml] [--html variables.html]");
         }
-        const std::string xml = model_description<M>();
-        if (!html_path.empty()) write_file_atomically(html_path, variables_html<M>());
+        std::string xml;
+        if constexpr (S.major == 3)
+            xml = model_description3<M>();
+        else
+            xml = model_description<M>();
+        if (!html_path.empty()) write_file_atomically(html_path, variables_html<M>(S));
         if (xml_path.empty()) {
             std::cout << xml;
             return std::cout.good() ? 0 : 1;

@@ -89,10 +89,11 @@ def _digest(column: np.ndarray) -> str:
 
 
 class _Unit:
-    """One instance, its outputs recorded after initialisation and after every step."""
+    """One instance, its outputs recorded after initialisation and after every step. `instance`
+    makes it: fmi2_raw.Instance (FMI 2.0), or fmi3_fmpy.Instance3 (FMI 3.0, test_fmi3.py)."""
 
-    def __init__(self, fmu: raw.Unzipped, tag: str, parameters: dict):
-        self.inst = raw.Instance(fmu, tag)
+    def __init__(self, fmu: raw.Unzipped, tag: str, parameters: dict, instance=raw.Instance):
+        self.inst = instance(fmu, tag)
         assert self.inst.setup() == raw.OK
         assert self.inst.enter() == raw.OK
         self.inst.set(**parameters)
@@ -109,7 +110,7 @@ class _Unit:
         self.rows.append(tuple(self.inst.get(name) for name in self.outputs))
 
     def step(self, k: int, h: float):
-        status = self.inst.fmu.fmi2DoStep(self.inst.c, k * h, h, 1)
+        status = self.inst.step(h, k * h)
         assert status in (raw.OK, raw.WARNING), f"{self.tag} step {k}: {raw.STATUS[status]}\n{self.inst.log.text()}"
 
     def columns(self) -> dict[str, np.ndarray]:
@@ -117,11 +118,11 @@ class _Unit:
         return {f"{self.tag}.{name}": _column(table[j]) for j, name in enumerate(self.outputs)}
 
 
-def run(config: str, fmus: dict[str, raw.Unzipped]) -> dict[str, np.ndarray]:
+def run(config: str, fmus: dict[str, raw.Unzipped], instance=raw.Instance) -> dict[str, np.ndarray]:
     """Every output of the configuration's units, one value per communication point."""
     kind, controller_params, other_params, h = CONFIGS[config]
     if kind == "drive":
-        drive = _Unit(fmus["IpmsmDrive"], "drive", other_params)
+        drive = _Unit(fmus["IpmsmDrive"], "drive", other_params, instance)
         drive.inst.set(**{n: inputs(0)[n] for n in DRIVE_INPUTS})
         drive.exit()
         for k in range(N_STEPS):
@@ -131,7 +132,7 @@ def run(config: str, fmus: dict[str, raw.Unzipped]) -> dict[str, np.ndarray]:
         units = [drive]
     elif kind == "controller":
         # the measured currents follow the commands with a first-order lag of 0.3 per step
-        ctl = _Unit(fmus["IpmsmController"], "controller", controller_params)
+        ctl = _Unit(fmus["IpmsmController"], "controller", controller_params, instance)
         i_d = i_q = 0.0
         ctl.inst.set(**{n: inputs(0)[n] for n in CONTROLLER_INPUTS}, i_d=i_d, i_q=i_q)
         ctl.exit()
@@ -144,8 +145,8 @@ def run(config: str, fmus: dict[str, raw.Unzipped]) -> dict[str, np.ndarray]:
             ctl.record()
         units = [ctl]
     else:  # coupled by the drive's coupling description: the plant first
-        plant = _Unit(fmus["IpmsmPlant"], "plant", other_params)
-        ctl = _Unit(fmus["IpmsmController"], "controller", controller_params)
+        plant = _Unit(fmus["IpmsmPlant"], "plant", other_params, instance)
+        ctl = _Unit(fmus["IpmsmController"], "controller", controller_params, instance)
         plant.inst.set(**{n: inputs(0)[n] for n in PLANT_INPUTS})
         plant.exit()
         ctl.inst.set(**{n: inputs(0)[n] for n in CONTROLLER_INPUTS}, **dict(zip(("i_d", "i_q"), plant.inst.get(

@@ -1,6 +1,6 @@
-// Unit tests of the pieces of the FMI 2.0 glue that the ToyLag FMU cannot reach: the variable-table
-// checks of the modelDescription.xml generator and its number formats (fmuResourceLocation parsing:
-// tests/cpp/test_resource_uri.cpp, with both rule sets).
+// Unit tests of the pieces of the FMI glue that the ToyLag FMU cannot reach: the variable-table
+// checks of the modelDescription.xml generator, its FMI 2.0 and FMI 3.0 output and its number
+// formats (fmuResourceLocation parsing: tests/cpp/test_resource_uri.cpp, with both rule sets).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "model_description.hpp"
+#include "model_description3.hpp"
 
 namespace {
 
@@ -117,6 +117,41 @@ TEST(ModelDescription, WritesValidAttributes) {
     EXPECT_TRUE(has("<Outputs>\n      <Unknown index=\"4\" dependencies=\"\"/>\n    </Outputs>"));
     EXPECT_TRUE(has("<InitialUnknowns>\n      <Unknown index=\"4\" dependencies=\"1 2 3\"/>\n    </InitialUnknowns>"));
     EXPECT_FALSE(has("index=\"5\""));  // a local is not an output
+}
+
+// FMI 3.0: the same table, the same value references, units, ranges and starts; FMI 3.0's types,
+// the independent variable time after the table, the structure by value reference.
+TEST(ModelDescription, WritesFmi3) {
+    const std::string x = fmi::model_description3<Small>();
+    auto has = [&](const std::string& s) { return x.find(s) != std::string::npos; };
+    EXPECT_TRUE(has("fmiVersion=\"3.0\""));
+    EXPECT_TRUE(has("instantiationToken=\"{small}\""));
+    EXPECT_FALSE(has("guid="));
+    EXPECT_TRUE(has("hasEventMode=\"false\""));
+    EXPECT_TRUE(has("canSerializeFMUState=\"true\""));
+    EXPECT_TRUE(
+        has("<Float64 name=\"time\" valueReference=\"2147483647\" description=\"Simulation time (the independent "
+            "variable)\" causality=\"independent\" variability=\"continuous\" unit=\"s\"/>"));
+    EXPECT_TRUE(has("<Unit name=\"s\">"));  // time's unit, though no variable of the table has it
+    EXPECT_TRUE(
+        has("<Float64 name=\"u_dc\" valueReference=\"0\" description=\"DC link\" causality=\"input\" "
+            "variability=\"continuous\" unit=\"V\" min=\"0\" max=\"2000\" "
+            "start=\"400\"/>"));
+    EXPECT_TRUE(has("<Int32 name=\"count\" valueReference=\"1\""));
+    EXPECT_TRUE(has("min=\"1\" max=\"10000000\" start=\"10000000\"/>"));
+    EXPECT_TRUE(
+        has("<String name=\"name\" valueReference=\"2\" description=\"a &quot;name&quot;\" "
+            "causality=\"parameter\" variability=\"fixed\">\n      <Start value=\"a&lt;b&gt;&amp;&quot;c&quot;\"/>\n"
+            "    </String>"));
+    EXPECT_TRUE(
+        has("<Float64 name=\"T\" valueReference=\"3\" description=\"T\" causality=\"output\" "
+            "variability=\"continuous\" initial=\"calculated\" unit=\"K\" displayUnit=\"degC\"/>"));
+    // FMI 2.0's index k is FMI 3.0's value reference k - 1
+    EXPECT_TRUE(
+        has("<ModelStructure>\n    <Output valueReference=\"3\" dependencies=\"\"/>\n"
+            "    <InitialUnknown valueReference=\"3\" dependencies=\"0 1 2\"/>\n  </ModelStructure>"));
+    EXPECT_FALSE(has("valueReference=\"4\" dependencies"));  // a local is not an output
+    EXPECT_THROW(fmi::model_description3<Bad>(), std::runtime_error);
 }
 
 TEST(NumberText, ShortestRoundTrip) {

@@ -1,0 +1,6 @@
+// The IpmsmDrive FMU's exported FMI 3.0 functions (or, with IPMSM_FMI3_GENERATOR, the generator
+// of its FMI 3.0 modelDescription.xml): the shared glue for DriveModel.
+#include "drive/drive_model.hpp"
+
+using ExportedModel = ipmsm::DriveModel;
+#include "fmi3_entry_points.inc"
