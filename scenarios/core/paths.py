@@ -19,8 +19,9 @@ PACKAGE_DIR = Path(__file__).resolve().parents[1]
 ROOT = PACKAGE_DIR.parent
 
 #: an installed wheel's copies of the repository files the package reads, at their repository
-#: paths (build/fmu/*.fmu, build/ssp/*.ssp, fmu_src/resources/..., fmu_src/coupling/...);
-#: absent in a clone (the wheel's build puts it into its staging copy only, cmake/wheel.cmake)
+#: paths (build/fmu/*.fmu, build/fmu3/*.fmu, build/ssp/*.ssp, fmu_src/resources/...,
+#: fmu_src/coupling/...); absent in a clone (the wheel's build puts it into its staging copy
+#: only, cmake/wheel.cmake)
 SHIPPED_DIR = PACKAGE_DIR / "shipped"
 
 #: True when running from an installed wheel rather than from a clone
@@ -29,6 +30,8 @@ FROM_WHEEL = SHIPPED_DIR.is_dir()
 #: the repository's files outside the package that the package reads (build/: what `--build`
 #: defaults to), which the wheel ships under SHIPPED_DIR (tools/wheel/make_wheel.py)
 SHIPPED = ("build/fmu/IpmsmController.fmu", "build/fmu/IpmsmPlant.fmu", "build/fmu/IpmsmDrive.fmu",
+           # the FMI 3.0 FMUs (`fmu-path NAME --fmi 3`, `run --fmi 3`)
+           "build/fmu3/IpmsmController.fmu", "build/fmu3/IpmsmPlant.fmu", "build/fmu3/IpmsmDrive.fmu",
            "build/ssp/IpmsmControllerPlant.ssp", "fmu_src/resources/ev_ipmsm_default.csv",
            "fmu_src/coupling/ipmsm_drive.coupling", "docs/motor/efficiency_map.json",
            # the FMUs' parameter ranges and flux-map rules, as the C++ declares them (core/fmu_ranges.py)

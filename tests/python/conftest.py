@@ -48,19 +48,14 @@ def fmu_path(name: str) -> Path:
     return p
 
 
-#: the FMI 3.0 FMUs (issue 36): fmu3/ beside the FMI 2.0 ones, or $IPMSM_FMU3_DIR. Until the build
-#: makes them, their tests skip, naming the file; with IPMSM_REQUIRE_FMI3=1 (./test.sh) a missing
-#: one fails.
+#: the FMI 3.0 FMUs (issue 36): fmu3/ beside the FMI 2.0 ones, or $IPMSM_FMU3_DIR
 BUILD_FMU3 = Path(os.environ.get("IPMSM_FMU3_DIR", BUILD_FMU.parent / "fmu3"))
-FMI3_REQUIRED = os.environ.get("IPMSM_REQUIRE_FMI3") == "1"
 
 
 def fmu3_path(name: str) -> Path:
     p = BUILD_FMU3 / f"{name}.fmu"
     if not p.exists():
-        if FMI3_REQUIRED:
-            pytest.fail(f"{p} is missing: build first (./test.sh builds it)")
-        pytest.skip(f"{p} is not built: the FMI 3.0 FMUs (issue 36) are not in this build")
+        pytest.fail(f"{p} is missing: build first (./test.sh builds it)")
     return p
 
 

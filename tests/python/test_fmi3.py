@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import ctypes as C
 import json
-import os
 import re
 import subprocess
 import zipfile
@@ -24,10 +23,9 @@ from fmpy.fmi3 import fmi3IntermediateUpdateCallback
 from fmpy.validation import validate_fmu
 
 import fmi2_raw as raw
-from conftest import BUILD_FMU, WIN64_BUILT, fmu_path
+from conftest import BUILD_FMU3, WIN64_BUILT, fmu3_path, fmu_path
 
 NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
-BUILD_FMU3 = Path(os.environ.get("IPMSM_FMU3_DIR", BUILD_FMU.parent / "fmu3"))
 #: bytes of a log message at most (fmu_src/fmi/log_text.hpp: 4000 characters)
 MAX_LOG_CHARS = 4000
 #: the value reference of FMI 3.0's independent variable time (fmu_src/fmi/standard.hpp: 2^31 - 1, fixed)
@@ -39,13 +37,6 @@ FMI3_FUNCTIONS = {line.split()[-1].rstrip(";") for line in (
     if line.startswith("FMI3_Export fmi3")}
 #: FMI 3.0's type of each FMI 2.0 type
 FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
-
-
-def fmu3_path(name: str) -> Path:
-    p = BUILD_FMU3 / f"{name}.fmu"
-    if not p.exists():
-        pytest.fail(f"{p} is missing: build first (./test.sh builds it)")
-    return p
 
 
 @pytest.fixture(scope="module")

@@ -1,15 +1,15 @@
 """The wheel (build/dist/ipmsm_fmu-<version>-py3-none-any.whl; cmake/wheel.cmake,
 tools/wheel/make_wheel.py).
 
-- Its content (cheap): the scenarios package with its data, the three FMUs as built (linux64
-  and, unless the build was told IPMSM_WIN64=OFF, win64 binaries inside each), the SSP package,
-  the default map, the coupling description and the efficiency map the plots draw; nothing
-  compiled outside the FMUs; the native master's sources not at all.
+- Its content (cheap): the scenarios package with its data, the three FMUs as built, FMI 2.0 and
+  FMI 3.0 (Linux and, unless the build was told IPMSM_WIN64=OFF, Windows binaries inside each),
+  the SSP package, the default map, the coupling description and the efficiency map the plots
+  draw; nothing compiled outside the FMUs; the native master's sources not at all.
 - slow: installed into a fresh venv in a temporary folder (pip from the registry, or with
   IPMSM_WHEELHOUSE=DIR from that folder of wheels only), run from another folder with no
-  repository in reach: `--version`, `fmu-path`, a standard cycle (UDDS on the drive backend),
-  `check` and `map show` give the repository's results (the summaries equal but for the wall
-  time; check.md and map.md equal).
+  repository in reach: `--version`, `fmu-path` (and `--fmi 3`), a standard cycle (UDDS on the
+  drive backend), `check` and `map show` give the repository's results (the summaries equal but
+  for the wall time; check.md and map.md equal).
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ import pytest
 from scenarios.core.paths import PACKAGE_DIR, ROOT, SHIPPED
 from scenarios.core.version import VERSION
 
-from conftest import BUILD_FMU, WIN64_BUILT
+from conftest import BUILD_FMU, BUILD_FMU3, WIN64_BUILT
 
 WHEEL = BUILD_FMU.parent / "dist" / f"ipmsm_fmu-{VERSION}-py3-none-any.whl"
 FMUS = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
@@ -78,11 +78,12 @@ def test_the_wheel_holds_the_built_fmus_the_ssp_and_the_files_they_read(wheel):
     osp = ET.fromstring(wheel.read("scenarios/cosim/osp/OspSystemStructure.xml"))
     for sim in osp.iter("{http://opensimulationplatform.com/MSMI/OSPSystemStructure}Simulator"):
         assert posixpath.normpath(posixpath.join("scenarios/cosim/osp", sim.get("source"))) in wheel.namelist()
-    for name in FMUS:
-        with zipfile.ZipFile(io.BytesIO(wheel.read(f"scenarios/shipped/build/fmu/{name}.fmu"))) as fmu:
-            binaries = set(fmu.namelist())
-        assert f"binaries/linux64/{name}.so" in binaries
-        assert (f"binaries/win64/{name}.dll" in binaries) == WIN64_BUILT
+    for name in FMUS:  # FMI 2.0's platform folders, and FMI 3.0's
+        for folder, linux, windows in (("fmu", "linux64", "win64"), ("fmu3", "x86_64-linux", "x86_64-windows")):
+            with zipfile.ZipFile(io.BytesIO(wheel.read(f"scenarios/shipped/build/{folder}/{name}.fmu"))) as fmu:
+                binaries = set(fmu.namelist())
+            assert f"binaries/{linux}/{name}.so" in binaries
+            assert (f"binaries/{windows}/{name}.dll" in binaries) == WIN64_BUILT
 
 
 # --- installed ---
@@ -120,6 +121,8 @@ def test_the_installed_wheel_runs_from_another_folder_as_the_repository(wheel, t
     assert _run([py, "-m", "scenarios", "--version"], elsewhere, env).stdout.strip() == f"ipmsm-fmu {VERSION}"
     fmu = Path(_run([py, "-m", "scenarios", "fmu-path", "IpmsmDrive"], elsewhere, env).stdout.strip())
     assert fmu.is_relative_to(venv) and fmu.read_bytes() == (BUILD_FMU / "IpmsmDrive.fmu").read_bytes()
+    fmu3 = Path(_run([py, "-m", "scenarios", "fmu-path", "IpmsmDrive", "--fmi", "3"], elsewhere, env).stdout.strip())
+    assert fmu3.is_relative_to(venv) and fmu3.read_bytes() == (BUILD_FMU3 / "IpmsmDrive.fmu").read_bytes()
 
     # a standard cycle, from the wheel and from the repository (this interpreter, the build's FMUs)
     _run([py, "-m", "scenarios", "run", "UDDS", "--backend", "drive"], elsewhere, env)
