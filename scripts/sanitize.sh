@@ -30,5 +30,6 @@ if [ "${1:-}" = "--full" ]; then
   cmake --build "$_build" --parallel "$(nproc)"
 else
   echo "[sanitize] building the FMUs and the fuzz harness in $_build"
-  cmake --build "$_build" --parallel "$(nproc)" --target IpmsmController_fmu IpmsmPlant_fmu IpmsmDrive_fmu ToyLag_fmu fmu_fuzz
+  cmake --build "$_build" --parallel "$(nproc)" --target IpmsmController_fmu IpmsmPlant_fmu IpmsmDrive_fmu ToyLag_fmu fmu_fuzz \
+    IpmsmController_fmi3_fmu IpmsmPlant_fmi3_fmu IpmsmDrive_fmi3_fmu
 fi

@@ -3,9 +3,9 @@ by scripts/sanitize.sh (./test.sh runs it in its build stage).
 
 - Default run: the pytest modules that load the FMUs (the hostile-input tests, with the fuzz
   harness built with ASan and leak checking on, the glue's tests, conformance, the three masters,
-  both FMUs' system tests and the coupled drive) in a Python with ASan preloaded, on the ASan
-  FMUs. Any ASan or UBSan report aborts that process (halt_on_error; UBSan is built with
-  -fno-sanitize-recover) and fails this test with the report.
+  both FMUs' system tests and the coupled drive; the FMI 3.0 FMUs' tests and hostile corpus) in a
+  Python with ASan preloaded, on the ASan FMUs. Any ASan or UBSan report aborts that process
+  (halt_on_error; UBSan is built with -fno-sanitize-recover) and fails this test with the report.
 - Slow (./test.sh -m slow): the whole suite, after building everything with ASan: the C++ unit
   tests (ctest, leak checking on) and every pytest module; and the C++ unit tests of the normal
   build under valgrind.
@@ -31,7 +31,8 @@ REQUIRED = os.environ.get("IPMSM_REQUIRE_SANITIZERS") == "1"
 PYTHON_TESTS = ROOT / "tests" / "python"
 # the modules that load the FMUs, in the default pass
 DEFAULT_MODULES = ["test_hostile.py", "test_hostile_bounds.py", "test_fmi_glue.py", "test_conformance.py",
-                   "test_importers.py", "test_controller_fmu.py", "test_plant_fmu.py", "test_coupled.py"]
+                   "test_importers.py", "test_controller_fmu.py", "test_plant_fmu.py", "test_coupled.py",
+                   "test_fmi3.py", "test_hostile_fmi3.py"]
 
 pytestmark = pytest.mark.skipif(os.environ.get("IPMSM_UNDER_SANITIZER") == "1",
                                 reason="already running under the sanitizers")
@@ -80,7 +81,8 @@ def _pytest(args, log_dir: Path, timeout: int, deselect: str = "not valgrind"):
 
 def test_fmu_tests_under_asan_and_ubsan(tmp_path):
     _need(ASAN_BUILD / "fmu" / "IpmsmController.fmu", ASAN_BUILD / "fmu" / "IpmsmPlant.fmu",
-          ASAN_BUILD / "fmu" / "ToyLag.fmu", ASAN_BUILD / "bin" / "fmu_fuzz")
+          ASAN_BUILD / "fmu" / "ToyLag.fmu", ASAN_BUILD / "bin" / "fmu_fuzz",
+          *(ASAN_BUILD / "fmu3" / f"{name}.fmu" for name in ("IpmsmController", "IpmsmPlant", "IpmsmDrive")))
     modules = [str(PYTHON_TESTS / m) for m in DEFAULT_MODULES]
     r, report = _pytest([*modules, "-m", "not slow"], tmp_path, timeout=1500,
                         deselect="not valgrind and not vdmcheck")
