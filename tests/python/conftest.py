@@ -28,12 +28,25 @@ WIN64_BUILT = (os.environ.get("IPMSM_WIN64", "ON").upper() != "OFF"
 #: this suite there): measured on this 2-core machine under load, the UDDS run of
 #: test_self_contained took 22 s on the normal build and 172 s on the ASan one. A bound that
 #: catches a hang, or says "refused at once", is scaled by it so that a slow but correct run passes.
-SANITIZER_SLOWDOWN = 10 if os.environ.get("IPMSM_UNDER_SANITIZER") == "1" else 1
+UNDER_SANITIZER = os.environ.get("IPMSM_UNDER_SANITIZER") == "1"
+SANITIZER_SLOWDOWN = 10 if UNDER_SANITIZER else 1
 
 
 def patient(seconds: float) -> float:
     """A time bound for the build under test: `seconds` on the normal build."""
     return seconds * SANITIZER_SLOWDOWN
+
+
+def address_space_limit(nbytes: int):
+    """A child's preexec_fn that caps its address space at `nbytes` (RLIMIT_AS): a command that
+    maps more fails instead of exhausting the machine. On the sanitizer build the cap is left off:
+    ASan reserves terabytes of address space for its shadow memory at start-up, so the child keeps
+    its time bound only (hostile_child.py likewise)."""
+    def limit() -> None:
+        if not UNDER_SANITIZER:
+            import resource
+            resource.setrlimit(resource.RLIMIT_AS, (nbytes, nbytes))
+    return limit
 
 
 def same(a, b) -> bool:

@@ -6,7 +6,6 @@ traceback, no hang, no exhausted machine, nothing written."""
 from __future__ import annotations
 
 import os
-import resource
 import subprocess
 import sys
 import time
@@ -17,7 +16,7 @@ import pytest
 from scenarios.core.paths import ROOT
 from scenarios.maps.flux_map import DEFAULT_MAP
 
-from conftest import patient
+from conftest import address_space_limit, patient
 
 #: bytes of address space a refusing command may map: the interpreter with numpy, scipy and the
 #: package imported is about 0.6 GiB; the bombs of the issue asked for 2.5 GB to 745 GiB
@@ -25,18 +24,11 @@ CHILD_AS_BYTES = 3 << 29   # 1.5 GiB
 CHILD_TIMEOUT_S = patient(60.0)
 
 
-def _limit() -> None:
-    # as hostile_child.py: ASan's shadow memory needs terabytes of address space, so the sanitizer
-    # run (test_sanitizers.py) keeps the time bound only
-    if os.environ.get("IPMSM_UNDER_SANITIZER") != "1":
-        resource.setrlimit(resource.RLIMIT_AS, (CHILD_AS_BYTES, CHILD_AS_BYTES))
-
-
 def cli(*argv: str, timeout: float = CHILD_TIMEOUT_S, cwd: Path = ROOT) -> subprocess.CompletedProcess:
     """python -m scenarios ARGV in a child with the address-space limit; its run time in .wall."""
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "scenarios", *argv], cwd=cwd, capture_output=True, timeout=timeout,
-                       preexec_fn=_limit)
+                       preexec_fn=address_space_limit(CHILD_AS_BYTES))
     r.wall = time.perf_counter() - t0
     r.err = r.stderr.decode("utf-8", "strict")
     return r

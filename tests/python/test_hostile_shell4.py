@@ -17,7 +17,7 @@ import pytest
 
 from scenarios.maps.flux_map import DEFAULT_MAP
 
-from conftest import patient
+from conftest import address_space_limit, patient
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the child's address space: the Python side with fmpy, numpy, scipy and matplotlib loaded fits
@@ -27,11 +27,8 @@ TIMEOUT_S = patient(300)
 
 def cli(*args: str, env: dict | None = None, timeout: float = TIMEOUT_S) -> subprocess.CompletedProcess:
     """python -m scenarios ARGS in a child with an address-space limit and a timeout."""
-    def limit():
-        import resource
-        resource.setrlimit(resource.RLIMIT_AS, (AS_LIMIT, AS_LIMIT))
     return subprocess.run([sys.executable, "-m", "scenarios", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=timeout, preexec_fn=limit, env={**os.environ, **(env or {})})
+                          timeout=timeout, preexec_fn=address_space_limit(AS_LIMIT), env={**os.environ, **(env or {})})
 
 
 def gentle_cycle(folder: Path, name: str = "c.csv", top: float = 8.0, duration: float = 12.0) -> Path:
