@@ -13,13 +13,12 @@ import subprocess
 import zipfile
 from pathlib import Path
 
-import fmi3_fmpy as f3
+import fmi3_raw as f3
 import fmpy
 import golden_traces
 import numpy as np
 import pytest
 import test_conformance as conformance
-from fmpy.fmi3 import fmi3IntermediateUpdateCallback
 from fmpy.validation import validate_fmu
 
 import fmi2_raw as raw
@@ -39,33 +38,6 @@ FMI3_FUNCTIONS = {line.split()[-1].rstrip(";") for line in (
 MAP_ARRAYS = ("n_i_d", "n_i_q", "i_d_axis", "i_q_axis", "psi_d_map", "psi_q_map")
 #: FMI 3.0's type of each FMI 2.0 type
 FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
-
-
-@pytest.fixture(scope="module")
-def unzipped3(tmp_path_factory):
-    """unzipped3(name) -> fmi3_fmpy.Unzipped3, extracted once a module (never over a loaded library)."""
-    cache = {}
-
-    def get(name: str) -> f3.Unzipped3:
-        if name not in cache:
-            cache[name] = f3.Unzipped3(fmu3_path(name), tmp_path_factory.mktemp(f"{name}3"))
-        return cache[name]
-
-    return get
-
-
-@pytest.fixture
-def instances3(unzipped3):
-    made = []
-
-    def new(name: str, instance_name: str = "instance", **options) -> f3.Instance3:
-        inst = f3.Instance3(unzipped3(name), instance_name, **options)
-        made.append(inst)
-        return inst
-
-    yield new
-    for inst in made:
-        inst.free()
 
 
 def assert_clean_log(text: str) -> None:
@@ -245,13 +217,16 @@ def test_a_whole_udds_through_the_fmi3_drive_bit_for_bit(udds_on_fmi2, unzipped3
         u_vr = [fmu.vars[n].valueReference for n in inputs]
         y_vr = [fmu.vars[n].valueReference for n in reals]
         n_vr = [fmu.vars[n].valueReference for n in ints]
-        slave, t = inst.slave, 0.0
+        u_refs, y_refs, n_refs = f3.vrs(u_vr), f3.vrs(y_vr), f3.vrs(n_vr)
+        y_out, n_out = (C.c_double * len(y_vr))(), (C.c_int32 * len(n_vr))()
         differ = []
         for k, (dt, u, r) in enumerate(record.steps):
-            slave.setFloat64(u_vr, [*u, *boundary.values()])
-            slave.doStep(t, dt, True)
-            t += dt
-            y, n = slave.getFloat64(y_vr), slave.getInt32(n_vr)
+            values = f3.array(C.c_double, [*u, *boundary.values()])
+            assert inst.call("fmi3SetFloat64", inst.c, u_refs, len(u_vr), values, len(u_vr)) == f3.OK
+            assert inst.step(dt) == f3.OK, inst.log.text()
+            assert inst.call("fmi3GetFloat64", inst.c, y_refs, len(y_vr), y_out, len(y_vr)) == f3.OK
+            assert inst.call("fmi3GetInt32", inst.c, n_refs, len(n_vr), n_out, len(n_vr)) == f3.OK
+            y, n = list(y_out), list(n_out)
             want = [getattr(r, f) for f in reals]
             if np.array(y).tobytes() != np.array(want).tobytes() or n != [getattr(r, f) for f in ints]:
                 differ.append(k)
@@ -405,7 +380,7 @@ def test_instantiation_refusals_log_why(unzipped3):
     fmu = unzipped3("IpmsmController")
     probe = f3.Instance3(fmu, "probe")
     log = f3.Log()
-    no_update = fmi3IntermediateUpdateCallback()
+    no_update = f3.IntermediateUpdate()
     resources = (Path(fmu.directory) / "resources").as_posix().encode() + b"/"
     try:
         def args(name: bytes, token: str, event_mode_used: bool):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import ctypes as C
 
-import fmi3_fmpy as f3
+import fmi3_raw as f3
 import numpy as np
 import pytest
 from map_corpus import BY_NAME
@@ -17,8 +17,6 @@ from test_controller_corpus import K_PSI_T, K_U, T_MAGNET_REF
 from test_hostile_maps import falling_map
 
 from scenarios.maps.flux_map import DEFAULT_MAP, FluxMap, read_flux_map
-
-from conftest import fmu3_path
 
 NAMES = ("IpmsmController", "IpmsmPlant", "IpmsmDrive")
 ARRAYS = ("i_d_axis", "i_q_axis", "psi_d_map", "psi_q_map")
@@ -28,30 +26,10 @@ MAX_AXIS = 512
 STEPS = 200
 
 
-@pytest.fixture(scope="module")
-def unzipped3(tmp_path_factory):
-    cache = {}
-
-    def get(name: str) -> f3.Unzipped3:
-        if name not in cache:
-            cache[name] = f3.Unzipped3(fmu3_path(name), tmp_path_factory.mktemp(f"{name}3a"))
-        return cache[name]
-
-    return get
-
-
 @pytest.fixture
-def instances3(unzipped3):
-    made = []
-
-    def new(name: str, instance_name: str = "instance") -> f3.Instance3:
-        inst = f3.Instance3(unzipped3(name), instance_name, logging_on=True)
-        made.append(inst)
-        return inst
-
-    yield new
-    for inst in made:
-        inst.free()
+def instances3(instances3):
+    """conftest's, logging every category but the call trace (the tests read the warnings)."""
+    return lambda name, instance_name="instance": instances3(name, instance_name, logging_on=True)
 
 
 def vr(inst: f3.Instance3, *names: str) -> list[int]:
@@ -60,9 +38,9 @@ def vr(inst: f3.Instance3, *names: str) -> list[int]:
 
 def set_lengths(inst: f3.Instance3, n_i_d: int, n_i_q: int) -> int:
     """n_i_d, n_i_q in Configuration Mode; the status of their Set."""
-    assert f3.status_of(inst.slave.enterConfigurationMode) == f3.OK, inst.log.text()
-    status = f3.status_of(inst.slave.setUInt64, vr(inst, "n_i_d", "n_i_q"), [n_i_d, n_i_q])
-    assert f3.status_of(inst.slave.exitConfigurationMode) == f3.OK, inst.log.text()
+    assert inst.enter_configuration() == f3.OK, inst.log.text()
+    status = inst.set_values("UInt64", ("n_i_d", "n_i_q"), [n_i_d, n_i_q])
+    assert inst.exit_configuration() == f3.OK, inst.log.text()
     return status
 
 
@@ -75,7 +53,7 @@ def map_values(fmap: FluxMap) -> list[float]:
 def give_map(inst: f3.Instance3, fmap: FluxMap) -> int:
     """The map as arrays (lengths, then one Set of the four arrays); the status of that Set."""
     assert set_lengths(inst, len(fmap.i_d), len(fmap.i_q)) == f3.OK, inst.log.text()
-    return f3.status_of(inst.slave.setFloat64, vr(inst, *ARRAYS), map_values(fmap))
+    return inst.set_values("Float64", ARRAYS, map_values(fmap))
 
 
 def parameters(name: str, corpus_name: str) -> dict:
@@ -126,9 +104,9 @@ def test_a_map_as_arrays_gives_the_outputs_of_the_same_map_as_a_file(instances3,
     assert give_map(as_arrays, fmap) == f3.OK, as_arrays.log.text()
     as_arrays.init(flux_map="", **params)
     # the arrays read back as given
-    got = as_arrays.slave.getFloat64(vr(as_arrays, *ARRAYS), len(map_values(fmap)))
+    got = as_arrays.get_values("Float64", ARRAYS, len(map_values(fmap)))
     assert list(got) == map_values(fmap)
-    assert list(as_arrays.slave.getUInt64(vr(as_arrays, "n_i_d", "n_i_q"))) == [len(fmap.i_d), len(fmap.i_q)]
+    assert as_arrays.get_values("UInt64", ("n_i_d", "n_i_q"), 2) == [len(fmap.i_d), len(fmap.i_q)]
     a, b = trace(from_file, name, corpus_name), trace(as_arrays, name, corpus_name)
     assert a == b, f"{name} on {corpus_name}: the arrays' outputs differ from the file's"
     # the test can fail: the run is not at rest (the outputs change along it)
@@ -163,19 +141,19 @@ def test_lengths_that_disagree_with_the_structural_parameters_are_refused(instan
     inst = instances3(name)
     assert set_lengths(inst, len(fmap.i_d), len(fmap.i_q)) == f3.OK
     values = map_values(fmap)
-    refs = vr(inst, *ARRAYS)
+    refs = ARRAYS
     for given in (values[:-1], values + [0.0], values[:4]):
-        status = f3.status_of(inst.slave.setFloat64, refs, given)
+        status = inst.set_values("Float64", refs, given)
         refused_with(inst, status, f"nValues = {len(given)}", f"name {len(values)} values",
                      f"psi_d_map: n_i_d x n_i_q = {len(fmap.i_d)} x {len(fmap.i_q)}")
     # one array given the other's length
-    status = f3.status_of(inst.slave.setFloat64, vr(inst, "i_d_axis"), list(fmap.i_q))
+    status = inst.set_values("Float64", ("i_d_axis",), list(fmap.i_q))
     if len(fmap.i_q) != len(fmap.i_d):
         refused_with(inst, status, "i_d_axis: n_i_d", f"= {len(fmap.i_d)} values")
     # nothing was changed: the arrays are zeros of the lengths set, and the instance takes the map
     assert inst.enter() == f3.OK
-    assert set(inst.slave.getFloat64(vr(inst, "psi_d_map"), len(fmap.i_d) * len(fmap.i_q))) == {0.0}
-    assert f3.status_of(inst.slave.setFloat64, refs, values) == f3.OK
+    assert set(inst.get_values("Float64", ("psi_d_map",), len(fmap.i_d) * len(fmap.i_q))) == {0.0}
+    assert inst.set_values("Float64", refs, values) == f3.OK
     assert inst.exit() == f3.OK, inst.log.text()
     assert inst.step(1e-4) == f3.OK
 
@@ -196,8 +174,7 @@ def test_a_map_that_folds_in_the_operating_region_is_refused_as_the_file_is(inst
     # the same reason, but for the map's name
     assert why_arrays.replace(f3_arrays_name(), "MAP") == why_file.replace(str(path), "MAP")
     # usable after it: the default map's arrays instead, then initialised and stepped
-    assert f3.status_of(as_arrays.slave.setFloat64, vr(as_arrays, *ARRAYS),
-                        map_values(read_flux_map(DEFAULT_MAP))) == f3.OK
+    assert as_arrays.set_values("Float64", ARRAYS, map_values(read_flux_map(DEFAULT_MAP))) == f3.OK
     assert as_arrays.exit() == f3.OK, as_arrays.log.text()
     assert as_arrays.step(1e-4) == f3.OK
 
@@ -214,21 +191,21 @@ def test_a_file_and_arrays_together_are_refused(instances3, tmp_path):
 @pytest.mark.parametrize("name", NAMES)
 def test_lengths_beyond_the_map_limits_and_outside_configuration_mode_are_refused(instances3, name):
     inst = instances3(name)
-    refs = vr(inst, "n_i_d", "n_i_q")
+    refs = ("n_i_d", "n_i_q")
     # outside Configuration Mode
-    refused_with(inst, f3.status_of(inst.slave.setUInt64, refs, [8, 8]), "ConfigurationMode")
-    assert f3.status_of(inst.slave.enterConfigurationMode) == f3.OK
+    refused_with(inst, inst.set_values("UInt64", refs, [8, 8]), "ConfigurationMode")
+    assert inst.enter_configuration() == f3.OK
     for n in (MAX_AXIS + 1, 2**32, 2**64 - 1):
-        refused_with(inst, f3.status_of(inst.slave.setUInt64, refs, [4, n]), "n_i_q", "out of range",
+        refused_with(inst, inst.set_values("UInt64", refs, [4, n]), "n_i_q", "out of range",
                      f"[0, {MAX_AXIS}]")
     # other parameters cannot be set in Configuration Mode, nor can the mode be left twice
-    refused_with(inst, f3.status_of(inst.slave.setFloat64, vr(inst, "R_s"), [0.02]), "not a structural parameter")
+    refused_with(inst, inst.set_values("Float64", ("R_s",), [0.02]), "not a structural parameter")
     # the largest grid is taken (its arrays are then MAX_AXIS^2 zeros) and refused at initialisation
-    assert f3.status_of(inst.slave.setUInt64, refs, [MAX_AXIS, MAX_AXIS]) == f3.OK
-    assert f3.status_of(inst.slave.exitConfigurationMode) == f3.OK
-    assert f3.status_of(inst.slave.exitConfigurationMode) == f3.ERROR
+    assert inst.set_values("UInt64", refs, [MAX_AXIS, MAX_AXIS]) == f3.OK
+    assert inst.exit_configuration() == f3.OK
+    assert inst.exit_configuration() == f3.ERROR
     assert inst.enter() == f3.OK
-    assert len(inst.slave.getFloat64(vr(inst, "psi_q_map"), MAX_AXIS**2)) == MAX_AXIS**2
+    assert len(inst.get_values("Float64", ("psi_q_map",), MAX_AXIS**2)) == MAX_AXIS**2
     refused_with(inst, inst.exit(), f3_arrays_name())
     # back to no arrays: the default map in resources/
     assert inst.reset() == f3.OK
@@ -257,7 +234,7 @@ def test_null_arrays_and_counts_that_do_not_add_up_are_refused(instances3, name)
     assert call("fmi3SetFloat64", inst.c, refs, 2, bad, 9) == f3.ERROR
     refused_with(inst, f3.ERROR, "i_q_axis[2]", "not a finite number")
     assert call("fmi3SetFloat64", inst.c, refs, 2, values, 9) == f3.OK
-    assert list(inst.slave.getFloat64(list(refs), 9)) == list(range(9))
+    assert inst.get_values("Float64", ("i_d_axis", "i_q_axis"), 9) == list(range(9))
 
 
 @pytest.mark.parametrize("name", NAMES)
