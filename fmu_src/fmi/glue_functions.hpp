@@ -161,6 +161,8 @@ fmi2Status guarded(void* c, const char* fn, PhaseMask allowed, Body&& body) noex
 template <class M, const Standard& S>
 struct Functions {
     using In = Instance<M>;
+    // Every state but fatal, FMI 3.0's Configuration Mode too (fmi3SetDebugLogging, fmi3Reset).
+    static constexpr PhaseMask kAnyHere = kAnyButFatal | (S.major == 3 ? mask(Phase::configuration_mode) : 0u);
 
     // A new instance, or nullptr after logging why through `logger`: instantiate() of both standards,
     // given what each checked of its own arguments. `token` is the GUID (FMI 2.0), the
@@ -197,7 +199,7 @@ struct Functions {
     static void free_instance(void* c) noexcept { delete instance_of<M>(c, S); }
 
     static fmi2Status set_debug_logging(void* c, bool on, std::size_t n, const char* const categories[]) noexcept {
-        return guarded<M, S>(c, S.set_debug_logging, kAnyButFatal, [&](In& in) {
+        return guarded<M, S>(c, S.set_debug_logging, kAnyHere, [&](In& in) {
             if (n > 0 && categories == nullptr) throw Error("categories is NULL with nCategories > 0");
             unsigned bits = 0;
             for (std::size_t i = 0; i < n; ++i) {
@@ -251,7 +253,7 @@ struct Functions {
     }
 
     static fmi2Status reset(void* c) noexcept {
-        return guarded<M, S>(c, S.reset, kAnyButFatal, [&](In& in) {
+        return guarded<M, S>(c, S.reset, kAnyHere, [&](In& in) {
             M fresh(in.context);
             using std::swap;
             swap(in.model, fresh);

@@ -198,6 +198,9 @@ def test_lengths_beyond_the_map_limits_and_outside_configuration_mode_are_refuse
     for n in (MAX_AXIS + 1, 2**32, 2**64 - 1):
         refused_with(inst, inst.set_values("UInt64", refs, [4, n]), "n_i_q", "out of range",
                      f"[0, {MAX_AXIS}]")
+    # logging can be changed there, and fmi3Reset leaves it (back to Instantiated, no lengths)
+    assert inst.call("fmi3SetDebugLogging", inst.c, True, 0, None) == f3.OK
+    assert inst.reset() == f3.OK and inst.enter_configuration() == f3.OK
     # other parameters cannot be set in Configuration Mode, nor can the mode be left twice
     refused_with(inst, inst.set_values("Float64", ("R_s",), [0.02]), "not a structural parameter")
     # the largest grid is taken (its arrays are then MAX_AXIS^2 zeros) and refused at initialisation
