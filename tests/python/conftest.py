@@ -16,6 +16,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from pathlib import Path  # noqa: E402 (after the BLAS setting above)
 
+import fmi3_raw as raw3  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -112,6 +113,35 @@ def unzipped(tmp_path_factory):
         return cache[name]
 
     return get
+
+
+@pytest.fixture(scope="session")
+def unzipped3(tmp_path_factory):
+    """unzipped3(name) -> fmi3_raw.Unzipped3 of the FMI 3.0 <name>.fmu, extracted once a session."""
+    cache = {}
+
+    def get(name: str) -> raw3.Unzipped3:
+        if name not in cache:
+            cache[name] = raw3.Unzipped3(fmu3_path(name), tmp_path_factory.mktemp(f"{name}3"))
+        return cache[name]
+
+    return get
+
+
+@pytest.fixture
+def instances3(unzipped3):
+    """instances3(name, instance_name="instance", **Instance3 options) -> an fmi3_raw.Instance3 of
+    that FMI 3.0 FMU, freed after the test."""
+    made = []
+
+    def new(name: str, instance_name: str = "instance", **options) -> raw3.Instance3:
+        inst = raw3.Instance3(unzipped3(name), instance_name, **options)
+        made.append(inst)
+        return inst
+
+    yield new
+    for inst in made:
+        inst.free()
 
 
 @pytest.fixture
