@@ -5,16 +5,25 @@ drive_step) import as top-level modules because pytest puts this folder on sys.p
 The tests' one FMU wrapper is fmi2_raw.Instance (every FMI 2.0 function, the raw status, a
 log); `unzipped` and `fmu_instances` below hand out FMUs and instances of it."""
 import os
-from pathlib import Path
 
-import fmi3_raw as raw3
-import numpy as np
-import pytest
+# One OpenBLAS thread for the tests and every child they start (the environment is inherited),
+# set before numpy loads OpenBLAS. The suite keeps the cores busy itself (FMU and CLI children,
+# Dask workers, to which distributed's nanny gives one BLAS thread the same way), and an extra
+# OpenBLAS thread waits for work by spinning: on vector products of a few 10^4 points (the
+# iron-loss fit of a SyR-e map) the spinning costs tens of times the work. Results do not depend
+# on it (the fit's coefficients are the same bit for bit); a caller's own setting is kept.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from scenarios.core import paths
-from scenarios.maps.flux_map import DEFAULT_MAP
+from pathlib import Path  # noqa: E402 (after the BLAS setting above)
 
-import fmi2_raw as raw
+import fmi3_raw as raw3  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from scenarios.core import paths  # noqa: E402
+from scenarios.maps.flux_map import DEFAULT_MAP  # noqa: E402
+
+import fmi2_raw as raw  # noqa: E402
 
 ROOT = paths.ROOT
 DATA = paths.DATA_DIR
