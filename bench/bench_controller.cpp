@@ -11,6 +11,7 @@
 // runs this with them): every call timed on its own, median and 99th percentile.
 //
 // Usage: build/bin/bench_controller [flux_map.csv] [--map NAME CSV POLE_PAIRS R_S I_MAX U_DC W_M_MAX]...
+//        [--corpus-only | --least-loss-only]  (the corpus rows alone; or only their least-loss rows)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -191,6 +192,7 @@ void least_loss_rows(const CorpusMap& c) {
 
 int main(int argc, char** argv) {
     std::vector<CorpusMap> corpus;
+    bool least_loss_only = false;
     std::string path = ipmsm::source_path("fmu_src/resources/ev_ipmsm_default.csv");
     for (int a = 1; a < argc; ++a) {
         const std::string arg = argv[a];
@@ -200,12 +202,16 @@ int main(int argc, char** argv) {
             a += 7;
         } else if (arg == "--corpus-only") {
             path.clear();
+        } else if (arg == "--least-loss-only") {
+            path.clear();
+            least_loss_only = true;
         } else {
             path = arg;
         }
     }
     if (path.empty()) {
-        for (const CorpusMap& c : corpus) corpus_rows(c);
+        if (!least_loss_only)
+            for (const CorpusMap& c : corpus) corpus_rows(c);
         for (const CorpusMap& c : corpus) least_loss_rows(c);
         return 0;
     }
