@@ -626,9 +626,11 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
             const double gq = P.kT * (f.L_dq * i_q + f.psi_d - f.L_qq * i_d);
             const double g2 = gd * gd + gq * gq;  // (the drag's gradient left out: a small change of direction)
             if (!(g2 > 0.0)) break;
-            i_d -= (h - T) * gd / g2;
-            i_q -= (h - T) * gq / g2;
+            const double d_next = i_d - (h - T) * gd / g2, q_next = i_q - (h - T) * gq / g2;
             ++evaluations;
+            // a step that no longer moves the point: the remaining ones would repeat it exactly
+            if (d_next == i_d && q_next == i_q) break;
+            i_d = d_next, i_q = q_next;
         }
         Eval e{};
         if (!feasible(i_d, i_q, e) || std::abs(e.h - T) > kTorqueTolerance * std::max(top.H, 1.0)) continue;
