@@ -1,6 +1,9 @@
 # add_fmu(NAME <ModelIdentifier>
-#         [FMI 3]                       # the FMI 3.0 FMU of the model (default: FMI 2.0), below
-#         SOURCES <.cpp ...>            # the one that includes fmi2_entry_points.inc, plus model sources
+#         [FMI <2|3 ...>]               # the standards to build the model's FMU for (default: 2);
+#                                       # FMI 3: the FMI 3.0 FMU, below
+#         SOURCES <.cpp ...>            # the one that includes fmi2_entry_points.inc (or
+#                                       # fmi3_entry_points.inc), plus model sources; @FMI@ in a
+#                                       # name stands for the standard (fmi@FMI@_plant.cpp)
 #         [LIBRARIES <targets ...>]     # linked into the FMU and its generator
 #         [RESOURCES <files ...>]       # copied into resources/ (files, not directories)
 #         [DOCUMENTATION <index.html>]) # copied to documentation/index.html, with the variable
@@ -90,14 +93,26 @@ set(IPMSM_FMI3_EXPORTS_MAP ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/exports3.map
 set(IPMSM_FMI2_GLIBC_COMPAT ${CMAKE_CURRENT_LIST_DIR}/../fmu_src/fmi/glibc_compat.cpp)
 
 function(add_fmu)
-  cmake_parse_arguments(PARSE_ARGV 0 FMU "" "NAME;FMI;DOCUMENTATION" "SOURCES;LIBRARIES;RESOURCES")
+  cmake_parse_arguments(PARSE_ARGV 0 FMU "" "NAME;DOCUMENTATION" "FMI;SOURCES;LIBRARIES;RESOURCES")
   if(NOT FMU_NAME OR NOT FMU_SOURCES)
     message(FATAL_ERROR "add_fmu: NAME and SOURCES are required")
   endif()
+  if(NOT FMU_FMI)
+    set(FMU_FMI 2)
+  endif()
+  foreach(fmi IN LISTS FMU_FMI)
+    string(REPLACE "@FMI@" "${fmi}" sources "${FMU_SOURCES}")
+    _add_fmu_for_standard(${fmi} "${sources}")
+  endforeach()
+endfunction()
+
+# One standard's FMU of add_fmu()'s model (its arguments, FMU_*, are in the caller's scope).
+function(_add_fmu_for_standard standard sources)
   set(name ${FMU_NAME})
+  set(FMU_SOURCES ${sources})
   # Per standard: the target, the generator's define, the exported symbols, where the FMU goes and
   # its binaries' platform folders.
-  if(NOT FMU_FMI OR FMU_FMI STREQUAL "2")
+  if(standard STREQUAL "2")
     set(target ${name})
     set(generator_define IPMSM_FMI2_GENERATOR)
     set(exports_map ${IPMSM_FMI2_EXPORTS_MAP})
@@ -105,7 +120,7 @@ function(add_fmu)
     set(output_subdir "")
     set(linux_platform linux64)
     set(win64_platform win64)
-  elseif(FMU_FMI STREQUAL "3")
+  elseif(standard STREQUAL "3")
     set(target ${name}_fmi3)
     set(generator_define IPMSM_FMI3_GENERATOR)
     set(exports_map ${IPMSM_FMI3_EXPORTS_MAP})
@@ -114,7 +129,7 @@ function(add_fmu)
     set(linux_platform x86_64-linux)
     set(win64_platform x86_64-windows)
   else()
-    message(FATAL_ERROR "add_fmu: FMI must be 2 or 3, not ${FMU_FMI}")
+    message(FATAL_ERROR "add_fmu: FMI must be 2 or 3, not ${standard}")
   endif()
   set(resources "")
   foreach(r IN LISTS FMU_RESOURCES)

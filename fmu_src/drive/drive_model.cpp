@@ -33,12 +33,12 @@ V of_models(const char* name, fmi::Member<M> member) {
     const auto* p = fmi::find_variable<PlantModel>(name);
     const auto* c = fmi::find_variable<ControllerModel>(name);
     if (p == nullptr && c == nullptr) throw std::logic_error(std::string("IpmsmDrive: no model has ") + name);
-    V v = p != nullptr ? V{p->name, std::move(member), p->causality,        p->variability,
-                           p->unit, p->display_unit,   p->description,      p->min,
-                           p->max,  p->min_exclusive,  p->relative_quantity}
-                       : V{c->name, std::move(member), c->causality,        c->variability,
-                           c->unit, c->display_unit,   c->description,      c->min,
-                           c->max,  c->min_exclusive,  c->relative_quantity};
+    V v = p != nullptr ? V{p->name, std::move(member), p->causality,         p->variability,
+                           p->unit, p->display_unit,   p->description,       p->min,
+                           p->max,  p->min_exclusive,  p->relative_quantity, p->dimensions}
+                       : V{c->name, std::move(member), c->causality,         c->variability,
+                           c->unit, c->display_unit,   c->description,       c->min,
+                           c->max,  c->min_exclusive,  c->relative_quantity, c->dimensions};
     if (p != nullptr && c != nullptr) {
         if (p->member.index() != c->member.index())
             throw std::logic_error(std::string("IpmsmDrive: the models' ") + name + " differ in type");
@@ -82,6 +82,8 @@ V parameter(const char* name, ControllerModel M::*controller, PlantModel M::*pla
         case fmi::Type::Integer: return of_models(name, to_models<int>(name, controller, plant));
         case fmi::Type::Boolean: return of_models(name, to_models<bool>(name, controller, plant));
         case fmi::Type::String: return of_models(name, to_models<std::string>(name, controller, plant));
+        case fmi::Type::UInt64: return of_models(name, to_models<std::uint64_t>(name, controller, plant));
+        case fmi::Type::RealArray: return of_models(name, to_models<std::vector<double>>(name, controller, plant));
     }
     throw std::logic_error(std::string("IpmsmDrive: ") + name + " has no FMI type");
 }
@@ -122,8 +124,8 @@ public:
         bool in = first == nullptr;
         for (const auto& v : vars) {
             in = in || std::string(v.name) == first;
-            if (in && v.causality == Causality::parameter && names_.count(v.name) == 0)
-                add(parameter(v.name, controller_, plant_));
+            const bool settable = v.causality == Causality::parameter || v.causality == Causality::structural_parameter;
+            if (in && settable && names_.count(v.name) == 0) add(parameter(v.name, controller_, plant_));
             if (in && last != nullptr && std::string(v.name) == last) return;
         }
         if (!in || last != nullptr) throw std::logic_error(std::string("IpmsmDrive: no parameters ") + first);
@@ -307,7 +309,8 @@ DriveModel::DriveModel(const fmi::Context& context)
     plant_.thermal_each_step = false;       // do_step heats the network once per communication step
     // Start values: the models' own; where both have a parameter, the plant's, now the controller's too.
     for (const V& v : variables())
-        if (v.causality == Causality::parameter) fmi::copy_value(*this, *this, v);
+        if (v.causality == Causality::parameter || v.causality == Causality::structural_parameter)
+            fmi::copy_value(*this, *this, v);
     T_ref = controller_.T_ref;
     u_dc = controller_.u_dc;
     w_m = plant_.w_m;

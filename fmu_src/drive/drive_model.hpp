@@ -105,10 +105,14 @@ private:
     template <class Sub, class Field>
     static void sub_model_fields(Sub& sub, Field& field) {
         for (const auto& v : Sub::variables()) {
-            if (v.causality == fmi::Causality::parameter) continue;
+            if (v.causality == fmi::Causality::parameter || v.causality == fmi::Causality::structural_parameter)
+                continue;
             std::visit(
                 [&](const auto& a) {
-                    if constexpr (!std::is_same_v<decltype(a), const fmi::Access<Sub, std::string>&>)
+                    using A = std::decay_t<decltype(a)>;
+                    if constexpr (!std::is_same_v<A, fmi::Access<Sub, std::string>> &&
+                                  !std::is_same_v<A, fmi::Access<Sub, std::vector<double>>> &&
+                                  !std::is_same_v<A, fmi::Access<Sub, std::uint64_t>>)
                         if (a.member != nullptr) field(sub.*(a.member), v);
                 },
                 v.member);

@@ -21,8 +21,9 @@ enum class Phase : std::uint8_t {
     initialization_mode = 2,
     step_complete = 3,
     terminated = 4,
-    error = 5,  // the glue could not restore a consistent model: only Get*, Reset, Free, FMU states
-    fatal = 6,  // out of memory: only fmi2FreeInstance
+    error = 5,               // the glue could not restore a consistent model: only Get*, Reset, Free, FMU states
+    fatal = 6,               // out of memory: only fmi2FreeInstance
+    configuration_mode = 7,  // FMI 3.0: structural parameters may be set (from Instantiated, back to it)
 };
 
 // A state's name in messages, as the standard `major` (2, 3) names it; error and fatal are the glue's.
@@ -33,6 +34,7 @@ inline const char* phase_name(Phase p, int major = 2) {
             case Phase::initialization_mode: return "InitializationMode";
             case Phase::step_complete: return "StepMode";
             case Phase::terminated: return "Terminated";
+            case Phase::configuration_mode: return "ConfigurationMode";
             default: break;
         }
     }
@@ -43,6 +45,7 @@ inline const char* phase_name(Phase p, int major = 2) {
         case Phase::terminated: return "terminated";
         case Phase::error: return "error";
         case Phase::fatal: return "fatal";
+        case Phase::configuration_mode: return "configurationMode";
     }
     return "unknown";
 }
@@ -57,8 +60,8 @@ constexpr PhaseMask mask(Phase p, P... rest) {
 
 inline std::string mask_text(PhaseMask m, int major = 2) {
     std::string s;
-    for (Phase p : {Phase::instantiated, Phase::initialization_mode, Phase::step_complete, Phase::terminated,
-                    Phase::error, Phase::fatal})
+    for (Phase p : {Phase::instantiated, Phase::configuration_mode, Phase::initialization_mode, Phase::step_complete,
+                    Phase::terminated, Phase::error, Phase::fatal})
         if (m & mask(p)) s += (s.empty() ? "" : ", ") + std::string(phase_name(p, major));
     return s.empty() ? "none" : s;
 }

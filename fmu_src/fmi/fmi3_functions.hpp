@@ -103,6 +103,23 @@ struct Fmi3 : Functions<M, fmi3_standard> {
         }));
     }
 
+    // Configuration Mode: where structural parameters (an array's lengths) are set, from
+    // Instantiated and back to it.
+    static fmi3Status enter_configuration_mode(fmi3Instance c) noexcept {
+        return to_fmi3(
+            guarded<M, fmi3_standard>(c, "fmi3EnterConfigurationMode", mask(Phase::instantiated), [&](In& in) {
+                in.phase = Phase::configuration_mode;
+                return fmi2OK;
+            }));
+    }
+    static fmi3Status exit_configuration_mode(fmi3Instance c) noexcept {
+        return to_fmi3(
+            guarded<M, fmi3_standard>(c, "fmi3ExitConfigurationMode", mask(Phase::configuration_mode), [&](In& in) {
+                in.phase = Phase::instantiated;
+                return fmi2OK;
+            }));
+    }
+
     // A Get or Set of a type this FMU has no variable of (Float32, the 8-, 16- and 64-bit and
     // unsigned integers, Binary, Clock): nothing to do for no value reference, else refused.
     static fmi3Status no_variable_of_type(fmi3Instance c, const char* fn, PhaseMask allowed, const char* type,

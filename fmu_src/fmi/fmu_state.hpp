@@ -27,12 +27,20 @@ inline constexpr char kStateMagic[8] = {'I', 'P', 'M', 'S', 'M', 'F', 'S', 'T'};
 // here, hold them), and every field is checked as it is read (state_stream.hpp)
 inline constexpr std::uint32_t kStateFormat = 4;
 
-// The variables of a model, each as its type's index then its value.
+// The variables of a model that the standard s has (variable.hpp, fmi3_only), each as its type's
+// index then its value (an array: its count, then its elements).
 template <class M>
-void write_variables(StateWriter& w, const M& m) {
-    const auto& vars = variables<M>();
-    w.put<std::uint64_t>(vars.size());
-    for (const auto& v : vars) {
+std::size_t state_variable_count(const Standard& s) {
+    std::size_t n = 0;
+    for (const auto& v : variables<M>()) n += (s.time_variable || !fmi3_only(v)) ? 1 : 0;
+    return n;
+}
+
+template <class M>
+void write_variables(StateWriter& w, const M& m, const Standard& s) {
+    w.put<std::uint64_t>(state_variable_count<M>(s));
+    for (const auto& v : variables<M>()) {
+        if (!s.time_variable && fmi3_only(v)) continue;
         w.put<std::uint8_t>(static_cast<std::uint8_t>(v.member.index()));
         std::visit(
             [&](const auto& a) {
@@ -44,21 +52,32 @@ void write_variables(StateWriter& w, const M& m) {
                     w.put<std::uint8_t>(x ? 1 : 0);
                 else if constexpr (std::is_same_v<T, int>)
                     w.put<std::int32_t>(x);
-                else
+                else if constexpr (std::is_same_v<T, std::uint64_t>)
+                    w.put<std::uint64_t>(x);
+                else if constexpr (std::is_same_v<T, std::vector<double>>) {
+                    w.put<std::uint64_t>(x.size());
+                    for (double e : x) w.put<double>(e);
+                } else
                     w.put<double>(x);
             },
             v.member);
     }
 }
 
-// Reads what write_variables() wrote into m; throws fmi::Error naming the variable.
+// Reads what write_variables() wrote into m; throws fmi::Error naming the variable. Either
+// standard reads the other's states: one without FMI 3.0's own variables leaves m's as they are,
+// one with them sets them in m too (an FMI 2.0 FMU then refuses it unless they are its values,
+// the defaults: deserialise() compares the fixed parameters).
 template <class M>
-void read_variables(StateReader& r, M& m, const char* what) {
+void read_variables(StateReader& r, M& m, const char* what, const Standard& s) {
     const auto& vars = variables<M>();
-    if (const auto n = r.get<std::uint64_t>(); n != vars.size())
+    const auto n = r.get<std::uint64_t>();
+    if (n != state_variable_count<M>(fmi2_standard) && n != state_variable_count<M>(fmi3_standard))
         throw Error(std::string(what) + " has " + std::to_string(n) + " variables; this FMU has " +
-                    std::to_string(vars.size()));
+                    std::to_string(state_variable_count<M>(s)));
+    const bool with_fmi3_only = n == vars.size();
     for (const auto& v : vars) {
+        if (!with_fmi3_only && fmi3_only(v)) continue;
         if (r.get<std::uint8_t>() != v.member.index())
             throw Error(std::string(what) + ": variable " + v.name + " has another type");
         std::visit(
@@ -70,7 +89,15 @@ void read_variables(StateReader& r, M& m, const char* what) {
                     a.write(m, r.get<std::uint8_t>() != 0);
                 else if constexpr (std::is_same_v<T, int>)
                     a.write(m, r.get<std::int32_t>());
-                else {
+                else if constexpr (std::is_same_v<T, std::uint64_t>)
+                    a.write(m, r.get<std::uint64_t>());
+                else if constexpr (std::is_same_v<T, std::vector<double>>) {
+                    std::vector<double> x = r.get_doubles();
+                    for (double e : x)
+                        if (!std::isfinite(e))
+                            throw Error(std::string(what) + ": variable " + v.name + " has a value that is not finite");
+                    a.write(m, x);
+                } else {
                     const double x = r.get<double>();
                     if (!std::isfinite(x)) throw Error(std::string(what) + ": variable " + v.name + " is not finite");
                     a.write(m, x);
@@ -81,7 +108,7 @@ void read_variables(StateReader& r, M& m, const char* what) {
 }
 
 template <class M>
-std::vector<char> serialise(Snapshot<M>& s) {
+std::vector<char> serialise(Snapshot<M>& s, const Standard& standard) {
     std::vector<char> out(kStateMagic, kStateMagic + sizeof kStateMagic);
     StateWriter w(out);
     w.put<std::uint32_t>(kStateFormat);
@@ -90,7 +117,7 @@ std::vector<char> serialise(Snapshot<M>& s) {
     w.put<std::uint8_t>(static_cast<std::uint8_t>(s.phase));
     w.put<double>(s.start_time);
     w.put<double>(s.time);
-    write_variables(w, s.model);
+    write_variables(w, s.model, standard);
     const std::vector<char> block = save_state_fields(s.model);
     w.put_string(std::string(block.begin(), block.end()));
     w.put<std::uint64_t>(fnv1a(out.data(), out.size()));
@@ -126,20 +153,34 @@ std::unique_ptr<Snapshot<M>> deserialise(const Instance<M>& in, const char* data
     if (!std::isfinite(start_time) || !std::isfinite(time)) throw Error(std::string(what) + " has a non-finite time");
 
     M m = in.model;
-    read_variables(r, m, what);
+    read_variables(r, m, what, in.standard);
     // Validated as fmi2SetReal/Integer validate them: a state is input, not proof (its checksum
     // guards against accidents, not against edits).
     for (const auto& v : variables<M>()) {
-        if (v.causality != Causality::input && v.causality != Causality::parameter) continue;
+        if (v.causality != Causality::input && v.causality != Causality::parameter &&
+            v.causality != Causality::structural_parameter)
+            continue;
         const Type t = type_of(v);
-        if (t != Type::Real && t != Type::Integer) continue;
-        const double x = t == Type::Real ? value_of<double>(m, v) : value_of<int>(m, v);
+        if (t == Type::RealArray && value_of<std::vector<double>>(m, v).size() != value_count(m, v))
+            throw Error(std::string(what) + ": " + v.name + " has " +
+                        std::to_string(value_of<std::vector<double>>(m, v).size()) + " values, not " +
+                        count_text(m, v) + "; not restored");
+        if (t != Type::Real && t != Type::Integer && t != Type::UInt64) continue;
+        const double x = t == Type::Real      ? value_of<double>(m, v)
+                         : t == Type::Integer ? value_of<int>(m, v)
+                                              : static_cast<double>(value_of<std::uint64_t>(m, v));
         if (const std::string why = range_error(v, x); !why.empty())
             throw Error(std::string(what) + ": " + why + "; not restored");
     }
     std::string mismatch;
     for (const auto& v : variables<M>()) {
-        if (v.causality != Causality::parameter || v.variability != Variability::fixed) continue;
+        if (v.causality == Causality::input || is_computed(v.causality) || v.variability != Variability::fixed)
+            continue;
+        if (type_of(v) == Type::RealArray) {  // compared as values, named without them
+            if (value_of<std::vector<double>>(m, v) != value_of<std::vector<double>>(in.model, v))
+                mismatch += std::string(mismatch.empty() ? "" : ", ") + v.name + " differs";
+            continue;
+        }
         const std::string there = value_text(m, v), here = value_text(in.model, v);
         if (there != here)
             mismatch +=

@@ -51,6 +51,20 @@ inline constexpr PhaseMask kGet =
 inline constexpr PhaseMask kSet = mask(Phase::instantiated, Phase::initialization_mode, Phase::step_complete);
 inline constexpr PhaseMask kStatus = mask(Phase::step_complete, Phase::terminated);
 
+// The value references of an FMI 2.0 FMU: 0 up to the last variable FMI 2.0 has (variable.hpp,
+// fmi3_only).
+template <class M>
+std::size_t fmi2_variable_count() {
+    static const std::size_t n = [] {
+        const auto& vars = variables<M>();
+        std::size_t k = 0;
+        for (std::size_t i = 0; i < vars.size(); ++i)
+            if (!fmi3_only(vars[i])) k = i + 1;
+        return k;
+    }();
+    return n;
+}
+
 // The variable that vr names, if it has the type of the Get or Set function; else throws. (FMI
 // 3.0's independent variable `time`, kTimeValueReference, is read by the Get alone.)
 template <class M>
@@ -59,11 +73,13 @@ const Variable<M>& variable_of(fmi2ValueReference vr, Type type, const Standard&
     if (s.time_variable && vr == kTimeValueReference)
         throw Error("value reference " + std::to_string(vr) +
                     " is time, the independent variable: it can be read, and only " + s.do_step + " advances it");
-    if (vr >= vars.size())
+    if (vr >= vars.size() || (!s.time_variable && vr >= fmi2_variable_count<M>()))
         throw Error("unknown value reference " + std::to_string(vr) + " (this FMU has 0.." +
-                    std::to_string(vars.size() - 1) + ")");
+                    std::to_string((s.time_variable ? vars.size() : fmi2_variable_count<M>()) - 1) + ")");
     const auto& v = vars[vr];
-    if (type_of(v) != type)
+    if (!s.time_variable && fmi3_only(v))  // FMI 2.0 has no such variable (variable.hpp)
+        throw Error("unknown value reference " + std::to_string(vr));
+    if (type_of(v) != type && !(type == Type::Real && type_of(v) == Type::RealArray))
         throw Error("value reference " + std::to_string(vr) + " is the " + type_name(type_of(v)) + " " + v.name +
                     ", not " + (type == Type::Integer ? "an " : "a ") + type_name(type));
     return v;
@@ -73,8 +89,17 @@ const Variable<M>& variable_of(fmi2ValueReference vr, Type type, const Standard&
 // ExitInitializationMode, tunable ones always; outputs and locals never.
 template <class M>
 void check_settable(const Variable<M>& v, Phase p, const Standard& s) {
+    if (p == Phase::configuration_mode && v.causality != Causality::structural_parameter)
+        throw Error(std::string(v.name) + " is not a structural parameter: in ConfigurationMode only those can be set");
     switch (v.causality) {
         case Causality::input: return;
+        case Causality::structural_parameter:
+            if (p != Phase::configuration_mode)
+                throw Error(std::string(v.name) +
+                            " is a structural parameter: it can be set only in ConfigurationMode "
+                            "(fmi3EnterConfigurationMode; the instance is in state " +
+                            phase_name(p, s.major) + ")");
+            return;
         case Causality::parameter:
             if (v.variability == Variability::fixed && p != Phase::instantiated && p != Phase::initialization_mode)
                 throw Error(std::string(v.name) + " is a fixed parameter: it can be set only before " +
@@ -136,6 +161,8 @@ fmi2Status guarded(void* c, const char* fn, PhaseMask allowed, Body&& body) noex
 template <class M, const Standard& S>
 struct Functions {
     using In = Instance<M>;
+    // Every state but fatal, FMI 3.0's Configuration Mode too (fmi3SetDebugLogging, fmi3Reset).
+    static constexpr PhaseMask kAnyHere = kAnyButFatal | (S.major == 3 ? mask(Phase::configuration_mode) : 0u);
 
     // A new instance, or nullptr after logging why through `logger`: instantiate() of both standards,
     // given what each checked of its own arguments. `token` is the GUID (FMI 2.0), the
@@ -172,7 +199,7 @@ struct Functions {
     static void free_instance(void* c) noexcept { delete instance_of<M>(c, S); }
 
     static fmi2Status set_debug_logging(void* c, bool on, std::size_t n, const char* const categories[]) noexcept {
-        return guarded<M, S>(c, S.set_debug_logging, kAnyButFatal, [&](In& in) {
+        return guarded<M, S>(c, S.set_debug_logging, kAnyHere, [&](In& in) {
             if (n > 0 && categories == nullptr) throw Error("categories is NULL with nCategories > 0");
             unsigned bits = 0;
             for (std::size_t i = 0; i < n; ++i) {
@@ -226,7 +253,7 @@ struct Functions {
     }
 
     static fmi2Status reset(void* c) noexcept {
-        return guarded<M, S>(c, S.reset, kAnyButFatal, [&](In& in) {
+        return guarded<M, S>(c, S.reset, kAnyHere, [&](In& in) {
             M fresh(in.context);
             using std::swap;
             swap(in.model, fresh);
@@ -239,46 +266,89 @@ struct Functions {
     }
 
     // --- values ---
-    // A Get or Set of nvr scalars. `n_values` is FMI 3.0's nValues (FMI 2.0 passes nvr): every
-    // variable is a scalar, so it must be nvr.
-    static void check_values_count(std::size_t nvr, std::size_t n_values) {
-        if (n_values != nvr)
+    // FMI 3.0 may also set in ConfigurationMode (structural parameters) and get there.
+    static constexpr PhaseMask kSetHere = kSet | (S.major == 3 ? mask(Phase::configuration_mode) : 0u);
+    static constexpr PhaseMask kGetHere = kGet | (S.major == 3 ? mask(Phase::configuration_mode) : 0u);
+
+    // The variables vr[] names, checked for the type of the Get or Set (nullptr: FMI 3.0's `time`),
+    // and the values they hold: `n_values` is FMI 3.0's nValues (FMI 2.0 passes nvr), one per
+    // scalar and an array's elements (its lengths' product, in m).
+    static std::vector<const Variable<M>*> named(const M& m, Type type, const fmi2ValueReference vr[], std::size_t nvr,
+                                                 bool value_null, std::size_t n_values) {
+        auto null_error = [] { return Error("vr[] or value[] is NULL with nvr > 0"); };
+        const bool arrays = S.major == 3 && type == Type::Real && has_arrays();
+        if (!arrays && n_values != nvr)
             throw Error("nValues = " + std::to_string(n_values) + " but nValueReferences = " + std::to_string(nvr) +
-                        ": every variable of this FMU is a scalar (one value per value reference)");
+                        ": every variable of this type is a scalar (one value per value reference)");
+        std::vector<const Variable<M>*> vars;
+        if (nvr == 0 && n_values == 0) return vars;
+        if (vr == nullptr || (value_null && nvr > 0)) throw null_error();
+        vars.reserve(std::min<std::size_t>(nvr, variables<M>().size() + 1));
+        std::size_t count = 0;
+        std::string array_counts;  // the arrays' counts, for a message
+        for (std::size_t i = 0; i < nvr; ++i) {
+            if (S.time_variable && type == Type::Real && vr[i] == kTimeValueReference) {
+                vars.push_back(nullptr);
+                ++count;
+                continue;
+            }
+            const Variable<M>& v = variable_of<M>(vr[i], type, S);
+            vars.push_back(&v);
+            const std::size_t n = value_count(m, v);
+            count = n > std::numeric_limits<std::size_t>::max() - count ? std::numeric_limits<std::size_t>::max()
+                                                                        : count + n;
+            if (!v.dimensions.empty() && array_counts.size() < 1000)
+                array_counts += (array_counts.empty() ? "" : "; ") + count_text(m, v);
+        }
+        if (count != n_values)
+            throw Error("nValues = " + std::to_string(n_values) + " but nValueReferences = " + std::to_string(nvr) +
+                        " name " + std::to_string(count) + " values" +
+                        (array_counts.empty() ? std::string(" (one per scalar)")
+                                              : " (one per scalar, an array's elements: " + array_counts + ")"));
+        return vars;
+    }
+
+    static bool has_arrays() {
+        static const bool any = [] {
+            for (const auto& v : variables<M>())
+                if (type_of(v) == Type::RealArray) return true;
+            return false;
+        }();
+        return any;
     }
 
     template <class C>
     static fmi2Status get(void* c, const char* fn, Type type, const fmi2ValueReference vr[], std::size_t nvr, C value[],
                           std::size_t n_values) noexcept {
-        return guarded<M, S>(c, fn, kGet, [&](In& in) {
-            check_values_count(nvr, n_values);
-            if (nvr == 0) return fmi2OK;
-            if (vr == nullptr || value == nullptr) throw Error("vr[] or value[] is NULL with nvr > 0");
-            const auto& vars = variables<M>();
-            // FMI 3.0's independent variable: where the instance is in time.
-            const bool has_time = S.time_variable && type == Type::Real;
-            auto is_time = [&](fmi2ValueReference r) { return has_time && r == kTimeValueReference; };
+        return guarded<M, S>(c, fn, kGetHere, [&](In& in) {
+            const auto vars = named(in.model, type, vr, nvr, value == nullptr, n_values);
+            if (vars.empty()) return fmi2OK;
             // In Initialization Mode an output or local comes from initial_model().
             const bool init = in.phase == Phase::initialization_mode;
             bool from_initial = false;
-            for (std::size_t i = 0; i < nvr; ++i) {
-                if (is_time(vr[i])) continue;
-                const auto& v = variable_of<M>(vr[i], type, S);
-                from_initial = from_initial || (init && is_computed(v.causality));
-            }
+            for (const Variable<M>* v : vars) from_initial = from_initial || (init && v && is_computed(v->causality));
             const M& model = from_initial ? in.initial_model() : in.model;
             if constexpr (std::is_same_v<C, fmi2String>) {
                 in.strings.resize(nvr);
-                for (std::size_t i = 0; i < nvr; ++i) in.strings[i] = value_of<std::string>(model, vars[vr[i]]);
+                for (std::size_t i = 0; i < nvr; ++i) in.strings[i] = value_of<std::string>(model, *vars[i]);
                 for (std::size_t i = 0; i < nvr; ++i) value[i] = in.strings[i].c_str();
             } else {
-                for (std::size_t i = 0; i < nvr; ++i) {
+                std::size_t k = 0;  // the next value
+                for (const Variable<M>* v : vars) {
                     if constexpr (std::is_same_v<C, fmi2Real>) {
-                        value[i] = is_time(vr[i]) ? in.time : value_of<double>(model, vars[vr[i]]);
+                        if (v == nullptr) {  // FMI 3.0's independent variable: where the instance is in time
+                            value[k++] = in.time;
+                        } else if (type_of(*v) == Type::RealArray) {
+                            for (double x : value_of<std::vector<double>>(model, *v)) value[k++] = x;
+                        } else {
+                            value[k++] = value_of<double>(model, *v);
+                        }
+                    } else if constexpr (std::is_same_v<C, std::uint64_t>) {
+                        value[k++] = value_of<std::uint64_t>(model, *v);
                     } else if (type == Type::Integer) {
-                        value[i] = value_of<int>(model, vars[vr[i]]);
+                        value[k++] = value_of<int>(model, *v);
                     } else {
-                        value[i] = value_of<bool>(model, vars[vr[i]]) ? fmi2True : fmi2False;
+                        value[k++] = value_of<bool>(model, *v) ? fmi2True : fmi2False;
                     }
                 }
             }
@@ -289,34 +359,59 @@ struct Functions {
     template <class C>
     static fmi2Status set(void* c, const char* fn, Type type, const fmi2ValueReference vr[], std::size_t nvr,
                           const C value[], std::size_t n_values) noexcept {
-        return guarded<M, S>(c, fn, kSet, [&](In& in) {
-            check_values_count(nvr, n_values);
-            if (nvr == 0) return fmi2OK;
-            if (vr == nullptr || value == nullptr) throw Error("vr[] or value[] is NULL with nvr > 0");
-            const auto& vars = variables<M>();
-            for (std::size_t i = 0; i < nvr; ++i) {  // validate everything, then write
-                const auto& v = variable_of<M>(vr[i], type, S);
+        return guarded<M, S>(c, fn, kSetHere, [&](In& in) {
+            const auto vars = named(in.model, type, vr, nvr, value == nullptr, n_values);
+            if (vars.empty()) return fmi2OK;
+            std::size_t k = 0;
+            for (const Variable<M>* p : vars) {  // validate everything, then write
+                if (p == nullptr)
+                    throw Error("value reference " + std::to_string(kTimeValueReference) +
+                                " is time, the independent variable: it can be read, and only " + S.do_step +
+                                " advances it");
+                const auto& v = *p;
                 check_settable(v, in.phase, S);
                 if constexpr (std::is_same_v<C, fmi2String>) {
-                    if (value[i] == nullptr) throw Error(std::string(v.name) + ": the value is a NULL string");
+                    if (value[k] == nullptr) throw Error(std::string(v.name) + ": the value is a NULL string");
+                    ++k;
+                } else if (type_of(v) == Type::RealArray) {
+                    const std::size_t n = value_count(in.model, v);
+                    for (std::size_t j = 0; j < n; ++j, ++k) {
+                        const double x = static_cast<double>(value[k]);
+                        if (!std::isfinite(x) || !in_range(v, x))
+                            throw Error(std::string(v.name) + "[" + std::to_string(j) + "]: " + range_error(v, x) +
+                                        "; nothing was changed");
+                    }
                 } else if (type != Type::Boolean) {
-                    const double x = static_cast<double>(value[i]);
+                    const double x = static_cast<double>(value[k++]);
                     // (the message is built only on failure: this loop runs for every input of every fmi2SetReal)
                     if (!std::isfinite(x) || !in_range(v, x))
                         throw Error(range_error(v, x) + "; kept " + value_text(in.model, v));
+                } else {
+                    ++k;
                 }
             }
-            for (std::size_t i = 0; i < nvr; ++i) {
-                const auto& v = vars[vr[i]];
-                if constexpr (std::is_same_v<C, fmi2String>)
-                    set_value(in.model, v, std::string(value[i]));
-                else if constexpr (std::is_same_v<C, fmi2Real>)
-                    set_value(in.model, v, static_cast<double>(value[i]));
-                else if (type == Type::Integer)
-                    set_value(in.model, v, static_cast<int>(value[i]));
-                else
-                    set_value(in.model, v, value[i] != fmi2False);
+            k = 0;
+            for (const Variable<M>* p : vars) {
+                const auto& v = *p;
+                if constexpr (std::is_same_v<C, fmi2String>) {
+                    set_value(in.model, v, std::string(value[k++]));
+                } else if constexpr (std::is_same_v<C, fmi2Real>) {
+                    if (type_of(v) == Type::RealArray) {
+                        const std::size_t n = value_count(in.model, v);
+                        set_value(in.model, v, std::vector<double>(value + k, value + k + n));
+                        k += n;
+                    } else {
+                        set_value(in.model, v, static_cast<double>(value[k++]));
+                    }
+                } else if constexpr (std::is_same_v<C, std::uint64_t>) {
+                    set_value(in.model, v, static_cast<std::uint64_t>(value[k++]));
+                } else if (type == Type::Integer) {
+                    set_value(in.model, v, static_cast<int>(value[k++]));
+                } else {
+                    set_value(in.model, v, value[k++] != fmi2False);
+                }
             }
+            if constexpr (std::is_same_v<C, std::uint64_t>) resize_arrays(in.model);
             in.initial.reset();
             return fmi2OK;
         });
@@ -371,7 +466,7 @@ struct Functions {
     }
 
     static const std::vector<char>& bytes_of(Snapshot<M>& s) {
-        if (s.bytes.empty()) s.bytes = serialise(s);
+        if (s.bytes.empty()) s.bytes = serialise(s, S);
         return s.bytes;
     }
 

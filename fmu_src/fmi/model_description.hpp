@@ -120,11 +120,28 @@ std::string table_problems(const M& defaults) {
         if (name.empty() || name.find_first_of("\r\n\t") != std::string::npos) p << where << "bad name\n";
         if (!names.insert(name).second) p << where << "the name is not unique\n";
         if (empty(v.description)) p << where << "needs a description\n";
-        const Type type = type_of(v);
+        const Type actual = type_of(v);
+        // An array has its elements' rules; a UInt64 an Integer's (FMI 3.0 only: fmi3_only).
+        const Type type = actual == Type::RealArray ? Type::Real : actual == Type::UInt64 ? Type::Integer : actual;
         const Causality c = v.causality;
         const Variability var = v.variability;
-        if (c == Causality::parameter && var != Variability::fixed && var != Variability::tunable)
+        if ((c == Causality::parameter || c == Causality::structural_parameter) && var != Variability::fixed &&
+            var != Variability::tunable)
             p << where << "a parameter must be fixed or tunable\n";
+        if ((c == Causality::structural_parameter) != (actual == Type::UInt64))
+            p << where << "a structural parameter is a UInt64, and a UInt64 is a structural parameter\n";
+        if (actual == Type::RealArray) {
+            if (c != Causality::parameter || v.dimensions.empty())
+                p << where << "an array is a parameter with lengths\n";
+            for (const char* d : v.dimensions) {
+                const Variable<M>* length = find_variable<M>(d != nullptr ? d : "");
+                if (length == nullptr || length->causality != Causality::structural_parameter)
+                    p << where << "its length " << (d != nullptr ? d : "(null)") << " is not a structural parameter\n";
+            }
+            if (value_of<std::vector<double>>(defaults, v).size() != value_count(defaults, v))
+                p << where << "the default-constructed model's array is not as long as its lengths say\n";
+        } else if (!v.dimensions.empty())
+            p << where << "only a Float64 array has lengths\n";
         if ((c == Causality::input || c == Causality::output) &&
             (var == Variability::fixed || var == Variability::tunable))
             p << where << "an input or output must be discrete or continuous\n";
@@ -154,12 +171,15 @@ std::string table_problems(const M& defaults) {
                 if (std::isfinite(b) && (b != std::floor(b) || std::abs(b) > 2147483647.0))
                     p << where << "Integer bounds must be integers\n";
         }
-        if (type == Type::Real) {
+        if (actual == Type::Real) {
             const double x = value_of<double>(defaults, v);
             if (!std::isfinite(x)) p << where << "the default-constructed model has " << number_text(x) << "\n";
         }
-        if ((c == Causality::parameter || c == Causality::input) && (type == Type::Real || type == Type::Integer)) {
-            const double x = type == Type::Real ? value_of<double>(defaults, v) : value_of<int>(defaults, v);
+        if ((c == Causality::parameter || c == Causality::input || c == Causality::structural_parameter) &&
+            (actual == Type::Real || actual == Type::Integer || actual == Type::UInt64)) {
+            const double x = actual == Type::Real      ? value_of<double>(defaults, v)
+                             : actual == Type::Integer ? value_of<int>(defaults, v)
+                                                       : static_cast<double>(value_of<std::uint64_t>(defaults, v));
             if (!in_range(v, x))
                 p << where << "start value " << number_text(x) << " is outside " << range_text(v) << "\n";
         }
@@ -185,7 +205,7 @@ struct declares_initial_inputs<M, std::void_t<decltype(M::initial_inputs())>> : 
 // The 1-based indices, ascending, of the parameters and of the inputs `output` depends on in
 // Initialization Mode; throws for a declared name that is not an output or not an input.
 template <class M>
-std::vector<std::size_t> initial_dependencies(const std::string& output) {
+std::vector<std::size_t> initial_dependencies(const std::string& output, const Standard& s) {
     const auto& vars = M::variables();
     auto index_of = [&](const std::string& name, Causality c) -> std::size_t {
         for (std::size_t i = 0; i < vars.size(); ++i)
@@ -203,7 +223,8 @@ std::vector<std::size_t> initial_dependencies(const std::string& output) {
     }
     std::vector<std::size_t> deps;
     for (std::size_t i = 0; i < vars.size(); ++i)
-        if (vars[i].causality == Causality::parameter || (vars[i].causality == Causality::input && inputs[i]))
+        if ((vars[i].causality == Causality::parameter || (vars[i].causality == Causality::input && inputs[i])) &&
+            (s.time_variable || !fmi3_only(vars[i])))
             deps.push_back(i + 1);
     return deps;
 }
@@ -211,12 +232,12 @@ std::vector<std::size_t> initial_dependencies(const std::string& output) {
 // <UnitDefinitions> (the units the table uses, in table order, after `first` if given),
 // <LogCategories> and <DefaultExperiment>: the same elements in FMI 2.0 and FMI 3.0.
 template <class M>
-void write_units_categories_experiment(std::ostringstream& x, const char* first) {
+void write_units_categories_experiment(std::ostringstream& x, const char* first, const Standard& s) {
     const auto& vars = M::variables();
     std::vector<const UnitInfo*> units;  // used ones, in table order
     if (first != nullptr) units.push_back(find_unit(first));
     for (const auto& v : vars)
-        if (!empty(v.unit)) {
+        if (!empty(v.unit) && (s.time_variable || !fmi3_only(v))) {
             const UnitInfo* u = find_unit(v.unit);
             bool seen = false;
             for (const UnitInfo* w : units) seen = seen || w == u;
@@ -289,9 +310,10 @@ void write_type_attributes(std::ostringstream& x, const Variable<M>& v) {
     if (!empty(v.unit)) x << " unit=\"" << xml_escape(v.unit) << '"';
     if (!empty(v.display_unit)) x << " displayUnit=\"" << xml_escape(v.display_unit) << '"';
     if (v.relative_quantity && type == Type::Real) x << " relativeQuantity=\"true\"";
-    if (type == Type::Real || type == Type::Integer) {  // xs:double or xs:int
-        auto bound = [&](double b) {
-            return type == Type::Real ? number_text(b) : std::to_string(static_cast<long long>(b));
+    if (type == Type::Real || type == Type::Integer || type == Type::UInt64 || type == Type::RealArray) {
+        auto bound = [&](double b) {  // xs:double, or xs:int (xs:unsignedLong)
+            return (type == Type::Real || type == Type::RealArray) ? number_text(b)
+                                                                   : std::to_string(static_cast<long long>(b));
         };
         if (std::isfinite(v.min)) x << " min=\"" << bound(v.min) << '"';
         if (std::isfinite(v.max)) x << " max=\"" << bound(v.max) << '"';
@@ -317,12 +339,13 @@ std::string model_description() {
       << "    canSerializeFMUstate=\"true\"\n"
       << "    providesDirectionalDerivative=\"false\"/>\n";
 
-    detail::write_units_categories_experiment<M>(x, nullptr);
+    detail::write_units_categories_experiment<M>(x, nullptr, fmi2_standard);
 
     x << "  <ModelVariables>\n";
     std::vector<std::size_t> outputs;
     for (std::size_t i = 0; i < vars.size(); ++i) {
         const auto& v = vars[i];
+        if (fmi3_only(v)) continue;  // FMI 2.0 has no such variable; its value reference stays unused
         const Type type = type_of(v);
         const bool computed = is_computed(v.causality);
         if (v.causality == Causality::output) outputs.push_back(i + 1);
@@ -350,7 +373,7 @@ std::string model_description() {
         for (std::size_t k : outputs) {
             x << "      <Unknown index=\"" << k << "\" dependencies=\"";
             const char* sep = "";
-            for (std::size_t i : detail::initial_dependencies<M>(vars[k - 1].name)) {
+            for (std::size_t i : detail::initial_dependencies<M>(vars[k - 1].name, fmi2_standard)) {
                 x << sep << i;
                 sep = " ";
             }
@@ -360,6 +383,14 @@ std::string model_description() {
     }
     x << "  </ModelStructure>\n</fmiModelDescription>\n";
     return x.str();
+}
+
+// An array's lengths, " [n_i_d, n_i_q]"; "" for a scalar.
+template <class M>
+std::string array_dimensions_text(const Variable<M>& v) {
+    std::string s;
+    for (const char* d : v.dimensions) s += std::string(s.empty() ? " [" : ", ") + d;
+    return s.empty() ? s : s + "]";
 }
 
 // The variable reference of M as an HTML section, from the same table as the XML (xml_escape's
@@ -385,22 +416,23 @@ std::string variables_html(const Standard& s) {
       << "<th>start</th><th>range</th><th>description</th></tr>\n";
     for (std::size_t i = 0; i < vars.size(); ++i) {
         const auto& v = vars[i];
+        if (!s.time_variable && fmi3_only(v)) continue;
         const Type type = type_of(v);
         const bool computed = is_computed(v.causality);
         std::string unit = detail::empty(v.unit) ? "" : v.unit;
         if (!detail::empty(v.display_unit)) unit += std::string(" (") + v.display_unit + ")";
         std::string range;
-        if (type == Type::Real || type == Type::Integer) {
+        if (type == Type::Real || type == Type::Integer || type == Type::UInt64 || type == Type::RealArray) {
             range = range_text(v);
-            if (range == "any finite value") range = type == Type::Real ? "finite" : "";
+            if (range == "any finite value") range = (type == Type::Real || type == Type::RealArray) ? "finite" : "";
         }
         const std::string start = computed ? ""
                                            : (type == Type::String ? "\"" + detail::start_text(defaults, v) + "\""
                                                                    : detail::start_text(defaults, v));
         h << "<tr><td><code>" << xml_escape(v.name) << "</code></td><td>" << i << "</td><td>"
           << causality_name(v.causality) << "</td><td>" << variability_name(v.variability) << "</td><td>"
-          << type_name(type) << "</td><td>" << xml_escape(unit) << "</td><td>" << start << "</td><td>"
-          << xml_escape(range) << "</td><td>" << xml_escape(v.description) << "</td></tr>\n";
+          << type_name(type) << array_dimensions_text(v) << "</td><td>" << xml_escape(unit) << "</td><td>" << start
+          << "</td><td>" << xml_escape(range) << "</td><td>" << xml_escape(v.description) << "</td></tr>\n";
     }
     h << "</table>\n</section>\n";
     return h.str();

@@ -29,8 +29,19 @@ inline const char* fmi3_type_name(Type t) {
         case Type::Integer: return "Int32";
         case Type::Boolean: return "Boolean";
         case Type::String: return "String";
+        case Type::UInt64: return "UInt64";
+        case Type::RealArray: return "Float64";
     }
     return "?";
+}
+
+// The value reference of M's variable `name` (its table position).
+template <class M>
+std::size_t value_reference_of(const char* name) {
+    const auto& vars = M::variables();
+    for (std::size_t i = 0; i < vars.size(); ++i)
+        if (std::string(vars[i].name) == name) return i;
+    throw std::runtime_error(std::string("no variable ") + name);
 }
 
 template <class M>
@@ -52,7 +63,7 @@ std::string model_description3() {
       << "    canReturnEarlyAfterIntermediateUpdate=\"false\"\n"
       << "    hasEventMode=\"false\"\n"
       << "    providesEvaluateDiscreteStates=\"false\"/>\n";
-    detail::write_units_categories_experiment<M>(x, "s");
+    detail::write_units_categories_experiment<M>(x, "s", fmi3_standard);
 
     x << "  <ModelVariables>\n"
       << "    <Float64 name=\"time\" valueReference=\"" << kTimeValueReference
@@ -71,7 +82,12 @@ std::string model_description3() {
         detail::write_type_attributes(x, v);
         if (computed)
             x << "/>\n";
-        else if (type == Type::String)
+        else if (type == Type::RealArray) {  // its lengths: <Dimension> elements naming structural parameters
+            x << " start=\"" << detail::start_text(defaults, v) << "\">\n";
+            for (const char* d : v.dimensions)
+                x << "      <Dimension valueReference=\"" << value_reference_of<M>(d) << "\"/>\n";
+            x << "    </Float64>\n";
+        } else if (type == Type::String)
             x << ">\n      <Start value=\"" << detail::start_text(defaults, v) << "\"/>\n    </String>\n";
         else
             x << " start=\"" << detail::start_text(defaults, v) << "\"/>\n";
@@ -86,7 +102,7 @@ std::string model_description3() {
     for (std::size_t k : outputs) {
         x << "    <InitialUnknown valueReference=\"" << k << "\" dependencies=\"";
         const char* sep = "";
-        for (std::size_t index : detail::initial_dependencies<M>(vars[k].name)) {
+        for (std::size_t index : detail::initial_dependencies<M>(vars[k].name, fmi3_standard)) {
             x << sep << index - 1;
             sep = " ";
         }

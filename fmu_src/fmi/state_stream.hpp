@@ -54,6 +54,17 @@ public:
         p_ += n;
         return s;
     }
+    // An array of doubles (put_doubles): its count is checked against the bytes left before
+    // anything is allocated for it.
+    std::vector<double> get_doubles() {
+        const auto n = get<std::uint64_t>();
+        if (n > static_cast<std::uint64_t>(end_ - p_) / sizeof(double))
+            throw Error("serialised FMU state is truncated");
+        std::vector<double> x(n);
+        if (n > 0) std::memcpy(x.data(), p_, n * sizeof(double));
+        p_ += n * sizeof(double);
+        return x;
+    }
     bool at_end() const { return p_ == end_; }
 
 private:

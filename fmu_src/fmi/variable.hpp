@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <initializer_list>
 #include <limits>
@@ -19,13 +21,15 @@
 
 namespace fmi {
 
-enum class Causality { parameter, input, output, local };
+// structural_parameter: FMI 3.0's, a length of array parameters, set in Configuration Mode only.
+enum class Causality { parameter, input, output, local, structural_parameter };
 // Outputs and locals: the variables the model computes (a master cannot set them).
 inline bool is_computed(Causality c) { return c == Causality::output || c == Causality::local; }
 enum class Variability { fixed, tunable, discrete, continuous };
 
 // Where a variable's value lives, as its C++ type T (double: Real, int: Integer, bool: Boolean,
-// std::string: String): a member of the model (a pointer to it), or a part of the model that
+// std::string: String; FMI 3.0 only: std::uint64_t: UInt64, std::vector<double>: an array of
+// Float64, its elements in row-major order): a member of the model (a pointer to it), or a part of the model that
 // holds it, reached by a getter and a setter (a model made of other models forwards a variable
 // to the one that owns it: IpmsmDrive's parameters are its controller's and plant's).
 template <class Model, class T>
@@ -49,7 +53,8 @@ struct Access {
 
 // A variable's Access; the index of its alternative is the FMI type (Type, below).
 template <class Model>
-using Member = std::variant<Access<Model, double>, Access<Model, int>, Access<Model, bool>, Access<Model, std::string>>;
+using Member = std::variant<Access<Model, double>, Access<Model, int>, Access<Model, bool>, Access<Model, std::string>,
+                            Access<Model, std::uint64_t>, Access<Model, std::vector<double>>>;
 
 // A variable forwarded to a member of a part of the model: part is the model's member that
 // holds it (a sub-model, a parameter struct), field the part's member.
@@ -65,6 +70,16 @@ Access<Model, T> forward(Part Model::*part, const Access<Part, T>& field) {
     return {[part, field](const Model& m) { return field.read(m.*part); },
             [part, field](Model& m, const T& x) { field.write(m.*part, x); }};
 }
+
+// An array's lengths (FMI 3.0): the names of the structural parameters that hold them, outermost
+// first, at most two (a table's); none for a scalar.
+struct Dimensions {
+    const char* names[2] = {nullptr, nullptr};
+    std::size_t size() const { return names[0] == nullptr ? 0 : (names[1] == nullptr ? 1 : 2); }
+    bool empty() const { return size() == 0; }
+    const char* const* begin() const { return names; }
+    const char* const* end() const { return names + size(); }
+};
 
 template <class Model>
 struct Variable {
@@ -82,10 +97,14 @@ struct Variable {
     // A difference (FMI relativeQuantity): a tool shows it in the display unit without the unit's
     // offset (a margin of 25 K is 25 degC of difference, not -248 degC).
     bool relative_quantity = false;
+    // An array (FMI 3.0): its lengths (its element count is their product); empty for a scalar.
+    Dimensions dimensions = {};
 };
 
-// The FMI type of a variable: the index of its member pointer in Member<Model>.
-enum class Type { Real = 0, Integer = 1, Boolean = 2, String = 3 };
+// The FMI type of a variable: the index of its member pointer in Member<Model>. UInt64 and
+// RealArray (an array of Float64) exist in FMI 3.0 only: an FMI 2.0 FMU has no such variable
+// (fmi3_only, below), and its value references are the table's positions all the same.
+enum class Type { Real = 0, Integer = 1, Boolean = 2, String = 3, UInt64 = 4, RealArray = 5 };
 
 template <class M>
 Type type_of(const Variable<M>& v) {
@@ -98,8 +117,18 @@ inline const char* type_name(Type t) {
         case Type::Integer: return "Integer";
         case Type::Boolean: return "Boolean";
         case Type::String: return "String";
+        case Type::UInt64: return "UInt64";
+        case Type::RealArray: return "Float64 array";
     }
     return "?";
+}
+
+// A variable that FMI 2.0 cannot express: an FMI 2.0 FMU leaves it out (its description, its
+// value references, its FMU states), an FMI 3.0 FMU has it.
+template <class M>
+bool fmi3_only(const Variable<M>& v) {
+    const Type t = type_of(v);
+    return t == Type::UInt64 || t == Type::RealArray || v.causality == Causality::structural_parameter;
 }
 
 inline const char* causality_name(Causality c) {
@@ -108,6 +137,7 @@ inline const char* causality_name(Causality c) {
         case Causality::input: return "input";
         case Causality::output: return "output";
         case Causality::local: return "local";
+        case Causality::structural_parameter: return "structuralParameter";
     }
     return "?";
 }
@@ -151,7 +181,14 @@ std::string range_error(const Variable<M>& v, double x) {
     return std::string(v.name) + " = " + number_text(x) + unit + " is out of range: it must be " + range_text(v);
 }
 
-// The value of v in m as text: 0.1, 3, true, "a string".
+// An array's values as text, space-separated (FMI 3.0's start attribute): "0.1 0.2"; "" if empty.
+inline std::string array_text(const std::vector<double>& x) {
+    std::string s;
+    for (double e : x) s += (s.empty() ? "" : " ") + number_text(e);
+    return s;
+}
+
+// The value of v in m as text: 0.1, 3, true, "a string", "0.1 0.2" (an array).
 template <class M>
 std::string value_text(const M& m, const Variable<M>& v) {
     return std::visit(
@@ -164,6 +201,10 @@ std::string value_text(const M& m, const Variable<M>& v) {
                 return std::to_string(x);
             else if constexpr (std::is_same_v<T, bool>)
                 return x ? "true" : "false";
+            else if constexpr (std::is_same_v<T, std::uint64_t>)
+                return std::to_string(x);
+            else if constexpr (std::is_same_v<T, std::vector<double>>)
+                return array_text(x);
             else
                 return "\"" + x + "\"";
         },
@@ -188,6 +229,44 @@ const Variable<M>* find_variable(const std::string& name) {
     for (const auto& v : M::variables())
         if (name == v.name) return &v;
     return nullptr;
+}
+
+// The number of values of v in m: 1 for a scalar, an array's element count (the product of its
+// lengths, the structural parameters it names; saturated, though their ranges bound it).
+template <class M>
+std::size_t value_count(const M& m, const Variable<M>& v) {
+    std::size_t n = 1;
+    for (const char* d : v.dimensions) {
+        const Variable<M>* length = find_variable<M>(d);
+        const std::uint64_t x = length != nullptr ? value_of<std::uint64_t>(m, *length) : 0;
+        n = (x != 0 && n > std::numeric_limits<std::size_t>::max() / x) ? std::numeric_limits<std::size_t>::max()
+                                                                        : n * static_cast<std::size_t>(x);
+    }
+    return n;
+}
+
+// "psi_d: n_i_d x n_i_q = 4 x 5 = 20 values" (an array's count, explained)
+template <class M>
+std::string count_text(const M& m, const Variable<M>& v) {
+    std::string names, values;
+    for (const char* d : v.dimensions) {
+        const Variable<M>* length = find_variable<M>(d);
+        names += std::string(names.empty() ? "" : " x ") + d;
+        values += std::string(values.empty() ? "" : " x ") +
+                  (length != nullptr ? std::to_string(value_of<std::uint64_t>(m, *length)) : "?");
+    }
+    return std::string(v.name) + ": " + names + " = " + values + " = " + std::to_string(value_count(m, v)) + " values";
+}
+
+// An array whose size is not its lengths' product (they changed) becomes zeros of the new size:
+// after a structural parameter is set, its arrays are to be set again.
+template <class M>
+void resize_arrays(M& m) {
+    for (const auto& v : M::variables())
+        if (type_of(v) == Type::RealArray) {
+            const std::size_t n = value_count(m, v);
+            if (value_of<std::vector<double>>(m, v).size() != n) set_value(m, v, std::vector<double>(n, 0.0));
+        }
 }
 
 // The value of m's Real or Integer parameter `name` as a double; nullopt if m has none.
@@ -217,8 +296,8 @@ const std::vector<Variable<Part>>& part_table() {
 template <class Model, class Part>
 Variable<Model> forward_variable(Part Model::*part, const Variable<Part>& v) {
     Member<Model> member = std::visit([&](const auto& a) -> Member<Model> { return forward(part, a); }, v.member);
-    return {v.name, std::move(member), v.causality,        v.variability, v.unit, v.display_unit, v.description, v.min,
-            v.max,  v.min_exclusive,   v.relative_quantity};
+    return {v.name, std::move(member), v.causality,         v.variability, v.unit, v.display_unit, v.description, v.min,
+            v.max,  v.min_exclusive,   v.relative_quantity, v.dimensions};
 }
 
 // The part's variable `name` as a variable of the model that holds the part (forward_variable).

@@ -33,6 +33,10 @@ std::shared_ptr<const FluxMap> shared_flux_map(const std::string& path) {
     } catch (const MapFileError& e) {
         throw FluxMapError("flux map '" + quoted_excerpt(path) + "': " + e.what());
     }
+    return shared_flux_map_text(text, path);
+}
+
+std::shared_ptr<const FluxMap> shared_flux_map_text(const std::string& text, const std::string& path) {
     const std::uint64_t hash = content_hash(text);
     {
         std::lock_guard<std::mutex> lock(cache_mutex);

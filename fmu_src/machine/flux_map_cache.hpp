@@ -13,5 +13,7 @@ namespace ipmsm {
 
 // The map in the file at path (read_flux_map's errors); thread-safe. The last few maps are kept.
 std::shared_ptr<const FluxMap> shared_flux_map(const std::string& path);
+// The map in `text` (the contract's format), parsed as the file `name` would be; the same cache.
+std::shared_ptr<const FluxMap> shared_flux_map_text(const std::string& text, const std::string& name);
 
 }  // namespace ipmsm

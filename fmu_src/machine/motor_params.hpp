@@ -5,7 +5,10 @@
 // (fmu_src/resources/ev_ipmsm_default.csv, whose metadata state the same values).
 #pragma once
 
+#include <cstdint>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "machine/winding_resistance.hpp"
 
@@ -20,6 +23,14 @@ struct MotorParams {
     double k_psi_T = -0.0012;                         // 1/K, relative change of the magnet flux
     double T_winding_ref = 293.15;                    // K, the winding temperature R_s holds at
     double alpha_cu = kCopperTemperatureCoefficient;  // 1/K
+
+    // The map itself instead of flux_map (FMI 3.0's array parameters, docs/spec/INTERFACE.md):
+    // the axes' lengths (0: not given), the axes (A) and the fluxes (Wb) at (i_d_axis[j],
+    // i_q_axis[k]), element j * n_i_q + k. Shared: the model is copied every step.
+    using Values = std::shared_ptr<const std::vector<double>>;
+    std::uint64_t n_i_d = 0, n_i_q = 0;
+    Values i_d_axis, i_q_axis, psi_d_map, psi_q_map;
+    bool map_as_arrays() const { return n_i_d > 0 || n_i_q > 0; }
 
     static constexpr const char* default_flux_map = "ev_ipmsm_default.csv";
 

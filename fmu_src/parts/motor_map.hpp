@@ -14,8 +14,13 @@
 
 namespace ipmsm {
 
-// The map's file: motor.flux_map, or the default map in the FMU's resources/ folder. Throws
-// fmi::Error where flux_map is empty and the folder unknown.
+// What messages call a map given as arrays (FMI 3.0: n_i_d, n_i_q, i_d_axis, i_q_axis, psi_d_map,
+// psi_q_map), where they would name a map's file.
+inline constexpr const char* kMapArrays = "the flux-map arrays (i_d_axis, i_q_axis, psi_d_map, psi_q_map)";
+
+// The map's source: motor.flux_map, or the default map in the FMU's resources/ folder, or
+// kMapArrays where the map is given as arrays. Throws fmi::Error where flux_map is empty and the
+// folder unknown, or where both flux_map and the arrays give a map.
 std::string flux_map_path(const MotorParams& motor, const fmi::Context& context);
 
 struct MotorMap {
@@ -23,7 +28,7 @@ struct MotorMap {
     MapAcceptance acceptance;  // where the map is legal (the plant inverts it there)
 };
 
-// The map at path: parsed (its errors say file and line), its metadata's disagreements with the
+// The map at path (or given as arrays, as the contract's text: the same parser): parsed (its errors say file and line), its metadata's disagreements with the
 // model's parameters (`parameter`: the model's parameter by name) logged as warnings, accepted
 // for the current limit motor.I_max (or fmi::Error naming the defect) and the acceptance's
 // warning logged.

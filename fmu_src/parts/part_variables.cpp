@@ -3,6 +3,7 @@
 
 #include <limits>
 
+#include "machine/flux_map.hpp"
 #include "machine/machine.hpp"
 
 namespace ipmsm {
@@ -14,8 +15,20 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 }  // namespace
 
+namespace {
+// An array of MotorParams held behind its shared pointer (an empty array while there is none).
+fmi::Access<MotorParams, std::vector<double>> map_array(MotorParams::Values MotorParams::*values) {
+    return {[values](const MotorParams& p) { return p.*values ? *(p.*values) : std::vector<double>{}; },
+            [values](MotorParams& p, const std::vector<double>& x) {
+                p.*values = std::make_shared<const std::vector<double>>(x);
+            }};
+}
+}  // namespace
+
 const std::vector<fmi::Variable<MotorParams>>& variables_of(const MotorParams*) {
     using P = MotorParams;
+    // FMI 3.0 only (variable.hpp, fmi3_only): the map as arrays, an alternative to flux_map.
+    constexpr double kAxisMax = static_cast<double>(kMaxGridAxis);
     static const std::vector<fmi::Variable<P>> table = {
         {"flux_map", &P::flux_map, Causality::parameter, Variability::fixed, "", "",
          "Path of a flux-map CSV (the contract's format); empty: the default map in resources/"},
@@ -35,6 +48,58 @@ const std::vector<fmi::Variable<MotorParams>>& variables_of(const MotorParams*) 
          "Winding temperature at which R_s holds", kTemperatureMin_K, kTemperatureMax_K},
         {"alpha_cu", &P::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "",
          "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
+        {"n_i_d", &P::n_i_d, Causality::structural_parameter, Variability::fixed, "", "",
+         "The flux map as arrays: number of i_d axis values (0: no map as arrays, flux_map holds it)", 0.0, kAxisMax},
+        {"n_i_q", &P::n_i_q, Causality::structural_parameter, Variability::fixed, "", "",
+         "The flux map as arrays: number of i_q axis values (0: no map as arrays, flux_map holds it)", 0.0, kAxisMax},
+        {"i_d_axis",
+         map_array(&P::i_d_axis),
+         Causality::parameter,
+         Variability::fixed,
+         "A",
+         "",
+         "The flux map as arrays: the grid's i_d values, each once (peak, amplitude-invariant dq)",
+         -kInf,
+         kInf,
+         false,
+         false,
+         {"n_i_d"}},
+        {"i_q_axis",
+         map_array(&P::i_q_axis),
+         Causality::parameter,
+         Variability::fixed,
+         "A",
+         "",
+         "The flux map as arrays: the grid's i_q values, each once",
+         -kInf,
+         kInf,
+         false,
+         false,
+         {"n_i_q"}},
+        {"psi_d_map",
+         map_array(&P::psi_d_map),
+         Causality::parameter,
+         Variability::fixed,
+         "Wb",
+         "",
+         "The flux map as arrays: psi_d at (i_d_axis[j], i_q_axis[k]), element [j][k]",
+         -kInf,
+         kInf,
+         false,
+         false,
+         {"n_i_d", "n_i_q"}},
+        {"psi_q_map",
+         map_array(&P::psi_q_map),
+         Causality::parameter,
+         Variability::fixed,
+         "Wb",
+         "",
+         "The flux map as arrays: psi_q at (i_d_axis[j], i_q_axis[k]), element [j][k]",
+         -kInf,
+         kInf,
+         false,
+         false,
+         {"n_i_d", "n_i_q"}},
     };
     return table;
 }

@@ -7,6 +7,7 @@ log); `unzipped` and `fmu_instances` below hand out FMUs and instances of it."""
 import os
 from pathlib import Path
 
+import fmi3_raw as raw3
 import numpy as np
 import pytest
 
@@ -103,6 +104,35 @@ def unzipped(tmp_path_factory):
         return cache[name]
 
     return get
+
+
+@pytest.fixture(scope="session")
+def unzipped3(tmp_path_factory):
+    """unzipped3(name) -> fmi3_raw.Unzipped3 of the FMI 3.0 <name>.fmu, extracted once a session."""
+    cache = {}
+
+    def get(name: str) -> raw3.Unzipped3:
+        if name not in cache:
+            cache[name] = raw3.Unzipped3(fmu3_path(name), tmp_path_factory.mktemp(f"{name}3"))
+        return cache[name]
+
+    return get
+
+
+@pytest.fixture
+def instances3(unzipped3):
+    """instances3(name, instance_name="instance", **Instance3 options) -> an fmi3_raw.Instance3 of
+    that FMI 3.0 FMU, freed after the test."""
+    made = []
+
+    def new(name: str, instance_name: str = "instance", **options) -> raw3.Instance3:
+        inst = raw3.Instance3(unzipped3(name), instance_name, **options)
+        made.append(inst)
+        return inst
+
+    yield new
+    for inst in made:
+        inst.free()
 
 
 @pytest.fixture

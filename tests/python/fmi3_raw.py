@@ -2,7 +2,10 @@
 FMI 3.0 C API. Every function with its C signature (fmi3FunctionTypes.h) and no checks of our
 own, so that a test can pass NULL pointers, huge counts, wrong value references and calls out of
 sequence, and read the raw status (Unzipped3, the fmi3XXX functions); and an instance with its
-log kept as raw bytes (Instance3: init/step/terminate/reset return the status, values by name).
+log kept as raw bytes (Instance3), with the same methods as fmi2_raw.Instance
+(setup/enter/exit/init/step/set/get/names/outputs, the FMU-state functions), each returning the
+raw status, so that a test or golden_traces.py runs the same inputs through either standard; plus
+FMI 3.0's own: Configuration Mode and values of any type and count (arrays).
 The scenarios' own wrapper, on fmpy, is scenarios/cosim/fmu.py with scenarios/cosim/standard.py."""
 from __future__ import annotations
 
@@ -11,8 +14,9 @@ from pathlib import Path
 
 from fmpy import extract, read_model_description
 
-OK, WARNING, DISCARD, ERROR, FATAL = range(5)
-STATUS = {OK: "OK", WARNING: "Warning", DISCARD: "Discard", ERROR: "Error", FATAL: "Fatal"}
+import fmi2_raw
+from fmi2_raw import DISCARD, ERROR, FATAL, OK, STATUS, WARNING, refused  # noqa: F401 (the same statuses)
+
 #: the platform folder of FMI 3.0 (x86_64-linux)
 PLATFORM = "x86_64-linux"
 
@@ -122,7 +126,8 @@ class Unzipped3:
         self.md = read_model_description(str(self.fmu))
         assert self.md.fmiVersion == "3.0", f"{fmu} is an FMI {self.md.fmiVersion} FMU"
         self.id = self.md.coSimulation.modelIdentifier
-        self.token = self.md.guid  # fmpy keeps the instantiationToken as guid
+        self.token = self.guid = self.md.guid  # fmpy keeps the instantiationToken as guid
+        self.directory = str(self.dir)
         self.vars = {v.name: v for v in self.md.modelVariables}
         self.library = self.dir / "binaries" / PLATFORM / f"{self.id}.so"
         self.dll = C.CDLL(str(self.library))
@@ -144,7 +149,9 @@ class Unzipped3:
 
 class Log:
     """A logMessage callback keeping (status, category, message) as the FMU passed them: raw
-    bytes, so that a test can check them for valid UTF-8 and length."""
+    bytes, so that a test can check them for valid UTF-8 and length. messages() and text() decode
+    them strictly: a message that is not UTF-8 fails the test there (an exception in the callback
+    itself would only be printed by ctypes)."""
 
     def __init__(self):
         self.records: list[tuple[int, bytes, bytes]] = []
@@ -153,13 +160,18 @@ class Log:
     def _log(self, env, status, category, message):
         self.records.append((status, category or b"", message or b""))
 
+    def messages(self) -> list[str]:
+        return [m.decode("utf-8") for _, _, m in self.records]
+
     def text(self) -> str:
-        return "\n".join(f"[{STATUS.get(s, s)} {c.decode(errors='replace')}] {m.decode(errors='replace')}"
-                         for s, c, m in self.records)
+        return "\n".join(f"[{STATUS.get(s, s)} {c.decode('utf-8')}] {m.decode('utf-8')}" for s, c, m in self.records)
 
     def since(self, n: int) -> list[bytes]:
         """The messages logged after the first n."""
         return [m for _, _, m in self.records[n:]]
+
+    def clear(self):
+        self.records.clear()
 
 
 def array(ctype, values):
@@ -170,27 +182,39 @@ def vrs(values):
     return array(C.c_uint32, values)
 
 
+def _kind(v) -> str:
+    """The FMI 3.0 type whose Get and Set take v's values (an Enumeration's are Int64)."""
+    return v.type if v.type != "Enumeration" else "Int64"
+
+
 class Instance3:
     """One co-simulation instance of an Unzipped3 FMU through the raw C API. Methods return the
     fmi3Status; `c` is the fmi3Instance (None if instantiation returned NULL)."""
 
-    def __init__(self, fmu: Unzipped3, name: bytes | None = b"instance", token: bytes | None = ...,
+    def __init__(self, fmu: Unzipped3, name: str | bytes | None = b"instance", token: bytes | None = ...,
                  resource_path: bytes | None = ..., logging_on: bool = False, log: Log | None = ...):
         self.fmu = fmu
+        self.dll = fmu.dll
         self.log = Log() if log is ... else log
-        self.t = 0.0
+        self.start = self.t = 0.0
         callback = self.log.callback if self.log is not None else LogMessage()
         self.c = fmu.fmi3InstantiateCoSimulation(
-            name, fmu.token.encode() if token is ... else token,
+            name.encode() if isinstance(name, str) else name, fmu.token.encode() if token is ... else token,
             fmu.resource_path.encode() if resource_path is ... else resource_path,
             False, logging_on, False, False, None, 0, None, callback, IntermediateUpdate())
         # fmi3DoStep's outputs
         self.event, self.terminate_requested, self.early, self.last = C.c_bool(), C.c_bool(), C.c_bool(), C.c_double()
 
     # --- life cycle ---
-    def enter(self, start: float = 0.0):
-        self.t = start
-        return self.fmu.fmi3EnterInitializationMode(self.c, False, 0.0, start, False, 0.0)
+    def setup(self, start: float = 0.0):
+        """FMI 3.0 has no fmi3SetupExperiment: the start time goes with enter()."""
+        self.start = self.t = start
+        return OK
+
+    def enter(self, start: float | None = None):
+        if start is not None:
+            self.setup(start)
+        return self.fmu.fmi3EnterInitializationMode(self.c, False, 0.0, self.start, False, 0.0)
 
     def exit(self):
         return self.fmu.fmi3ExitInitializationMode(self.c)
@@ -198,16 +222,20 @@ class Instance3:
     def init(self, **values):
         """Enter Initialization Mode, set values by name, exit: all must succeed."""
         assert self.enter() == OK, self.log.text()
-        for name, value in values.items():
-            assert self.set(name, value) == OK, f"{name}: {self.log.text()}"
+        self.set(**values)
         status = self.exit()
         assert status in (OK, WARNING), f"fmi3ExitInitializationMode: {STATUS[status]}\n{self.log.text()}"
 
-    def step(self, h: float, t: float | None = None):
-        status = self.fmu.fmi3DoStep(self.c, self.t if t is None else t, h, True, C.byref(self.event),
-                                     C.byref(self.terminate_requested), C.byref(self.early), C.byref(self.last))
-        if status in (OK, WARNING) and t is None:
-            self.t += h
+    def step(self, h: float = 1e-4, t: float | None = None):
+        t0 = self.t if t is None else t
+        status = self.fmu.fmi3DoStep(self.c, t0, h, True, C.byref(self.event), C.byref(self.terminate_requested),
+                                     C.byref(self.early), C.byref(self.last))
+        if status in (OK, WARNING):
+            assert not (self.event or self.terminate_requested or self.early), \
+                "the FMU never asks for an event, to stop, or returns early"
+            assert self.last.value == t0 + h
+            if t is None:
+                self.t += h
         return status
 
     def terminate(self):
@@ -222,23 +250,34 @@ class Instance3:
             self.fmu.fmi3FreeInstance(self.c)
             self.c = None
 
-    # --- values by name (scalars) ---
-    def set(self, name: str, value) -> int:
+    def enter_configuration(self):
+        return self.fmu.fmi3EnterConfigurationMode(self.c)
+
+    def exit_configuration(self):
+        return self.fmu.fmi3ExitConfigurationMode(self.c)
+
+    # --- values by name: scalars as fmi2_raw.Instance has them ---
+    def set_status(self, name: str, value) -> int:
         v = self.fmu.vars[name]
-        t = VALUE_TYPES[v.type if v.type != "Enumeration" else "Int64"]
+        t = VALUE_TYPES[_kind(v)]
         x = value.encode() if t is C.c_char_p else value
-        return getattr(self.fmu, f"fmi3Set{v.type if v.type != 'Enumeration' else 'Int64'}")(
-            self.c, vrs([v.valueReference]), 1, array(t, [x]), 1)
+        return getattr(self.fmu, f"fmi3Set{_kind(v)}")(self.c, vrs([v.valueReference]), 1, array(t, [x]), 1)
 
-    def get(self, name: str):
+    set = fmi2_raw.Instance.set
+
+    def get_status(self, name: str):
+        """(status, value)"""
         v = self.fmu.vars[name]
-        kind = v.type if v.type != "Enumeration" else "Int64"
-        out = (VALUE_TYPES[kind] * 1)()
-        status = getattr(self.fmu, f"fmi3Get{kind}")(self.c, vrs([v.valueReference]), 1, out, 1)
-        assert status == OK, f"fmi3Get{kind} {name}: {STATUS.get(status, status)}\n{self.log.text()}"
-        return out[0]
+        out = (VALUE_TYPES[_kind(v)] * 1)()
+        status = getattr(self.fmu, f"fmi3Get{_kind(v)}")(self.c, vrs([v.valueReference]), 1, out, 1)
+        value = out[0].decode() if v.type == "String" and out[0] is not None else out[0]
+        return status, value
 
-    def outputs(self) -> list[float]:
+    get = fmi2_raw.Instance.get
+    names = fmi2_raw.Instance.names
+    outputs = fmi2_raw.Instance.outputs
+
+    def float64_outputs(self) -> list[float]:
         """Every Float64 output's value (the model description's order), read with one call."""
         names = [v for v in self.fmu.md.modelVariables if v.causality == "output" and v.type == "Float64"]
         out = (C.c_double * len(names))()
@@ -246,10 +285,35 @@ class Instance3:
         assert status == OK, self.log.text()
         return list(out)
 
+    # --- values of any type and count (arrays): one Get or Set of the variables `names` ---
+    def set_values(self, kind: str, names, values) -> int:
+        refs = [self.fmu.vars[n].valueReference for n in names]
+        return getattr(self.fmu, f"fmi3Set{kind}")(self.c, vrs(refs), len(refs), array(VALUE_TYPES[kind], values),
+                                                    len(values))
+
+    def get_values(self, kind: str, names, n_values: int) -> list:
+        refs = [self.fmu.vars[n].valueReference for n in names]
+        out = (VALUE_TYPES[kind] * n_values)()
+        status = getattr(self.fmu, f"fmi3Get{kind}")(self.c, vrs(refs), len(refs), out, n_values)
+        assert status == OK, f"fmi3Get{kind} {names}: {STATUS.get(status, status)}\n{self.log.text()}"
+        return list(out)
+
     # --- FMU states ---
-    def get_state(self) -> tuple[int, C.c_void_p]:
+    def get_state_status(self) -> tuple[int, C.c_void_p]:
         s = C.c_void_p()
         return self.fmu.fmi3GetFMUState(self.c, C.byref(s)), s
+
+    def get_state(self) -> C.c_void_p:
+        status, s = self.get_state_status()
+        assert status == OK, self.log.text()
+        return s
+
+    def set_state(self, state) -> int:
+        return self.fmu.fmi3SetFMUState(self.c, state)
+
+    def free_state(self, state) -> int:
+        s = C.c_void_p(state.value if isinstance(state, C.c_void_p) else state)
+        return self.fmu.fmi3FreeFMUState(self.c, C.byref(s))
 
     def serialize(self, state: C.c_void_p) -> bytes:
         n = C.c_size_t()
@@ -258,7 +322,23 @@ class Instance3:
         assert self.fmu.fmi3SerializeFMUState(self.c, state, buf, n.value) == OK, self.log.text()
         return bytes(buf)
 
-    def deserialize(self, blob: bytes) -> tuple[int, C.c_void_p]:
+    def deserialize_status(self, blob: bytes) -> tuple[int, C.c_void_p]:
         s = C.c_void_p()
         buf = (C.c_uint8 * max(1, len(blob))).from_buffer_copy(blob.ljust(1, b"\0"))
         return self.fmu.fmi3DeserializeFMUState(self.c, buf, len(blob), C.byref(s)), s
+
+    def restore(self, data: bytes, t: float) -> None:
+        """Back to the serialised state `data`, saved at time t."""
+        status, state = self.deserialize_status(data)
+        assert status == OK and self.set_state(state) == OK, self.log.text()
+        self.t = t
+
+    def call(self, name: str, *args) -> int:
+        """The raw status of the FMI 3.0 function `name`, for arguments a method would not pass."""
+        return getattr(self.fmu, name)(*args)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.free()

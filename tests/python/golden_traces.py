@@ -90,7 +90,7 @@ def _digest(column: np.ndarray) -> str:
 
 class _Unit:
     """One instance, its outputs recorded after initialisation and after every step. `instance`
-    makes it: fmi2_raw.Instance (FMI 2.0), or fmi3_fmpy.Instance3 (FMI 3.0, test_fmi3.py)."""
+    makes it: fmi2_raw.Instance (FMI 2.0), or fmi3_raw.Instance3 (FMI 3.0, test_fmi3.py)."""
 
     def __init__(self, fmu: raw.Unzipped, tag: str, parameters: dict, instance=raw.Instance):
         self.inst = instance(fmu, tag)

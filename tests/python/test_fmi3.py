@@ -13,13 +13,12 @@ import subprocess
 import zipfile
 from pathlib import Path
 
-import fmi3_fmpy as f3
+import fmi3_raw as f3
 import fmpy
 import golden_traces
 import numpy as np
 import pytest
 import test_conformance as conformance
-from fmpy.fmi3 import fmi3IntermediateUpdateCallback
 from fmpy.validation import validate_fmu
 
 import fmi2_raw as raw
@@ -35,35 +34,10 @@ RELEASES = sorted((Path(__file__).resolve().parents[1] / "data").glob("value_ref
 FMI3_FUNCTIONS = {line.split()[-1].rstrip(";") for line in (
     Path(__file__).resolve().parents[2] / "fmu_src" / "fmi" / "headers3" / "fmi3Functions.h").read_text().splitlines()
     if line.startswith("FMI3_Export fmi3")}
+#: the FMI 3.0 FMUs' variables FMI 2.0 cannot express: the flux map as arrays
+MAP_ARRAYS = ("n_i_d", "n_i_q", "i_d_axis", "i_q_axis", "psi_d_map", "psi_q_map")
 #: FMI 3.0's type of each FMI 2.0 type
 FMI3_TYPE = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean", "String": "String"}
-
-
-@pytest.fixture(scope="module")
-def unzipped3(tmp_path_factory):
-    """unzipped3(name) -> fmi3_fmpy.Unzipped3, extracted once a module (never over a loaded library)."""
-    cache = {}
-
-    def get(name: str) -> f3.Unzipped3:
-        if name not in cache:
-            cache[name] = f3.Unzipped3(fmu3_path(name), tmp_path_factory.mktemp(f"{name}3"))
-        return cache[name]
-
-    return get
-
-
-@pytest.fixture
-def instances3(unzipped3):
-    made = []
-
-    def new(name: str, instance_name: str = "instance", **options) -> f3.Instance3:
-        inst = f3.Instance3(unzipped3(name), instance_name, **options)
-        made.append(inst)
-        return inst
-
-    yield new
-    for inst in made:
-        inst.free()
 
 
 def assert_clean_log(text: str) -> None:
@@ -92,7 +66,10 @@ def test_the_same_variables_as_fmi2(name):
         assert (w.valueReference, w.type, w.causality, w.variability, w.initial) == (
             v.valueReference, FMI3_TYPE[v.type], v.causality, v.variability, v.initial), v.name
         assert (w.unit, w.displayUnit, w.min, w.max, w.start) == (v.unit, v.displayUnit, v.min, v.max, v.start), v.name
-    # the one more: FMI 3.0's independent variable, at a fixed value reference beyond the table's
+    # FMI 3.0's own: the flux map as arrays (test_fmi3_arrays.py), after every FMI 2.0 variable
+    arrays = {n: v3.pop(n) for n in MAP_ARRAYS}
+    assert min(v.valueReference for v in arrays.values()) > max(v.valueReference for v in md2.modelVariables)
+    # and the independent variable, at a fixed value reference beyond the table's
     (time,) = v3.values()
     assert (time.name, time.causality, time.type) == ("time", "independent", "Float64")
     assert time.valueReference == TIME_VR
@@ -106,7 +83,8 @@ def test_the_same_variables_as_fmi2(name):
     assert [u.variable.name for u in md3.outputs] == [u.variable.name for u in md2.outputs]
     assert all(not u.dependencies for u in md3.outputs)
     deps = {u.variable.name: sorted(d.name for d in u.dependencies) for u in md2.initialUnknowns}
-    assert {u.variable.name: sorted(d.name for d in u.dependencies) for u in md3.initialUnknowns} == deps
+    assert {u.variable.name: sorted(d.name for d in u.dependencies if d.name not in MAP_ARRAYS)
+            for u in md3.initialUnknowns} == deps
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -239,13 +217,16 @@ def test_a_whole_udds_through_the_fmi3_drive_bit_for_bit(udds_on_fmi2, unzipped3
         u_vr = [fmu.vars[n].valueReference for n in inputs]
         y_vr = [fmu.vars[n].valueReference for n in reals]
         n_vr = [fmu.vars[n].valueReference for n in ints]
-        slave, t = inst.slave, 0.0
+        u_refs, y_refs, n_refs = f3.vrs(u_vr), f3.vrs(y_vr), f3.vrs(n_vr)
+        y_out, n_out = (C.c_double * len(y_vr))(), (C.c_int32 * len(n_vr))()
         differ = []
         for k, (dt, u, r) in enumerate(record.steps):
-            slave.setFloat64(u_vr, [*u, *boundary.values()])
-            slave.doStep(t, dt, True)
-            t += dt
-            y, n = slave.getFloat64(y_vr), slave.getInt32(n_vr)
+            values = f3.array(C.c_double, [*u, *boundary.values()])
+            assert inst.call("fmi3SetFloat64", inst.c, u_refs, len(u_vr), values, len(u_vr)) == f3.OK
+            assert inst.step(dt) == f3.OK, inst.log.text()
+            assert inst.call("fmi3GetFloat64", inst.c, y_refs, len(y_vr), y_out, len(y_vr)) == f3.OK
+            assert inst.call("fmi3GetInt32", inst.c, n_refs, len(n_vr), n_out, len(n_vr)) == f3.OK
+            y, n = list(y_out), list(n_out)
             want = [getattr(r, f) for f in reals]
             if np.array(y).tobytes() != np.array(want).tobytes() or n != [getattr(r, f) for f in ints]:
                 differ.append(k)
@@ -365,11 +346,12 @@ def test_wrong_state_null_pointers_and_unsupported_functions_are_refused(instanc
             ("fmi3GetFloat64", (inst.c, None, 2, out, 2), "NULL"),
             ("fmi3GetFloat64", (inst.c, C.byref(vr_time), 1, out, 1), None),  # (OK: the time)
             ("fmi3GetFloat32", (inst.c, vr, 1, (C.c_float * 1)(), 1), "has no Float32 variable"),
-            ("fmi3SetUInt64", (inst.c, vr, 1, (C.c_uint64 * 1)(), 1), "has no UInt64 variable"),
+            ("fmi3SetUInt64", (inst.c, vr, 1, (C.c_uint64 * 1)(), 1), "not a UInt64"),
+            ("fmi3SetInt64", (inst.c, vr, 1, (C.c_int64 * 1)(), 1), "has no Int64 variable"),
             ("fmi3GetClock", (inst.c, vr, 1, (C.c_bool * 1)()), "has no Clock variable"),
             ("fmi3EnterEventMode", (inst.c,), "no Event Mode"),
             ("fmi3EnterStepMode", (inst.c,), "Step Mode"),
-            ("fmi3EnterConfigurationMode", (inst.c,), "no structural parameters"),
+            ("fmi3EnterConfigurationMode", (inst.c,), "not allowed in state StepMode"),
             ("fmi3UpdateDiscreteStates", (inst.c, None, None, None, None, None, None), "no Event Mode"),
             ("fmi3GetIntervalDecimal", (inst.c, vr, 1, out, None), "no clocks"),
             ("fmi3GetDirectionalDerivative", (inst.c, vr, 1, vr, 1, out, 1, out, 1), "providesDirectional"),
@@ -398,7 +380,7 @@ def test_instantiation_refusals_log_why(unzipped3):
     fmu = unzipped3("IpmsmController")
     probe = f3.Instance3(fmu, "probe")
     log = f3.Log()
-    no_update = fmi3IntermediateUpdateCallback()
+    no_update = f3.IntermediateUpdate()
     resources = (Path(fmu.directory) / "resources").as_posix().encode() + b"/"
     try:
         def args(name: bytes, token: str, event_mode_used: bool):

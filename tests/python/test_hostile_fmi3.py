@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from fmi3_raw import ERROR, OK, WARNING
 
-from conftest import fmu3_path, patient, same
+from conftest import patient, same
 
 FMUS = ["IpmsmController", "IpmsmPlant", "IpmsmDrive"]
 #: bytes: the longest log message allowed. The glue cuts a message at fmi::kMaxLogChars = 4000
@@ -78,18 +78,6 @@ def isolated(case, *args):
                     pytrace=False)
 
 
-@pytest.fixture(scope="module")
-def unzipped3(tmp_path_factory):
-    cache = {}
-
-    def get(name: str) -> raw.Unzipped3:
-        if name not in cache:
-            cache[name] = raw.Unzipped3(fmu3_path(name), tmp_path_factory.mktemp(name))
-        return cache[name]
-
-    return get
-
-
 # --- what every case checks ---
 
 def step_size(u: raw.Unzipped3) -> float:
@@ -111,10 +99,10 @@ def run(inst: raw.Instance3, k0: int, n: int = STEPS) -> list:
             x = start + 0.1 * np.sin(0.3 * k + i)
             if v.max is not None:
                 x = min(x, float(v.max))
-            assert inst.set(v.name, x) == OK, inst.log.text()
+            assert inst.set_status(v.name, x) == OK, inst.log.text()
         status = inst.step(h, t=k * h)
         assert status in (OK, WARNING), f"step {k}: {raw.STATUS.get(status, status)}\n{inst.log.text()[-3000:]}"
-        rows.append(inst.outputs())
+        rows.append(inst.float64_outputs())
     return rows
 
 
@@ -224,7 +212,7 @@ INSTANCE_FUNCTIONS = sorted(n for n in raw.SIGNATURES
 def _null_instance(u):
     inst = raw.Instance3(u, b"owner")  # a real state to pass where one is asked
     inst.init()
-    ok, s = inst.get_state()
+    ok, s = inst.get_state_status()
     assert ok == OK, inst.log.text()
     for name in sorted(u.exported & set(INSTANCE_FUNCTIONS)):
         args = arguments(u, name, None, s)
@@ -237,7 +225,7 @@ def _null_instance(u):
 
 def _null_pointers(u):
     a, twin = twins(u)
-    ok, s = a.get_state()
+    ok, s = a.get_state_status()
     assert ok == OK, a.log.text()
     tried, h = 0, step_size(u)
     for name in sorted(u.exported & set(INSTANCE_FUNCTIONS)):
@@ -278,7 +266,7 @@ def _wrong_state(u):
     # after fmi3Terminate: no more inputs or steps; fmi3Reset starts again
     assert a.terminate() == OK, a.log.text()
     (v, start), *_ = inputs(u)
-    refused(a, "fmi3SetFloat64 of an input after fmi3Terminate", a.set, v.name, start)
+    refused(a, "fmi3SetFloat64 of an input after fmi3Terminate", a.set_status, v.name, start)
     refused(a, "fmi3DoStep after fmi3Terminate", a.step, h, STEPS * h)
     refused(a, "fmi3Terminate twice", a.terminate)
     assert a.reset() == OK, a.log.text()
@@ -290,7 +278,7 @@ def _wrong_state(u):
 
 def _tampered_states(u, other: raw.Unzipped3):
     a, twin = twins(u)
-    ok, s = a.get_state()
+    ok, s = a.get_state_status()
     assert ok == OK, a.log.text()
     blob = a.serialize(s)
     rng = np.random.default_rng(36)
@@ -308,14 +296,14 @@ def _tampered_states(u, other: raw.Unzipped3):
         cases[f"a huge number at byte {pos}"] = bytes(huge)
     other_inst = raw.Instance3(other, b"other")
     other_inst.init()
-    _, other_state = other_inst.get_state()
+    _, other_state = other_inst.get_state_status()
     if other.id != u.id:
         cases[f"a state of {other.id}"] = other_inst.serialize(other_state)
     print(f"\n[{u.id}] {len(cases)} tampered states of a {len(blob)}-byte state", flush=True)
     for what, bad in cases.items():
-        refused(a, f"fmi3DeserializeFMUState of the state {what}", lambda blob: a.deserialize(blob)[0], bad)
+        refused(a, f"fmi3DeserializeFMUState of the state {what}", lambda blob: a.deserialize_status(blob)[0], bad)
     # the genuine state is taken, and is the instance as it was
-    status, d = a.deserialize(blob)
+    status, d = a.deserialize_status(blob)
     assert status == OK, a.log.text()
     assert u.fmi3SetFMUState(a.c, d) == OK, a.log.text()
     usable(a, twin)
@@ -353,7 +341,7 @@ def _huge_counts(u):
     for x in u.md.modelVariables:
         if x.causality == "structuralParameter" and x.type in LARGEST:
             t0 = time.perf_counter()
-            refused(b, f"the structural parameter {x.name} = {LARGEST[x.type]}", b.set, x.name, LARGEST[x.type])
+            refused(b, f"the structural parameter {x.name} = {LARGEST[x.type]}", b.set_status, x.name, LARGEST[x.type])
             assert time.perf_counter() - t0 < patient(HUGE_COUNT_SECONDS)
         elif x.dimensions and x.type == "Float64" and x.causality == "parameter":
             for n in HUGE:

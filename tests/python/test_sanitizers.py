@@ -32,7 +32,7 @@ PYTHON_TESTS = ROOT / "tests" / "python"
 # the modules that load the FMUs, in the default pass
 DEFAULT_MODULES = ["test_hostile.py", "test_hostile_bounds.py", "test_fmi_glue.py", "test_conformance.py",
                    "test_importers.py", "test_controller_fmu.py", "test_plant_fmu.py", "test_coupled.py",
-                   "test_fmi3.py", "test_hostile_fmi3.py"]
+                   "test_fmi3.py", "test_hostile_fmi3.py", "test_fmi3_arrays.py"]
 
 pytestmark = pytest.mark.skipif(os.environ.get("IPMSM_UNDER_SANITIZER") == "1",
                                 reason="already running under the sanitizers")
