@@ -15,6 +15,11 @@ double sign_of(double T) { return T < 0 ? -1.0 : 1.0; }
 // flux varies smoothly along a circle of 128 samples; a bound for skipping circles, not a result).
 constexpr double kFluxMargin = 0.8;
 
+// The shaft-torque bounds of a stretch of circle samples widened by this share of their terms'
+// magnitudes: the bounds and the samples' torques are the same sums in another order, whose
+// rounding differs by a few units in the last place.
+constexpr double kStretchBoundMargin = 1e-12;
+
 // A scalar field's value, gradient and Hessian at one point.
 struct Field {
     double v = 0, d = 0, q = 0, dd = 0, dq = 0, qq = 0;
@@ -283,6 +288,24 @@ const std::vector<double>& LeastLoss::least_flux_sq(const CurrentCircles& C, dou
     return psi2_min_;
 }
 
+LeastLoss::Interval LeastLoss::drag_bounds(const CurrentCircles::Arc& circle, double shift, const IronLossModel& iron,
+                                           double f, double w_m) {
+    if (!(f > 0.0) || w_m == 0.0) return {0.0, 0.0};
+    const double a = iron.power_at(f, circle.flux_sq_lo(shift)) / w_m;
+    const double b = iron.power_at(f, circle.flux_sq_hi(shift)) / w_m;
+    return {std::min(a, b), std::max(a, b)};
+}
+
+LeastLoss::Interval LeastLoss::stretch_torque_bounds(const CurrentCircles::Arc& stretch, double kT, double shift,
+                                                     const Interval& drag) {
+    const double lo = kT * stretch.torque_lo_at(shift) - drag.hi, hi = kT * stretch.torque_hi_at(shift) - drag.lo;
+    const double margin =
+        kStretchBoundMargin * (kT * (std::abs(stretch.torque_lo) + std::abs(stretch.torque_hi) +
+                                     std::abs(shift) * (std::abs(stretch.i_q_lo) + std::abs(stretch.i_q_hi))) +
+                               std::abs(drag.lo) + std::abs(drag.hi));
+    return {lo - margin, hi + margin};
+}
+
 LossSplit LeastLoss::loss_at(const MagnetFlux& flux, const DriveLoss& loss, int pole_pairs, double i_d, double i_q) {
     const FluxPoint f = flux.eval(i_d, i_q);
     const double T_e = torque_factor(pole_pairs) * (f.psi_d * i_q - f.psi_q * i_d);
@@ -455,11 +478,20 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
     // A lower bound of J on a circle of radius r: a r^2 + b r + e P_fe(the least |psi|^2 sampled on
     // it, less a margin for between the samples).
     const std::vector<double>& psi2_min = least_flux_sq(C, P.shift);
-    Sample prev[CurrentCircles::kAngles], cur[CurrentCircles::kAngles];
+    constexpr int N = CurrentCircles::kAngles, L = CurrentCircles::kArc, M = CurrentCircles::kArcs;
+    // prev: circle k - 1 (its samples computed where a stretch needed them: prev_done), cur: circle k.
+    Sample rows[2][N];
+    bool rows_done[2][N];
+    Sample *prev = rows[0], *cur = rows[1];
+    bool *prev_done = rows_done[0], *cur_done = rows_done[1];
+    bool prev_scanned = true;  // circle k - 1 was scanned (not skipped by its loss bound)
+    double bounds[2][2][M];    // each stretch's shaft-torque bounds, lo and hi, of circles k - 1 and k
+    double *prev_lo = bounds[0][0], *prev_hi = bounds[0][1], *cur_lo = bounds[1][0], *cur_hi = bounds[1][1];
     {
         Eval e{};
         const bool ok = feasible(0.0, 0.0, e);
-        for (int j = 0; j < CurrentCircles::kAngles; ++j) prev[j] = {0.0, 0.0, e.h, e.J, ok};
+        for (int j = 0; j < N; ++j) prev[j] = {0.0, 0.0, e.h, e.J, ok}, prev_done[j] = true;
+        for (int m = 0; m < M; ++m) prev_lo[m] = prev_hi[m] = e.h;
     }
     auto offer = [&](const Sample& x, const Sample& y) {
         const double fx = x.h - T, fy = y.h - T;
@@ -471,6 +503,8 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         if (magnet_free_ && c.i_d > 0.0) return;
         seeds.offer(c);
     };
+    // Stretches are skipped by their shaft-torque bounds where the iron loss grows with the flux.
+    const bool prune = !reference_scan_ && P.iron->k_h >= 0.0 && P.iron->k_e >= 0.0 && P.iron->alpha > 0.0;
     for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
         const double r_in = C.radius(k - 1);
         // no point beyond r_in loses less than its copper and inverter loss alone; on circle k (and
@@ -479,17 +513,49 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
         if (P.a * r_in * r_in + P.b * r_in > bound) break;
         const double psi2 = std::min(psi2_min[k - 1], k >= 2 ? psi2_min[k - 2] : psi2_min[k - 1]);
         if (P.a * r_in * r_in + P.b * r_in + P.e * P.P_fe(kFluxMargin * psi2) > bound) {
-            for (int j = 0; j < CurrentCircles::kAngles; ++j) prev[j].feasible = false, prev[j].h = NAN;
+            prev_scanned = false;
             continue;
         }
         const double r = C.radius(k), lin = P.a * r * r + P.b * r;
-        for (int j = 0; j < CurrentCircles::kAngles; ++j) cur[j] = sampled(C.at(k, j), P, lin, V2_ok);
-        evaluations += CurrentCircles::kAngles;
-        for (int j = 0; j < CurrentCircles::kAngles; ++j) {
-            offer(prev[j], cur[j]);
-            offer(cur[j], cur[(j + 1) % CurrentCircles::kAngles]);
+        // Each stretch's samples have their shaft torque within its bounds (MATH.md): a stretch of
+        // both circles whose bounds exclude T* has no crossing on its rays and arcs, and its
+        // samples are not needed.
+        const Interval drag = prune ? drag_bounds(C.whole(k), P.shift, *P.iron, P.f, P.w_m) : Interval{};
+        for (int m = 0; m < M; ++m) {
+            Interval h{-INFINITY, INFINITY};
+            if (prune) {
+                h = stretch_torque_bounds(C.arc(k, m), P.kT, P.shift, drag);
+                // the stretch's own drag bounds, tighter, where the circle's do not exclude T*
+                if (h.lo <= T && T <= h.hi)
+                    h = stretch_torque_bounds(C.arc(k, m), P.kT, P.shift,
+                                              drag_bounds(C.arc(k, m), P.shift, *P.iron, P.f, P.w_m));
+            }
+            cur_lo[m] = h.lo, cur_hi[m] = h.hi;
         }
-        std::copy(cur, cur + CurrentCircles::kAngles, prev);
+        std::fill(cur_done, cur_done + N, false);
+        auto need = [&](Sample* row, bool* done, int kk, int j) {
+            if (done[j]) return;
+            row[j] =
+                sampled(C.at(kk, j), P, kk == k ? lin : P.a * C.radius(kk) * C.radius(kk) + P.b * C.radius(kk), V2_ok);
+            done[j] = true;
+            ++evaluations;
+        };
+        for (int m = 0; m < M; ++m) {
+            double lo = cur_lo[m], hi = cur_hi[m];
+            if (prev_scanned) lo = std::min(lo, prev_lo[m]), hi = std::max(hi, prev_hi[m]);
+            if (lo > T || hi < T) continue;  // (NaN bounds: scanned)
+            for (int j = m * L; j <= (m + 1) * L; ++j) {
+                const int jj = j % N;
+                need(cur, cur_done, k, jj);
+                if (prev_scanned) need(prev, prev_done, k - 1, jj);
+            }
+            for (int j = m * L; j < (m + 1) * L; ++j) {
+                if (prev_scanned) offer(prev[j], cur[j]);
+                offer(cur[j], cur[(j + 1) % N]);
+            }
+        }
+        std::swap(prev, cur), std::swap(prev_done, cur_done), std::swap(prev_lo, cur_lo), std::swap(prev_hi, cur_hi);
+        prev_scanned = true;
     }
 
     // Polish each seed: the interior stationary point, else the curve on the limit it breaks.
@@ -560,9 +626,11 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
             const double gq = P.kT * (f.L_dq * i_q + f.psi_d - f.L_qq * i_d);
             const double g2 = gd * gd + gq * gq;  // (the drag's gradient left out: a small change of direction)
             if (!(g2 > 0.0)) break;
-            i_d -= (h - T) * gd / g2;
-            i_q -= (h - T) * gq / g2;
+            const double d_next = i_d - (h - T) * gd / g2, q_next = i_q - (h - T) * gq / g2;
             ++evaluations;
+            // a step that no longer moves the point: the remaining ones would repeat it exactly
+            if (d_next == i_d && q_next == i_q) break;
+            i_d = d_next, i_q = q_next;
         }
         Eval e{};
         if (!feasible(i_d, i_q, e) || std::abs(e.h - T) > kTorqueTolerance * std::max(top.H, 1.0)) continue;

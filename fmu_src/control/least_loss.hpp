@@ -61,6 +61,24 @@ public:
     // The loss and shaft torque of any command (P_loss_cmd for either objective).
     static LossSplit loss_at(const MagnetFlux& flux, const DriveLoss& loss, int pole_pairs, double i_d, double i_q);
 
+    // The scan below T_max visits only the stretches of the circles whose shaft-torque bounds
+    // include T* (docs/spec/MATH.md, "Least-loss control"); the reference scan (tests) visits them
+    // all: the same crossings, the same command.
+    void set_reference_scan(bool on) { reference_scan_ = on; }
+
+    // Bounds of a quantity over a set of circle samples.
+    struct Interval {
+        double lo = 0, hi = 0;
+    };
+    // The drag P_fe(|psi|^2) / w_m of every sample of `circle` (the whole circle's ranges), at the
+    // magnet shift; iron loss non-decreasing in |psi|^2 (k_h, k_e >= 0, alpha > 0).
+    static Interval drag_bounds(const CurrentCircles::Arc& circle, double shift, const IronLossModel& iron, double f,
+                                double w_m);
+    // The shaft torque kT (T'_0 + shift i_q) - drag of every sample of `stretch`, given the drag's
+    // bounds over them (widened by the rounding of the samples' own sums).
+    static Interval stretch_torque_bounds(const CurrentCircles::Arc& stretch, double kT, double shift,
+                                          const Interval& drag);
+
     // Tolerances: shaft torque relative to T_max, loss relative (the check's, against the crossings).
     static constexpr double kTorqueTolerance = 1e-9;
     static constexpr double kLossTolerance = 1e-7;
@@ -82,6 +100,7 @@ private:
     int pole_pairs_;
     bool magnet_free_;
     std::shared_ptr<const CurrentCircles> circles_;
+    bool reference_scan_ = false;
 };
 
 }  // namespace ipmsm

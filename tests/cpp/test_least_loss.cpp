@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -354,4 +355,95 @@ TEST(LeastLoss, PriusTorqueMaxIsTheLargestShaftTorque) {
     EXPECT_NEAR(r.cmd.torque, T, 1e-9 * T);
     EXPECT_LE(r.loss.total(), b.P * (1 + 1e-6))
         << "brute force at (" << b.i_d << ", " << b.i_q << ") A, command (" << r.cmd.i_d << ", " << r.cmd.i_q << ") A";
+}
+
+// The scan below T_max skips the stretches of the current circles whose shaft-torque bounds
+// exclude T* (docs/spec/MATH.md, "Least-loss control"). The bounds: every sample's shaft torque,
+// computed as the solver computes it, within its stretch's bounds, at magnet shifts of both signs,
+// both directions of rotation, iron-loss exponents 2 and 1.6; and not wider than they need be
+// (the samples come within 2 % of the bounds' width of each end on some stretch).
+TEST(LeastLoss, StretchTorqueBoundsHoldEverySample) {
+    const auto map =
+        std::make_shared<const FluxMap>(saturating_flux_map(kLd, kLq, kPsiM, 200.0, 0.15, kIMax, 1.3 * kIMax, 53));
+    const CurrentCircles C(*map, kIMax);
+    const double kT = 1.5 * kP;
+    long checked = 0, tight = 0;
+    for (double alpha : {2.0, 1.6}) {
+        const IronLossModel iron{kIron.k_h, alpha, kIron.k_e, kIron.psi_ref};
+        for (double shift : {-0.006, 0.0, 0.004}) {
+            for (double w_m : {-900.0, 0.0, 250.0, 1200.0}) {
+                const double f = IronLossModel::frequency(kP, w_m);
+                for (int k = 1; k <= CurrentCircles::kRadii; ++k) {
+                    const LeastLoss::Interval drag_circle = LeastLoss::drag_bounds(C.whole(k), shift, iron, f, w_m);
+                    for (int m = 0; m < CurrentCircles::kArcs; ++m) {
+                        const CurrentCircles::Arc& A = C.arc(k, m);
+                        for (const LeastLoss::Interval& drag :
+                             {drag_circle, LeastLoss::drag_bounds(A, shift, iron, f, w_m)}) {
+                            const LeastLoss::Interval h = LeastLoss::stretch_torque_bounds(A, kT, shift, drag);
+                            double lo = INFINITY, hi = -INFINITY;
+                            for (int j = m * CurrentCircles::kArc; j <= (m + 1) * CurrentCircles::kArc; ++j) {
+                                const CurrentCircles::Sample& x = C.at(k, j);
+                                const double psi_d = x.psi_d + shift;
+                                const double P_fe = f > 0.0 ? iron.power_at(f, psi_d * psi_d + x.psi_q * x.psi_q) : 0.0;
+                                const double T =
+                                    kT * (psi_d * x.i_q - x.psi_q * x.i_d) - (w_m != 0.0 ? P_fe / w_m : 0.0);
+                                EXPECT_GE(T, h.lo) << "circle " << k << ", sample " << j;
+                                EXPECT_LE(T, h.hi) << "circle " << k << ", sample " << j;
+                                lo = std::min(lo, T), hi = std::max(hi, T);
+                                ++checked;
+                            }
+                            tight += lo - h.lo <= 0.02 * (h.hi - h.lo) && h.hi - hi <= 0.02 * (h.hi - h.lo);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    EXPECT_EQ(checked, 2L * 3 * 4 * CurrentCircles::kRadii * CurrentCircles::kArcs * 2 * (CurrentCircles::kArc + 1));
+    EXPECT_GT(tight, 0);
+}
+
+// The scan visits only the stretches whose bounds include T*, the reference scan every one: the
+// same crossings, so the same command, bit for bit, on random operating points in four quadrants
+// (a saturating map, magnets warm; with and without the least-current hint); and fewer samples.
+TEST(LeastLoss, StretchPruningKeepsTheCommandBitForBit) {
+    const auto map =
+        std::make_shared<const FluxMap>(saturating_flux_map(kLd, kLq, kPsiM, 200.0, 0.15, kIMax, 1.3 * kIMax, 53));
+    SaturatedOptimalCurrent em(map, kP);
+    LeastLoss fast(map, kP, false), reference(map, kP, false);
+    reference.set_reference_scan(true);
+    const double shift = -0.004;
+    const MagnetFlux flux(*map, shift);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    long evaluations_fast = 0, evaluations_reference = 0;
+    int below_top = 0;
+    for (int n = 0; n < 300; ++n) {
+        const double w = (U(rng) < 0.5 ? -1 : 1) * 12000.0 * U(rng) * kPi / 30.0, u_dc = 300.0 + 100.0 * U(rng);
+        const OperatingLimits lim{kP * w, 0.95 * u_dc / std::sqrt(3.0), kIMax};
+        const IronLossModel iron{kIron.k_h, n % 3 == 0 ? 1.7 : 2.0, kIron.k_e, kIron.psi_ref};
+        const DriveLoss loss(iron, kInverter, kP, w, kRs, u_dc);
+        const double side = U(rng) < 0.5 ? -1.0 : 1.0;
+        const CurrentCommand top = em.solve(side * 1e30, lim, kRs, shift, Recursion::optimal);
+        const double T = side * top.torque_max * 1.05 * U(rng);
+        const CurrentCommand least_current = em.solve(T, lim, kRs, shift, Recursion::optimal);
+        const CurrentPoint hint{least_current.i_d, least_current.i_q};
+        const CurrentPoint* h = n % 2 ? &hint : nullptr;
+        const LeastLossResult a = fast.solve(T, lim, flux, loss, top, h),
+                              b = reference.solve(T, lim, flux, loss, top, h);
+        SCOPED_TRACE(::testing::Message() << w << " rad/s, T = " << T << " N.m, u_dc = " << u_dc);
+        EXPECT_EQ(a.cmd.i_d, b.cmd.i_d);
+        EXPECT_EQ(a.cmd.i_q, b.cmd.i_q);
+        EXPECT_EQ(a.cmd.torque, b.cmd.torque);
+        EXPECT_EQ(a.cmd.torque_max, b.cmd.torque_max);
+        EXPECT_EQ(a.cmd.region, b.cmd.region);
+        EXPECT_EQ(a.check_passed, b.check_passed);
+        EXPECT_EQ(a.searched, b.searched);
+        EXPECT_LE(a.evaluations, b.evaluations);
+        evaluations_fast += a.evaluations, evaluations_reference += b.evaluations;
+        below_top += std::abs(T) < a.cmd.torque_max;
+    }
+    EXPECT_GT(below_top, 200);
+    EXPECT_LT(evaluations_fast, evaluations_reference);
+    std::printf("evaluations: %ld pruned, %ld reference scan\n", evaluations_fast, evaluations_reference);
 }
