@@ -31,6 +31,7 @@ void CurrentCircles::Arc::add(const Sample& x) {
     i_q_lo = std::min(i_q_lo, x.i_q), i_q_hi = std::max(i_q_hi, x.i_q);
     psi_d_lo = std::min(psi_d_lo, x.psi_d), psi_d_hi = std::max(psi_d_hi, x.psi_d);
     psi_q2_lo = std::min(psi_q2_lo, q2), psi_q2_hi = std::max(psi_q2_hi, q2);
+    terms = std::max(terms, std::abs(x.psi_d * x.i_q) + std::abs(x.psi_q * x.i_d));
 }
 
 double CurrentCircles::Arc::flux_sq_lo(double shift) const {

@@ -30,11 +30,13 @@ public:
     // next stretch's first), or the whole circle; the ranges of its samples that bound their shaft
     // torque at any magnet shift (docs/spec/MATH.md, "Least-loss control": the scan's stretches).
     static constexpr int kArc = 8, kArcs = kAngles / kArc;
+    static_assert(kAngles % kArc == 0, "the stretches tile each circle");
     struct Arc {
         double torque_lo = INFINITY, torque_hi = -INFINITY;  // T'_0 = psi_d i_q - psi_q i_d (no shift)
         double i_q_lo = INFINITY, i_q_hi = -INFINITY;
         double psi_d_lo = INFINITY, psi_d_hi = -INFINITY;    // without the shift
         double psi_q2_lo = INFINITY, psi_q2_hi = -INFINITY;  // psi_q^2
+        double terms = 0.0;  // the largest |psi_d i_q| + |psi_q i_d|: the scale of T'_0's rounding
         void add(const Sample& x);
         // T' = T'_0 + shift i_q of every sample is within [torque_lo_at, torque_hi_at]
         double torque_lo_at(double shift) const { return torque_lo + std::min(shift * i_q_lo, shift * i_q_hi); }

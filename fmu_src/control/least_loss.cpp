@@ -16,8 +16,9 @@ double sign_of(double T) { return T < 0 ? -1.0 : 1.0; }
 constexpr double kFluxMargin = 0.8;
 
 // The shaft-torque bounds of a stretch of circle samples widened by this share of their terms'
-// magnitudes: the bounds and the samples' torques are the same sums in another order, whose
-// rounding differs by a few units in the last place.
+// magnitudes (the products |psi_d i_q|, |psi_q i_d|, |shift i_q| and the drag, not their sum,
+// which can cancel): the bounds and the samples' torques are the same sums in another order,
+// whose rounding differs by a few units in the last place of those terms.
 constexpr double kStretchBoundMargin = 1e-12;
 
 // A scalar field's value, gradient and Hessian at one point.
@@ -300,7 +301,7 @@ LeastLoss::Interval LeastLoss::stretch_torque_bounds(const CurrentCircles::Arc& 
                                                      const Interval& drag) {
     const double lo = kT * stretch.torque_lo_at(shift) - drag.hi, hi = kT * stretch.torque_hi_at(shift) - drag.lo;
     const double margin =
-        kStretchBoundMargin * (kT * (std::abs(stretch.torque_lo) + std::abs(stretch.torque_hi) +
+        kStretchBoundMargin * (kT * (stretch.terms + std::abs(stretch.torque_lo) + std::abs(stretch.torque_hi) +
                                      std::abs(shift) * (std::abs(stretch.i_q_lo) + std::abs(stretch.i_q_hi))) +
                                std::abs(drag.lo) + std::abs(drag.hi));
     return {lo - margin, hi + margin};
@@ -541,9 +542,14 @@ LeastLossResult LeastLoss::solve(double T_ref, const OperatingLimits& lim, const
             ++evaluations;
         };
         for (int m = 0; m < M; ++m) {
+            // T* outside the hull of both circles' bounds: no ray or arc of the stretch crosses it
+            // (a NaN bound on either circle: scanned; std::min would drop it)
             double lo = cur_lo[m], hi = cur_hi[m];
-            if (prev_scanned) lo = std::min(lo, prev_lo[m]), hi = std::max(hi, prev_hi[m]);
-            if (lo > T || hi < T) continue;  // (NaN bounds: scanned)
+            if (prev_scanned) {
+                if (std::isnan(prev_lo[m]) || std::isnan(prev_hi[m])) lo = hi = NAN;
+                lo = std::min(lo, prev_lo[m]), hi = std::max(hi, prev_hi[m]);
+            }
+            if (lo > T || hi < T) continue;
             for (int j = m * L; j <= (m + 1) * L; ++j) {
                 const int jj = j % N;
                 need(cur, cur_done, k, jj);

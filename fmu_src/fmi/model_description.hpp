@@ -130,6 +130,8 @@ std::string table_problems(const M& defaults) {
             p << where << "a parameter must be fixed or tunable\n";
         if ((c == Causality::structural_parameter) != (actual == Type::UInt64))
             p << where << "a structural parameter is a UInt64, and a UInt64 is a structural parameter\n";
+        else if (actual == Type::UInt64 && value_of<std::uint64_t>(defaults, v) == 0)
+            p << where << "a structural parameter starts at 1 or more (FMI 3.0: no array is empty at its start)\n";
         if (actual == Type::RealArray) {
             if (c != Causality::parameter || v.dimensions.empty())
                 p << where << "an array is a parameter with lengths\n";

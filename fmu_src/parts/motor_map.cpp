@@ -4,6 +4,7 @@
 
 #include "fmi2_support.hpp"
 #include "machine/flux_map_cache.hpp"
+#include "machine/map_file.hpp"
 
 namespace ipmsm {
 
@@ -37,8 +38,8 @@ std::string map_text(const MotorParams& motor) {
 std::string flux_map_path(const MotorParams& motor, const fmi::Context& context) {
     if (motor.map_as_arrays()) {
         if (!motor.flux_map.empty())
-            throw fmi::Error("flux_map = \"" + motor.flux_map.substr(0, 200) + "\" and " + kMapArrays +
-                             " both give a flux map: give one (flux_map = \"\", or n_i_d = n_i_q = 0)");
+            throw fmi::Error("flux_map = " + quoted_excerpt(motor.flux_map) + " and " + kMapArrays +
+                             " both give a flux map: give one (flux_map = \"\", or n_i_d = n_i_q = 1)");
         return kMapArrays;
     }
     if (motor.flux_map.empty() && context.resource_dir.empty())

@@ -49,9 +49,13 @@ const std::vector<fmi::Variable<MotorParams>>& variables_of(const MotorParams*) 
         {"alpha_cu", &P::alpha_cu, Causality::parameter, Variability::fixed, "1/K", "",
          "Temperature coefficient of the winding resistance (copper 0.00393)", 0.0, 0.01},
         {"n_i_d", &P::n_i_d, Causality::structural_parameter, Variability::fixed, "", "",
-         "The flux map as arrays: number of i_d axis values (0: no map as arrays, flux_map holds it)", 0.0, kAxisMax},
+         "The flux map as arrays: number of i_d axis values (at most 1 on both axes, the start: no map as arrays, "
+         "flux_map holds it)",
+         0.0, kAxisMax},
         {"n_i_q", &P::n_i_q, Causality::structural_parameter, Variability::fixed, "", "",
-         "The flux map as arrays: number of i_q axis values (0: no map as arrays, flux_map holds it)", 0.0, kAxisMax},
+         "The flux map as arrays: number of i_q axis values (at most 1 on both axes, the start: no map as arrays, "
+         "flux_map holds it)",
+         0.0, kAxisMax},
         {"i_d_axis",
          map_array(&P::i_d_axis),
          Causality::parameter,
