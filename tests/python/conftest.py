@@ -128,36 +128,33 @@ def unzipped3(tmp_path_factory):
     return get
 
 
-@pytest.fixture
-def instances3(unzipped3):
-    """instances3(name, instance_name="instance", **Instance3 options) -> an fmi3_raw.Instance3 of
-    that FMI 3.0 FMU, freed after the test."""
+def _instances(unzip, instance_class):
+    """A fixture's body for either standard: new(name, instance_name="instance", **options) ->
+    instance_class(unzip(name), ...), every one freed after the test."""
     made = []
 
-    def new(name: str, instance_name: str = "instance", **options) -> raw3.Instance3:
-        inst = raw3.Instance3(unzipped3(name), instance_name, **options)
+    def new(name: str, instance_name: str = "instance", **options):
+        inst = instance_class(unzip(name), instance_name, **options)
         made.append(inst)
         return inst
 
     yield new
     for inst in made:
         inst.free()
+
+
+@pytest.fixture
+def instances3(unzipped3):
+    """instances3(name, instance_name="instance", **Instance3 options) -> an fmi3_raw.Instance3 of
+    that FMI 3.0 FMU, freed after the test."""
+    yield from _instances(unzipped3, raw3.Instance3)
 
 
 @pytest.fixture
 def fmu_instances(unzipped):
     """fmu_instances(name, instance_name="instance", **Instance options) -> an fmi2_raw.Instance
     of that FMU, freed after the test."""
-    made = []
-
-    def new(name: str, instance_name: str = "instance", **options) -> raw.Instance:
-        inst = raw.Instance(unzipped(name), instance_name, **options)
-        made.append(inst)
-        return inst
-
-    yield new
-    for inst in made:
-        inst.free()
+    yield from _instances(unzipped, raw.Instance)
 
 
 @pytest.fixture
